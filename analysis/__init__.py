@@ -1,0 +1,1 @@
+"""analysis: flock metrics, figures and reports."""

@@ -1,0 +1,68 @@
+"""3-D trace plots: every boid's path over a run (after Hartman & Benes, Figure 7).
+
+``plot_traces(pos, path, pattern=None, color_by="auto", wrap_jump=None, title="")`` draws the
+positions ``pos`` float64 (R, N, 3) as one polyline per boid and saves a PNG (or SVG, by extension).
+Colours: one per boid (``"boid"``), or one per pattern value (``"pattern"``; Holland's Table 1 body
+colours for its four patterns); ``"auto"`` picks pattern when more than one pattern is present. Jumps
+longer than ``wrap_jump`` (boundary wraps) break the line instead of drawing across the world.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+TABLE_1_COLOURS = {0b00000000: "gold", 0b00111010: "green", 0b11000101: "blue", 0b11111111: "red"}
+
+
+def _segments(track: np.ndarray, wrap_jump: float | None):
+    """Pieces of one boid's (R, 3) track split where a step is longer than ``wrap_jump``."""
+    if wrap_jump is None or len(track) < 2:
+        return [track]
+    jumps = np.nonzero(np.linalg.norm(np.diff(track, axis=0), axis=1) > wrap_jump)[0]
+    return np.split(track, jumps + 1)
+
+
+def boid_colours(n: int, pattern: np.ndarray | None, color_by: str):
+    import matplotlib
+
+    values = np.unique(pattern) if pattern is not None else np.array([0])
+    if color_by == "auto":
+        color_by = "pattern" if len(values) > 1 else "boid"
+    if color_by == "pattern":
+        cmap = matplotlib.colormaps["tab10"]
+        lookup = {v: TABLE_1_COLOURS.get(int(v), cmap(k % 10)) for k, v in enumerate(values)}
+        return [lookup[v] for v in pattern], lookup
+    cmap = matplotlib.colormaps["turbo"]
+    return [cmap(k / max(n - 1, 1)) for k in range(n)], None
+
+
+def plot_traces(pos: np.ndarray, path, pattern: np.ndarray | None = None, color_by: str = "auto",
+                wrap_jump: float | None = None, title: str = "") -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = pos.shape[1]
+    colours, legend = boid_colours(n, pattern, color_by)
+    fig = plt.figure(figsize=(7, 6), dpi=110)
+    ax = fig.add_subplot(projection="3d")
+    for i in range(n):
+        for piece in _segments(pos[:, i], wrap_jump):
+            ax.plot(piece[:, 0], piece[:, 2], piece[:, 1], color=colours[i], linewidth=0.7, alpha=0.85)
+    ax.scatter(pos[-1, :, 0], pos[-1, :, 2], pos[-1, :, 1], c=colours, s=6, depthshade=False)
+    if legend:
+        for value, colour in legend.items():
+            ax.plot([], [], color=colour, label=f"pattern {int(value):0b}")
+        ax.legend(loc="upper left", fontsize=7)
+    ax.set_xlabel("x")
+    ax.set_ylabel("z")
+    ax.set_zlabel("y (up)")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path

@@ -1,0 +1,132 @@
+"""OpenSteer vehicle physics, banking frame and world boundary (MODEL.md sections 1, 0 and 3).
+Compiled with numba.
+
+``apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip)`` advances boid i by one step of
+``dt`` in place, given its raw steering force:
+
+1. low-speed cone clamp: when speed <= 0.2 max_speed and the force is non-zero, the force is turned into
+   the cone about f of cosine 1 - 2 (speed / (0.2 max_speed))^20, keeping its length;
+2. truncation to max_force, a = force / mass;
+3. acceleration smoothing a_s += clip(9 dt, 0.15, 0.4) (a - a_s);
+4. v = truncate(speed f + a_s dt, max_speed);
+5. p += v dt;
+6. banking frame: u = normalize(u + clip(3 dt, 0, 1)(0.05 a_s + (0, 0.2, 0) - u)); f = v/|v| when
+   |v| > 0; s = normalize(f x u); u = s x f (rebuilt also when the boid is stopped, so the frame is
+   always orthonormal; when f is parallel to u, s falls back to the old side made orthogonal to f);
+   then the boundary (sphere wrap or periodic box).
+
+All arrays are float64 (N, 3); ``vel`` holds v = speed f.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from .layout import (BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F_BOX, F_DT, F_MASS, F_MAX_FORCE, F_MAX_SPEED,
+                     F_WORLD_RADIUS, I_BOUNDARY)
+from .rules import normalized
+
+SMOOTH_MIN, SMOOTH_MAX = 0.15, 0.4
+GLOBAL_UP_Y = 0.2
+BANK_ACCEL = 0.05
+
+
+@nb.njit(cache=True, inline="always")
+def truncated(x, y, z, limit):
+    """(x, y, z) scaled down to length ``limit`` when longer."""
+    n2 = x * x + y * y + z * z
+    if n2 > limit * limit:
+        k = limit / math.sqrt(n2)
+        return x * k, y * k, z * k
+    return x, y, z
+
+
+@nb.njit(cache=True, inline="always")
+def cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@nb.njit(cache=True)
+def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
+    """Force turned into the cone of axis u (unit) and the given cosine, keeping its length."""
+    length = math.sqrt(fx * fx + fy * fy + fz * fz)
+    if length == 0.0:
+        return fx, fy, fz
+    along = (fx * ux + fy * uy + fz * uz)
+    if along / length >= cosine:
+        return fx, fy, fz
+    px, py, pz = normalized(fx - along * ux, fy - along * uy, fz - along * uz)
+    perp = math.sqrt(1.0 - cosine * cosine)
+    return ((cosine * ux + perp * px) * length, (cosine * uy + perp * py) * length,
+            (cosine * uz + perp * pz) * length)
+
+
+@nb.njit(cache=True)
+def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
+    """Banking frame update of boid i after its move (module docstring, step 6)."""
+    rate = min(max(3.0 * dt, 0.0), 1.0)
+    ux = up[i, 0] + rate * (BANK_ACCEL * acc[i, 0] - up[i, 0])
+    uy = up[i, 1] + rate * (BANK_ACCEL * acc[i, 1] + GLOBAL_UP_Y - up[i, 1])
+    uz = up[i, 2] + rate * (BANK_ACCEL * acc[i, 2] - up[i, 2])
+    un = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if un > 0.0:
+        ux, uy, uz = ux / un, uy / un, uz / un
+    else:
+        ux, uy, uz = up[i, 0], up[i, 1], up[i, 2]
+    if speed > 0.0:
+        fwd[i, 0], fwd[i, 1], fwd[i, 2] = vx / speed, vy / speed, vz / speed
+    f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
+    sx, sy, sz = cross(f0, f1, f2, ux, uy, uz)
+    sn = math.sqrt(sx * sx + sy * sy + sz * sz)
+    if sn > 1e-12:
+        sx, sy, sz = sx / sn, sy / sn, sz / sn
+    else:
+        along = side[i, 0] * f0 + side[i, 1] * f1 + side[i, 2] * f2
+        sx, sy, sz = normalized(side[i, 0] - along * f0, side[i, 1] - along * f1, side[i, 2] - along * f2)
+    side[i, 0], side[i, 1], side[i, 2] = sx, sy, sz
+    up[i, 0], up[i, 1], up[i, 2] = cross(sx, sy, sz, f0, f1, f2)
+
+
+@nb.njit(cache=True)
+def apply_boundary(i, pos, fp, ip):
+    kind = ip[I_BOUNDARY]
+    if kind == BOUNDARY_SPHERE_WRAP:
+        radius = fp[F_WORLD_RADIUS]
+        r = math.sqrt(pos[i, 0] ** 2 + pos[i, 1] ** 2 + pos[i, 2] ** 2)
+        if r > radius:
+            k = 2.0 * radius / r
+            pos[i, 0] -= k * pos[i, 0]
+            pos[i, 1] -= k * pos[i, 1]
+            pos[i, 2] -= k * pos[i, 2]
+    elif kind == BOUNDARY_PERIODIC:
+        box = fp[F_BOX]
+        for c in range(3):
+            pos[i, c] -= box * math.floor((pos[i, c] + 0.5 * box) / box)
+
+
+@nb.njit(cache=True)
+def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip):
+    """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz)."""
+    dt = fp[F_DT]
+    max_speed = fp[F_MAX_SPEED]
+    speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+    slow = 0.2 * max_speed
+    if speed <= slow and (fx != 0.0 or fy != 0.0 or fz != 0.0):
+        cosine = 1.0 - 2.0 * (speed / slow) ** 20
+        fx, fy, fz = cone_clamp(fx, fy, fz, fwd[i, 0], fwd[i, 1], fwd[i, 2], cosine)
+    fx, fy, fz = truncated(fx, fy, fz, fp[F_MAX_FORCE])
+    mass = fp[F_MASS]
+    rate = min(max(9.0 * dt, SMOOTH_MIN), SMOOTH_MAX)
+    acc[i, 0] += rate * (fx / mass - acc[i, 0])
+    acc[i, 1] += rate * (fy / mass - acc[i, 1])
+    acc[i, 2] += rate * (fz / mass - acc[i, 2])
+    vx, vy, vz = truncated(speed * fwd[i, 0] + acc[i, 0] * dt, speed * fwd[i, 1] + acc[i, 1] * dt,
+                           speed * fwd[i, 2] + acc[i, 2] * dt, max_speed)
+    vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
+    pos[i, 0] += vx * dt
+    pos[i, 1] += vy * dt
+    pos[i, 2] += vz * dt
+    new_speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+    rebuild_frame(i, vx, vy, vz, new_speed, fwd, up, side, acc, dt)
+    apply_boundary(i, pos, fp, ip)

@@ -1,0 +1,321 @@
+"""Validated, frozen simulation parameters (MODEL.md sections 0-3 and 7).
+
+A model preset is a TOML file whose top-level keys are the fields of :class:`ModelParams` plus two tables,
+``[init]`` (:class:`InitParams`) and ``[run]`` (:class:`RunSettings`). :func:`load_preset` reads one,
+applies ``key=value`` overrides and returns a frozen :class:`Preset`. Every check raises
+:class:`~simcore.schema.ConfigError` naming the dotted key, the bad value and what is allowed; the
+compiled kernel trusts what passes.
+
+Angles are in degrees, lengths in world units (body radius 0.5), times in seconds.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+from .schema import ConfigError, apply_overrides, build, suggest, to_dict
+
+PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
+DYNAMICS = ("opensteer",)
+BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
+UPDATE_ORDERS = ("synchronous", "sequential")
+SEPARATION_WEIGHTS = ("similarity", "dissimilarity", "uniform")
+
+
+def _choice(key: str, value, allowed) -> None:
+    if value not in allowed:
+        raise ConfigError(key, f"got {value!r}; allowed: {', '.join(map(repr, allowed))}" +
+                          suggest(str(value), allowed))
+
+
+def _positive(key: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(key, f"got {value!r}; must be a finite number > 0")
+
+
+def _non_negative(key: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigError(key, f"got {value!r}; must be a finite number >= 0")
+
+
+def _within(key: str, value: float, lo: float, hi: float, lo_open=False) -> None:
+    ok = math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise ConfigError(key, f"got {value!r}; allowed range {bracket}{lo}, {hi}]")
+
+
+# Keys of [perception] that only mean something for one kind; setting them for another kind is an error.
+PERCEPTION_KIND_KEYS = {
+    "sphere": ("radius",),
+    "opensteer": ("near_radius", "separation_radius", "separation_cos", "alignment_radius",
+                  "alignment_cos", "cohesion_radius", "cohesion_cos"),
+    "binocular": ("direction_deg", "eye_position_deg", "field_deg", "range", "head_radius",
+                  "occlusion", "body_radius"),
+}
+
+
+@dataclass(frozen=True)
+class Perception:
+    """Who boid i sees (MODEL.md section 2)."""
+
+    kind: str = "opensteer"
+    # sphere
+    radius: float = 9.0
+    # opensteer: per rule a radius and the cosine of the forward cone; always seen within near_radius
+    near_radius: float = 1.5
+    separation_radius: float = 5.0
+    separation_cos: float = -0.707
+    alignment_radius: float = 7.5
+    alignment_cos: float = 0.7
+    cohesion_radius: float = 9.0
+    cohesion_cos: float = -0.15
+    # binocular (Holland & Semwal)
+    direction_deg: float = 60.0
+    eye_position_deg: float | None = None  # None: equal to direction_deg (resolved on construction)
+    field_deg: float = 120.0
+    range: float = 20.0
+    head_radius: float = 0.5
+    occlusion: bool = True
+    body_radius: float = 0.5
+
+    def __post_init__(self):
+        _choice("perception.kind", self.kind, PERCEPTION_KINDS)
+        _positive("perception.radius", self.radius)
+        _non_negative("perception.near_radius", self.near_radius)
+        for rule in ("separation", "alignment", "cohesion"):
+            _positive(f"perception.{rule}_radius", getattr(self, f"{rule}_radius"))
+            _within(f"perception.{rule}_cos", getattr(self, f"{rule}_cos"), -1.0, 1.0)
+        _within("perception.direction_deg", self.direction_deg, 0.0, 90.0)
+        if self.eye_position_deg is None:
+            object.__setattr__(self, "eye_position_deg", self.direction_deg)
+        _within("perception.eye_position_deg", self.eye_position_deg, 0.0, 90.0)
+        _within("perception.field_deg", self.field_deg, 0.0, 360.0, lo_open=True)
+        _positive("perception.range", self.range)
+        _non_negative("perception.head_radius", self.head_radius)
+        _positive("perception.body_radius", self.body_radius)
+
+
+@dataclass(frozen=True)
+class Steering:
+    """Weights of the combined OpenSteer steering force (MODEL.md section 3)."""
+
+    separation_weight: float = 12.0
+    alignment_weight: float = 8.0
+    cohesion_weight: float = 8.0
+
+    def __post_init__(self):
+        for name in ("separation_weight", "alignment_weight", "cohesion_weight"):
+            _non_negative(f"steering.{name}", getattr(self, name))
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """OpenSteer SimpleVehicle physics constants."""
+
+    max_speed: float = 9.0
+    max_force: float = 27.0
+    mass: float = 1.0
+
+    def __post_init__(self):
+        for name in ("max_speed", "max_force", "mass"):
+            _positive(f"vehicle.{name}", getattr(self, name))
+
+
+@dataclass(frozen=True)
+class World:
+    """Boundary and update order (MODEL.md section 0)."""
+
+    boundary: str = "open"
+    sphere_radius: float = 50.0
+    box_size: float = 100.0
+    update_order: str = "synchronous"
+
+    def __post_init__(self):
+        _choice("world.boundary", self.boundary, BOUNDARIES)
+        _positive("world.sphere_radius", self.sphere_radius)
+        _positive("world.box_size", self.box_size)
+        _choice("world.update_order", self.update_order, UPDATE_ORDERS)
+
+
+@dataclass(frozen=True)
+class PatternEntry:
+    """One pattern of the set: a bit string (most significant bit first) and its share of the flock."""
+
+    bits: str
+    fraction: float
+
+    def __post_init__(self):
+        if not (1 <= len(self.bits) <= 32) or set(self.bits) - {"0", "1"}:
+            raise ConfigError("bits", f"got {self.bits!r}; must be a string of 1 to 32 characters 0/1")
+        _within("fraction", self.fraction, 0.0, 1.0)
+
+    @property
+    def value(self) -> int:
+        return int(self.bits, 2)
+
+
+HOLLAND_TABLE_1 = (
+    PatternEntry("00000000", 0.35),
+    PatternEntry("00111010", 0.35),
+    PatternEntry("11000101", 0.15),
+    PatternEntry("11111111", 0.15),
+)
+
+
+@dataclass(frozen=True)
+class Patterns:
+    """Holland's pattern recognition (MODEL.md section 3)."""
+
+    enabled: bool = False
+    separation_weight: str = "similarity"
+    set: tuple[PatternEntry, ...] = HOLLAND_TABLE_1
+
+    def __post_init__(self):
+        _choice("patterns.separation_weight", self.separation_weight, SEPARATION_WEIGHTS)
+        if not self.set:
+            raise ConfigError("patterns.set", "must name at least one pattern")
+        lengths = {len(p.bits) for p in self.set}
+        if len(lengths) != 1:
+            raise ConfigError("patterns.set", f"all patterns must have the same length, got {sorted(lengths)}")
+        total = math.fsum(p.fraction for p in self.set)
+        if abs(total - 1.0) > 1e-9:
+            raise ConfigError("patterns.set", f"fractions sum to {total!r}; they must sum to 1")
+
+    @property
+    def n_bits(self) -> int:
+        return len(self.set[0].bits)
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Everything that defines the model (not the run): perception, rules, physics, world."""
+
+    name: str = "opensteer"
+    dynamics: str = "opensteer"
+    description: str = ""
+    perception: Perception = field(default_factory=Perception)
+    steering: Steering = field(default_factory=Steering)
+    vehicle: Vehicle = field(default_factory=Vehicle)
+    world: World = field(default_factory=World)
+    patterns: Patterns = field(default_factory=Patterns)
+
+    def __post_init__(self):
+        _choice("dynamics", self.dynamics, DYNAMICS)
+
+
+@dataclass(frozen=True)
+class InitParams:
+    """Initial conditions (MODEL.md section 0): N boids uniform in a ball, headings uniform on the
+    sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``."""
+
+    n: int = 100
+    radius: float = 20.0
+    speed: float = 2.7
+    scale_with_n: bool = False
+
+    def __post_init__(self):
+        if self.n < 1:
+            raise ConfigError("init.n", f"got {self.n!r}; must be an integer >= 1")
+        _positive("init.radius", self.radius)
+        _non_negative("init.speed", self.speed)
+
+    @property
+    def ball_radius(self) -> float:
+        return self.radius * (self.n / 100.0) ** (1.0 / 3.0) if self.scale_with_n else self.radius
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """Duration, fixed step and record interval of one run (seconds)."""
+
+    duration: float = 30.0
+    dt: float = 1.0 / 60.0
+    record_interval: float = 1.0
+
+    def __post_init__(self):
+        _positive("run.dt", self.dt)
+        _positive("run.duration", self.duration)
+        _positive("run.record_interval", self.record_interval)
+        steps = self.record_interval / self.dt
+        if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
+            raise ConfigError("run.record_interval",
+                              f"got {self.record_interval!r}; must be a whole multiple of run.dt = {self.dt!r}")
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration / self.dt))
+
+    @property
+    def record_every(self) -> int:
+        return int(round(self.record_interval / self.dt))
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A model preset file, resolved: the model, its initial conditions and run settings."""
+
+    model: ModelParams
+    init: InitParams
+    run: RunSettings
+
+    def to_dict(self) -> dict:
+        out = to_dict(self.model)
+        out["init"] = to_dict(self.init)
+        out["run"] = to_dict(self.run)
+        return out
+
+
+_MODEL_KEYS = tuple(f.name for f in fields(ModelParams))
+
+
+def _check_kind_keys(perception: dict) -> None:
+    kind = perception.get("kind", Perception.kind)
+    for other_kind, keys in PERCEPTION_KIND_KEYS.items():
+        if other_kind == kind:
+            continue
+        for key in keys:
+            if key in perception and key not in PERCEPTION_KIND_KEYS.get(kind, ()):
+                raise ConfigError(f"perception.{key}",
+                                  f"applies only to perception.kind = '{other_kind}', not '{kind}'")
+
+
+def preset_from_dict(data: dict) -> Preset:
+    """Validated :class:`Preset` from a parsed preset dict (see module docstring)."""
+    data = dict(data)
+    init = data.pop("init", {})
+    run = data.pop("run", {})
+    for key in data:
+        if key not in _MODEL_KEYS:
+            allowed = _MODEL_KEYS + ("init", "run")
+            raise ConfigError(key, "unknown key" + suggest(key, allowed) + f"; allowed keys: {', '.join(allowed)}")
+    if isinstance(data.get("perception"), dict):
+        _check_kind_keys(data["perception"])
+    for name, table in (("init", init), ("run", run)):
+        if not isinstance(table, dict):
+            raise ConfigError(name, f"expected a table, got {table!r}")
+    return Preset(model=build(ModelParams, data), init=build(InitParams, init, "init"),
+                  run=build(RunSettings, run, "run"))
+
+
+def read_toml(path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("", f"model file not found: {path}")
+    try:
+        with path.open("rb") as handle:
+            return tomllib.load(handle)
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError("", f"{path}: not valid TOML: {err}") from None
+
+
+def load_preset(path, overrides=()) -> Preset:
+    """Read a preset TOML, apply ``key=value`` overrides, validate."""
+    return preset_from_dict(apply_overrides(read_toml(path), overrides))
+
+
+def with_changes(preset: Preset, **sections) -> Preset:
+    """Copy of ``preset`` with whole sections replaced, e.g. ``init=replace(p.init, n=20)``."""
+    return replace(preset, **sections)

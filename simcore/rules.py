@@ -1,0 +1,98 @@
+"""OpenSteer steering rules and Holland's pattern weighting (MODEL.md section 3). Compiled with numba.
+
+``opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask)`` returns the combined steering
+force (fx, fy, fz) of boid i from its ``m`` perceived neighbours (buffers as in :mod:`simcore.perception`):
+
+    S = normalize(sum_j w'_ij (-d_j / |d_j|^2))
+    A = normalize(sum_j w_ij f_j / sum_j w_ij - f_i)
+    C = normalize(sum_j w_ij d_j / sum_j w_ij)
+    force = w_s S + w_a A + w_c C
+
+with w = w' = 1 outside pattern mode, and in pattern mode w_ij = (n - popcount(b_i ^ b_j)) / n and w'
+chosen by ``patterns.separation_weight`` (similarity w, dissimilarity 1 - w, uniform 1). A rule with no
+neighbours or zero total weight contributes 0; normalize(0) = 0. Sums run in ascending j. A neighbour
+at distance exactly 0 adds nothing to separation (its direction is undefined).
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .layout import F_ALI_W, F_COH_W, F_SEP_W, I_NBITS, I_PATTERNS, I_SEP_WEIGHT, SEPW_DISSIMILARITY, SEPW_SIMILARITY
+from .perception import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
+
+
+@nb.njit(cache=True, inline="always")
+def popcount32(x):
+    """Number of set bits of a 32-bit pattern."""
+    x = np.uint32(x)
+    x = x - ((x >> np.uint32(1)) & np.uint32(0x55555555))
+    x = (x & np.uint32(0x33333333)) + ((x >> np.uint32(2)) & np.uint32(0x33333333))
+    x = (x + (x >> np.uint32(4))) & np.uint32(0x0F0F0F0F)
+    return np.int64((x * np.uint32(0x01010101)) >> np.uint32(24))
+
+
+@nb.njit(cache=True, inline="always")
+def similarity(a, b, n_bits):
+    """Holland's pattern match in [0, 1]: share of equal bits of two n-bit patterns."""
+    return (n_bits - popcount32(np.uint32(a) ^ np.uint32(b))) / n_bits
+
+
+@nb.njit(cache=True, inline="always")
+def normalized(x, y, z):
+    """(x, y, z) / |(x, y, z)|, or zeros for the zero vector."""
+    n = math.sqrt(x * x + y * y + z * z)
+    if n > 0.0:
+        return x / n, y / n, z / n
+    return 0.0, 0.0, 0.0
+
+
+@nb.njit(cache=True)
+def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
+    """Combined steering force of boid i (see module docstring)."""
+    use_patterns = ip[I_PATTERNS] != 0
+    n_bits = ip[I_NBITS]
+    sep_mode = ip[I_SEP_WEIGHT]
+    sx = sy = sz = 0.0
+    ax = ay = az = 0.0
+    cx = cy = cz = 0.0
+    w_ali = 0.0
+    w_coh = 0.0
+    for n in range(m):
+        j = nb_idx[n]
+        mask = nb_mask[n]
+        dx, dy, dz = nb_off[n, 0], nb_off[n, 1], nb_off[n, 2]
+        w = similarity(pattern[i], pattern[j], n_bits) if use_patterns else 1.0
+        if mask & RULE_SEPARATION:
+            dd = dx * dx + dy * dy + dz * dz
+            if dd > 0.0:
+                if not use_patterns or sep_mode == SEPW_SIMILARITY:
+                    ws = w
+                elif sep_mode == SEPW_DISSIMILARITY:
+                    ws = 1.0 - w
+                else:
+                    ws = 1.0
+                sx += ws * (-dx / dd)
+                sy += ws * (-dy / dd)
+                sz += ws * (-dz / dd)
+        if mask & RULE_ALIGNMENT:
+            ax += w * fwd[j, 0]
+            ay += w * fwd[j, 1]
+            az += w * fwd[j, 2]
+            w_ali += w
+        if mask & RULE_COHESION:
+            cx += w * dx
+            cy += w * dy
+            cz += w * dz
+            w_coh += w
+    sx, sy, sz = normalized(sx, sy, sz)
+    if w_ali > 0.0:
+        ax, ay, az = normalized(ax / w_ali - fwd[i, 0], ay / w_ali - fwd[i, 1], az / w_ali - fwd[i, 2])
+    if w_coh > 0.0:
+        cx, cy, cz = normalized(cx / w_coh, cy / w_coh, cz / w_coh)
+    ws_, wa_, wc_ = fp[F_SEP_W], fp[F_ALI_W], fp[F_COH_W]
+    return (ws_ * sx + wa_ * ax + wc_ * cx,
+            ws_ * sy + wa_ * ay + wc_ * cy,
+            ws_ * sz + wa_ * az + wc_ * cz)

@@ -1,0 +1,114 @@
+"""The public entry point: simulate one run (or a batch of replicates) and return its observations.
+
+``simulate(model, init, seed, duration, dt, record_every)`` draws the initial state from the seed
+(MODEL.md section 7), runs ``round(duration / dt)`` steps in one compiled call and returns
+:class:`Observations` (MODEL.md section 8), recorded at steps 0, k, 2k, ... with k = ``record_every``:
+
+* ``times``      float64 (R,)       seconds
+* ``pos``, ``vel`` float64 (R, N, 3)
+* ``visible``    int32 (R, N)       neighbours perceived (union of the rule sets)
+* ``binocular``  int32 (R, N)       of those, seen by both eyes
+* ``pattern``    uint32 (N,)        each boid's pattern (0 outside pattern mode)
+* ``final``      :class:`~simcore.state.State` after the last step
+
+``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
+result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import kernel
+from .layout import pack
+from .params import InitParams, ModelParams, Preset
+from .rng import run_streams
+from .state import State, initial_state
+
+MODEL_VERSION = "1"  # bump whenever a change alters any trajectory for an unchanged spec
+
+
+@dataclass(frozen=True)
+class Observations:
+    times: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    visible: np.ndarray
+    binocular: np.ndarray
+    pattern: np.ndarray
+    final: State
+    dt: float
+    record_every: int
+
+    @property
+    def n(self) -> int:
+        return self.pos.shape[1]
+
+
+def _n_steps(duration: float, dt: float) -> int:
+    if not (dt > 0 and np.isfinite(dt)):
+        raise ValueError(f"dt: got {dt!r}; must be a finite number > 0")
+    if not (duration > 0 and np.isfinite(duration)):
+        raise ValueError(f"duration: got {duration!r}; must be a finite number > 0")
+    return int(round(duration / dt))
+
+
+def _records(n_records: int, n: int, lead: tuple = ()):
+    return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
+            np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32))
+
+
+def _check_record_every(record_every) -> int:
+    if isinstance(record_every, bool) or int(record_every) != record_every or record_every < 1:
+        raise ValueError(f"record_every: got {record_every!r}; must be an integer >= 1 (steps)")
+    return int(record_every)
+
+
+def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1) -> Observations:
+    """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched."""
+    record_every = _check_record_every(record_every)
+    s = state.copy()
+    fp, ip = pack(model, dt)
+    n_records = n_steps // record_every + 1
+    rec = _records(n_records, s.n)
+    kernel.run_opensteer(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, fp, ip, n_steps, record_every, *rec)
+    times = np.arange(n_records) * (record_every * dt)
+    return Observations(times, *rec, pattern=s.pattern.copy(), final=s, dt=dt, record_every=record_every)
+
+
+def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
+             record_every: int = 1) -> Observations:
+    """Simulate one run from its seed (see module docstring)."""
+    n_steps = _n_steps(duration, dt)
+    rng, _loop_key = run_streams(seed)
+    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every)
+
+
+def simulate_preset(preset: Preset, seed, record_every: int | None = None) -> Observations:
+    """``simulate`` with the model, initial conditions and run settings of a preset."""
+    run = preset.run
+    every = run.record_every if record_every is None else record_every
+    return simulate(preset.model, preset.init, seed, run.duration, run.dt, every)
+
+
+def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
+                   record_every: int = 1) -> list[Observations]:
+    """Several runs of one (model, init), one per seed, in one threaded compiled call."""
+    record_every = _check_record_every(record_every)
+    n_steps = _n_steps(duration, dt)
+    states = [initial_state(init, model.patterns, run_streams(seed)[0]) for seed in seeds]
+    stacked = {f: np.stack([getattr(s, f) for s in states]) for f in
+               ("pos", "vel", "fwd", "up", "side", "acc", "pattern")}
+    fp, ip = pack(model, dt)
+    n_records = n_steps // record_every + 1
+    rec = _records(n_records, init.n, (len(states),))
+    kernel.run_batch(stacked["pos"], stacked["vel"], stacked["fwd"], stacked["up"], stacked["side"],
+                     stacked["acc"], stacked["pattern"], fp, ip, n_steps, record_every, *rec)
+    times = np.arange(n_records) * (record_every * dt)
+    out = []
+    for b in range(len(states)):
+        final = State(**{f: stacked[f][b] for f in stacked})
+        out.append(Observations(times, rec[0][b], rec[1][b], rec[2][b], rec[3][b],
+                                pattern=final.pattern.copy(), final=final, dt=dt, record_every=record_every))
+    return out

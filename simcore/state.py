@@ -1,0 +1,78 @@
+"""Simulation state as arrays (MODEL.md section 1) and its initial conditions (section 0).
+
+:class:`State` holds, for N boids: ``pos``, ``vel``, ``fwd``, ``up``, ``side``, ``acc`` (float64 (N, 3);
+``side`` = normalize(fwd x up), kept with the frame) and ``pattern`` (uint32 (N,)). No per-boid objects.
+
+:func:`initial_state` draws it from the run's init generator (``numpy.random.Generator``): positions
+uniform in a ball (radius ``InitParams.ball_radius``, centred at the origin), headings uniform on the
+sphere, speed ``InitParams.speed``, up = world y made orthogonal to the heading (OpenSteer's reset),
+zero smoothed acceleration. Patterns: counts are fraction x N rounded by largest remainder (ties to the
+earlier entry), and which boid gets which pattern is a random permutation from the same generator.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import InitParams, Patterns
+
+
+@dataclass(frozen=True)
+class State:
+    pos: np.ndarray
+    vel: np.ndarray
+    fwd: np.ndarray
+    up: np.ndarray
+    side: np.ndarray
+    acc: np.ndarray
+    pattern: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.pos.shape[0]
+
+    def copy(self) -> "State":
+        return State(*(np.array(getattr(self, f), copy=True) for f in
+                       ("pos", "vel", "fwd", "up", "side", "acc", "pattern")))
+
+
+def pattern_counts(patterns: Patterns, n: int) -> np.ndarray:
+    """Boids per pattern: fraction x n rounded by largest remainder (ties go to the earlier entry)."""
+    exact = np.array([p.fraction for p in patterns.set]) * n
+    counts = np.floor(exact).astype(np.int64)
+    short = n - int(counts.sum())
+    order = sorted(range(len(counts)), key=lambda k: (-(exact[k] - counts[k]), k))
+    for k in order[:short]:
+        counts[k] += 1
+    return counts
+
+
+def frame_from_forward(fwd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(up, side) completing unit headings ``fwd`` (N, 3) to right-handed frames with up near world y."""
+    world_up = np.array([0.0, 1.0, 0.0])
+    side = np.cross(fwd, world_up)
+    norm = np.linalg.norm(side, axis=1, keepdims=True)
+    degenerate = norm[:, 0] < 1e-12
+    side[degenerate] = np.cross(fwd[degenerate], [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    up = np.cross(side, fwd)
+    return up, side
+
+
+def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator) -> State:
+    """Initial state of ``init.n`` boids drawn from ``rng`` (see module docstring)."""
+    n = init.n
+    direction = rng.standard_normal((n, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    radius = init.ball_radius * rng.random(n) ** (1.0 / 3.0)
+    pos = direction * radius[:, None]
+    fwd = rng.standard_normal((n, 3))
+    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
+    up, side = frame_from_forward(fwd)
+    values = np.array([p.value for p in patterns.set], dtype=np.uint32)
+    pattern = np.repeat(values, pattern_counts(patterns, n))[rng.permutation(n)]
+    if not patterns.enabled:
+        pattern = np.zeros(n, dtype=np.uint32)
+    return State(pos=pos, vel=fwd * init.speed, fwd=fwd, up=up, side=side, acc=np.zeros((n, 3)),
+                 pattern=np.ascontiguousarray(pattern, dtype=np.uint32))

@@ -1,0 +1,1 @@
+"""sweeps: config-driven sweep runner and the flocksweep CLI."""
