@@ -43,7 +43,7 @@ def run_opensteer(pos, vel, fwd, up, side, acc, pattern, fp, ip, n_steps, record
     nb_mask = np.empty(n, np.int64)
     nb_label = np.empty(n, np.int64)
     work_f = np.empty((n, 5), np.float64)
-    work_i = np.empty(n, np.int64)
+    work_i = np.empty((n + 2, 4), np.int64)
     force = np.empty((n, 3), np.float64)
     visible = np.empty(n, np.int32)
     binocular = np.empty(n, np.int32)

@@ -68,7 +68,7 @@ def pack(model: ModelParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
     fp[F_SEP_R], fp[F_SEP_COS] = per.separation_radius, per.separation_cos
     fp[F_ALI_R], fp[F_ALI_COS] = per.alignment_radius, per.alignment_cos
     fp[F_COH_R], fp[F_COH_COS] = per.cohesion_radius, per.cohesion_cos
-    fp[F_COS_EYE], fp[F_SIN_EYE] = cos_deg(per.eye_position_deg), sin_deg(per.eye_position_deg)
+    fp[F_COS_EYE], fp[F_SIN_EYE] = cos_deg(per.eye_deg), sin_deg(per.eye_deg)
     fp[F_COS_GAZE], fp[F_SIN_GAZE] = cos_deg(per.direction_deg), sin_deg(per.direction_deg)
     fp[F_COS_HALF_FIELD] = cos_deg(per.field_deg / 2.0)
     fp[F_RANGE] = per.range

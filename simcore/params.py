@@ -74,7 +74,7 @@ class Perception:
     cohesion_cos: float = -0.15
     # binocular (Holland & Semwal)
     direction_deg: float = 60.0
-    eye_position_deg: float | None = None  # None: equal to direction_deg (resolved on construction)
+    eye_position_deg: float | None = None  # None: equal to direction_deg (see ``eye_deg``)
     field_deg: float = 120.0
     range: float = 20.0
     head_radius: float = 0.5
@@ -89,13 +89,25 @@ class Perception:
             _positive(f"perception.{rule}_radius", getattr(self, f"{rule}_radius"))
             _within(f"perception.{rule}_cos", getattr(self, f"{rule}_cos"), -1.0, 1.0)
         _within("perception.direction_deg", self.direction_deg, 0.0, 90.0)
-        if self.eye_position_deg is None:
-            object.__setattr__(self, "eye_position_deg", self.direction_deg)
-        _within("perception.eye_position_deg", self.eye_position_deg, 0.0, 90.0)
+        if self.eye_position_deg is not None:
+            _within("perception.eye_position_deg", self.eye_position_deg, 0.0, 90.0)
         _within("perception.field_deg", self.field_deg, 0.0, 360.0, lo_open=True)
         _positive("perception.range", self.range)
         _non_negative("perception.head_radius", self.head_radius)
         _positive("perception.body_radius", self.body_radius)
+
+    @property
+    def eye_deg(self) -> float:
+        """Eye position angle in use: ``eye_position_deg``, or ``direction_deg`` when unset."""
+        return self.direction_deg if self.eye_position_deg is None else self.eye_position_deg
+
+    def resolved(self) -> dict:
+        """The keys that matter for this kind, with defaults resolved (canonical form)."""
+        keys = ("kind",) + PERCEPTION_KIND_KEYS[self.kind]
+        out = {key: getattr(self, key) for key in keys}
+        if self.kind == "binocular":
+            out["eye_position_deg"] = self.eye_deg
+        return out
 
 
 @dataclass(frozen=True)
@@ -239,6 +251,10 @@ class RunSettings:
         _positive("run.dt", self.dt)
         _positive("run.duration", self.duration)
         _positive("run.record_interval", self.record_interval)
+        whole = self.duration / self.dt
+        if abs(whole - round(whole)) > 1e-6 * max(1.0, whole):
+            raise ConfigError("run.duration", f"got {self.duration!r}; must be a whole number of steps of "
+                                              f"run.dt = {self.dt!r} (e.g. {round(whole) * self.dt!r})")
         steps = self.record_interval / self.dt
         if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
             raise ConfigError("run.record_interval",
@@ -262,10 +278,16 @@ class Preset:
     run: RunSettings
 
     def to_dict(self) -> dict:
-        out = to_dict(self.model)
-        out["init"] = to_dict(self.init)
-        out["run"] = to_dict(self.run)
-        return out
+        """Canonical resolved form: every key that matters, defaults filled in, keys of other
+        perception kinds left out. ``preset_from_dict(p.to_dict()) == p`` up to that resolution."""
+        return {**model_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
+
+
+def model_dict(model: ModelParams) -> dict:
+    """Canonical resolved dict of a model (see :meth:`Preset.to_dict`)."""
+    out = to_dict(model)
+    out["perception"] = model.perception.resolved()
+    return out
 
 
 _MODEL_KEYS = tuple(f.name for f in fields(ModelParams))
@@ -273,6 +295,9 @@ _MODEL_KEYS = tuple(f.name for f in fields(ModelParams))
 
 def _check_kind_keys(perception: dict) -> None:
     kind = perception.get("kind", Perception.kind)
+    if not isinstance(kind, str):
+        raise ConfigError("perception.kind", f"expected a string, got {kind!r}")
+    _choice("perception.kind", kind, PERCEPTION_KINDS)
     for other_kind, keys in PERCEPTION_KIND_KEYS.items():
         if other_kind == kind:
             continue

@@ -8,14 +8,15 @@ first ``m`` slots of the neighbour buffers and returns ``m``:
 * ``nb_mask``  int64 (N,)    rule bits: ``RULE_SEPARATION | RULE_ALIGNMENT | RULE_COHESION`` it feeds
 * ``nb_label`` int64 (N,)    binocular eye label: ``EYE_LEFT``, ``EYE_RIGHT`` or ``EYE_BOTH`` (0 otherwise)
 
-``work_f`` float64 (N,5) and ``work_i`` int64 (N,) are scratch for the occlusion phase. Kinds:
+``work_f`` float64 (N, 5) and ``work_i`` int64 (N + 2, 4) are scratch for the occlusion phase. Kinds:
 
 * sphere: |d| < radius;
 * opensteer: per rule, |d| < near_radius, else |d| <= r and f . d/|d| > c;
 * binocular: view phase per eye (range from the eye, cone about the gaze axis), then the perspective
   phase: a farther in-view k is hidden when a closer in-view j's projected disc contains k's,
   |u_j - u_k| <= rho_j - rho_k. Every in-view boid occludes, hidden or not, so the result is
-  independent of the order of the checks.
+  independent of the order of the checks. A neighbour exactly at the observer's centre (possible when
+  the eyes sit off-centre) has no direction: it neither hides nor is hidden.
 """
 from __future__ import annotations
 
@@ -166,36 +167,82 @@ def _view_phase(i, pos, fwd, side, fp, ip, periodic, box, nb_idx, nb_off, nb_mas
 
 
 @nb.njit(cache=True)
+def _widest_axis(m, work_f):
+    """World axis (0, 1, 2) along which the projected centres work_f[:m, 1:4] spread most."""
+    best, best_var = 0, -1.0
+    for axis in range(3):
+        mean = 0.0
+        for a in range(m):
+            mean += work_f[a, 1 + axis]
+        mean /= m
+        var = 0.0
+        for a in range(m):
+            var += (work_f[a, 1 + axis] - mean) ** 2
+        if var > best_var:
+            best, best_var = axis, var
+    return best
+
+
+@nb.njit(cache=True, inline="always")
+def _bin(x, n_bins):
+    b = int((x + 1.0) * (0.5 * n_bins))
+    return min(max(b, 0), n_bins - 1)
+
+
+@nb.njit(cache=True)
 def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
-    """Perspective phase: drop completely occluded neighbours in place; returns the new count."""
+    """Perspective phase: drop completely occluded neighbours in place; returns the new count.
+
+    Candidate pairs come from bins along one world axis of the projected centres (the axis of widest
+    spread): since |x_j - x_k| <= |u_j - u_k| <= rho_j - rho_k < rho_j, an occluder j can only hide a k
+    whose coordinate lies within rho_j of its own. Every candidate gets the exact containment test, so
+    the result is that of testing every pair.
+    """
     body = fp[F_BODY_R]
     for a in range(m):
         dist = math.sqrt(nb_off[a, 0] ** 2 + nb_off[a, 1] ** 2 + nb_off[a, 2] ** 2)
-        work_f[a, 0] = dist
-        work_f[a, 1] = body / dist
-        work_f[a, 2] = nb_off[a, 0] / dist
-        work_f[a, 3] = nb_off[a, 1] / dist
-        work_f[a, 4] = nb_off[a, 2] / dist
-    order = np.argsort(work_f[:m, 0])
+        if dist > 0.0:
+            work_f[a, 0] = body / dist
+            work_f[a, 1] = nb_off[a, 0] / dist
+            work_f[a, 2] = nb_off[a, 1] / dist
+            work_f[a, 3] = nb_off[a, 2] / dist
+        else:  # at the observer's centre (seen from an eye): no direction, neither hides nor is hidden
+            work_f[a, 0] = -1.0
+            work_f[a, 1] = work_f[a, 2] = work_f[a, 3] = 0.0
+    axis = 1 + _widest_axis(m, work_f)
+    # counting sort of the slots into m bins over [-1, 1]: work_i[:, 2] bin starts, work_i[:, 1] slots
+    n_bins = m
+    for b in range(n_bins + 1):
+        work_i[b, 2] = 0
     for a in range(m):
-        work_i[a] = 0  # hidden flag, by buffer slot
-    for b in range(1, m):
-        k = order[b]
-        rho_k = work_f[k, 1]
-        for c in range(b):
-            j = order[c]
-            gap = work_f[j, 1] - rho_k
-            if gap <= 0.0:
+        work_i[a, 0] = 0  # hidden flag, by slot
+        work_i[_bin(work_f[a, axis], n_bins) + 1, 2] += 1
+    for b in range(n_bins):
+        work_i[b + 1, 2] += work_i[b, 2]
+    for b in range(n_bins):
+        work_i[b, 3] = work_i[b, 2]  # fill cursor
+    for a in range(m):
+        b = _bin(work_f[a, axis], n_bins)
+        work_i[work_i[b, 3], 1] = a
+        work_i[b, 3] += 1
+    for j in range(m):
+        rho_j = work_f[j, 0]
+        reach = rho_j * (1.0 + 1e-9)
+        lo = _bin(work_f[j, axis] - reach, n_bins)
+        hi = _bin(work_f[j, axis] + reach, n_bins)
+        for s in range(work_i[lo, 2], work_i[hi + 1, 2]):
+            k = work_i[s, 1]
+            gap = rho_j - work_f[k, 0]
+            if gap <= 0.0 or work_i[k, 0] != 0 or work_f[k, 0] < 0.0:
                 continue
-            ux = work_f[j, 2] - work_f[k, 2]
-            uy = work_f[j, 3] - work_f[k, 3]
-            uz = work_f[j, 4] - work_f[k, 4]
+            ux = work_f[j, 1] - work_f[k, 1]
+            uy = work_f[j, 2] - work_f[k, 2]
+            uz = work_f[j, 3] - work_f[k, 3]
             if ux * ux + uy * uy + uz * uz <= gap * gap:
-                work_i[k] = 1
-                break
+                work_i[k, 0] = 1
     kept = 0
     for a in range(m):
-        if work_i[a] == 0:
+        if work_i[a, 0] == 0:
             if kept != a:
                 _store(kept, nb_idx[a], nb_off[a, 0], nb_off[a, 1], nb_off[a, 2], nb_mask[a], nb_label[a],
                        nb_idx, nb_off, nb_mask, nb_label)

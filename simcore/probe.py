@@ -18,7 +18,7 @@ from .state import State
 
 def _buffers(n: int):
     return (np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),
-            np.empty((n, 5)), np.empty(n, np.int64))
+            np.empty((n, 5)), np.empty((n + 2, 4), np.int64))
 
 
 def perceived(model: ModelParams, state: State, i: int, dt: float = 1.0 / 60.0) -> dict:

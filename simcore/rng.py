@@ -7,7 +7,8 @@ its first child seeds the ``Generator(PCG64)`` for initial conditions, its secon
 In-loop draws are a pure function of ``(loop_key, stream, step, index)``: the 4-tuple is mixed with the
 SplitMix64 finaliser (Steele, Lea & Flood 2014) in a keyed chain, so a draw never depends on which
 thread, batch or evaluation order asked for it. ``uniform01`` has 53 random bits in [0, 1);
-``normal`` uses Box-Muller on two such uniforms (sub-counters 0 and 1 of the same ``index``).
+``normal`` uses Box-Muller on two such uniforms (indices 2 index and 2 index + 1), so a stream
+must be used either for uniform or for normal draws, never both.
 
 Streams are small integers naming what the draw is for (``STREAM_*`` below), so adding a new use of
 randomness never shifts an existing one.
@@ -32,12 +33,13 @@ def seed_sequence(seed) -> np.random.SeedSequence:
     """SeedSequence of a run seed: an int >= 0 or a sequence of ints >= 0."""
     if isinstance(seed, np.random.SeedSequence):
         return seed
-    if isinstance(seed, (bool, np.bool_)):
-        raise ValueError(f"seed: got {seed!r}; must be an integer >= 0 or a list of them")
-    entropy = [int(s) for s in seed] if isinstance(seed, (list, tuple)) else int(seed)
-    if min(np.atleast_1d(entropy)) < 0:
-        raise ValueError(f"seed: got {seed!r}; must be an integer >= 0 or a list of them")
-    return np.random.SeedSequence(entropy)
+    items = list(seed) if isinstance(seed, (list, tuple)) else [seed]
+    ok = bool(items) and all(isinstance(s, (int, np.integer)) and not isinstance(s, (bool, np.bool_))
+                             and s >= 0 for s in items)
+    if not ok:
+        raise ValueError(f"seed: got {seed!r}; must be an integer >= 0 or a non-empty list of them")
+    entropy = [int(s) for s in items]
+    return np.random.SeedSequence(entropy if isinstance(seed, (list, tuple)) else entropy[0])
 
 
 def run_streams(seed) -> tuple[np.random.Generator, np.uint64]:

@@ -95,6 +95,10 @@ def build(cls, data: dict, path: str = ""):
         if key not in fields:
             raise ConfigError(join(path, key), "unknown key" + suggest(key, fields) +
                               f"; allowed keys: {', '.join(sorted(fields))}")
+    for name, spec in fields.items():
+        required = spec.default is dataclasses.MISSING and spec.default_factory is dataclasses.MISSING
+        if required and name not in data:
+            raise ConfigError(join(path, name), "missing required key")
     kwargs = {k: _convert(v, hints[k], join(path, k)) for k, v in data.items()}
     try:
         return cls(**kwargs)
@@ -130,6 +134,8 @@ def parse_value(text: str):
 def set_dotted(data: dict, dotted: str, value) -> None:
     """Set ``data['a']['b']['c'] = value`` for ``dotted == 'a.b.c'``, creating tables as needed."""
     parts = dotted.split(".")
+    if not all(parts):
+        raise ConfigError(dotted, "an override key must be dotted names like perception.field_deg")
     node = data
     for part in parts[:-1]:
         child = node.setdefault(part, {})

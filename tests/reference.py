@@ -103,7 +103,8 @@ def perceive(i, pos, fwd, side, model, box=None) -> dict:
 
     # Holland & Semwal binocular view phase: label bit 1 = left eye, bit 2 = right eye.
     f, s, h = fwd[i], side[i], per.head_radius
-    ca, sa = cos_deg(per.eye_position_deg), sin_deg(per.eye_position_deg)
+    alpha = per.direction_deg if per.eye_position_deg is None else per.eye_position_deg  # MODEL sec 2 default
+    ca, sa = cos_deg(alpha), sin_deg(alpha)
     cd, sd = cos_deg(per.direction_deg), sin_deg(per.direction_deg)
     cos_half = cos_deg(per.field_deg / 2.0)
     eyes = ((1, h * (ca * f - sa * s), cd * f - sd * s),   # (bit, e_L - p_i, gaze a_L)
