@@ -1,0 +1,76 @@
+"""Shared helpers for the simcore tests: model builders and hand-made states.
+
+Only builders live here; every assertion is in the test modules.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from simcore import State
+from simcore.params import HOLLAND_TABLE_1, ModelParams, Patterns, Perception, Steering, Vehicle, World
+from simcore.state import frame_from_forward
+
+# test modules import these helpers and tests/reference.py by module name, whatever pytest's import mode
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+TABLE_1_VALUES = np.array([p.value for p in HOLLAND_TABLE_1], dtype=np.uint32)
+
+
+def make_model(kind="opensteer", *, boundary="open", order="synchronous", sphere_radius=50.0,
+               box_size=100.0, patterns=None, steering=None, vehicle=None, **perception) -> ModelParams:
+    """ModelParams with the given perception kind/keys, world and (optional) pattern separation weight.
+
+    ``patterns`` is None (pattern mode off) or one of the separation_weight options."""
+    pat = Patterns() if patterns is None else Patterns(enabled=True, separation_weight=patterns)
+    return ModelParams(
+        perception=Perception(kind=kind, **perception),
+        steering=steering or Steering(),
+        vehicle=vehicle or Vehicle(),
+        world=World(boundary=boundary, sphere_radius=sphere_radius, box_size=box_size, update_order=order),
+        patterns=pat,
+    )
+
+
+def unit_vectors(rng: np.random.Generator, n: int) -> np.ndarray:
+    v = rng.standard_normal((n, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def state_from(pos, fwd, speed, acc=None, pattern=None) -> State:
+    """State with headings ``fwd`` (unit), velocities speed * fwd and the canonical frame."""
+    pos = np.array(pos, dtype=np.float64)
+    fwd = np.array(fwd, dtype=np.float64)
+    n = len(pos)
+    up, side = frame_from_forward(fwd)
+    speed = np.broadcast_to(np.asarray(speed, dtype=np.float64), (n,))
+    acc = np.zeros((n, 3)) if acc is None else np.array(acc, dtype=np.float64)
+    pattern = np.zeros(n, np.uint32) if pattern is None else np.asarray(pattern, dtype=np.uint32)
+    return State(pos=pos, vel=fwd * speed[:, None], fwd=fwd, up=up, side=side, acc=acc, pattern=pattern)
+
+
+def flock_state(seed: int, n: int = 24, *, ball_radius: float = 4.0, box_size: float | None = None,
+                max_speed: float = 9.0) -> State:
+    """A random but flock-like state: boids close enough to see each other, random headings, varied speeds.
+
+    Positions are uniform in a ball of ``ball_radius`` (or, with ``box_size``, uniform in the periodic box
+    [-L/2, L/2)^3). A quarter of the boids are slower than 0.2 max_speed (one of them stopped) so the
+    low-speed cone clamp acts; the rest fly at 0.3..1 max_speed. The smoothed acceleration is non-zero and
+    patterns are drawn from Holland's Table 1.
+    """
+    rng = np.random.default_rng(seed)
+    if box_size is None:
+        radius = ball_radius * rng.random(n) ** (1.0 / 3.0)
+        pos = unit_vectors(rng, n) * radius[:, None]
+    else:
+        pos = rng.uniform(-box_size / 2, box_size / 2, (n, 3))
+    fwd = unit_vectors(rng, n)
+    speed = rng.uniform(0.3, 1.0, n) * max_speed
+    n_slow = max(2, n // 4)
+    speed[:n_slow] = rng.uniform(0.0, 0.2, n_slow) * max_speed
+    speed[0] = 0.0
+    acc = rng.normal(scale=4.0, size=(n, 3))
+    pattern = rng.choice(TABLE_1_VALUES, n)
+    return state_from(pos, fwd, speed, acc, pattern)
