@@ -32,7 +32,7 @@ GLOBAL_UP_Y = 0.2
 BANK_ACCEL = 0.05
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def truncated(x, y, z, limit):
     """(x, y, z) scaled down to length ``limit`` when longer."""
     n2 = x * x + y * y + z * z
@@ -42,12 +42,12 @@ def truncated(x, y, z, limit):
     return x, y, z
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
     """Force turned into the cone of axis u (unit) and the given cosine, keeping its length."""
     length = math.sqrt(fx * fx + fy * fy + fz * fz)
@@ -62,7 +62,7 @@ def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
             (cosine * uz + perp * pz) * length)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     """Banking frame update of boid i after its move (module docstring, step 6)."""
     rate = min(max(3.0 * dt, 0.0), 1.0)
@@ -88,7 +88,7 @@ def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     up[i, 0], up[i, 1], up[i, 2] = cross(sx, sy, sz, f0, f1, f2)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def apply_boundary(i, pos, fp, ip):
     kind = ip[I_BOUNDARY]
     if kind == BOUNDARY_SPHERE_WRAP:
@@ -105,7 +105,7 @@ def apply_boundary(i, pos, fp, ip):
             pos[i, c] -= box * math.floor((pos[i, c] + 0.5 * box) / box)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip):
     """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz)."""
     dt = fp[F_DT]

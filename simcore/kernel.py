@@ -25,7 +25,7 @@ from .perception import EYE_BOTH, perceive
 from .rules import opensteer_force
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _count(m, nb_label):
     both = 0
     for n in range(m):
@@ -34,7 +34,7 @@ def _count(m, nb_label):
     return both
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def run_opensteer(pos, vel, fwd, up, side, acc, pattern, fp, ip, n_steps, record_every,
                   rec_pos, rec_vel, rec_visible, rec_binocular):
     n = pos.shape[0]
@@ -79,7 +79,7 @@ def run_opensteer(pos, vel, fwd, up, side, acc, pattern, fp, ip, n_steps, record
             r += 1
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, error_model="numpy", parallel=True)
 def run_batch(pos, vel, fwd, up, side, acc, pattern, fp, ip, n_steps, record_every,
               rec_pos, rec_vel, rec_visible, rec_binocular):
     for b in nb.prange(pos.shape[0]):

@@ -39,13 +39,13 @@ EYE_RIGHT = 2
 EYE_BOTH = 3
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def min_image(x, box):
     """Minimum-image component of an offset in a periodic box of side ``box``."""
     return x - box * math.floor(x / box + 0.5)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def offset(pos, i, j, periodic, box):
     """d = p_j - p_i, minimum image when ``periodic``."""
     dx = pos[j, 0] - pos[i, 0]
@@ -58,7 +58,7 @@ def offset(pos, i, j, periodic, box):
     return dx, dy, dz
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _store(m, j, dx, dy, dz, mask, label, nb_idx, nb_off, nb_mask, nb_label):
     nb_idx[m] = j
     nb_off[m, 0] = dx
@@ -68,7 +68,7 @@ def _store(m, j, dx, dy, dz, mask, label, nb_idx, nb_off, nb_mask, nb_label):
     nb_label[m] = label
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _perceive_sphere(i, pos, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     r2 = fp[F_SPHERE_RADIUS] * fp[F_SPHERE_RADIUS]
     m = 0
@@ -82,7 +82,7 @@ def _perceive_sphere(i, pos, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_labe
     return m
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _perceive_opensteer(i, pos, fwd, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     near2 = fp[F_NEAR_R] * fp[F_NEAR_R]
     sep_r2 = fp[F_SEP_R] * fp[F_SEP_R]
@@ -117,7 +117,7 @@ def _perceive_opensteer(i, pos, fwd, fp, periodic, box, nb_idx, nb_off, nb_mask,
     return m
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
     """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?"""
     qx = dx - ex
@@ -131,7 +131,7 @@ def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
     return ax * qx + ay * qy + az * qz >= cos_half * math.sqrt(q2)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _view_phase(i, pos, fwd, side, fp, ip, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
@@ -166,30 +166,13 @@ def _view_phase(i, pos, fwd, side, fp, ip, periodic, box, nb_idx, nb_off, nb_mas
     return m
 
 
-@nb.njit(cache=True)
-def _widest_axis(m, work_f):
-    """World axis (0, 1, 2) along which the projected centres work_f[:m, 1:4] spread most."""
-    best, best_var = 0, -1.0
-    for axis in range(3):
-        mean = 0.0
-        for a in range(m):
-            mean += work_f[a, 1 + axis]
-        mean /= m
-        var = 0.0
-        for a in range(m):
-            var += (work_f[a, 1 + axis] - mean) ** 2
-        if var > best_var:
-            best, best_var = axis, var
-    return best
-
-
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _bin(x, n_bins):
     b = int((x + 1.0) * (0.5 * n_bins))
     return min(max(b, 0), n_bins - 1)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     """Perspective phase: drop completely occluded neighbours in place; returns the new count.
 
@@ -199,17 +182,34 @@ def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     the result is that of testing every pair.
     """
     body = fp[F_BODY_R]
+    sum_x = sum_y = sum_z = 0.0
+    sq_x = sq_y = sq_z = 0.0
     for a in range(m):
         dist = math.sqrt(nb_off[a, 0] ** 2 + nb_off[a, 1] ** 2 + nb_off[a, 2] ** 2)
         if dist > 0.0:
-            work_f[a, 0] = body / dist
-            work_f[a, 1] = nb_off[a, 0] / dist
-            work_f[a, 2] = nb_off[a, 1] / dist
-            work_f[a, 3] = nb_off[a, 2] / dist
+            inv = 1.0 / dist
+            x, y, z = nb_off[a, 0] * inv, nb_off[a, 1] * inv, nb_off[a, 2] * inv
+            work_f[a, 0] = body * inv
+            work_f[a, 1], work_f[a, 2], work_f[a, 3] = x, y, z
+            sum_x += x
+            sum_y += y
+            sum_z += z
+            sq_x += x * x
+            sq_y += y * y
+            sq_z += z * z
         else:  # at the observer's centre (seen from an eye): no direction, neither hides nor is hidden
             work_f[a, 0] = -1.0
             work_f[a, 1] = work_f[a, 2] = work_f[a, 3] = 0.0
-    axis = 1 + _widest_axis(m, work_f)
+    # sweep along the world axis of widest spread of the projected centres (largest variance)
+    spread_x = sq_x - sum_x * sum_x / m
+    spread_y = sq_y - sum_y * sum_y / m
+    spread_z = sq_z - sum_z * sum_z / m
+    if spread_x >= spread_y and spread_x >= spread_z:
+        axis = 1
+    elif spread_y >= spread_z:
+        axis = 2
+    else:
+        axis = 3
     # counting sort of the slots into m bins over [-1, 1]: work_i[:, 2] bin starts, work_i[:, 1] slots
     n_bins = m
     for b in range(n_bins + 1):
@@ -250,7 +250,7 @@ def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     return kept
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def perceive(i, pos, fwd, side, fp, ip, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     """Neighbours of boid i (see module docstring); returns their count m."""
     periodic = ip[I_BOUNDARY] == BOUNDARY_PERIODIC

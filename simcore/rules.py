@@ -24,7 +24,7 @@ from .layout import F_ALI_W, F_COH_W, F_SEP_W, I_NBITS, I_PATTERNS, I_SEP_WEIGHT
 from .perception import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def popcount32(x):
     """Number of set bits of a 32-bit pattern."""
     x = np.uint32(x)
@@ -34,13 +34,13 @@ def popcount32(x):
     return np.int64((x * np.uint32(0x01010101)) >> np.uint32(24))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def similarity(a, b, n_bits):
     """Holland's pattern match in [0, 1]: share of equal bits of two n-bit patterns."""
     return (n_bits - popcount32(np.uint32(a) ^ np.uint32(b))) / n_bits
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def normalized(x, y, z):
     """(x, y, z) / |(x, y, z)|, or zeros for the zero vector."""
     n = math.sqrt(x * x + y * y + z * z)
@@ -49,7 +49,7 @@ def normalized(x, y, z):
     return 0.0, 0.0, 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
     """Combined steering force of boid i (see module docstring)."""
     use_patterns = ip[I_PATTERNS] != 0

@@ -2,16 +2,24 @@
 
     flocksweep simulate MODEL.toml [--set key=value ...] [--seed S] [--n N] [--duration T] [--dt DT]
                         [--record-every STEPS] [--out DIR] [--plot] [--color-by auto|boid|pattern]
+    flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
+                   [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
+                   [--retry-failed] [--batch-size B] [--no-progress]
+    flocksweep status DIR
 
-Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed).
+Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
+3 when another runner holds the results directory.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from simcore import ConfigError, load_preset
+
+from .store import StoreLocked
 
 
 def _add_simulate(sub) -> None:
@@ -59,14 +67,97 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _add_run(sub) -> None:
+    p = sub.add_parser("run", help="run (or resume) a sweep from a sweep TOML",
+                       description="Run a parameter sweep. Finished runs are skipped (resume); results go "
+                                   "to results/<sweep name>/ unless --out is given.")
+    p.add_argument("sweep", help="sweep TOML, e.g. configs/sweeps/holland648.toml")
+    p.add_argument("--workers", type=int, help="worker processes (default: all cores)")
+    p.add_argument("--executor", choices=("serial", "local", "dask"), default="local",
+                   help="local process pool (default), serial in this process, or dask")
+    p.add_argument("--scheduler", metavar="ADDR", help="dask scheduler address; without it a LocalCluster starts")
+    p.add_argument("--replicates", type=int, help="override the sweep's replicates")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of the sweep file, e.g. --set run.duration=10 (repeatable)")
+    p.add_argument("--out", type=Path, help="results directory (default results/<sweep name>)")
+    p.add_argument("--dry-run", action="store_true", help="print runs, done and estimated cost; run nothing")
+    p.add_argument("--force", action="store_true", help="recompute every run, finished or not")
+    p.add_argument("--retry-failed", action="store_true", help="rerun the runs recorded as failed")
+    p.add_argument("--batch-size", type=int, help="runs per task (default: automatic)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def cmd_run(args) -> int:
+    from sweeps.config import load_sweep
+    from sweeps.runner import run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError("--workers", f"got {args.workers}; must be an integer >= 1")
+    if args.replicates is not None and args.replicates < 1:
+        raise ConfigError("--replicates", f"got {args.replicates}; must be an integer >= 1")
+    if args.scheduler and args.executor != "dask":
+        raise ConfigError("--scheduler", "only applies with --executor dask")
+    config = load_sweep(args.sweep, args.overrides, args.replicates)
+    out = args.out or Path("results") / config.name
+    result = run_sweep(config, Path(args.sweep).read_text(), out, args.executor, args.workers, args.scheduler,
+                       args.force, args.retry_failed, args.dry_run, not args.no_progress, args.batch_size)
+    plan = result.plan
+    if args.dry_run:
+        est = result.estimate
+        print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "
+              f"(kept; --retry-failed reruns them), {len(plan.todo)} to run")
+        print(f"  estimated cost: {est['boid_steps']:,} boid-steps, about {est['seconds']:.0f} s of compute "
+              f"on {args.workers or os.cpu_count()} worker(s) (from short pilot runs)")
+        print(f"  results directory: {out}")
+        return 0
+    table = result.table
+    ok = int((table["status"] == "ok").sum())
+    failed = int((table["status"] == "failed").sum())
+    print(f"{config.name}: {len(plan.specs)} runs, {ok} ok, {failed} failed; computed {len(plan.todo)} "
+          f"now, {len(plan.done)} already done; {result.wall_s:.1f} s")
+    print(f"  table: {out / 'runs.parquet'}")
+    if failed:
+        print(f"  failures: flocksweep status {out}")
+    return 0
+
+
+def _add_status(sub) -> None:
+    p = sub.add_parser("status", help="done / failed / missing runs of a results directory")
+    p.add_argument("dir", type=Path, help="results directory of a sweep")
+
+
+def cmd_status(args) -> int:
+    from sweeps.runner import status
+
+    try:
+        info = status(args.dir)
+    except FileNotFoundError as err:
+        print(f"flocksweep: {err}", file=sys.stderr)
+        return 2
+    manifest = info["manifest"]
+    print(f"{manifest.get('sweep', args.dir)}: {info['runs']} runs: {info['ok']} done, {info['failed']} failed, "
+          f"{info['missing']} missing")
+    if manifest.get("finished"):
+        print(f"  last run finished {manifest['finished']} (git {manifest.get('git_revision')})")
+    elif manifest:
+        print(f"  last run started {manifest.get('started')} and did not finish (resume with flocksweep run)")
+    for run_id, error in info["failures"][:50]:
+        print(f"  failed {run_id}: {error}")
+    if len(info["failures"]) > 50:
+        print(f"  ... and {len(info['failures']) - 50} more")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_simulate(sub)
+    _add_run(sub)
+    _add_status(sub)
     return parser
 
 
-COMMANDS = {"simulate": cmd_simulate}
+COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status}
 
 
 def main(argv=None) -> int:
@@ -76,6 +167,9 @@ def main(argv=None) -> int:
     except ConfigError as err:
         print(f"flocksweep: config error: {err}", file=sys.stderr)
         return 2
+    except StoreLocked as err:
+        print(f"flocksweep: {err}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

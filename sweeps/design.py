@@ -1,0 +1,136 @@
+"""Design expansion: a :class:`~sweeps.config.SweepConfig` -> validated, frozen :class:`RunSpec` s.
+
+The design is the cartesian product of the axes (a zipped axis is one factor; a ``[sample]`` block is
+one more factor whose levels are its sampled points), times ``replicates``. Every run's preset is built
+and validated here, before anything runs, so a bad value fails with its axis and key named.
+
+Identity (:mod:`sweeps.identity`): a run's seed derives from the sweep seed, the run's parameter point
+(the resolved values of the swept keys) and its replicate index, so it does not change when the grid
+grows, shrinks or is reordered; with ``common_random_numbers`` it derives from the sweep seed and the
+replicate only. The run id is a hash of everything that determines the run's results.
+
+Order: ``RunSpec.index`` = point index x replicates + replicate, with points in the order of the axes'
+nested loops (first axis outermost). Results tables are sorted by it, whatever order runs finish in.
+"""
+from __future__ import annotations
+
+import copy
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import qmc
+
+from analysis.metrics import default_group_radius
+from simcore.params import Preset, preset_from_dict
+from simcore.schema import ConfigError, set_dotted
+
+from .config import Analysis, SweepConfig
+from .identity import point_key, run_id, run_seed
+
+SAMPLE_STREAM = 0x5A3D1E  # entropy word separating the sampled design's draws from run seeds
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    run_id: str
+    index: int
+    point_index: int
+    replicate: int
+    seed: int
+    columns: tuple[tuple[str, object], ...]  # swept parameters as (column, value), in factor order
+    preset: Preset
+    analysis: Analysis
+    group_radius: float
+
+    @property
+    def cost(self) -> float:
+        """Relative cost estimate (pairwise perception): steps x N^2."""
+        return self.preset.run.n_steps * float(self.preset.init.n) ** 2
+
+
+def _lookup(data: dict, dotted: str):
+    node = data
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def sample_points(config: SweepConfig) -> list[tuple]:
+    """The sampled block's points (tuples in bounds order), integer keys rounded."""
+    sample = config.sample
+    rng = np.random.default_rng([config.seed, SAMPLE_STREAM])
+    d = len(sample.bounds)
+    if sample.method == "random":
+        unit = rng.random((sample.n, d))
+    elif sample.method == "lhs":
+        unit = qmc.LatinHypercube(d=d, seed=rng).random(sample.n)
+    else:
+        unit = qmc.Sobol(d=d, scramble=sample.scramble, seed=rng).random(sample.n)
+    lows = np.array([lo for _, lo, _ in sample.bounds])
+    highs = np.array([hi for _, _, hi in sample.bounds])
+    scaled = qmc.scale(unit, lows, highs) if d else unit
+    base = preset_from_dict(copy.deepcopy(config.preset_data)).to_dict()
+    integer = [isinstance(_lookup(base, key), int) and not isinstance(_lookup(base, key), bool)
+               for key, _, _ in sample.bounds]
+    return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
+
+
+def factor_levels(config: SweepConfig) -> list[tuple[tuple[str, ...], list[tuple]]]:
+    """Per factor of the product: (keys, points); the sampled block, if any, is the last factor."""
+    factors = [(axis.keys, list(axis.points)) for axis in config.axes]
+    if config.sample:
+        factors.append((tuple(key for key, _, _ in config.sample.bounds), sample_points(config)))
+    return factors
+
+
+def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, object]]:
+    """Swept parameters as table columns: an axis' name (label, joined zipped values, or the value when
+    renamed) and then every swept key with its resolved value."""
+    cols = []
+    for axis, level in zip(config.axes, combo):
+        values = axis.points[level]
+        if axis.labels:
+            cols.append((axis.name, axis.labels[level]))
+        elif len(axis.keys) > 1:
+            cols.append((axis.name, "|".join(map(str, values))))
+        elif axis.name != axis.keys[0]:
+            cols.append((axis.name, _lookup(resolved, axis.keys[0])))
+        cols += [(key, _lookup(resolved, key)) for key in axis.keys]
+    if config.sample:
+        cols += [(key, _lookup(resolved, key)) for key, _, _ in config.sample.bounds]
+    return cols
+
+
+def _build_preset(config: SweepConfig, overrides: list[tuple[str, object]], where: str) -> Preset:
+    data = copy.deepcopy(config.preset_data)
+    try:
+        for key, value in overrides:
+            set_dotted(data, key, value)
+        return preset_from_dict(data)
+    except ConfigError as err:
+        raise ConfigError(err.key, f"{str(err).split(': ', 1)[-1]} (at design point {where})") from None
+
+
+def expand(config: SweepConfig) -> list[RunSpec]:
+    """All runs of the sweep, validated, in design order."""
+    factors = factor_levels(config)
+    specs = []
+    combos = itertools.product(*[range(len(points)) for _, points in factors])
+    for point_index, combo in enumerate(combos):
+        overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
+        where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
+        preset = _build_preset(config, overrides, where)
+        resolved = preset.to_dict()
+        point = point_key({k: _lookup(resolved, k) for k, _ in overrides})
+        radius = config.analysis.group_radius or default_group_radius(preset.model)
+        columns = tuple(_columns(config, combo, resolved))
+        for replicate in range(config.replicates):
+            seed = run_seed(config.seed, None if config.common_random_numbers else point, replicate)
+            rid = run_id(resolved, config.analysis, radius, seed)
+            specs.append(RunSpec(run_id=rid, index=point_index * config.replicates + replicate,
+                                 point_index=point_index, replicate=replicate, seed=seed, columns=columns,
+                                 preset=preset, analysis=config.analysis, group_radius=radius))
+    return specs

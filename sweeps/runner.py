@@ -1,0 +1,170 @@
+"""Running a sweep: plan -> (dry run | execute and store) -> consolidated table and manifest.
+
+``run_sweep(config, sweep_text, out_dir, ...)`` expands and validates the design (nothing is written
+before that succeeds), takes the store's lock, skips finished runs (resume; ``force`` recomputes all,
+``retry_failed`` reruns failed ones), computes the rest in batches on the chosen executor with a
+progress bar, writes each batch as it finishes and consolidates ``runs.parquet`` at the end.
+``status(out_dir)`` counts done / failed / missing runs.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from simcore import simulate
+
+from .config import SweepConfig, describe
+from .design import RunSpec, expand
+from .executors import execute
+from .identity import canonical
+from .provenance import stamp
+from .store import ResultsStore
+
+
+@dataclass
+class Plan:
+    specs: list[RunSpec]
+    done: list[RunSpec] = field(default_factory=list)
+    failed: list[RunSpec] = field(default_factory=list)
+    todo: list[RunSpec] = field(default_factory=list)
+
+
+def design_table(specs: list[RunSpec]) -> pd.DataFrame:
+    return pd.DataFrame([{"run_id": s.run_id, "index": s.index, "point_index": s.point_index,
+                          "replicate": s.replicate, "seed": s.seed, "n": s.preset.init.n,
+                          "steps": s.preset.run.n_steps, **dict(s.columns)} for s in specs])
+
+
+def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_failed: bool) -> Plan:
+    latest = store.latest()
+    status = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
+    plan = Plan(specs=specs)
+    for spec in specs:
+        state = status.get(spec.run_id)
+        if state == "ok" and not force:
+            plan.done.append(spec)
+        elif state == "failed" and not (force or retry_failed):
+            plan.failed.append(spec)
+        else:
+            plan.todo.append(spec)
+    return plan
+
+
+def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = None) -> list[list[RunSpec]]:
+    """Batches of similar cost, most expensive first (longest-processing-time scheduling)."""
+    if not todo:
+        return []
+    size = batch_size or max(1, min(16, math.ceil(len(todo) / (max(workers, 1) * 8))))
+    ordered = sorted(todo, key=lambda s: (-s.cost, s.index))
+    return [ordered[k:k + size] for k in range(0, len(ordered), size)]
+
+
+def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> dict:
+    """Boid-steps and seconds, timing short pilots of the cheapest, median and dearest runs to do."""
+    boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
+    if not todo:
+        return {"boid_steps": 0, "seconds": 0.0}
+    ordered = sorted(todo, key=lambda s: s.cost)
+    pilots = {id(s): s for s in (ordered[0], ordered[len(ordered) // 2], ordered[-1])}.values()
+    rate = []  # seconds per unit of cost
+    for spec in pilots:
+        run = spec.preset.run
+        duration = min(run.duration, max(pilot_seconds, run.dt))
+        steps = max(1, int(round(duration / run.dt)))
+        start = time.perf_counter()
+        simulate(spec.preset.model, spec.preset.init, spec.seed, steps * run.dt, run.dt, steps)
+        elapsed = time.perf_counter() - start
+        rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
+    per_cost = sorted(rate)[len(rate) // 2]
+    seconds = sum(s.cost for s in todo) * per_cost / max(workers, 1)
+    return {"boid_steps": boid_steps, "seconds": seconds}
+
+
+def _progress(total: int, name: str, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=name, unit="run", disable=not enabled, file=sys.stderr,
+                mininterval=0.5, dynamic_ncols=True)
+
+
+def _manifest(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
+              started: float, finished: float | None, table: pd.DataFrame | None) -> dict:
+    counts = {"runs": len(plan.specs)}
+    if table is not None:
+        counts.update(ok=int((table["status"] == "ok").sum()), failed=int((table["status"] == "failed").sum()))
+        counts["missing"] = counts["runs"] - counts["ok"] - counts["failed"]
+    return {"sweep": config.name, "description": config.description,
+            "config_hash": stamp_hash(config), "seed": config.seed, "replicates": config.replicates,
+            "common_random_numbers": config.common_random_numbers, "design": describe(config),
+            "executor": executor, "workers": workers, "computed_this_invocation": len(plan.todo),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(finished)) if finished else None,
+            "counts": counts, **stamp()}
+
+
+def stamp_hash(config: SweepConfig) -> str:
+    import hashlib
+
+    return hashlib.sha256(canonical(config.source).encode()).hexdigest()[:16]
+
+
+@dataclass
+class SweepResult:
+    out_dir: Path
+    plan: Plan
+    table: pd.DataFrame | None
+    wall_s: float
+    estimate: dict | None = None
+
+
+def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "local", workers: int | None = None,
+              scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
+              dry_run: bool = False, progress: bool = True, batch_size: int | None = None) -> SweepResult:
+    started = time.time()
+    workers = workers or os.cpu_count() or 1
+    specs = expand(config)  # validates every run before anything is written
+    store = ResultsStore(out_dir)
+    if dry_run:
+        plan = make_plan(specs, store, force, retry_failed)
+        return SweepResult(Path(out_dir), plan, None, time.time() - started,
+                           estimate(plan.todo, 1 if executor == "serial" else workers))
+    with store.lock():
+        plan = make_plan(specs, store, force, retry_failed)
+        effective = {**config.source, "replicates": config.replicates}
+        store.write_inputs(sweep_text, effective, design_table(specs))
+        store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
+        if plan.todo:
+            batches = make_batches(plan.todo, workers, batch_size)
+            part = store.next_part()
+            failures = 0
+            with _progress(len(plan.todo), config.name, progress) as bar:
+                for batch, rows, ts in execute(batches, executor, workers, scheduler, store.root):
+                    store.write_part(part, rows, ts)
+                    part += 1
+                    failures += sum(r["status"] != "ok" for r in rows)
+                    bar.set_postfix(failed=failures, refresh=False)
+                    bar.update(len(rows))
+        table = store.consolidate([s.run_id for s in specs])
+        store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
+    return SweepResult(Path(out_dir), plan, table, time.time() - started)
+
+
+def status(out_dir) -> dict:
+    """Counts of done / failed / missing runs of the stored design, with the failures' reasons."""
+    store = ResultsStore(out_dir)
+    design = store.design()
+    if design is None:
+        raise FileNotFoundError(f"{out_dir}: no sweep stored here (design.parquet missing)")
+    latest = store.latest()
+    status_of = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
+    error_of = dict(zip(latest["run_id"], latest["error"])) if len(latest) else {}
+    states = [status_of.get(r, "missing") for r in design["run_id"]]
+    failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
+    return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
+            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest()}
