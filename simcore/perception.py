@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 
 import numba as nb
-import numpy as np
 
 from .layout import (F_BODY_R, F_COH_COS, F_COH_R, F_COS_EYE, F_COS_GAZE, F_COS_HALF_FIELD, F_ALI_COS,
                      F_ALI_R, F_BOX, F_HEAD_R, F_NEAR_R, F_RANGE, F_SEP_COS, F_SEP_R, F_SIN_EYE,

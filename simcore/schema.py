@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import json
 import tomllib
 import types
@@ -87,10 +88,15 @@ def _convert(value: Any, tp, key: str):
     raise TypeError(f"schema: unsupported annotation {_type_name(tp)} at {key}")
 
 
+@functools.lru_cache(maxsize=None)
+def _schema(cls) -> tuple[dict, dict]:
+    """(type hints, init fields) of a dataclass, computed once per class."""
+    return typing.get_type_hints(cls), {f.name: f for f in dataclasses.fields(cls) if f.init}
+
+
 def build(cls, data: dict, path: str = ""):
     """Instance of dataclass ``cls`` from ``data``; errors name the dotted key."""
-    hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    hints, fields = _schema(cls)
     for key in data:
         if key not in fields:
             raise ConfigError(join(path, key), "unknown key" + suggest(key, fields) +

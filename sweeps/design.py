@@ -19,7 +19,6 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import qmc
 
 from analysis.metrics import default_group_radius
 from simcore.params import Preset, preset_from_dict
@@ -60,6 +59,8 @@ def _lookup(data: dict, dotted: str):
 
 def sample_points(config: SweepConfig) -> list[tuple]:
     """The sampled block's points (tuples in bounds order), integer keys rounded."""
+    from scipy.stats import qmc  # imported here: scipy.stats takes most of a second to import
+
     sample = config.sample
     rng = np.random.default_rng([config.seed, SAMPLE_STREAM])
     d = len(sample.bounds)

@@ -114,6 +114,38 @@ def stamp_hash(config: SweepConfig) -> str:
     return hashlib.sha256(canonical(config.source).encode()).hexdigest()[:16]
 
 
+class PartWriter:
+    """Buffers finished batches and writes them as one part when ``max_runs`` rows or ``max_seconds``
+    have accumulated (and on exit, also after an error): few files, bounded memory, and an
+    interruption loses at most ``max_seconds`` of finished work."""
+
+    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float = 5.0):
+        self.store, self.max_runs, self.max_seconds = store, max_runs, max_seconds
+        self.rows: list[dict] = []
+        self.frames: list[pd.DataFrame] = []
+        self.since = time.monotonic()
+
+    def add(self, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
+        self.rows += rows
+        if timeseries is not None:
+            self.frames.append(timeseries)
+        if len(self.rows) >= self.max_runs or time.monotonic() - self.since >= self.max_seconds:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.rows:
+            ts = pd.concat(self.frames, ignore_index=True) if self.frames else None
+            self.store.write_part(self.store.next_part(), self.rows, ts)
+        self.rows, self.frames, self.since = [], [], time.monotonic()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.flush()
+        return False
+
+
 @dataclass
 class SweepResult:
     out_dir: Path
@@ -141,12 +173,10 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         if plan.todo:
             batches = make_batches(plan.todo, workers, batch_size)
-            part = store.next_part()
             failures = 0
-            with _progress(len(plan.todo), config.name, progress) as bar:
+            with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer:
                 for batch, rows, ts in execute(batches, executor, workers, scheduler, store.root):
-                    store.write_part(part, rows, ts)
-                    part += 1
+                    writer.add(rows, ts)
                     failures += sum(r["status"] != "ok" for r in rows)
                     bar.set_postfix(failed=failures, refresh=False)
                     bar.update(len(rows))

@@ -1,0 +1,363 @@
+"""Compiled per-record kernels behind analysis.groups and analysis.metrics (one frame = one record).
+
+Everything compiled lives in this one module on purpose: numba's on-disk cache only notices changes to
+the file that defines a function, so a kernel calling into another module could keep stale code.
+
+Conventions: ``box`` <= 0 means an open world, otherwise the side of the periodic box (offsets folded to
+the minimum image ``d - L floor(d/L + 0.5)``). Definitions are in docs/metrics.md; the Python wrappers
+document the public behaviour. No fastmath: results are reproducible to the last bit.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TINY = 1e-12  # relative size below which an eigenvalue, width or summed heading counts as zero
+
+# column order of the metric table filled by frame_kernel (analysis.metrics.METRIC_NAMES)
+COLUMNS = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
+           "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
+           "visible_mean", "binocular_share", "segregation")
+
+
+@njit(cache=True)
+def fold(d, box):
+    """Minimum-image offset (box <= 0: unchanged)."""
+    if box > 0.0:
+        return d - box * np.floor(d / box + 0.5)
+    return d
+
+
+# ---------------------------------------------------------------------------------------------------
+# neighbour graph
+
+
+@njit(cache=True)
+def graph_frame(p, pattern, radius, box, nbr, queue, comp, sizes, rank,
+                labels, unwrapped, nn, degree, same):
+    """Neighbour graph of one record p (N, 3); returns the number of groups.
+
+    Scratch: nbr (N, N) int32, queue, comp, rank (N,) int32, sizes (N,) int64. Fills labels (group
+    rank, 0 = largest, ties by lowest member index), unwrapped (N, 3), nn (nearest-neighbour distance,
+    nan for N = 1), degree and same (links, and links to the same pattern)."""
+    n = p.shape[0]
+    radius2 = radius * radius
+    for i in range(n):
+        degree[i] = 0
+        same[i] = 0
+        nn[i] = np.inf
+    for i in range(n):
+        xi, yi, zi = p[i, 0], p[i, 1], p[i, 2]
+        best = nn[i]
+        for j in range(i + 1, n):
+            dx = p[j, 0] - xi
+            dy = p[j, 1] - yi
+            dz = p[j, 2] - zi
+            if box > 0.0:
+                dx = fold(dx, box)
+                dy = fold(dy, box)
+                dz = fold(dz, box)
+            r2 = dx * dx + dy * dy + dz * dz
+            if r2 < best:
+                best = r2
+            if r2 < nn[j]:
+                nn[j] = r2
+            if r2 < radius2:
+                nbr[i, degree[i]] = j
+                degree[i] += 1
+                nbr[j, degree[j]] = i
+                degree[j] += 1
+                if pattern[i] == pattern[j]:
+                    same[i] += 1
+                    same[j] += 1
+        nn[i] = best
+    for i in range(n):
+        nn[i] = np.sqrt(nn[i]) if nn[i] < np.inf else np.nan
+    # connected components: breadth-first search from the lowest unvisited index; in a periodic box
+    # each boid is placed at its tree parent plus their minimum-image offset
+    for i in range(n):
+        comp[i] = -1
+    count = 0
+    for s in range(n):
+        if comp[s] >= 0:
+            continue
+        comp[s] = count
+        for k in range(3):
+            unwrapped[s, k] = p[s, k]
+        head = 0
+        tail = 1
+        queue[0] = s
+        while head < tail:
+            u = queue[head]
+            head += 1
+            for a in range(degree[u]):
+                v = nbr[u, a]
+                if comp[v] >= 0:
+                    continue
+                comp[v] = count
+                for k in range(3):
+                    if box > 0.0:
+                        unwrapped[v, k] = unwrapped[u, k] + fold(p[v, k] - p[u, k], box)
+                    else:
+                        unwrapped[v, k] = p[v, k]
+                queue[tail] = v
+                tail += 1
+        sizes[count] = tail
+        count += 1
+    order = np.argsort(-sizes[:count], kind="mergesort")  # stable: ties keep discovery order
+    for r in range(count):
+        rank[order[r]] = r
+    for i in range(n):
+        labels[i] = rank[comp[i]]
+    return count
+
+
+@njit(cache=True)
+def graph_run(pos, pattern, radius, box, labels, unwrapped, nn, degree, same, n_groups):
+    """graph_frame for every record of pos (R, N, 3)."""
+    n = pos.shape[1]
+    nbr = np.empty((n, n), np.int32)
+    queue = np.empty(n, np.int32)
+    comp = np.empty(n, np.int32)
+    sizes = np.empty(n, np.int64)
+    rank = np.empty(n, np.int32)
+    for f in range(pos.shape[0]):
+        n_groups[f] = graph_frame(pos[f], pattern, radius, box, nbr, queue, comp, sizes, rank,
+                                  labels[f], unwrapped[f], nn[f], degree[f], same[f])
+
+
+# ---------------------------------------------------------------------------------------------------
+# metrics of one record
+
+
+@njit(cache=True)
+def unit(v, out):
+    """out = v/|v| (zeros when |v| = 0); returns whether |v| > 0."""
+    s = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if s > 0.0:
+        for k in range(3):
+            out[k] = v[k] / s
+        return True
+    for k in range(3):
+        out[k] = 0.0
+    return False
+
+
+@njit(cache=True)
+def polarization_frame(vel, mask):
+    """|mean unit heading| over the moving boids with mask true (nan when none)."""
+    total = np.zeros(3)
+    h = np.empty(3)
+    count = 0
+    for i in range(vel.shape[0]):
+        if mask[i] and unit(vel[i], h):
+            count += 1
+            for k in range(3):
+                total[k] += h[k]
+    if count == 0:
+        return np.nan
+    return np.sqrt(total[0] ** 2 + total[1] ** 2 + total[2] ** 2) / count
+
+
+@njit(cache=True)
+def milling_frame(p, vel, box):
+    """|mean_i r_hat_i x v_hat_i|, r_i = p_i - flock centroid (periodic: unwrapped around boid 0);
+    boids at the centroid or stopped are left out (nan when none is left)."""
+    n = p.shape[0]
+    u = np.empty((n, 3))
+    c = np.zeros(3)
+    for i in range(n):
+        for k in range(3):
+            u[i, k] = p[0, k] + fold(p[i, k] - p[0, k], box) if box > 0.0 else p[i, k]
+            c[k] += u[i, k]
+    for k in range(3):
+        c[k] /= n
+    total = np.zeros(3)
+    r = np.empty(3)
+    rh = np.empty(3)
+    vh = np.empty(3)
+    count = 0
+    for i in range(n):
+        for k in range(3):
+            r[k] = u[i, k] - c[k]
+        if unit(r, rh) and unit(vel[i], vh):
+            count += 1
+            total[0] += rh[1] * vh[2] - rh[2] * vh[1]
+            total[1] += rh[2] * vh[0] - rh[0] * vh[2]
+            total[2] += rh[0] * vh[1] - rh[1] * vh[0]
+    if count == 0:
+        return np.nan
+    return np.sqrt(total[0] ** 2 + total[1] ** 2 + total[2] ** 2) / count
+
+
+@njit(cache=True)
+def speed_frame(vel):
+    """(mean speed, sd/mean of the speeds with population sd; cv nan when the mean is 0)."""
+    n = vel.shape[0]
+    s = np.empty(n)
+    total = 0.0
+    for i in range(n):
+        s[i] = np.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+        total += s[i]
+    mean = total / n
+    var = 0.0
+    for i in range(n):
+        var += (s[i] - mean) ** 2
+    sd = np.sqrt(var / n)
+    return mean, (sd / mean if mean > 0.0 else np.nan)
+
+
+@njit(cache=True)
+def _range_along(x, mask, axis):
+    lo = np.inf
+    hi = -np.inf
+    for i in range(x.shape[0]):
+        if mask[i]:
+            t = x[i, 0] * axis[0] + x[i, 1] * axis[1] + x[i, 2] * axis[2]
+            lo = min(lo, t)
+            hi = max(hi, t)
+    return hi - lo
+
+
+@njit(cache=True)
+def _quadratic(g, u, v):
+    """u^T g v for 3-vectors."""
+    total = 0.0
+    for i in range(3):
+        for j in range(3):
+            total += u[i] * g[i, j] * v[j]
+    return total
+
+
+@njit(cache=True)
+def shape_frame(points, vel, mask):
+    """(gyration radius, elongation, aspect_heading) of the boids with mask true; points unwrapped.
+
+    G = mean x x^T with x = p - centroid, eigenvalues l1 >= l2 >= l3. Gyration radius sqrt(trace G);
+    elongation sqrt(l1/l2), nan below 3 boids or when l2 <= TINY l1. Aspect: h = normalised sum of
+    unit headings of the moving selected boids; extent = range of x.h; width = range of x.e with e the
+    major axis of G restricted to the plane perpendicular to h (the top eigenvector of P G P,
+    P = I - h h^T, found in an orthonormal basis of that plane); extent/width, nan when no heading
+    (|sum| <= TINY count) or width <= TINY extent."""
+    n = points.shape[0]
+    count = 0
+    c = np.zeros(3)
+    for i in range(n):
+        if mask[i]:
+            count += 1
+            for k in range(3):
+                c[k] += points[i, k]
+    if count == 0:
+        return np.nan, np.nan, np.nan
+    for k in range(3):
+        c[k] /= count
+    x = np.empty((n, 3))
+    g = np.zeros((3, 3))
+    for i in range(n):
+        for k in range(3):
+            x[i, k] = points[i, k] - c[k]
+        if mask[i]:
+            for a in range(3):
+                for b in range(3):
+                    g[a, b] += x[i, a] * x[i, b]
+    g /= count
+    radius = np.sqrt(max(g[0, 0] + g[1, 1] + g[2, 2], 0.0))
+    w = np.linalg.eigvalsh(g)  # ascending
+    l1, l2 = w[2], w[1]
+    elong = np.sqrt(l1 / l2) if count >= 3 and l2 > 0.0 and l2 > TINY * l1 else np.nan
+
+    total = np.zeros(3)
+    hv = np.empty(3)
+    moving = 0
+    for i in range(n):
+        if mask[i] and unit(vel[i], hv):
+            moving += 1
+            for k in range(3):
+                total[k] += hv[k]
+    norm = np.sqrt(total[0] ** 2 + total[1] ** 2 + total[2] ** 2)
+    if moving == 0 or norm <= TINY * moving:
+        return radius, elong, np.nan
+    h = total / norm
+    extent = _range_along(x, mask, h)
+    # orthonormal basis (a, b) of the plane perpendicular to h, then the major axis of the 2-D
+    # gyration tensor there: angle 0.5 atan2(2 G_ab, G_aa - G_bb) from a
+    ref = np.zeros(3)
+    ref[np.argmin(np.abs(h))] = 1.0
+    a = np.cross(h, ref)
+    a /= np.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
+    b = np.cross(h, a)
+    gaa = _quadratic(g, a, a)
+    gbb = _quadratic(g, b, b)
+    gab = _quadratic(g, a, b)
+    angle = 0.5 * np.arctan2(2.0 * gab, gaa - gbb)
+    e = np.cos(angle) * a + np.sin(angle) * b
+    width = _range_along(x, mask, e)
+    if width > 0.0 and width > TINY * extent:
+        return radius, elong, extent / width
+    return radius, elong, np.nan
+
+
+@njit(cache=True)
+def segregation_frame(degree, same, expected):
+    """mean over linked boids of same_i/degree_i - expected_i (nan when no boid is linked)."""
+    total = 0.0
+    count = 0
+    for i in range(degree.shape[0]):
+        if degree[i] > 0:
+            total += same[i] / degree[i] - expected[i]
+            count += 1
+    return total / count if count > 0 else np.nan
+
+
+# ---------------------------------------------------------------------------------------------------
+# the whole table
+
+
+@njit(cache=True)
+def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, out):
+    """out (R, len(COLUMNS)): every metric of every record (column order: COLUMNS)."""
+    n_frames, n = pos.shape[0], pos.shape[1]
+    nbr = np.empty((n, n), np.int32)
+    queue = np.empty(n, np.int32)
+    comp = np.empty(n, np.int32)
+    sizes = np.empty(n, np.int64)
+    rank = np.empty(n, np.int32)
+    labels = np.empty(n, np.int32)
+    unwrapped = np.empty((n, 3))
+    nn = np.empty(n)
+    degree = np.empty(n, np.int32)
+    same = np.empty(n, np.int32)
+    everyone = np.ones(n, np.bool_)
+    largest = np.empty(n, np.bool_)
+    for f in range(n_frames):
+        count = graph_frame(pos[f], pattern, radius, box, nbr, queue, comp, sizes, rank,
+                            labels, unwrapped, nn, degree, same)
+        in_largest = 0
+        strays = 0
+        nn_total = 0.0
+        for i in range(n):
+            largest[i] = labels[i] == 0
+            in_largest += largest[i]
+            strays += degree[i] == 0
+            nn_total += nn[i]
+        out[f, 0] = polarization_frame(vel[f], everyone)
+        out[f, 1] = polarization_frame(vel[f], largest)
+        out[f, 2] = milling_frame(pos[f], vel[f], box)
+        out[f, 3] = count
+        out[f, 4] = in_largest / n
+        out[f, 5] = strays / n
+        out[f, 6] = nn_total / n
+        out[f, 7], out[f, 8], out[f, 9] = shape_frame(unwrapped, vel[f], largest)
+        out[f, 10], out[f, 11] = speed_frame(vel[f])
+        if have_visible:
+            seen = 0.0
+            both = 0.0
+            for i in range(n):
+                seen += visible[f, i]
+                both += binocular[f, i]
+            out[f, 12] = seen / n
+            out[f, 13] = both / seen if seen > 0 else 0.0
+        else:
+            out[f, 12] = np.nan
+            out[f, 13] = np.nan
+        out[f, 14] = segregation_frame(degree, same, expected)
