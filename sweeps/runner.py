@@ -25,6 +25,7 @@ from .executors import execute
 from .identity import canonical
 from .provenance import stamp
 from .store import ResultsStore
+from .worker import warm_up
 
 
 @dataclass
@@ -172,6 +173,7 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
         store.write_inputs(sweep_text, effective, design_table(specs))
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         if plan.todo:
+            warm_up(plan.todo[0])
             batches = make_batches(plan.todo, workers, batch_size)
             failures = 0
             with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer:
