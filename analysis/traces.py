@@ -1,7 +1,9 @@
 """3-D trace plots: every boid's path over a run (after Hartman & Benes, Figure 7).
 
 ``plot_traces(pos, path, pattern=None, color_by="auto", wrap_jump=None, title="")`` draws the
-positions ``pos`` float64 (R, N, 3) as one polyline per boid and saves a PNG (or SVG, by extension).
+positions ``pos`` float64 (R, N, 3) as one polyline per boid and saves a PNG (or SVG, by extension);
+``draw_traces(ax, pos, pattern=None, color_by="auto", wrap_jump=None, title="")`` draws the same into an
+existing 3-D axes (e.g. one thumbnail of a grid) and returns the axes.
 Colours: one per boid (``"boid"``), or one per pattern value (``"pattern"``; Holland's Table 1 body
 colours for its four patterns); ``"auto"`` picks pattern when more than one pattern is present. Jumps
 longer than ``wrap_jump`` (boundary wraps) break the line instead of drawing across the world.
@@ -37,17 +39,14 @@ def boid_colours(n: int, pattern: np.ndarray | None, color_by: str):
     return [cmap(k / max(n - 1, 1)) for k in range(n)], None
 
 
-def plot_traces(pos: np.ndarray, path, pattern: np.ndarray | None = None, color_by: str = "auto",
-                wrap_jump: float | None = None, title: str = "") -> Path:
-    import matplotlib
+def draw_traces(ax, pos: np.ndarray, pattern: np.ndarray | None = None, color_by: str = "auto",
+                wrap_jump: float | None = None, title: str = ""):
+    """Draw the traces of ``pos`` (R, N, 3) into the existing 3-D axes ``ax``; returns ``ax``.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    The world's y axis (up) is drawn as the plot's vertical axis. Used by ``plot_traces`` (one figure)
+    and by ``analysis.figures.thumbnails_figure`` (a grid of thumbnails)."""
     n = pos.shape[1]
     colours, legend = boid_colours(n, pattern, color_by)
-    fig = plt.figure(figsize=(7, 6), dpi=110)
-    ax = fig.add_subplot(projection="3d")
     for i in range(n):
         for piece in _segments(pos[:, i], wrap_jump):
             ax.plot(piece[:, 0], piece[:, 2], piece[:, 1], color=colours[i], linewidth=0.7, alpha=0.85)
@@ -60,6 +59,19 @@ def plot_traces(pos: np.ndarray, path, pattern: np.ndarray | None = None, color_
     ax.set_ylabel("z")
     ax.set_zlabel("y (up)")
     ax.set_title(title, fontsize=9)
+    return ax
+
+
+def plot_traces(pos: np.ndarray, path, pattern: np.ndarray | None = None, color_by: str = "auto",
+                wrap_jump: float | None = None, title: str = "") -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(7, 6), dpi=110)
+    ax = fig.add_subplot(projection="3d")
+    draw_traces(ax, pos, pattern, color_by, wrap_jump, title)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

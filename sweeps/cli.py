@@ -6,6 +6,7 @@
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress]
     flocksweep status DIR
+    flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -84,6 +85,10 @@ def _add_run(sub) -> None:
     p.add_argument("--force", action="store_true", help="recompute every run, finished or not")
     p.add_argument("--retry-failed", action="store_true", help="rerun the runs recorded as failed")
     p.add_argument("--batch-size", type=int, help="runs per task (default: automatic)")
+    p.add_argument("--until-ci", metavar="METRIC=HALFWIDTH",
+                   help="add replicates to the cells whose 95%% CI half-width of METRIC (e.g. cohesion_mean) "
+                        "exceeds HALFWIDTH, until all meet it")
+    p.add_argument("--max-replicates", type=int, default=30, help="cap for --until-ci (default 30)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -99,6 +104,8 @@ def cmd_run(args) -> int:
         raise ConfigError("--scheduler", "only applies with --executor dask")
     config = load_sweep(args.sweep, args.overrides, args.replicates)
     out = args.out or Path("results") / config.name
+    if args.until_ci:
+        return _run_until_ci(args, config, out)
     result = run_sweep(config, Path(args.sweep).read_text(), out, args.executor, args.workers, args.scheduler,
                        args.force, args.retry_failed, args.dry_run, not args.no_progress, args.batch_size)
     plan = result.plan
@@ -118,6 +125,39 @@ def cmd_run(args) -> int:
     print(f"  table: {out / 'runs.parquet'}")
     if failed:
         print(f"  failures: flocksweep status {out}")
+    return 0
+
+
+def _parse_until_ci(text: str) -> tuple[str, float]:
+    metric, _, value = text.partition("=")
+    try:
+        target = float(value)
+    except ValueError:
+        target = float("nan")
+    if not metric or not target > 0:
+        raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with HALFWIDTH > 0, "
+                                        "e.g. cohesion_mean=0.05")
+    return (metric if metric.endswith(("_mean", "_final")) or metric in ("time_to_fragmentation", "fragmented")
+            else f"{metric}_mean"), target
+
+
+def _run_until_ci(args, config, out) -> int:
+    from sweeps.runner import run_until_ci
+
+    metric, target = _parse_until_ci(args.until_ci)
+    if args.max_replicates < config.replicates:
+        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
+    if args.dry_run:
+        raise ConfigError("--until-ci", "cannot be combined with --dry-run (the rounds depend on the results)")
+    print(f"{config.name}: adding replicates until the 95% CI half-width of {metric} <= {target:g} "
+          f"(at most {args.max_replicates} per cell)")
+    result = run_until_ci(config, Path(args.sweep).read_text(), out, metric, target, args.max_replicates,
+                          executor=args.executor, workers=args.workers, scheduler=args.scheduler,
+                          force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
+                          batch_size=args.batch_size)
+    table = result.table
+    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
+          f"({int((table['status'] == 'ok').sum())} ok)")
     return 0
 
 
@@ -148,16 +188,50 @@ def cmd_status(args) -> int:
     return 0
 
 
+def _add_report(sub) -> None:
+    p = sub.add_parser("report", help="statistics, figures and findings from a results directory",
+                       description="Write a self-contained HTML report, the same as Markdown with figures, "
+                                   "and the tables behind it as CSV (default: RESULTS_DIR/report/).")
+    p.add_argument("dir", type=Path, help="results directory of a sweep (with runs.parquet)")
+    p.add_argument("--metrics", nargs="+", metavar="NAME",
+                   help="metrics (default: cohesion alignment stray_fraction groups elongation speed); "
+                        "names like cohesion or columns like cohesion_final")
+    p.add_argument("--by", nargs="+", metavar="FACTOR", help="factors to analyse (default: all swept factors)")
+    p.add_argument("--out", type=Path, help="output directory (default RESULTS_DIR/report)")
+    p.add_argument("--format", choices=("html", "md", "both"), default="both")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resampling (default 0)")
+
+
+def cmd_report(args) -> int:
+    from analysis.report import ReportError, build_report
+
+    formats = ("html", "md") if args.format == "both" else (args.format,)
+    try:
+        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed)
+    except (ReportError, FileNotFoundError) as err:
+        print(f"flocksweep: {err}", file=sys.stderr)
+        return 2
+    for kind, path in result["paths"].items():
+        print(f"  wrote {path}")
+    print(f"  tables: {result['out'] / 'tables'} ({len(result['tables'])} CSV files); {result['seconds']:.1f} s")
+    findings = result["tables"].get("findings")
+    if findings is not None and len(findings):
+        for key, group in findings.groupby("finding", sort=True):
+            print(f"  finding ({key}): {group['verdict'].iloc[0]}: {group['claim'].iloc[0]}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_simulate(sub)
     _add_run(sub)
     _add_status(sub)
+    _add_report(sub)
     return parser
 
 
-COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status}
+COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report}
 
 
 def main(argv=None) -> int:

@@ -115,6 +115,17 @@ def _build_preset(config: SweepConfig, overrides: list[tuple[str, object]], wher
         raise ConfigError(err.key, f"{str(err).split(': ', 1)[-1]} (at design point {where})") from None
 
 
+def rebuild(model_record: dict, row: dict) -> tuple[Preset, float]:
+    """(preset, group radius) of a stored run from ``model.json`` and its design/runs row."""
+    data = copy.deepcopy(model_record["preset"])
+    for key in model_record["swept_keys"]:
+        value = row[key]
+        set_dotted(data, key, value.item() if hasattr(value, "item") else value)
+    preset = preset_from_dict(data)
+    radius = model_record["analysis"].get("group_radius") or default_group_radius(preset.model)
+    return preset, radius
+
+
 def expand(config: SweepConfig) -> list[RunSpec]:
     """All runs of the sweep, validated, in design order."""
     factors = factor_levels(config)

@@ -8,6 +8,7 @@ progress bar, writes each batch as it finishes and consolidates ``runs.parquet``
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
@@ -15,6 +16,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from simcore import simulate
@@ -40,6 +42,14 @@ def design_table(specs: list[RunSpec]) -> pd.DataFrame:
     return pd.DataFrame([{"run_id": s.run_id, "index": s.index, "point_index": s.point_index,
                           "replicate": s.replicate, "seed": s.seed, "n": s.preset.init.n,
                           "steps": s.preset.run.n_steps, **dict(s.columns)} for s in specs])
+
+
+def model_record(config: SweepConfig) -> dict:
+    """What is needed to rebuild any run of the design from its row: the base preset, the swept keys."""
+    keys = [k for axis in config.axes for k in axis.keys]
+    keys += [k for k, _, _ in config.sample.bounds] if config.sample else []
+    return {"preset": config.preset_data, "preset_path": str(config.preset_path), "swept_keys": keys,
+            "analysis": dataclasses.asdict(config.analysis)}
 
 
 def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_failed: bool) -> Plan:
@@ -158,10 +168,12 @@ class SweepResult:
 
 def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "local", workers: int | None = None,
               scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
-              dry_run: bool = False, progress: bool = True, batch_size: int | None = None) -> SweepResult:
+              dry_run: bool = False, progress: bool = True, batch_size: int | None = None,
+              specs: list[RunSpec] | None = None) -> SweepResult:
+    """Run the sweep (or the given subset ``specs`` of its design); see the module docstring."""
     started = time.time()
     workers = workers or os.cpu_count() or 1
-    specs = expand(config)  # validates every run before anything is written
+    specs = expand(config) if specs is None else specs  # validates every run before anything is written
     store = ResultsStore(out_dir)
     if dry_run:
         plan = make_plan(specs, store, force, retry_failed)
@@ -170,7 +182,7 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
     with store.lock():
         plan = make_plan(specs, store, force, retry_failed)
         effective = {**config.source, "replicates": config.replicates}
-        store.write_inputs(sweep_text, effective, design_table(specs))
+        store.write_inputs(sweep_text, effective, model_record(config), design_table(specs))
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         if plan.todo:
             warm_up(plan.todo[0])
@@ -200,3 +212,50 @@ def status(out_dir) -> dict:
     failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
     return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
             "missing": states.count("missing"), "failures": failures, "manifest": store.manifest()}
+
+
+def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:
+    """Per design point: replicates with a value, and the Student-t CI half-width of the metric's mean."""
+    from scipy import stats
+
+    ok = table[(table["status"] == "ok")].dropna(subset=[metric])
+    grouped = ok.groupby("point_index")[metric]
+    out = pd.DataFrame({"n": grouped.count(), "sd": grouped.std(ddof=1)})
+    t = stats.t.ppf(0.5 + confidence / 2, np.maximum(out["n"] - 1, 1))
+    out["halfwidth"] = np.where(out["n"] >= 2, t * out["sd"] / np.sqrt(out["n"]), np.inf)
+    return out
+
+
+def run_until_ci(config: SweepConfig, sweep_text: str, out_dir, metric: str, target: float,
+                 max_replicates: int, log=print, **run_options) -> SweepResult:
+    """Add replicates only to the design points whose CI half-width of ``metric`` exceeds ``target``,
+    reusing the store (existing replicates are found as done), until every point meets it or has
+    ``max_replicates``. Each round asks a point for n (h / target)^2 replicates (at least one more)."""
+    counts: dict[int, int] = {}
+    result = None
+    for round_number in range(1, 100):
+        want = max(counts.values(), default=config.replicates)
+        full = expand(dataclasses.replace(config, replicates=max(want, config.replicates)))
+        chosen = [s for s in full if s.replicate < counts.get(s.point_index, config.replicates)]
+        result = run_sweep(config, sweep_text, out_dir, specs=chosen, **run_options)
+        if metric not in result.table:
+            raise ValueError(f"--until-ci: metric {metric!r} is not a column of the results")
+        widths = halfwidths(result.table, metric)
+        points = sorted({s.point_index for s in full})
+        grow, capped = {}, 0
+        for point in points:
+            have = counts.get(point, config.replicates)
+            width = widths["halfwidth"].get(point, np.inf)
+            capped += int(width > target and have >= max_replicates)
+            if width > target and have < max_replicates:
+                n = int(widths["n"].get(point, 0))
+                need = math.ceil(n * (width / target) ** 2) if np.isfinite(width) else have + 1
+                grow[point] = min(max_replicates, max(have + 1, need))
+        worst = float(widths["halfwidth"].replace(np.inf, np.nan).max())
+        log(f"  round {round_number}: {len(chosen)} runs; largest {metric} CI half-width {worst:.4g} "
+            f"(target {target:g}); {len(grow)} points get more replicates, {capped} above target at the cap")
+        if not grow:
+            break
+        counts.update({p: counts.get(p, config.replicates) for p in points})
+        counts.update(grow)
+    return result

@@ -4,6 +4,7 @@ Layout::
 
     sweep.toml            the sweep file as given
     sweep.effective.json  the sweep as run (after --set / --replicates)
+    model.json            the base preset the design varies, the swept keys and the analysis settings
     design.parquet        the resolved design: one row per run (id, index, replicate, seed, parameters)
     manifest.json         provenance (versions, git revision, machine), times, counts, executor
     runs/part-NNNNNN.parquet        result rows, one part per finished batch
@@ -76,10 +77,16 @@ class ResultsStore:
             handle.close()
 
     # -- inputs ----------------------------------------------------------------------------------
-    def write_inputs(self, sweep_text: str, effective: dict, design: pd.DataFrame) -> None:
+    def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
         write_text(self.root / "sweep.toml", sweep_text)
         write_json(self.root / "sweep.effective.json", effective)
+        write_json(self.root / "model.json", model)
         write_parquet(design, self.root / "design.parquet")
+
+    def model(self) -> dict:
+        """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
+        path = self.root / "model.json"
+        return json.loads(path.read_text()) if path.exists() else {}
 
     def design(self) -> pd.DataFrame | None:
         path = self.root / "design.parquet"
