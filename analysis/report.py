@@ -334,8 +334,10 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     out = Path(out_dir) if out_dir else results.path / "report"
     ctx = Context(results, results.ok.reset_index(drop=True), resolve_metrics(results, metrics), factors, out,
                   out / "figures", out / "tables", seed, [], {})
-    ctx.fig_dir.mkdir(parents=True, exist_ok=True)
-    ctx.table_dir.mkdir(parents=True, exist_ok=True)
+    for folder, patterns in ((ctx.fig_dir, ("*.png", "*.svg")), (ctx.table_dir, ("*.csv",))):
+        folder.mkdir(parents=True, exist_ok=True)
+        for stale in [p for pattern in patterns for p in folder.glob(pattern)]:
+            stale.unlink()  # a rebuilt report holds only what this build wrote
     _overview(ctx)
     _findings(ctx)
     st = _statistics(ctx)

@@ -72,6 +72,8 @@ RUN_KEYS = ("n", "duration", "dt", "record_interval", "warmup", "group_radius", 
             "keep", "trajectory_every")
 AXIS_KEYS = ("name", "key", "keys", "values", "labels", "linspace", "range")
 SAMPLE_KEYS = ("method", "n", "bounds", "scramble")
+RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
+                    "part", "n", "steps")
 
 
 @dataclass(frozen=True)
@@ -210,6 +212,9 @@ def parse_axis(axis: dict, index: int) -> Axis:
     points = _axis_points(axis, where, len(keys))
     name = axis.get("name", keys[0] if len(keys) == 1 else "+".join(keys))
     _typed(name, str, f"{where}.name", "a string")
+    if name in RESERVED_COLUMNS:
+        raise ConfigError(f"{where}.name", f"got {name!r}; that name is a results column "
+                                           f"({', '.join(RESERVED_COLUMNS)}); choose another")
     labels = axis.get("labels")
     if labels is not None:
         if not isinstance(labels, list) or len(labels) != len(points) or not all(isinstance(s, str) for s in labels):

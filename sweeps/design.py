@@ -130,6 +130,7 @@ def expand(config: SweepConfig) -> list[RunSpec]:
     """All runs of the sweep, validated, in design order."""
     factors = factor_levels(config)
     specs = []
+    seen: dict[str, str] = {}
     combos = itertools.product(*[range(len(points)) for _, points in factors])
     for point_index, combo in enumerate(combos):
         overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
@@ -137,6 +138,10 @@ def expand(config: SweepConfig) -> list[RunSpec]:
         preset = _build_preset(config, overrides, where)
         resolved = preset.to_dict()
         point = point_key({k: _lookup(resolved, k) for k, _ in overrides})
+        if point in seen:
+            raise ConfigError("axes", f"design points {seen[point]} and {where} are the same parameters "
+                                      "(values that resolve equal, e.g. 60 and 60.0); list each level once")
+        seen[point] = where
         radius = config.analysis.group_radius or default_group_radius(preset.model)
         columns = tuple(_columns(config, combo, resolved))
         for replicate in range(config.replicates):

@@ -182,10 +182,14 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
     with store.lock():
         plan = make_plan(specs, store, force, retry_failed)
         effective = {**config.source, "replicates": config.replicates}
-        store.write_inputs(sweep_text, effective, model_record(config), design_table(specs))
+        design = design_table(specs)
+        store.write_inputs(sweep_text, effective, model_record(config), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         if plan.todo:
-            warm_up(plan.todo[0])
+            try:
+                warm_up(plan.todo[0])
+            except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
+                pass
             batches = make_batches(plan.todo, workers, batch_size)
             failures = 0
             with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer:
@@ -194,7 +198,7 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
                     failures += sum(r["status"] != "ok" for r in rows)
                     bar.set_postfix(failed=failures, refresh=False)
                     bar.update(len(rows))
-        table = store.consolidate([s.run_id for s in specs])
+        table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
     return SweepResult(Path(out_dir), plan, table, time.time() - started)
 

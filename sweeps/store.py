@@ -125,11 +125,16 @@ class ResultsStore:
         return rows.drop_duplicates("run_id", keep="last").set_index("run_id", drop=False)
 
     # -- consolidation ---------------------------------------------------------------------------
-    def consolidate(self, run_ids: list[str]) -> pd.DataFrame:
-        """Write ``runs.parquet``: the latest row of each run of the design, in design order."""
+    def consolidate(self, design: pd.DataFrame) -> pd.DataFrame:
+        """Write ``runs.parquet``: the latest row of each run of ``design`` (run_id, index, point_index,
+        replicate), in design order; positions come from the current design, not from when a row was
+        computed (a run can move when the grid grows or replicates are added)."""
         latest = self.latest()
-        present = [r for r in run_ids if r in latest.index]
-        table = latest.loc[present].reset_index(drop=True)
+        present = design[design["run_id"].isin(latest.index)]
+        table = latest.loc[list(present["run_id"])].reset_index(drop=True)
+        for column in ("index", "point_index", "replicate"):
+            if column in present:
+                table[column] = present[column].to_numpy()
         if "index" in table:
             table = table.sort_values("index", kind="stable").reset_index(drop=True)
         write_parquet(table, self.root / "runs.parquet")

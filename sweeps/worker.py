@@ -45,12 +45,15 @@ def _check_finite(obs) -> None:
         raise NonFiniteState(f"non-finite position or velocity at t = {obs.times[np.argmax(bad)]:g} s")
 
 
-def _save_trajectory(spec: RunSpec, obs, stride: int, out_dir: Path) -> None:
+def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
+    """Positions and velocities every ``trajectory_every`` steps (the observations are recorded every
+    gcd(record_every, trajectory_every) steps)."""
+    pick = slice(None, None, spec.analysis.trajectory_every // obs.record_every)
     path = Path(out_dir) / "trajectories" / f"{spec.run_id}.npz"
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as handle:
-            np.savez_compressed(handle, times=obs.times, pos=obs.pos, vel=obs.vel, pattern=obs.pattern,
-                                seed=spec.seed)
+            np.savez_compressed(handle, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
+                                pattern=obs.pattern, seed=spec.seed)
 
 
 def _base_row(spec: RunSpec) -> dict:
@@ -70,7 +73,7 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
         sim_s = time.perf_counter() - start
         _check_finite(obs)
         if spec.analysis.keep == "trajectories" and out_dir is not None:
-            _save_trajectory(spec, obs, stride, out_dir)
+            _save_trajectory(spec, obs, out_dir)
         pick = slice(None, None, stride)
         series = frame_metrics(obs.pos[pick], obs.vel[pick], obs.visible[pick], obs.binocular[pick],
                                obs.pattern, spec.group_radius, world_box(spec.preset.model))

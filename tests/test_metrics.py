@@ -45,7 +45,6 @@ def test_time_series_shape_and_mean_speed():
 # ---------------------------------------------------------------------------------------------------
 # frame metrics: groups, milling, shape, segregation (analysis.metrics.frame_metrics and its helpers)
 
-import time  # noqa: E402
 
 import pytest  # noqa: E402
 from scipy.sparse.csgraph import connected_components  # noqa: E402
