@@ -23,8 +23,8 @@ import math
 
 import numba as nb
 
-from .layout import (BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F_BOX, F_DT, F_MASS, F_MAX_FORCE, F_MAX_SPEED,
-                     F_WORLD_RADIUS, I_BOUNDARY)
+from .layout import (BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F_BOX, F_DT, F_GAIN_K, F_GAIN_M, F_GAIN_S, F_MASS,
+                     F_MAX_FORCE, F_MAX_SPEED, F_WORLD_RADIUS, I_BOUNDARY)
 from .rules import normalized
 
 SMOOTH_MIN, SMOOTH_MAX = 0.15, 0.4
@@ -47,7 +47,7 @@ def cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
     """Force turned into the cone of axis u (unit) and the given cosine, keeping its length."""
     length = math.sqrt(fx * fx + fy * fy + fz * fz)
@@ -62,7 +62,7 @@ def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
             (cosine * uz + perp * pz) * length)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     """Banking frame update of boid i after its move (module docstring, step 6)."""
     rate = min(max(3.0 * dt, 0.0), 1.0)
@@ -88,7 +88,7 @@ def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     up[i, 0], up[i, 1], up[i, 2] = cross(sx, sy, sz, f0, f1, f2)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def apply_boundary(i, pos, fp, ip):
     kind = ip[I_BOUNDARY]
     if kind == BOUNDARY_SPHERE_WRAP:
@@ -105,9 +105,10 @@ def apply_boundary(i, pos, fp, ip):
             pos[i, c] -= box * math.floor((pos[i, c] + 0.5 * box) / box)
 
 
-@nb.njit(cache=True, error_model="numpy")
-def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip):
-    """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz)."""
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0, dvy=0.0, dvz=0.0, cap=-1.0):
+    """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz). A leader's escape
+    adds (dvx, dvy, dvz) to the new velocity before truncation to ``cap`` (default: max_speed)."""
     dt = fp[F_DT]
     max_speed = fp[F_MAX_SPEED]
     speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
@@ -121,12 +122,40 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip):
     acc[i, 0] += rate * (fx / mass - acc[i, 0])
     acc[i, 1] += rate * (fy / mass - acc[i, 1])
     acc[i, 2] += rate * (fz / mass - acc[i, 2])
-    vx, vy, vz = truncated(speed * fwd[i, 0] + acc[i, 0] * dt, speed * fwd[i, 1] + acc[i, 1] * dt,
-                           speed * fwd[i, 2] + acc[i, 2] * dt, max_speed)
+    vx = speed * fwd[i, 0] + acc[i, 0] * dt
+    vy = speed * fwd[i, 1] + acc[i, 1] * dt
+    vz = speed * fwd[i, 2] + acc[i, 2] * dt
+    if dvx != 0.0 or dvy != 0.0 or dvz != 0.0:
+        vx, vy, vz = vx + dvx, vy + dvy, vz + dvz
+    vx, vy, vz = truncated(vx, vy, vz, max_speed if cap < 0.0 else cap)
     vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
     pos[i, 0] += vx * dt
     pos[i, 1] += vy * dt
     pos[i, 2] += vz * dt
     new_speed = math.sqrt(vx * vx + vy * vy + vz * vz)
     rebuild_frame(i, vx, vy, vz, new_speed, fwd, up, side, acc, dt)
+    apply_boundary(i, pos, fp, ip)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up, side, acc, fp, ip,
+                       dvx, dvy, dvz, cap):
+    """One Hartman-Benes frame of boid i (MODEL.md section 5): p' = p + dt v (the old velocity), then
+    v' = v + (S s + K k) / dt + M m (+ a leader's escape), clamped to ``cap``. ``acc`` holds the
+    realised acceleration (v' - v) / dt, which drives the banking frame as in OpenSteer."""
+    dt = fp[F_DT]
+    vx0, vy0, vz0 = vel[i, 0], vel[i, 1], vel[i, 2]
+    pos[i, 0] += vx0 * dt
+    pos[i, 1] += vy0 * dt
+    pos[i, 2] += vz0 * dt
+    gs, gk, gm = fp[F_GAIN_S], fp[F_GAIN_K], fp[F_GAIN_M]
+    vx = vx0 + (gs * sx + gk * kx) / dt + gm * mx
+    vy = vy0 + (gs * sy + gk * ky) / dt + gm * my
+    vz = vz0 + (gs * sz + gk * kz) / dt + gm * mz
+    if dvx != 0.0 or dvy != 0.0 or dvz != 0.0:
+        vx, vy, vz = vx + dvx, vy + dvy, vz + dvz
+    vx, vy, vz = truncated(vx, vy, vz, cap)
+    vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
+    acc[i, 0], acc[i, 1], acc[i, 2] = (vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt
+    rebuild_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt)
     apply_boundary(i, pos, fp, ip)

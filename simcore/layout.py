@@ -11,28 +11,35 @@ import math
 
 import numpy as np
 
-from .params import BOUNDARIES, PERCEPTION_KINDS, SEPARATION_WEIGHTS, UPDATE_ORDERS, ModelParams
+from .params import (BOUNDARIES, DYNAMICS, FRONT_GATES, PERCEPTION_KINDS, SEPARATION_WEIGHTS, UPDATE_ORDERS,
+                     ModelParams)
 
 # float slots
 (F_SEP_W, F_ALI_W, F_COH_W, F_MAX_SPEED, F_MAX_FORCE, F_MASS, F_DT,
  F_SPHERE_RADIUS, F_NEAR_R, F_SEP_R, F_SEP_COS, F_ALI_R, F_ALI_COS, F_COH_R, F_COH_COS,
  F_COS_EYE, F_SIN_EYE, F_COS_GAZE, F_SIN_GAZE, F_COS_HALF_FIELD, F_RANGE, F_HEAD_R, F_BODY_R,
- F_WORLD_RADIUS, F_BOX, F_COUNT) = range(26)
+ F_WORLD_RADIUS, F_BOX, F_GAIN_S, F_GAIN_K, F_GAIN_M, F_SEP_FALLOFF, F_LEAD_X, F_LEAD_SIGMA,
+ F_LEAD_DURATION, F_LEAD_GAIN, F_LEAD_BOOST, F_LEAD_REFRACTORY, F_SLOW_SPEED, F_PERCEPTION_RANGE,
+ F_COUNT) = range(38)
 
 # int slots
 (I_PERCEPTION, I_OCCLUSION, I_SEE_ALL, I_BOUNDARY, I_ORDER, I_PATTERNS, I_SEP_WEIGHT, I_NBITS,
- I_COUNT) = range(9)
+ I_DYNAMICS, I_LEADERSHIP, I_FRONT_GATE, I_COUNT) = range(12)
 
 # enumerations, in the order of the params tuples
 PERCEPTION_SPHERE, PERCEPTION_OPENSTEER, PERCEPTION_BINOCULAR = range(3)
 BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
 ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
 SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
+DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES = range(2)
+GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
 
 assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular")
 assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
 assert UPDATE_ORDERS == ("synchronous", "sequential")
 assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
+assert DYNAMICS == ("opensteer", "hartman_benes")
+assert FRONT_GATES == ("positive", "weighted", "none")
 
 
 def cos_deg(angle_deg: float) -> float:
@@ -84,4 +91,14 @@ def pack(model: ModelParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
     ip[I_PATTERNS] = int(model.patterns.enabled)
     ip[I_SEP_WEIGHT] = SEPARATION_WEIGHTS.index(model.patterns.separation_weight)
     ip[I_NBITS] = model.patterns.n_bits
+    gains, lead = model.gains, model.leadership
+    fp[F_GAIN_S], fp[F_GAIN_K], fp[F_GAIN_M] = gains.separation, gains.cohesion, gains.alignment
+    fp[F_SEP_FALLOFF] = gains.separation_falloff_exponent
+    fp[F_LEAD_X], fp[F_LEAD_SIGMA], fp[F_LEAD_DURATION] = lead.x, lead.sigma, lead.duration
+    fp[F_LEAD_GAIN], fp[F_LEAD_BOOST], fp[F_LEAD_REFRACTORY] = lead.gain, lead.boost, lead.refractory
+    fp[F_SLOW_SPEED] = model.slow_speed
+    fp[F_PERCEPTION_RANGE] = model.perception_range
+    ip[I_DYNAMICS] = DYNAMICS.index(model.dynamics)
+    ip[I_LEADERSHIP] = int(lead.enabled)
+    ip[I_FRONT_GATE] = FRONT_GATES.index(lead.front_gate)
     return fp, ip

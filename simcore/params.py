@@ -18,7 +18,8 @@ from pathlib import Path
 from .schema import ConfigError, apply_overrides, build, suggest, to_dict
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
-DYNAMICS = ("opensteer",)
+DYNAMICS = ("opensteer", "hartman_benes")
+FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
 SEPARATION_WEIGHTS = ("similarity", "dissimilarity", "uniform")
@@ -202,6 +203,52 @@ class Patterns:
 
 
 @dataclass(frozen=True)
+class Gains:
+    """Hartman-Benes raw velocity update (MODEL.md section 5), gains per frame (= per step):
+    v' = v + (S s + K k) / dt + M m, with s = sum_j (p_i - p_j) / |p_i - p_j|^falloff."""
+
+    separation: float = 0.02
+    cohesion: float = 0.02
+    alignment: float = 0.1
+    separation_falloff_exponent: float = 2.0
+
+    def __post_init__(self):
+        for name in ("separation", "cohesion", "alignment"):
+            _within(f"gains.{name}", getattr(self, name), 0.0, 1.0)
+        _within("gains.separation_falloff_exponent", self.separation_falloff_exponent, 0.0, 4.0)
+
+
+@dataclass(frozen=True)
+class Leadership:
+    """Hartman-Benes change of leadership (MODEL.md section 5); ``x = 0`` disables it exactly.
+    Available on every dynamics: the escape acts through a velocity boost and a raised speed cap."""
+
+    x: float = 0.0
+    front_gate: str = "positive"
+    sigma: float = 1.0 / 6.0
+    duration: float = 3.0
+    gain: float = 0.2
+    boost: float = 1.0
+    refractory: float = 0.0
+    slow_speed: float | None = None  # None: 0.05 max_speed
+
+    def __post_init__(self):
+        _non_negative("leadership.x", self.x)
+        _choice("leadership.front_gate", self.front_gate, FRONT_GATES)
+        _positive("leadership.sigma", self.sigma)
+        _positive("leadership.duration", self.duration)
+        _non_negative("leadership.gain", self.gain)
+        _non_negative("leadership.boost", self.boost)
+        _non_negative("leadership.refractory", self.refractory)
+        if self.slow_speed is not None:
+            _non_negative("leadership.slow_speed", self.slow_speed)
+
+    @property
+    def enabled(self) -> bool:
+        return self.x > 0.0
+
+
+@dataclass(frozen=True)
 class ModelParams:
     """Everything that defines the model (not the run): perception, rules, physics, world."""
 
@@ -213,9 +260,25 @@ class ModelParams:
     vehicle: Vehicle = field(default_factory=Vehicle)
     world: World = field(default_factory=World)
     patterns: Patterns = field(default_factory=Patterns)
+    gains: Gains = field(default_factory=Gains)
+    leadership: Leadership = field(default_factory=Leadership)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
+        if self.dynamics == "hartman_benes" and self.perception.kind != "sphere":
+            raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics 'hartman_benes' "
+                                                 "uses the visibility sphere: set perception.kind = 'sphere'")
+
+    @property
+    def slow_speed(self) -> float:
+        lead = self.leadership
+        return 0.05 * self.vehicle.max_speed if lead.slow_speed is None else lead.slow_speed
+
+    @property
+    def perception_range(self) -> float:
+        """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius)."""
+        per = self.perception
+        return {"sphere": per.radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
 
 
 @dataclass(frozen=True)
@@ -284,9 +347,17 @@ class Preset:
 
 
 def model_dict(model: ModelParams) -> dict:
-    """Canonical resolved dict of a model (see :meth:`Preset.to_dict`)."""
+    """Canonical resolved dict of a model (see :meth:`Preset.to_dict`): tables that cannot affect the
+    run are left out (the other dynamics' constants; leadership while x = 0), so adding a feature
+    never changes the identity of runs that do not use it."""
     out = to_dict(model)
     out["perception"] = model.perception.resolved()
+    if model.dynamics == "hartman_benes":
+        del out["steering"]
+    else:
+        del out["gains"]
+    if not model.leadership.enabled:
+        del out["leadership"]
     return out
 
 

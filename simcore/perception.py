@@ -67,7 +67,7 @@ def _store(m, j, dx, dy, dz, mask, label, nb_idx, nb_off, nb_mask, nb_label):
     nb_label[m] = label
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _perceive_sphere(i, pos, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     r2 = fp[F_SPHERE_RADIUS] * fp[F_SPHERE_RADIUS]
     m = 0
@@ -81,7 +81,7 @@ def _perceive_sphere(i, pos, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_labe
     return m
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _perceive_opensteer(i, pos, fwd, fp, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     near2 = fp[F_NEAR_R] * fp[F_NEAR_R]
     sep_r2 = fp[F_SEP_R] * fp[F_SEP_R]
@@ -130,7 +130,7 @@ def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
     return ax * qx + ay * qy + az * qz >= cos_half * math.sqrt(q2)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _view_phase(i, pos, fwd, side, fp, ip, periodic, box, nb_idx, nb_off, nb_mask, nb_label):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
@@ -171,7 +171,7 @@ def _bin(x, n_bins):
     return min(max(b, 0), n_bins - 1)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     """Perspective phase: drop completely occluded neighbours in place; returns the new count.
 
@@ -249,7 +249,7 @@ def _occlude(m, fp, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     return kept
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def perceive(i, pos, fwd, side, fp, ip, nb_idx, nb_off, nb_mask, nb_label, work_f, work_i):
     """Neighbours of boid i (see module docstring); returns their count m."""
     periodic = ip[I_BOUNDARY] == BOUNDARY_PERIODIC

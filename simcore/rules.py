@@ -20,7 +20,8 @@ import math
 import numba as nb
 import numpy as np
 
-from .layout import F_ALI_W, F_COH_W, F_SEP_W, I_NBITS, I_PATTERNS, I_SEP_WEIGHT, SEPW_DISSIMILARITY, SEPW_SIMILARITY
+from .layout import (F_ALI_W, F_COH_W, F_SEP_FALLOFF, F_SEP_W, I_NBITS, I_PATTERNS, I_SEP_WEIGHT, SEPW_DISSIMILARITY,
+                     SEPW_SIMILARITY)
 from .perception import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
 
 
@@ -49,7 +50,7 @@ def normalized(x, y, z):
     return 0.0, 0.0, 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
     """Combined steering force of boid i (see module docstring)."""
     use_patterns = ip[I_PATTERNS] != 0
@@ -96,3 +97,56 @@ def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
     return (ws_ * sx + wa_ * ax + wc_ * cx,
             ws_ * sy + wa_ * ay + wc_ * cy,
             ws_ * sz + wa_ * az + wc_ * cz)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def hartman_benes_forces(i, m, vel, fp, nb_idx, nb_off):
+    """Hartman-Benes steers of boid i from its m visible boids (MODEL.md section 5):
+    s = sum_j (p_i - p_j) / |p_i - p_j|^f (f = gains.separation_falloff_exponent; 0 = the paper's literal
+    sum), k = mean_j d_j (= c_i - p_i), mv = mean_j v_j; all zero when m = 0. Returns 9 floats."""
+    sx = sy = sz = 0.0
+    kx = ky = kz = 0.0
+    mx = my = mz = 0.0
+    falloff = fp[F_SEP_FALLOFF]
+    for n in range(m):
+        j = nb_idx[n]
+        dx, dy, dz = nb_off[n, 0], nb_off[n, 1], nb_off[n, 2]
+        if falloff == 0.0:
+            w = 1.0
+        else:
+            dd = dx * dx + dy * dy + dz * dz
+            if dd <= 0.0:
+                w = 0.0
+            elif falloff == 2.0:
+                w = 1.0 / dd
+            else:
+                w = 1.0 / dd ** (0.5 * falloff)
+        sx -= w * dx
+        sy -= w * dy
+        sz -= w * dz
+        kx += dx
+        ky += dy
+        kz += dz
+        mx += vel[j, 0]
+        my += vel[j, 1]
+        mz += vel[j, 2]
+    if m > 0:
+        kx, ky, kz = kx / m, ky / m, kz / m
+        mx, my, mz = mx / m, my / m, mz / m
+    return sx, sy, sz, kx, ky, kz, mx, my, mz
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def cohesion_offset(m, nb_off, nb_mask):
+    """(k_x, k_y, k_z, count): mean offset to the neighbours in the cohesion set (leadership's k_i)."""
+    kx = ky = kz = 0.0
+    count = 0
+    for n in range(m):
+        if nb_mask[n] & RULE_COHESION:
+            kx += nb_off[n, 0]
+            ky += nb_off[n, 1]
+            kz += nb_off[n, 2]
+            count += 1
+    if count > 0:
+        return kx / count, ky / count, kz / count, count
+    return 0.0, 0.0, 0.0, 0

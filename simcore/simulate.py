@@ -9,6 +9,8 @@
 * ``visible``    int32 (R, N)       neighbours perceived (union of the rule sets)
 * ``binocular``  int32 (R, N)       of those, seen by both eyes
 * ``pattern``    uint32 (N,)        each boid's pattern (0 outside pattern mode)
+* ``leader``     bool (R, N)        leaders at each record (change of leadership)
+* ``triggers``   int64 (E, 2)       trigger events (step, boid), in order
 * ``final``      :class:`~simcore.state.State` after the last step
 
 ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
@@ -24,7 +26,7 @@ from . import kernel
 from .layout import pack
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
-from .state import State, initial_state
+from .state import FIELDS, State, initial_state
 
 MODEL_VERSION = "1"  # bump whenever a change alters any trajectory for an unchanged spec
 
@@ -36,6 +38,8 @@ class Observations:
     vel: np.ndarray
     visible: np.ndarray
     binocular: np.ndarray
+    leader: np.ndarray
+    triggers: np.ndarray
     pattern: np.ndarray
     final: State
     dt: float
@@ -54,9 +58,28 @@ def _n_steps(duration: float, dt: float) -> int:
     return int(round(duration / dt))
 
 
-def _records(n_records: int, n: int, lead: tuple = ()):
+def _records(n_records: int, n: int, n_events: int, lead: tuple = ()):
+    """(rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig)."""
     return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
-            np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32))
+            np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32),
+            np.zeros(lead + (n_records, n), np.bool_), np.zeros(lead + (n_events,), np.int64),
+            np.zeros(lead + (n_events,), np.int64), np.zeros(lead + (1,), np.int64))
+
+
+def _n_events(model: ModelParams, n: int, n_steps: int, dt: float) -> int:
+    if not model.leadership.enabled:
+        return 0
+    return int(kernel.max_triggers(n, n_steps, model.leadership.duration, dt))
+
+
+def _observations(times, rec, final: State, dt: float, record_every: int) -> Observations:
+    pos, vel, visible, binocular, leader, trig_step, trig_boid, n_trig = rec
+    count = int(n_trig[0])
+    if count > len(trig_step):
+        raise RuntimeError(f"{count} leadership triggers exceed the bound of {len(trig_step)} (kernel bug)")
+    triggers = np.stack([trig_step[:count], trig_boid[:count]], axis=1)
+    return Observations(times, pos, vel, visible, binocular, leader, triggers, pattern=final.pattern.copy(),
+                        final=final, dt=dt, record_every=record_every)
 
 
 def _check_record_every(record_every) -> int:
@@ -65,24 +88,27 @@ def _check_record_every(record_every) -> int:
     return int(record_every)
 
 
-def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1) -> Observations:
-    """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched."""
+def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
+            key: int = 0) -> Observations:
+    """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched. ``key`` is the run's
+    key for in-loop draws (leadership)."""
     record_every = _check_record_every(record_every)
     s = state.copy()
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
-    rec = _records(n_records, s.n)
-    kernel.run_opensteer(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, fp, ip, n_steps, record_every, *rec)
+    rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
+    kernel.run_model(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip,
+                     np.uint64(key), n_steps, record_every, *rec)
     times = np.arange(n_records) * (record_every * dt)
-    return Observations(times, *rec, pattern=s.pattern.copy(), final=s, dt=dt, record_every=record_every)
+    return _observations(times, rec, s, dt, record_every)
 
 
 def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
              record_every: int = 1) -> Observations:
     """Simulate one run from its seed (see module docstring)."""
     n_steps = _n_steps(duration, dt)
-    rng, _loop_key = run_streams(seed)
-    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every)
+    rng, loop_key = run_streams(seed)
+    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key)
 
 
 def simulate_preset(preset: Preset, seed, record_every: int | None = None) -> Observations:
@@ -97,18 +123,14 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     """Several runs of one (model, init), one per seed, in one threaded compiled call."""
     record_every = _check_record_every(record_every)
     n_steps = _n_steps(duration, dt)
-    states = [initial_state(init, model.patterns, run_streams(seed)[0]) for seed in seeds]
-    stacked = {f: np.stack([getattr(s, f) for s in states]) for f in
-               ("pos", "vel", "fwd", "up", "side", "acc", "pattern")}
+    streams = [run_streams(seed) for seed in seeds]
+    states = [initial_state(init, model.patterns, rng) for rng, _ in streams]
+    keys = np.array([key for _, key in streams], dtype=np.uint64)
+    stacked = {f: np.stack([getattr(s, f) for s in states]) for f in FIELDS}
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
-    rec = _records(n_records, init.n, (len(states),))
-    kernel.run_batch(stacked["pos"], stacked["vel"], stacked["fwd"], stacked["up"], stacked["side"],
-                     stacked["acc"], stacked["pattern"], fp, ip, n_steps, record_every, *rec)
+    rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
+    kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
     times = np.arange(n_records) * (record_every * dt)
-    out = []
-    for b in range(len(states)):
-        final = State(**{f: stacked[f][b] for f in stacked})
-        out.append(Observations(times, rec[0][b], rec[1][b], rec[2][b], rec[3][b],
-                                pattern=final.pattern.copy(), final=final, dt=dt, record_every=record_every))
-    return out
+    return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
+                          record_every) for b in range(len(states))]

@@ -1,7 +1,9 @@
 """Simulation state as arrays (MODEL.md section 1) and its initial conditions (section 0).
 
 :class:`State` holds, for N boids: ``pos``, ``vel``, ``fwd``, ``up``, ``side``, ``acc`` (float64 (N, 3);
-``side`` = normalize(fwd x up), kept with the frame) and ``pattern`` (uint32 (N,)). No per-boid objects.
+``side`` = normalize(fwd x up), kept with the frame), ``pattern`` (uint32 (N,)) and the leadership
+``clock`` (float64 (N,), seconds since the last trigger, +inf at start) and ``escape`` (float64 (N, 3)).
+No per-boid objects.
 
 :func:`initial_state` draws it from the run's init generator (``numpy.random.Generator``): positions
 uniform in a ball (radius ``InitParams.ball_radius``, centred at the origin), headings uniform on the
@@ -18,6 +20,9 @@ import numpy as np
 from .params import InitParams, Patterns
 
 
+FIELDS = ("pos", "vel", "fwd", "up", "side", "acc", "pattern", "clock", "escape")
+
+
 @dataclass(frozen=True)
 class State:
     pos: np.ndarray
@@ -27,14 +32,22 @@ class State:
     side: np.ndarray
     acc: np.ndarray
     pattern: np.ndarray
+    clock: np.ndarray | None = None
+    escape: np.ndarray | None = None
+
+    def __post_init__(self):
+        n = self.pos.shape[0]
+        if self.clock is None:
+            object.__setattr__(self, "clock", np.full(n, np.inf))
+        if self.escape is None:
+            object.__setattr__(self, "escape", np.zeros((n, 3)))
 
     @property
     def n(self) -> int:
         return self.pos.shape[0]
 
     def copy(self) -> "State":
-        return State(*(np.array(getattr(self, f), copy=True) for f in
-                       ("pos", "vel", "fwd", "up", "side", "acc", "pattern")))
+        return State(*(np.array(getattr(self, f), copy=True) for f in FIELDS))
 
 
 def pattern_counts(patterns: Patterns, n: int) -> np.ndarray:
