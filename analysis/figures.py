@@ -149,15 +149,18 @@ def _cell_colours(n: int):
 
 # -- 1. main effects ----------------------------------------------------------------------------------
 
-def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5, title: str = "") -> Path:
-    """One panel per factor: mean of ``metric`` vs level with its CI (band or error bars)."""
+def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5, title: str = "",
+                        sharey: bool = True, xlabel: str = "") -> Path:
+    """One panel per factor: mean of ``metric`` vs level with its CI (band or error bars). With
+    ``sharey=False`` each panel keeps its own y scale (e.g. one panel per metric against one factor,
+    the panel titles naming the metrics and ``xlabel`` the factor)."""
     _require(effects, ["factor", "level", "mean", "ci_low", "ci_high"], "main_effects_figure")
     if effects.empty:
         raise ValueError("main_effects_figure: no effects to draw")
     plt = _pyplot()
     factors = list(pd.unique(effects["factor"]))
     nrows, ncols = _grid_shape(len(factors), ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(2.7 * ncols, 2.5 * nrows + 0.3), sharey=True,
+    fig, axes = plt.subplots(nrows, ncols, figsize=(2.7 * ncols, 2.5 * nrows + 0.3), sharey=sharey,
                              squeeze=False)
     for k, factor in enumerate(factors):
         ax = axes.flat[k]
@@ -188,8 +191,10 @@ def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5
         ax.set_title(str(factor), fontsize=9)
         ax.tick_params(axis="y", labelsize=7)
         ax.grid(True, alpha=0.3, linewidth=0.5)
-        if k % ncols == 0:
+        if sharey and k % ncols == 0:
             ax.set_ylabel(metric, fontsize=9)
+        if xlabel:
+            ax.set_xlabel(xlabel, fontsize=8)
     for ax in axes.flat[len(factors):]:
         ax.set_visible(False)
     if title:

@@ -1,4 +1,5 @@
-"""Holland & Semwal's claims as testable hypotheses, judged from a sweep's results table.
+"""The papers' claims as testable hypotheses, judged from a sweep's results table: Holland & Semwal's
+vision findings (``holland_findings``) and Hartman & Benes' leadership findings (``leadership_findings``).
 
 ``holland_findings(runs, alpha=0.05) -> list[Finding]`` evaluates every claim whose factors are in the
 table (ok runs only; NaN metric values dropped per test). Each finding states the hypothesis, the test,
@@ -24,6 +25,19 @@ Holm-adjusted across all the tests of all findings (one family). The verdict com
     signed-rank test of ``segregation_mean`` > 0 over the pattern-mode runs (0 means random mixing);
     supported when significant, not supported when significantly < 0 or the median is <= 0 with p >= alpha,
     inconclusive otherwise (e.g. too few runs).
+
+Leadership (``leadership_findings``; factor ``leadership.x``, with the leadership metrics of
+``analysis/leadership.py``):
+
+(a) X = 0 is the base model: no trigger and no leader in any run at X = 0 (supported, else not supported;
+    bit-identity with the model without leadership is proven by the test suite, not by a sweep);
+(b) events rise with X: Spearman rho of X vs ``trigger_rate`` > 0 and significant;
+(c) leaders are followed: over runs with X > 0, one-sided Wilcoxon tests that the follow correlation
+    (``follow_corr_max``) and the lag of its maximum (``follow_lag_max``) are > 0;
+(d) high X fragments the flock: Spearman rho of X vs ``n_groups_mean`` > 0 and vs ``cohesion_mean`` < 0,
+    both significant.
+Verdicts as for (a) of Holland's: supported when all tests go the claimed way significantly, not
+supported when any goes significantly the other way, else inconclusive.
 """
 from __future__ import annotations
 
@@ -170,12 +184,10 @@ def applicable(runs: pd.DataFrame) -> list:
     return sorted(builders, key=lambda b: b.__name__)
 
 
-def holland_findings(runs: pd.DataFrame, alpha: float = 0.05) -> list[Finding]:
-    """Evaluate the claims whose factors are present (see module docstring)."""
+def _evaluate(built: list, alpha: float) -> list[Finding]:
+    """Holm-adjust every test of the built findings as one family, then judge each finding."""
     from .stats import holm
 
-    ok = runs[runs["status"] == "ok"] if "status" in runs else runs
-    built = [builder(ok) for builder in applicable(ok)]
     tests = [t for f, _ in built for t in f.tests]
     adjusted = holm(np.array([t.p for t in tests], dtype=float)) if tests else []
     for t, p in zip(tests, adjusted):
@@ -183,10 +195,90 @@ def holland_findings(runs: pd.DataFrame, alpha: float = 0.05) -> list[Finding]:
     findings = []
     for f, judge in built:
         f.verdict = judge(alpha)
-        parts = [f"{t.detail}, p = {t.p_holm:.2g} (Holm), n = {t.n}" for t in f.tests]
+        parts = [t.detail + (f", p = {t.p_holm:.2g} (Holm)" if np.isfinite(t.p_holm) else "") + f", n = {t.n}"
+                 for t in f.tests]
         f.summary = "; ".join(parts) if parts else "no test possible with these data"
         findings.append(f)
     return findings
+
+
+def holland_findings(runs: pd.DataFrame, alpha: float = 0.05) -> list[Finding]:
+    """Evaluate the claims whose factors are present (see module docstring)."""
+    ok = runs[runs["status"] == "ok"] if "status" in runs else runs
+    return _evaluate([builder(ok) for builder in applicable(ok)], alpha)
+
+
+# -- Hartman & Benes: change of leadership ------------------------------------------------------------
+
+LEAD = "leadership.x"
+
+
+def _lead_a(runs):
+    f = Finding("a", "With leadership X = 0 the model is the base model (no boid ever leads).",
+                "no trigger event and no leader in any run at X = 0")
+    base = runs[np.isclose(runs[LEAD].astype(float), 0.0)]
+    with_events = int((base["trigger_rate"].fillna(0) > 0).sum() + (base["leaders_mean"].fillna(0) > 0).sum())
+    f.tests = [Test("runs at X = 0 with a trigger or a leader", float(with_events), float("nan"), len(base),
+                    0.0, f"{with_events} of {len(base)} runs at X = 0 had a trigger or a leader")]
+    f.facts = {"runs_at_x0": int(len(base))}
+
+    def judge(alpha):
+        if not len(base):
+            return "inconclusive"
+        return "supported" if with_events == 0 else "not supported"
+    return f, judge
+
+
+def _lead_b(runs):
+    f = Finding("b", "Trigger events (boids shooting off) become more frequent as X grows.",
+                "the trigger rate (events per boid per minute) increases with X (Spearman rho > 0)")
+    f.tests = [_trend(runs, LEAD, "trigger_rate", "X vs trigger rate")]
+    return f, lambda alpha: _judge_pair(f.tests, alpha, +1.0)
+
+
+def _one_sided_positive(values: pd.Series, label: str, what: str) -> Test:
+    values = values.dropna()
+    if len(values) < 5 or values.nunique() < 2:
+        return Test(label, float("nan"), float("nan"), len(values), 0.0, "too few runs")
+    w, p = stats.wilcoxon(values, alternative="greater")
+    med = float(values.median())
+    return Test(label, float(w), float(p), len(values), float(np.sign(med)),
+                f"median {what} {med:+.3g} (one-sided Wilcoxon W = {w:.0f})")
+
+
+def _lead_c(runs):
+    f = Finding("c", "Leaders are followed: after a boid shoots off, its group turns after it.",
+                "after a trigger, the group's headings correlate positively with the leader's, and best at a "
+                "positive lag (followers turn after the leader; after Nagy et al. 2010)")
+    led = runs[runs[LEAD].astype(float) > 0]
+    f.tests = [_one_sided_positive(led["follow_corr_max"], "follow correlation > 0", "follow correlation"),
+               _one_sided_positive(led["follow_lag_max"], "lag of the maximum > 0", "lag of the maximum (s)")]
+    if "follow_corr_before" in led:
+        f.facts = {"median_follow_corr_before": float(led["follow_corr_before"].median()),
+                   "median_follow_corr_max": float(led["follow_corr_max"].median())}
+    return f, lambda alpha: _judge_pair(f.tests, alpha, +1.0)
+
+
+def _lead_d(runs):
+    f = Finding("d", "High X breaks the flock into parts.",
+                "the number of groups rises and cohesion falls with X (Spearman)")
+    f.tests = [_trend(runs, LEAD, "n_groups_mean", "X vs number of groups"),
+               _trend(runs, LEAD, "cohesion_mean", "X vs cohesion")]
+    f.tests[1].direction = -f.tests[1].direction  # falling cohesion counts as support
+
+    def judge(alpha):
+        return _judge_pair(f.tests, alpha, +1.0)
+    return f, judge
+
+
+def leadership_findings(runs: pd.DataFrame, alpha: float = 0.05) -> list[Finding]:
+    """Hartman & Benes' claims, when ``leadership.x`` is a factor with leadership metrics in the table."""
+    ok = runs[runs["status"] == "ok"] if "status" in runs else runs
+    needed = {LEAD, "trigger_rate", "leaders_mean", "follow_corr_max", "follow_lag_max", "n_groups_mean",
+              "cohesion_mean"}
+    if not needed <= set(ok.columns) or ok[LEAD].nunique() < 2:
+        return []
+    return _evaluate([b(ok) for b in (_lead_a, _lead_b, _lead_c, _lead_d)], alpha)
 
 
 def findings_table(findings: list[Finding]) -> pd.DataFrame:

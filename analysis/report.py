@@ -14,8 +14,9 @@ Holm correction over the whole family, a rank-based two-way ANOVA for a pair of 
 comparisons; heatmaps over field x direction of vision (panels per range, rows per mode and flock size
 when swept); time series of chosen cells; 3-D trace thumbnails of the ``[report.showcase]`` runs,
 re-simulated from their seeds (and checked against the table); replicate adequacy (CI half-width per
-cell); Holland & Semwal's findings when their factors are present. Factors and metrics are read from
-the results, so any sweep works.
+cell); Holland & Semwal's findings when their factors are present; with ``leadership.x`` swept, the
+leadership metrics against X and Hartman & Benes' findings. Factors and metrics are read from the
+results, so any sweep works.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ import pandas as pd
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .findings import FIELD, DIRECTION, findings_table, holland_findings
+from .findings import FIELD, DIRECTION, LEAD, findings_table, holland_findings, leadership_findings
 from .results import Results, load_results
 from sweeps.atomic import write_text
 
@@ -322,6 +323,44 @@ def _findings(ctx: Context) -> None:
             ctx.blocks.append(Para(f"Also: {facts}."))
 
 
+LEADERSHIP_METRICS = ("trigger_rate", "leaders_mean", "leader_time_fraction", "follow_corr_max",
+                      "follow_lag_max", "heading_change_deg", "n_groups_mean", "cohesion_mean",
+                      "stray_fraction_mean", "polarization_mean")
+
+
+def _leadership(ctx: Context) -> None:
+    """Change of leadership: metrics against X with bootstrap CIs, and Hartman & Benes' claims."""
+    if LEAD not in ctx.factors or "trigger_rate" not in ctx.runs:
+        return
+    metrics = [m for m in LEADERSHIP_METRICS if m in ctx.runs and ctx.runs[m].notna().any()]
+    effects = []
+    for metric in metrics:
+        table = stats.main_effect(ctx.runs, LEAD, metric, n_resamples=1000, seed=ctx.seed)
+        effects.append(table.assign(factor=metric, metric=metric))
+    effects = _save_table(ctx, "leadership_effects", pd.concat(effects, ignore_index=True))
+    ctx.blocks.append(Heading("Change of leadership"))
+    ctx.blocks.append(Para("Leadership metrics against X, mean and 95% bootstrap CI over replicates and the other "
+                           "factors (definitions in `docs/metrics.md`): trigger events per boid per minute, "
+                           "simultaneous leaders, the follow response (heading correlation between a leader and "
+                           "its group after a trigger, at its best lag), the group's turn over an escape, and "
+                           "fragmentation."))
+    _figure(ctx, "leadership_vs_x",
+            lambda p: figures.main_effects_figure(effects, "", p, ncols=5, sharey=False, xlabel="X"),
+            "Leadership metrics against X (mean and 95% CI).")
+    findings = leadership_findings(ctx.results.runs)
+    if findings:
+        table = findings_table(findings)
+        table.insert(0, "family", "leadership")
+        ctx.tables["leadership_findings"] = table
+        table.to_csv(ctx.table_dir / "leadership_findings.csv", index=False)
+        ctx.blocks.append(Heading("Hartman & Benes' findings, tested", 3))
+        ctx.blocks.append(Para("Each claim is judged from this sweep's runs only; p-values Holm-adjusted across "
+                               "the tests below; alpha = 0.05."))
+        for f in findings:
+            ctx.blocks.append(Para(f"**({f.key}) {f.claim}** Hypothesis: {f.hypothesis}. Verdict: [{f.verdict}]. "
+                                   f"{f.summary}."))
+
+
 def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0) -> dict:
     started = time.perf_counter()
     results = load_results(results_dir)
@@ -340,6 +379,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
             stale.unlink()  # a rebuilt report holds only what this build wrote
     _overview(ctx)
     _findings(ctx)
+    _leadership(ctx)
     st = _statistics(ctx)
     _metric_sections(ctx, st)
     _heatmaps(ctx)

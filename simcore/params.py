@@ -207,8 +207,8 @@ class Gains:
     """Hartman-Benes raw velocity update (MODEL.md section 5), gains per frame (= per step):
     v' = v + (S s + K k) / dt + M m, with s = sum_j (p_i - p_j) / |p_i - p_j|^falloff."""
 
-    separation: float = 0.02
-    cohesion: float = 0.02
+    separation: float = 0.005
+    cohesion: float = 0.01
     alignment: float = 0.1
     separation_falloff_exponent: float = 2.0
 

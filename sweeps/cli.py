@@ -214,10 +214,11 @@ def cmd_report(args) -> int:
     for kind, path in result["paths"].items():
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'tables'} ({len(result['tables'])} CSV files); {result['seconds']:.1f} s")
-    findings = result["tables"].get("findings")
-    if findings is not None and len(findings):
-        for key, group in findings.groupby("finding", sort=True):
-            print(f"  finding ({key}): {group['verdict'].iloc[0]}: {group['claim'].iloc[0]}")
+    for name in ("findings", "leadership_findings"):
+        findings = result["tables"].get(name)
+        if findings is not None and len(findings):
+            for key, group in findings.groupby("finding", sort=True):
+                print(f"  {name.replace('_', ' ')[:-1]} ({key}): {group['verdict'].iloc[0]}: {group['claim'].iloc[0]}")
     return 0
 
 

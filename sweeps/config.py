@@ -23,6 +23,7 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     fragmentation_cohesion = 0.5    # cohesion below this counts as fragmented
     keep = "metrics"                # or "trajectories" (positions and velocities per run)
     trajectory_every = 6            # steps between stored trajectory frames when keep = "trajectories"
+    leadership_metrics = "auto"     # trigger rate, follow response...: "auto" = when leadership.x is swept or > 0
 
     [[axes]]                        # one factor: a key and its values (cartesian product of all axes)
     name = "mode"                   # column name (default: the key)
@@ -52,6 +53,7 @@ run's preset before anything runs (see :mod:`sweeps.design`).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -69,7 +71,7 @@ TOP_KEYS = ("name", "description", "seed", "replicates", "common_random_numbers"
             "sample", "report")
 MODEL_KEYS = ("preset", "set")
 RUN_KEYS = ("n", "duration", "dt", "record_interval", "warmup", "group_radius", "fragmentation_cohesion",
-            "keep", "trajectory_every")
+            "keep", "trajectory_every", "leadership_metrics")
 AXIS_KEYS = ("name", "key", "keys", "values", "labels", "linspace", "range")
 SAMPLE_KEYS = ("method", "n", "bounds", "scramble")
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
@@ -103,6 +105,7 @@ class Analysis:
     fragmentation_cohesion: float = 0.5
     keep: str = "metrics"
     trajectory_every: int = 6
+    leadership: bool = False  # leadership metrics (trigger rate, follow response, ...) for every run
 
 
 @dataclass(frozen=True)
@@ -274,9 +277,13 @@ def _parse_run(run: dict) -> tuple[list[str], Analysis]:
     every = _typed(run.get("trajectory_every", 6), int, "run.trajectory_every", "an integer >= 1")
     if every < 1:
         raise ConfigError("run.trajectory_every", f"got {every}; expected an integer >= 1")
+    lead = run.get("leadership_metrics", "auto")
+    if lead not in ("auto", True, False):
+        raise ConfigError("run.leadership_metrics", f"got {lead!r}; allowed: \"auto\", true, false")
     analysis = Analysis(warmup=warmup, group_radius=None if radius == "auto" else radius,
-                        fragmentation_cohesion=frag, keep=keep, trajectory_every=every)
-    return overrides, analysis
+                        fragmentation_cohesion=frag, keep=keep, trajectory_every=every,
+                        leadership=lead is True)
+    return overrides, analysis, lead == "auto"
 
 
 def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
@@ -300,7 +307,7 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
     preset_path = _resolve_preset_path(preset_text, base)
     model_set = model.get("set", {})
     _check_keys(model_set, tuple(model_set), "model.set")
-    run_overrides, analysis = _parse_run(data.get("run", {}))
+    run_overrides, analysis, lead_auto = _parse_run(data.get("run", {}))
     preset_data = read_toml(preset_path)
     for key, value in list(model_set.items()) + run_overrides:
         set_dotted(preset_data, canonical_key(key, f"model.set.{key}"), value)
@@ -315,6 +322,10 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
         dupes = sorted({x for x in items if items.count(x) > 1})
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
+    if lead_auto:  # leadership metrics when leadership is swept or switched on
+        x = preset_data.get("leadership", {}).get("x", 0)
+        uses = "leadership.x" in keys or (isinstance(x, (int, float)) and x > 0)
+        analysis = dataclasses.replace(analysis, leadership=bool(uses))
     report = data.get("report", {})
     _check_keys(report, tuple(report), "report")
     return SweepConfig(name=name, description=str(data.get("description", "")), seed=seed,

@@ -38,6 +38,8 @@ def run_seed(sweep_seed: int, point: str | None, replicate: int) -> int:
 
 
 def run_id(resolved_preset: dict, analysis, group_radius: float, seed: int) -> str:
-    spec = {"model_version": MODEL_VERSION, "preset": resolved_preset,
-            "analysis": {**dataclasses.asdict(analysis), "group_radius": float(group_radius)}, "seed": seed}
+    settings = {**dataclasses.asdict(analysis), "group_radius": float(group_radius)}
+    if not settings.get("leadership"):
+        settings.pop("leadership", None)  # added later: absent when off, so earlier run ids stay valid
+    spec = {"model_version": MODEL_VERSION, "preset": resolved_preset, "analysis": settings, "seed": seed}
     return hashlib.sha256(canonical(spec).encode()).hexdigest()[:20]
