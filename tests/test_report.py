@@ -173,3 +173,31 @@ def test_until_ci_adds_replicates_only_where_needed(tmp_path):
     again = run_until_ci(config, "", out, "cohesion_mean", 0.05, 8, log=lambda *_: None,
                          executor="serial", progress=False)
     assert len(again.plan.todo) == 0 and len(again.table) == len(table)
+
+
+def _leadership_table(seed: int = 0, reverse: bool = False) -> pd.DataFrame:
+    rng = np.random.default_rng(seed)
+    rows = []
+    for x in (0.0, 0.5, 1.0, 2.0, 3.0):
+        for _ in range(12):
+            effect = -x if reverse else x
+            rate = 0.0 if x == 0 else max(0.0, 3 * x + rng.normal(0, 0.5))
+            rows.append({"status": "ok", "leadership.x": x, "trigger_rate": rate,
+                         "leaders_mean": rate / 10, "follow_corr_max": np.nan if x == 0 else 0.5 + rng.normal(0, 0.1),
+                         "follow_lag_max": np.nan if x == 0 else 0.3 + abs(rng.normal(0, 0.1)),
+                         "n_groups_mean": 1 + max(0.0, 2 * effect) + rng.normal(0, 0.3),
+                         "cohesion_mean": float(np.clip(1 - 0.1 * effect + rng.normal(0, 0.03), 0, 1))})
+    return pd.DataFrame(rows)
+
+
+def test_leadership_verdicts_follow_planted_effects():
+    from analysis.findings import leadership_findings
+
+    verdicts = {f.key: f.verdict for f in leadership_findings(_leadership_table())}
+    assert verdicts == {"a": "supported", "b": "supported", "c": "supported", "d": "supported"}
+    reversed_ = {f.key: f.verdict for f in leadership_findings(_leadership_table(reverse=True))}
+    assert reversed_["d"] == "not supported"
+    table = _leadership_table()
+    table.loc[table["leadership.x"] == 0, "trigger_rate"] = 0.2       # a trigger at X = 0
+    assert {f.key: f.verdict for f in leadership_findings(table)}["a"] == "not supported"
+    assert leadership_findings(table.drop(columns=["trigger_rate"])) == []

@@ -430,3 +430,17 @@ def test_values_equal_after_resolution_do_not_give_duplicate_run_ids():
     except ConfigError:
         return  # "values repeat" is the expected error
     assert len({s.run_id for s in specs}) == len(specs)
+
+
+def test_leadership_metrics_are_switched_on_when_leadership_is_swept_or_on():
+    from sweeps.config import load_sweep as load
+
+    configs = Path(__file__).resolve().parent.parent / "configs" / "sweeps"
+    assert load(configs / "leadership.toml").analysis.leadership
+    assert load(configs / "leadership_vision.toml").analysis.leadership
+    assert not load(configs / "holland648.toml").analysis.leadership
+    assert load(configs / "smoke.toml", ["model.set.leadership.x=1"]).analysis.leadership
+    assert not load(configs / "smoke.toml", ["run.leadership_metrics=false", "model.set.leadership.x=1"]).analysis.leadership
+    with pytest.raises(ConfigError) as info:
+        load(configs / "smoke.toml", ["run.leadership_metrics=sometimes"])
+    assert info.value.key == "run.leadership_metrics"
