@@ -26,7 +26,9 @@ from sweeps.store import ResultsStore
 
 ID_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s", "part")
 SUMMARY_SUFFIXES = ("_mean", "_final")
-RUN_METRICS = ("time_to_fragmentation", "fragmented")
+RUN_METRICS = ("time_to_fragmentation", "fragmented", "trigger_rate", "leader_time_fraction", "leaders_mean",
+               "follow_corr_lag0", "follow_corr_max", "follow_lag_max", "follow_corr_before",
+               "heading_change_deg", "escape_gain")
 
 
 @dataclass

@@ -340,6 +340,12 @@ class Preset:
     init: InitParams
     run: RunSettings
 
+    def full_dict(self) -> dict:
+        """Every key with its resolved value (nothing left out), for reading swept values back."""
+        out = {**to_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
+        out["perception"]["eye_position_deg"] = self.model.perception.eye_deg
+        return out
+
     def to_dict(self) -> dict:
         """Canonical resolved form: every key that matters, defaults filled in, keys of other
         perception kinds left out. ``preset_from_dict(p.to_dict()) == p`` up to that resolution."""

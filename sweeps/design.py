@@ -73,7 +73,7 @@ def sample_points(config: SweepConfig) -> list[tuple]:
     lows = np.array([lo for _, lo, _ in sample.bounds])
     highs = np.array([hi for _, _, hi in sample.bounds])
     scaled = qmc.scale(unit, lows, highs) if d else unit
-    base = preset_from_dict(copy.deepcopy(config.preset_data)).to_dict()
+    base = preset_from_dict(copy.deepcopy(config.preset_data)).full_dict()
     integer = [isinstance(_lookup(base, key), int) and not isinstance(_lookup(base, key), bool)
                for key, _, _ in sample.bounds]
     return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
@@ -137,13 +137,14 @@ def expand(config: SweepConfig) -> list[RunSpec]:
         where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
         preset = _build_preset(config, overrides, where)
         resolved = preset.to_dict()
-        point = point_key({k: _lookup(resolved, k) for k, _ in overrides})
+        values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
+        point = point_key({k: _lookup(values, k) for k, _ in overrides})
         if point in seen:
             raise ConfigError("axes", f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")
         seen[point] = where
         radius = config.analysis.group_radius or default_group_radius(preset.model)
-        columns = tuple(_columns(config, combo, resolved))
+        columns = tuple(_columns(config, combo, values))
         for replicate in range(config.replicates):
             seed = run_seed(config.seed, None if config.common_random_numbers else point, replicate)
             rid = run_id(resolved, config.analysis, radius, seed)

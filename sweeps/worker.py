@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.leadership import leadership_metrics
 from analysis.metrics import frame_metrics, summarize, world_box
 from simcore import simulate
 
@@ -79,6 +80,10 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
                                obs.pattern, spec.group_radius, world_box(spec.preset.model))
         times = obs.times[pick]
         row.update(summarize(series, times, spec.analysis.warmup, spec.analysis.fragmentation_cohesion))
+        if spec.analysis.leadership:
+            model = spec.preset.model
+            row.update(leadership_metrics(obs, spec.group_radius, model.leadership.duration, world_box(model)))
+            series["leaders"] = obs.leader[pick].sum(axis=1).astype(np.float64)
         row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
         ts = pd.DataFrame({"run_id": spec.run_id, "t": times, **series})
         return row, ts
@@ -97,6 +102,9 @@ def warm_up(spec: RunSpec) -> None:
     obs = simulate(spec.preset.model, replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
     frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, spec.group_radius,
                   world_box(spec.preset.model))
+    if spec.analysis.leadership:
+        leadership_metrics(obs, spec.group_radius, spec.preset.model.leadership.duration,
+                           world_box(spec.preset.model))
 
 
 def execute_batch(specs: list[RunSpec], out_dir=None) -> tuple[list[dict], pd.DataFrame | None]:

@@ -185,6 +185,7 @@ def _leadership_table(seed: int = 0, reverse: bool = False) -> pd.DataFrame:
             rows.append({"status": "ok", "leadership.x": x, "trigger_rate": rate,
                          "leaders_mean": rate / 10, "follow_corr_max": np.nan if x == 0 else 0.5 + rng.normal(0, 0.1),
                          "follow_lag_max": np.nan if x == 0 else 0.3 + abs(rng.normal(0, 0.1)),
+                         "follow_corr_before": np.nan if x == 0 else 0.4 + rng.normal(0, 0.1),
                          "n_groups_mean": 1 + max(0.0, 2 * effect) + rng.normal(0, 0.3),
                          "cohesion_mean": float(np.clip(1 - 0.1 * effect + rng.normal(0, 0.03), 0, 1))})
     return pd.DataFrame(rows)
