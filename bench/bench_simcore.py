@@ -3,8 +3,8 @@
     python bench/bench_simcore.py [--repeats 5] [--sizes 20 50 100 400] [--markdown]
 
 For each model (``opensteer`` preset; ``holland`` preset with occlusion on, range 20, field 120,
-direction 60) and flock size N it times whole runs of ``simulate`` (30 simulated seconds at 60 steps/s,
-10 s for N >= 400) with different seeds and reports the median boid-steps/s over the repeats, with the
+direction 60; ``hartman_benes`` preset with leadership X = 1) and flock size N it times whole runs of
+``simulate`` (30 simulated seconds at the preset's step, 10 s for N >= 400) with different seeds and reports the median boid-steps/s over the repeats, with the
 mean number of visible neighbours (cost grows with it). It also times a fresh Python process from start
 to its first simulated step (compilation loaded from numba's cache).
 """
@@ -29,6 +29,7 @@ MODELS = {
     "holland": (ROOT / "configs/models/holland.toml",
                 ["perception.occlusion=true", "perception.range=20", "perception.field_deg=120",
                  "perception.direction_deg=60"]),
+    "hartman_benes X=1": (ROOT / "configs/models/hartman_benes.toml", ["leadership.x=1"]),
 }
 
 

@@ -30,9 +30,9 @@ import numba as nb
 import numpy as np
 
 from .dynamics import apply_steering, hartman_benes_step
-from .layout import (DYNAMICS_HARTMAN_BENES, F_DT, F_LEAD_DURATION, F_MAX_SPEED, I_DYNAMICS, I_LEADERSHIP,
+from .layout import (DYNAMICS_HARTMAN_BENES, F_DT, F_MAX_SPEED, I_DYNAMICS, I_LEADERSHIP,
                      I_ORDER, ORDER_SEQUENTIAL)
-from .leadership import decide, escape_step, start
+from .leadership import decide, escape_step, is_leader, start
 from .perception import EYE_BOTH, perceive
 from .rules import cohesion_offset, hartman_benes_forces, opensteer_force
 
@@ -86,7 +86,6 @@ def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key,
     hb = ip[I_DYNAMICS] == DYNAMICS_HARTMAN_BENES
     leadership = ip[I_LEADERSHIP] != 0
     dt = fp[F_DT]
-    duration = fp[F_LEAD_DURATION]
     r = 0
     for step in range(n_steps + 1):
         record = step % record_every == 0
@@ -94,7 +93,7 @@ def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key,
             rec_pos[r] = pos
             rec_vel[r] = vel
             for i in range(n):
-                rec_leader[r, i] = clock[i] < duration
+                rec_leader[r, i] = is_leader(clock[i], fp)
         if step == n_steps:
             if record:
                 for i in range(n):

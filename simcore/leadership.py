@@ -2,12 +2,13 @@
 
 Per boid the state holds ``clock`` (seconds since its last trigger; +inf when it never triggered) and
 ``escape`` (unit escape direction fixed at the trigger for a slow boid, zeros otherwise). A boid is a
-leader while ``clock < duration``.
+leader while ``clock < duration - dt/2`` (the clock is a running sum of dt; the half step makes an escape
+last exactly round(duration / dt) steps).
 
 ``decide(...)`` is the trigger test of boid i at a step, from its cohesion offset k_i (mean offset to
 the m boids it perceives), its velocity and clock:
 
-* not a leader and not refractory (``clock >= duration + refractory``), m >= 1;
+* not a leader and not refractory (``clock >= duration + refractory - dt/2``), m >= 1;
 * eccentricity x_i = |k_i| / e (e: the perception range), 0 when m = 0;
 * front_i = -(k_i/|k_i|) . (v_i/|v_i|); the gate ``positive`` needs front_i > 0, ``weighted`` uses
   x_i max(front_i, 0) instead of x_i, ``none`` passes; a boid slower than ``slow_speed`` passes the gate
@@ -28,7 +29,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .layout import (F_LEAD_BOOST, F_LEAD_DURATION, F_LEAD_GAIN, F_LEAD_REFRACTORY, F_LEAD_SIGMA, F_LEAD_X,
+from .layout import (F_DT, F_LEAD_BOOST, F_LEAD_DURATION, F_LEAD_GAIN, F_LEAD_REFRACTORY, F_LEAD_SIGMA, F_LEAD_X,
                      F_MAX_SPEED, F_PERCEPTION_RANGE, F_SLOW_SPEED, GATE_POSITIVE, GATE_WEIGHTED, I_FRONT_GATE)
 from .rng import STREAM_LEADERSHIP, normal
 
@@ -55,9 +56,16 @@ def gauss_rand01(key, step, i, sigma):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def is_leader(clock_i, fp):
+    """Leader while the clock is below the duration; half a step of tolerance makes an escape last
+    exactly round(duration / dt) steps whatever the rounding of the summed clock."""
+    return clock_i < fp[F_LEAD_DURATION] - 0.5 * fp[F_DT]
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def decide(i, step, kx, ky, kz, m, vx, vy, vz, clock, fp, ip, key):
     """(trigger?, slow?) for boid i at ``step`` (see module docstring)."""
-    if m < 1 or clock[i] < fp[F_LEAD_DURATION] + fp[F_LEAD_REFRACTORY]:
+    if m < 1 or clock[i] < fp[F_LEAD_DURATION] + fp[F_LEAD_REFRACTORY] - 0.5 * fp[F_DT]:
         return False, False
     k_len = math.sqrt(kx * kx + ky * ky + kz * kz)
     if k_len == 0.0:
@@ -91,6 +99,8 @@ def start(i, slow, kx, ky, kz, clock, escape):
 def escape_step(i, vx, vy, vz, clock, escape, fp):
     """(dvx, dvy, dvz, speed cap) of boid i for this step; (0, 0, 0, max_speed) when not a leader."""
     max_speed = fp[F_MAX_SPEED]
+    if not is_leader(clock[i], fp):
+        return 0.0, 0.0, 0.0, max_speed
     b = profile(clock[i] / fp[F_LEAD_DURATION])
     if b == 0.0:
         return 0.0, 0.0, 0.0, max_speed
