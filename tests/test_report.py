@@ -202,3 +202,35 @@ def test_leadership_verdicts_follow_planted_effects():
     table.loc[table["leadership.x"] == 0, "trigger_rate"] = 0.2       # a trigger at X = 0
     assert {f.key: f.verdict for f in leadership_findings(table)}["a"] == "not supported"
     assert leadership_findings(table.drop(columns=["trigger_rate"])) == []
+
+
+@pytest.fixture(scope="module")
+def leadership_results(tmp_path_factory):
+    """A small leadership sweep on the hartman_benes preset: X x 2 replicates, 20 boids, 6 s."""
+    data = {"name": "lead", "seed": 3, "replicates": 2,
+            "model": {"preset": str(ROOT / "configs/models/hartman_benes.toml")},
+            "run": {"n": 20, "duration": 6.0, "record_interval": 0.1, "warmup": 1.0},
+            "axes": [{"key": "leadership.x", "values": [0, 0.5, 2]}]}
+    out = tmp_path_factory.mktemp("lead") / "results"
+    run_sweep(sweep_from_dict(data, ROOT), "", out, executor="serial", progress=False)
+    return out
+
+
+def test_events_increase_with_x_on_a_small_sweep(leadership_results):
+    runs = load_results(leadership_results).runs
+    assert (runs["status"] == "ok").all()
+    rates = runs.groupby("leadership.x")["trigger_rate"].mean()
+    assert rates.loc[0.0] == 0.0
+    assert 0.0 < rates.loc[0.5] < rates.loc[2.0]
+    assert {"leaders_mean", "follow_corr_max", "follow_corr_before", "heading_change_deg"} <= set(runs.columns)
+
+
+def test_report_has_a_leadership_section_with_verdicts(leadership_results, tmp_path):
+    result = build_report(leadership_results, tmp_path / "report", formats=("md",))
+    md = result["paths"]["md"].read_text()
+    assert "## Change of leadership" in md and "Hartman & Benes' findings, tested" in md
+    assert (tmp_path / "report" / "figures" / "leadership_vs_x.png").stat().st_size > 10_000
+    findings = result["tables"]["leadership_findings"]
+    assert list(findings["finding"].unique()) == ["a", "b", "c", "d"]
+    assert set(findings["verdict"]) <= VERDICTS
+    assert findings.loc[findings["finding"] == "a", "verdict"].iloc[0] == "supported"
