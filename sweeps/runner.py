@@ -110,13 +110,23 @@ def _manifest(config: SweepConfig, store: ResultsStore, plan: Plan, executor: st
     if table is not None:
         counts.update(ok=int((table["status"] == "ok").sum()), failed=int((table["status"] == "failed").sum()))
         counts["missing"] = counts["runs"] - counts["ok"] - counts["failed"]
+    provenance = stamp()
+    this = {"started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(finished)) if finished else None,
+            "started_unix": started, "computed": len(plan.todo), "executor": executor, "workers": workers,
+            "git_revision": provenance["git_revision"], "model_version": provenance["model_version"]}
+    # every invocation that computed runs stays on record, so a resumed or extended sweep keeps the
+    # provenance of the runs it did not recompute; the top level describes the latest invocation
+    history = [h for h in store.manifest().get("invocations", [])
+               if h.get("computed") and h.get("started_unix") != started]
+    if this["computed"]:
+        history.append(this)
     return {"sweep": config.name, "description": config.description,
             "config_hash": stamp_hash(config), "seed": config.seed, "replicates": config.replicates,
             "common_random_numbers": config.common_random_numbers, "design": describe(config),
             "executor": executor, "workers": workers, "computed_this_invocation": len(plan.todo),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
-            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(finished)) if finished else None,
-            "counts": counts, **stamp()}
+            "started": this["started"], "finished": this["finished"], "invocations": history,
+            "counts": counts, **provenance}
 
 
 def stamp_hash(config: SweepConfig) -> str:

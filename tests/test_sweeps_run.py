@@ -439,3 +439,16 @@ def test_changed_design_in_the_same_directory_is_consolidated_in_design_order(ch
     runs, design = table(out), pd.read_parquet(out / "design.parquet")
     assert list(runs["run_id"]) == list(design["run_id"])
     assert list(runs["index"]) == list(design["index"])
+
+
+def test_manifest_keeps_every_invocation_that_computed_runs(tmp_path):
+    path = write_sweep(tmp_path, '[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\n', duration=0.5)
+    out = tmp_path / "out"
+    run(path, out)
+    run_sweep(load_sweep(path, replicates=2), path.read_text(), out, executor="serial", progress=False)
+    run(path, out)                                              # computes nothing
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [h["computed"] for h in manifest["invocations"]] == [2, 2]
+    assert manifest["computed_this_invocation"] == 0
+    assert all(h["git_revision"] == manifest["git_revision"] for h in manifest["invocations"])
+    assert manifest["invocations"][0]["started"] <= manifest["invocations"][1]["started"]
