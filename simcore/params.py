@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from .schema import ConfigError, apply_overrides, build, suggest, to_dict
@@ -416,8 +416,3 @@ def read_toml(path) -> dict:
 def load_preset(path, overrides=()) -> Preset:
     """Read a preset TOML, apply ``key=value`` overrides, validate."""
     return preset_from_dict(apply_overrides(read_toml(path), overrides))
-
-
-def with_changes(preset: Preset, **sections) -> Preset:
-    """Copy of ``preset`` with whole sections replaced, e.g. ``init=replace(p.init, n=20)``."""
-    return replace(preset, **sections)

@@ -12,8 +12,8 @@ Contract
 * missing keys take the field default;
 * the dataclass' own ``__post_init__`` checks ranges and raises :class:`ConfigError` itself.
 
-``to_dict(obj)`` is the inverse (plain, JSON-ready), ``flatten``/``set_dotted`` handle ``a.b.c=value``
-override strings. Nothing here knows about flocking; sweeps and calibration reuse it.
+``to_dict(obj)`` is the inverse (plain, JSON-ready); ``parse_value``/``set_dotted``/``apply_overrides``
+handle ``a.b.c=value`` override strings. Nothing here knows about flocking; sweeps and calibration reuse it.
 """
 from __future__ import annotations
 
@@ -121,11 +121,6 @@ def to_dict(obj) -> Any:
     if isinstance(obj, tuple):
         return [to_dict(v) for v in obj]
     return obj
-
-
-def canonical_json(obj) -> str:
-    """Deterministic JSON text (sorted keys, no whitespace, repr-exact floats)."""
-    return json.dumps(to_dict(obj), sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
 def parse_value(text: str):
