@@ -1,0 +1,183 @@
+"""Calibration figures: MCMC traces, corner plot, posterior predictive check and SBC rank histograms.
+
+Same contract as :mod:`analysis.figures`: each function takes data and an output ``path`` (format by
+extension, ``.png`` or ``.svg``; parent directories created), draws with the Agg backend selected inside
+the function, saves, closes the figure and returns the ``Path`` written. Importing this module does not
+import matplotlib.
+
+``trace_figure(chain, names, path, burn=None)``
+    one panel per parameter, every walker's trace vs step, burn-in shaded.
+``corner_figure(samples, names, path, truths=None)``
+    histograms on the diagonal, 2-D histograms (scatter for fewer than 500 samples) below it;
+    ``truths`` drawn as lines.
+``predictive_figure(check_df, predictive, observed, names, path)``
+    one panel per statistic: histogram of the predictive, observed value marked, tail probability ``p``
+    in the title (``check_df`` from :func:`analysis.calibration.diagnostics.predictive_check`).
+``sbc_figure(ranks, S, bins, names, path)``
+    rank histograms with the uniform expectation and a 99% binomial band.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from analysis.calibration.diagnostics import _bin_probs, _names, sbc_histogram
+
+SCATTER_MAX = 500
+
+
+def _pyplot():
+    from analysis.figures import _pyplot as pyplot
+
+    return pyplot()
+
+
+def _save(fig, path) -> Path:
+    from analysis.figures import _save as save
+
+    return save(fig, path)
+
+
+def _grid(n: int, ncols_max: int = 4) -> tuple[int, int]:
+    ncols = min(n, ncols_max)
+    return int(math.ceil(n / ncols)), ncols
+
+
+def _hide_unused(axes, n):
+    for ax in axes[n:]:
+        ax.set_visible(False)
+
+
+def trace_figure(chain, names: Sequence[str] | None, path, burn: int | None = None) -> Path:
+    chain = np.asarray(chain, dtype=float)
+    if chain.ndim != 3:
+        raise ValueError(f"chain must have shape (steps, walkers, d), got {chain.shape}")
+    steps, walkers, d = chain.shape
+    names = _names(names, d)
+    plt = _pyplot()
+    fig, axes = plt.subplots(d, 1, figsize=(8, 1.8 * d + 0.6), sharex=True, squeeze=False)
+    t = np.arange(steps)
+    alpha = max(0.05, min(0.6, 8.0 / walkers))
+    for j, ax in enumerate(axes[:, 0]):
+        ax.plot(t, chain[:, :, j], color="k", lw=0.5, alpha=alpha)
+        if burn:
+            ax.axvspan(0, burn, color="tab:red", alpha=0.12, lw=0, label="burn-in" if j == 0 else None)
+        ax.set_ylabel(names[j])
+        ax.set_xlim(0, max(steps - 1, 1))
+    if burn:
+        axes[0, 0].legend(loc="upper right", fontsize="small")
+    axes[-1, 0].set_xlabel("step")
+    return _save(fig, path)
+
+
+def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Path:
+    x = np.asarray(samples, dtype=float)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2:
+        raise ValueError(f"samples must have shape (S, d), got {x.shape}")
+    x = x[np.all(np.isfinite(x), axis=1)]
+    S, d = x.shape
+    names = _names(names, d)
+    truths = None if truths is None else np.asarray(truths, dtype=float).ravel()
+    if truths is not None and truths.size != d:
+        raise ValueError(f"got {truths.size} truths for {d} parameters")
+    plt = _pyplot()
+    size = max(2.0, min(2.5, 10.0 / d))
+    fig, axes = plt.subplots(d, d, figsize=(size * d, size * d), squeeze=False)
+    nbins = int(np.clip(np.sqrt(max(S, 1)), 10, 40))
+    for i in range(d):
+        for j in range(d):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            if i == j:
+                if S:
+                    ax.hist(x[:, j], bins=nbins, color="tab:blue", histtype="stepfilled", alpha=0.6)
+                ax.set_yticks([])
+                if truths is not None and np.isfinite(truths[j]):
+                    ax.axvline(truths[j], color="tab:red", lw=1.2)
+            else:
+                if S < SCATTER_MAX:
+                    ax.scatter(x[:, j], x[:, i], s=3, color="tab:blue", alpha=0.5, lw=0)
+                elif S:
+                    ax.hist2d(x[:, j], x[:, i], bins=nbins, cmap="Blues")
+                if truths is not None:
+                    if np.isfinite(truths[j]):
+                        ax.axvline(truths[j], color="tab:red", lw=1.0)
+                    if np.isfinite(truths[i]):
+                        ax.axhline(truths[i], color="tab:red", lw=1.0)
+                        ax.plot(truths[j], truths[i], "s", color="tab:red", ms=3)
+            if i == d - 1:
+                ax.set_xlabel(names[j])
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i])
+            elif j > 0:
+                ax.set_yticklabels([])
+    return _save(fig, path)
+
+
+def predictive_figure(check_df, predictive, observed, names: Sequence[str] | None, path) -> Path:
+    pred = np.asarray(predictive, dtype=float)
+    if pred.ndim == 1:
+        pred = pred[:, None]
+    k = pred.shape[1]
+    names = _names(names, k)
+    obs = np.asarray(observed, dtype=float)
+    if obs.ndim == 1:
+        obs = obs[None, :]
+    plt = _pyplot()
+    nrows, ncols = _grid(k)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 2.6 * nrows), squeeze=False)
+    flat = axes.ravel()
+    for j, name in enumerate(names):
+        ax = flat[j]
+        p = pred[:, j][np.isfinite(pred[:, j])]
+        if p.size:
+            ax.hist(p, bins=int(np.clip(np.sqrt(p.size), 10, 40)), color="tab:blue", alpha=0.6)
+        x = float(check_df.loc[name, "observed"]) if name in check_df.index else float(np.nanmean(obs[:, j]))
+        if np.isfinite(x):
+            ax.axvline(x, color="tab:red", lw=1.5, label="observed")
+        pval = float(check_df.loc[name, "p"]) if name in check_df.index and "p" in check_df else math.nan
+        ax.set_title(f"{name}  (p = {pval:.2f})", fontsize="medium")
+        ax.set_yticks([])
+    flat[0].legend(fontsize="small")
+    _hide_unused(flat, k)
+    return _save(fig, path)
+
+
+def sbc_figure(ranks, S: int, bins: int, names: Sequence[str] | None, path) -> Path:
+    from scipy import stats
+
+    counts, expected = sbc_histogram(ranks, S, bins)
+    n_bins, d = counts.shape
+    L = int(np.asarray(ranks).shape[0])
+    names = _names(names, d)
+    _, probs = _bin_probs(int(S), int(bins))
+    low = stats.binom.ppf(0.005, L, probs)
+    high = stats.binom.ppf(0.995, L, probs)
+    plt = _pyplot()
+    nrows, ncols = _grid(d)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 2.6 * nrows), squeeze=False)
+    flat = axes.ravel()
+    edges = np.arange(n_bins + 1)
+    for j, name in enumerate(names):
+        ax = flat[j]
+        ax.fill_between(edges, np.append(low, low[-1]), np.append(high, high[-1]), step="post",
+                        color="0.8", label="99% band")
+        ax.bar(edges[:-1], counts[:, j], width=1.0, align="edge", color="tab:blue", alpha=0.7,
+               edgecolor="white", lw=0.5)
+        ax.step(edges, np.append(expected, expected[-1]), where="post", color="k", lw=1.0,
+                label="uniform")
+        ax.set_xlim(0, n_bins)
+        ax.set_title(name, fontsize="medium")
+        ax.set_xlabel(f"rank bin (S = {int(S)})")
+    flat[0].legend(fontsize="small")
+    _hide_unused(flat, d)
+    return _save(fig, path)
