@@ -7,6 +7,7 @@
                    [--retry-failed] [--batch-size B] [--no-progress]
     flocksweep status DIR
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
+    flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -222,6 +223,31 @@ def cmd_report(args) -> int:
     return 0
 
 
+def _add_calibrate(sub) -> None:
+    p = sub.add_parser("calibrate", help="fit model parameters to target flock statistics",
+                       description="Bayesian synthetic-likelihood MCMC (emcee) of the free parameters of a "
+                                   "calibration TOML; writes the chain, posterior table, diagnostics and figures.")
+    p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of the calibration file, e.g. --set method.steps=500")
+    p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
+    p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def cmd_calibrate(args) -> int:
+    from analysis.calibration.config import load_calibration
+    from analysis.calibration.run import calibrate
+
+    config = load_calibration(args.config, args.overrides)
+    result = calibrate(config, args.out, resume=args.resume, progress=not args.no_progress)
+    print(result["summary"].round(4).to_string())
+    for message in result["convergence"]["messages"] + result["warnings"]:
+        print(f"  {message}")
+    print(f"  wrote {result['out']}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -229,10 +255,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(sub)
     _add_status(sub)
     _add_report(sub)
+    _add_calibrate(sub)
     return parser
 
 
-COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report}
+COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
+            "calibrate": cmd_calibrate}
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,129 @@
+"""``flocksweep calibrate``: from a calibration TOML to a posterior with its diagnostics, on disk.
+
+``calibrate(config, out_dir, resume=False, progress=True) -> dict`` runs the configured method and
+writes into ``out_dir`` (default ``results/calibration/<name>/``):
+
+* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly);
+* ``posterior.csv``: mean, sd, median, 95% and 90% intervals, integrated autocorrelation time, effective
+  sample size and acceptance per parameter;
+* ``convergence.json``: plain verdicts (chain length >= 50 tau, acceptance in [0.2, 0.5]), the
+  warnings for parameters the targets do not constrain, and the provenance stamp;
+* ``predictive.csv``: the posterior predictive check (each target against its distribution under
+  posterior draws, with its two-sided tail probability);
+* ``trace.png``, ``corner.png``, ``predictive.png``.
+
+The simulator runs ``n_sim`` replicates per evaluation in one batched compiled call, with fresh seeds
+at every evaluation. When the targets are given as mean and sd (or a covariance), that observation
+uncertainty is added to every simulated summary as Gaussian noise drawn from the same evaluation's
+generator, so the fitted Gaussian's covariance is the simulator's plus the observation's. Targets
+given as samples (a CSV of observed datasets) are used as they are. The ``emcee`` method is
+implemented here; ``optimize`` and ``emulator`` configs are refused with a clear message.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from simcore.schema import ConfigError
+
+from .bsl import run_bsl
+from .config import CalibrationConfig
+from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
+from .plots import corner_figure, predictive_figure, trace_figure
+from .simulator import SummarySimulator
+
+IMPLEMENTED = ("emcee",)
+
+
+def summary_simulator(config: CalibrationConfig) -> SummarySimulator:
+    return SummarySimulator(config.preset_data, config.keys, config.targets.columns,
+                            config.method.settings["n_sim"], config.warmup)
+
+
+def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
+    """theta, rng -> (n_sim, k) summaries, with the observation noise of mean/sd targets added."""
+    cov = config.targets.cov if config.targets.samples_path is None else None
+
+    def fn(theta, rng):
+        sims = simulator(np.asarray(theta, dtype=float), rng)
+        if cov is not None:
+            sims = sims + rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
+        return sims
+    return fn
+
+
+def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Generator) -> np.ndarray:
+    flat = chain[burn:].reshape(-1, chain.shape[-1])
+    return flat[rng.choice(len(flat), size=min(count, len(flat)), replace=False)]
+
+
+def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
+              predictive_draws: int = 100) -> dict:
+    from sweeps.atomic import write_json
+    from sweeps.provenance import stamp
+
+    if config.method.kind not in IMPLEMENTED:
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; this version runs "
+                                         f"{', '.join(IMPLEMENTED)} (optimize and emulator are not available yet)")
+    out = Path(out_dir) if out_dir else Path("results") / "calibration" / config.name
+    out.mkdir(parents=True, exist_ok=True)
+    chain_path = out / "chain.h5"
+    if chain_path.exists() and not resume:
+        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
+    settings = config.method.settings
+    simulator = summary_simulator(config)
+    fn = simulate_fn(config, simulator)
+    started = time.time()
+    bar = _progress_bar(settings["steps"], config.name, progress)
+    result = run_bsl(fn, config.targets.observed, config.prior, walkers=settings["walkers"],
+                     steps=settings["steps"], seed=config.seed, path=chain_path, resume=resume,
+                     likelihood=settings["likelihood"], reevaluate_every=settings["reevaluate_every"],
+                     progress=bar.update if bar else None)
+    if bar:
+        bar.close()
+    summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
+    verdict = convergence(result.chain, result.acceptance_fraction)
+    warnings = prior_constraint_warnings(summary, config.prior)
+    burn = int(summary.attrs.get("burn", 0))
+    rng = np.random.default_rng([config.seed, 0x5050])
+    draws = _posterior_draws(result.chain, burn, predictive_draws, rng)
+    predictive = np.vstack([fn(theta, rng)[:1] for theta in draws])
+    check = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    summary.to_csv(out / "posterior.csv")
+    check.to_csv(out / "predictive.csv")
+    trace_figure(result.chain, config.names, out / "trace.png", burn=burn)
+    corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, out / "corner.png")
+    predictive_figure(check, predictive, config.targets.observed, config.targets.columns, out / "predictive.png")
+    report = {"name": config.name, "method": config.method.kind, "settings": settings, "seed": config.seed,
+              "convergence": _plain(verdict), "warnings": warnings, "wall_s": time.time() - started,
+              "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), **stamp()}
+    write_json(out / "convergence.json", report)
+    return {"out": out, "summary": summary, "convergence": verdict, "warnings": warnings, "predictive": check}
+
+
+class _Bar:
+    def __init__(self, total: int, name: str):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, desc=name, unit="step", mininterval=0.5)
+        self.done = 0
+
+    def update(self, step, acceptance, tau):
+        self.bar.update(step - self.done)
+        self.done = step
+        self.bar.set_postfix(acceptance=f"{acceptance:.2f}", tau=f"{tau:.1f}", refresh=False)
+
+    def close(self):
+        self.bar.close()
+
+
+def _progress_bar(total: int, name: str, enabled: bool):
+    return _Bar(total, name) if enabled else None
+
+
+def _plain(value):
+    """JSON-ready copy (numpy scalars and arrays to Python)."""
+    return json.loads(json.dumps(value, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))

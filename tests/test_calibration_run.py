@@ -1,0 +1,90 @@
+"""`flocksweep calibrate` end to end on a tiny configuration: targets made by the simulator at a known
+perception range, a short emcee chain, every output written; refusals for an existing chain and for
+methods this version does not run."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.calibration.config import calibration_from_dict
+from analysis.calibration.run import calibrate, summary_simulator
+from analysis.calibration.simulator import common_seeds
+from simcore import ConfigError
+from sweeps.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+HOLLAND = str(ROOT / "configs/models/holland.toml")
+STATS = ["cohesion", "polarization"]
+
+
+def tiny(targets: dict, **method) -> dict:
+    return {"name": "tiny", "seed": 4, "model": {"preset": HOLLAND},
+            "run": {"n": 10, "duration": 2.0, "record_interval": 0.5, "warmup": 0.5},
+            "parameters": {"range": {"key": "perception.range",
+                                     "prior": {"dist": "uniform", "low": 5, "high": 40}}},
+            "targets": targets,
+            "method": {"kind": "emcee", "n_sim": 8, "walkers": 4, "steps": 30, **method}}
+
+
+@pytest.fixture(scope="module")
+def truth_targets():
+    """Mean and sd of the target statistics over 24 replicates at range 20."""
+    config = calibration_from_dict(tiny({"stats": STATS, "mean": [0.5, 0.5], "sd": [0.1, 0.1]}, n_sim=24), ROOT)
+    sims = summary_simulator(config).simulate(np.array([20.0]), common_seeds(99, 24))
+    return {"stats": STATS, "mean": sims.mean(axis=0).tolist(), "sd": (sims.std(axis=0, ddof=1) + 1e-3).tolist()}
+
+
+def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_path):
+    config = calibration_from_dict(tiny(truth_targets), ROOT)
+    result = calibrate(config, tmp_path / "cal", progress=False, predictive_draws=10)
+    out = tmp_path / "cal"
+    posterior = pd.read_csv(out / "posterior.csv", index_col=0)
+    assert list(posterior.index) == ["range"]
+    assert {"mean", "sd", "median", "q2.5", "q97.5", "tau", "ess", "acceptance"} <= set(posterior.columns)
+    assert 5 <= posterior.loc["range", "q2.5"] <= posterior.loc["range", "q97.5"] <= 40
+    check = pd.read_csv(out / "predictive.csv", index_col=0)
+    assert list(check.index) == ["cohesion_mean", "polarization_mean"]
+    assert check["p"].between(0, 1).all()
+    for name in ("trace.png", "corner.png", "predictive.png", "chain.h5"):
+        assert (out / name).stat().st_size > 1000, name
+    report = json.loads((out / "convergence.json").read_text())
+    assert report["steps"] == 30 and report["walkers"] == 4 and report["convergence"]["messages"]
+    assert result["summary"].loc["range", "acceptance"] > 0
+
+
+def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_path):
+    config = calibration_from_dict(tiny(truth_targets, steps=10), ROOT)
+    calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)
+    with pytest.raises(ConfigError) as info:
+        calibrate(config, tmp_path / "c", progress=False)
+    assert info.value.key == "--resume"
+    longer = calibration_from_dict(tiny(truth_targets, steps=16), ROOT)
+    calibrate(longer, tmp_path / "c", resume=True, progress=False, predictive_draws=4)
+    assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16
+
+
+def test_methods_not_available_yet_are_refused_clearly(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "optimize", "n_sim": 8}
+    with pytest.raises(ConfigError, match="not available yet"):
+        calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    assert not (tmp_path / "o" / "chain.h5").exists()
+
+
+def test_calibrate_cli(truth_targets, tmp_path, capsys):
+    path = tmp_path / "cal.toml"
+    lines = ['name = "cli"', "seed = 4", "[model]", f'preset = "{HOLLAND}"',
+             "[run]", "n = 10", "duration = 2.0", "record_interval = 0.5", "warmup = 0.5",
+             "[parameters.range]", 'key = "perception.range"', 'prior = { dist = "uniform", low = 5, high = 40 }',
+             "[targets]", f"stats = {json.dumps(STATS)}", f"mean = {truth_targets['mean']}",
+             f"sd = {truth_targets['sd']}", "[method]", 'kind = "emcee"', "n_sim = 8", "walkers = 4",
+             "steps = 8"]
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    assert "range" in capsys.readouterr().out
+    assert main(["calibrate", str(path), "--set", "method.walkers=3", "--out", str(tmp_path / "p")]) == 2
+    assert "method.walkers" in capsys.readouterr().err
