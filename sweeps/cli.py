@@ -241,6 +241,13 @@ def cmd_calibrate(args) -> int:
 
     config = load_calibration(args.config, args.overrides)
     result = calibrate(config, args.out, resume=args.resume, progress=not args.no_progress)
+    if "optimum" in result:
+        opt = result["optimum"]
+        print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))
+        print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
+              f"{opt['objective_recheck']:.4g} +- {opt['recheck_se']:.2g} re-checked with fresh seeds")
+        print(f"  wrote {result['out']}")
+        return 0
     print(result["summary"].round(4).to_string())
     for message in result["convergence"]["messages"] + result["warnings"]:
         print(f"  {message}")

@@ -67,9 +67,20 @@ def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_pa
     assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16
 
 
+def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "optimize", "n_sim": 8, "maxiter": 5, "popsize": 4, "recheck": 16}
+    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    optimum = json.loads((tmp_path / "o" / "optimum.json").read_text())
+    assert 5 <= optimum["theta"]["range"] <= 40
+    assert np.isfinite(optimum["objective_common_seeds"]) and np.isfinite(optimum["objective_recheck"])
+    assert result["predictive"]["p"].between(0, 1).all()
+    assert not (tmp_path / "o" / "chain.h5").exists()
+
+
 def test_methods_not_available_yet_are_refused_clearly(truth_targets, tmp_path):
     data = tiny(truth_targets)
-    data["method"] = {"kind": "optimize", "n_sim": 8}
+    data["method"] = {"kind": "emulator", "n_sim": 8, "results": str(tmp_path)}
     with pytest.raises(ConfigError, match="not available yet"):
         calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
     assert not (tmp_path / "o" / "chain.h5").exists()

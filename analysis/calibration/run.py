@@ -16,8 +16,12 @@ The simulator runs ``n_sim`` replicates per evaluation in one batched compiled c
 at every evaluation. When the targets are given as mean and sd (or a covariance), that observation
 uncertainty is added to every simulated summary as Gaussian noise drawn from the same evaluation's
 generator, so the fitted Gaussian's covariance is the simulator's plus the observation's. Targets
-given as samples (a CSV of observed datasets) are used as they are. The ``emcee`` method is
-implemented here; ``optimize`` and ``emulator`` configs are refused with a clear message.
+given as samples (a CSV of observed datasets) are used as they are.
+
+Method ``optimize`` (``scipy.optimize``, common random numbers during the search, the optimum
+re-checked with fresh seeds) writes ``optimum.json`` (theta, objective with the common seeds and
+re-checked, its standard error, evaluations) and ``predictive.csv``/``.png`` at the optimum instead of
+a chain. The ``emulator`` method is refused with a clear message (not available yet).
 """
 from __future__ import annotations
 
@@ -35,7 +39,7 @@ from .diagnostics import convergence, posterior_summary, predictive_check, prior
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
 
-IMPLEMENTED = ("emcee",)
+IMPLEMENTED = ("emcee", "optimize")
 
 
 def summary_simulator(config: CalibrationConfig) -> SummarySimulator:
@@ -55,6 +59,45 @@ def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
     return fn
 
 
+def seeded_fn(config: CalibrationConfig, simulator: SummarySimulator):
+    """theta, seeds -> (n_sim, k): a deterministic function of the seeds (observation noise included,
+    drawn from a generator seeded by the same seeds), as common random numbers need."""
+    cov = config.targets.cov if config.targets.samples_path is None else None
+
+    def fn(theta, seeds):
+        sims = simulator.simulate(np.asarray(theta, dtype=float), seeds)
+        if cov is not None:
+            rng = np.random.default_rng([int(s) for s in seeds])
+            sims = sims + rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
+        return sims
+    return fn
+
+
+def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path, started: float) -> dict:
+    from sweeps.atomic import write_json
+    from sweeps.provenance import stamp
+
+    from .optimize import run_optimize
+
+    settings = config.method.settings
+    result = run_optimize(seeded_fn(config, simulator), config.targets.observed, config.prior, seed=config.seed,
+                          n_sim=settings["n_sim"], algorithm=settings["algorithm"],
+                          maxiter=settings["maxiter"], popsize=settings["popsize"], recheck=settings["recheck"],
+                          likelihood=settings["likelihood"])
+    check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
+    check.to_csv(out / "predictive.csv")
+    predictive_figure(check, result.recheck_summaries, config.targets.observed, config.targets.columns,
+                      out / "predictive.png")
+    optimum = {"name": config.name, "method": "optimize", "settings": settings, "seed": config.seed,
+               "theta": dict(zip(config.names, map(float, result.theta))),
+               "objective_common_seeds": float(result.objective_crn),
+               "objective_recheck": float(result.objective_recheck), "recheck_se": float(result.recheck_se),
+               "evaluations": int(result.nfev), "success": bool(result.success), "message": str(result.message),
+               "wall_s": time.time() - started, **stamp()}
+    write_json(out / "optimum.json", _plain(optimum))
+    return {"out": out, "optimum": optimum, "predictive": check}
+
+
 def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Generator) -> np.ndarray:
     flat = chain[burn:].reshape(-1, chain.shape[-1])
     return flat[rng.choice(len(flat), size=min(count, len(flat)), replace=False)]
@@ -70,6 +113,8 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
                                          f"{', '.join(IMPLEMENTED)} (optimize and emulator are not available yet)")
     out = Path(out_dir) if out_dir else Path("results") / "calibration" / config.name
     out.mkdir(parents=True, exist_ok=True)
+    if config.method.kind == "optimize":
+        return _optimize(config, summary_simulator(config), out, time.time())
     chain_path = out / "chain.h5"
     if chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
