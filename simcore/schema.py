@@ -146,6 +146,32 @@ def set_dotted(data: dict, dotted: str, value) -> None:
     node[parts[-1]] = value
 
 
+def get_dotted(data: dict, dotted: str):
+    """``data['a']['b']['c']`` for ``dotted == 'a.b.c'``, or None when any part is missing."""
+    node = data
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+def read_config(path, what: str, overrides=()) -> dict:
+    """A TOML config file as a dict with ``key=value`` overrides applied; a missing file or bad TOML is
+    a ConfigError naming the file (``what`` says which kind of file it is)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("", f"{what} not found: {path}")
+    try:
+        with path.open("rb") as handle:
+            data = tomllib.load(handle)
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError("", f"{path}: not valid TOML: {err}") from None
+    return apply_overrides(data, overrides)
+
+
 def apply_overrides(data: dict, overrides) -> dict:
     """Deep copy of ``data`` with each ``key=value`` string of ``overrides`` applied."""
     out = json.loads(json.dumps(data))

@@ -55,13 +55,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from simcore.params import read_toml
-from simcore.schema import ConfigError, apply_overrides, set_dotted, suggest
+from simcore.schema import ConfigError, read_config, set_dotted, suggest
 
 SAMPLE_METHODS = ("random", "lhs", "sobol")
 KEEP = ("metrics", "trajectories")
@@ -337,14 +336,7 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:
     """Read a sweep TOML, apply ``key=value`` overrides (of the sweep file's own keys), validate."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("", f"sweep file not found: {path}")
-    try:
-        with path.open("rb") as handle:
-            data = tomllib.load(handle)
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError("", f"{path}: not valid TOML: {err}") from None
-    data = apply_overrides(data, overrides)
+    data = read_config(path, "sweep file", overrides)
     if replicates is not None:
         data["replicates"] = replicates
     return sweep_from_dict(data, path.resolve().parent)

@@ -22,7 +22,7 @@ import numpy as np
 
 from analysis.metrics import default_group_radius
 from simcore.params import Preset, preset_from_dict
-from simcore.schema import ConfigError, set_dotted
+from simcore.schema import ConfigError, get_dotted, set_dotted
 
 from .config import Analysis, SweepConfig
 from .identity import point_key, run_id, run_seed
@@ -48,15 +48,6 @@ class RunSpec:
         return self.preset.run.n_steps * float(self.preset.init.n) ** 2
 
 
-def _lookup(data: dict, dotted: str):
-    node = data
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
-
-
 def sample_points(config: SweepConfig) -> list[tuple]:
     """The sampled block's points (tuples in bounds order), integer keys rounded."""
     from scipy.stats import qmc  # imported here: scipy.stats takes most of a second to import
@@ -74,7 +65,7 @@ def sample_points(config: SweepConfig) -> list[tuple]:
     highs = np.array([hi for _, _, hi in sample.bounds])
     scaled = qmc.scale(unit, lows, highs) if d else unit
     base = preset_from_dict(copy.deepcopy(config.preset_data)).full_dict()
-    integer = [isinstance(_lookup(base, key), int) and not isinstance(_lookup(base, key), bool)
+    integer = [isinstance(get_dotted(base, key), int) and not isinstance(get_dotted(base, key), bool)
                for key, _, _ in sample.bounds]
     return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
 
@@ -98,10 +89,10 @@ def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, obje
         elif len(axis.keys) > 1:
             cols.append((axis.name, "|".join(map(str, values))))
         elif axis.name != axis.keys[0]:
-            cols.append((axis.name, _lookup(resolved, axis.keys[0])))
-        cols += [(key, _lookup(resolved, key)) for key in axis.keys]
+            cols.append((axis.name, get_dotted(resolved, axis.keys[0])))
+        cols += [(key, get_dotted(resolved, key)) for key in axis.keys]
     if config.sample:
-        cols += [(key, _lookup(resolved, key)) for key, _, _ in config.sample.bounds]
+        cols += [(key, get_dotted(resolved, key)) for key, _, _ in config.sample.bounds]
     return cols
 
 
@@ -138,7 +129,7 @@ def expand(config: SweepConfig) -> list[RunSpec]:
         preset = _build_preset(config, overrides, where)
         resolved = preset.to_dict()
         values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
-        point = point_key({k: _lookup(values, k) for k, _ in overrides})
+        point = point_key({k: get_dotted(values, k) for k, _ in overrides})
         if point in seen:
             raise ConfigError("axes", f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")

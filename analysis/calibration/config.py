@@ -57,7 +57,6 @@ from __future__ import annotations
 
 import copy
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -68,7 +67,7 @@ from analysis.calibration.priors import JointPrior, Normal, prior_from_dict
 from analysis.leadership import LEADERSHIP_METRIC_NAMES
 from analysis.metrics import METRIC_NAMES, WARMUP_S
 from simcore.params import preset_from_dict, read_toml
-from simcore.schema import ConfigError, apply_overrides, set_dotted, suggest
+from simcore.schema import ConfigError, get_dotted, read_config, set_dotted, suggest
 
 TOP_KEYS = ("name", "description", "seed", "model", "run", "parameters", "targets", "method")
 MODEL_KEYS = ("preset", "set")
@@ -214,15 +213,6 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _lookup(data: dict, dotted: str):
-    node = data
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
-
-
 # ------------------------------------------------------------------------------------------------ tables
 
 def _parse_model_and_run(data: dict, base: Path) -> tuple[Path, dict, float, Any]:
@@ -320,7 +310,7 @@ def _parse_parameters(data: dict, preset_data: dict, preset) -> tuple[tuple[Para
 
 def _check_parameter_key(name: str, key: str, value: float, preset_data: dict, base_values: dict) -> None:
     where = f"parameters.{name}.key"
-    current = _lookup(base_values, key)
+    current = get_dotted(base_values, key)
     if isinstance(current, (bool, str, dict)):
         kind = "a table" if isinstance(current, dict) else f"not numeric (currently {current!r})"
         raise ConfigError(where, f"{key!r} is {kind}; a free parameter must be a numeric preset key")
@@ -484,12 +474,4 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
 def load_calibration(path, overrides=()) -> CalibrationConfig:
     """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys), validate."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("", f"calibration file not found: {path}")
-    try:
-        with path.open("rb") as handle:
-            data = tomllib.load(handle)
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError("", f"{path}: not valid TOML: {err}") from None
-    data = apply_overrides(data, overrides)
-    return calibration_from_dict(data, path.resolve().parent)
+    return calibration_from_dict(read_config(path, "calibration file", overrides), path.resolve().parent)
