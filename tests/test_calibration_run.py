@@ -81,7 +81,7 @@ def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
 def test_methods_not_available_yet_are_refused_clearly(truth_targets, tmp_path):
     data = tiny(truth_targets)
     data["method"] = {"kind": "emulator", "n_sim": 8, "results": str(tmp_path)}
-    with pytest.raises(ConfigError, match="not available yet"):
+    with pytest.raises(ConfigError, match="this version runs emcee, optimize"):
         calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
     assert not (tmp_path / "o" / "chain.h5").exists()
 
@@ -99,3 +99,18 @@ def test_calibrate_cli(truth_targets, tmp_path, capsys):
     assert "range" in capsys.readouterr().out
     assert main(["calibrate", str(path), "--set", "method.walkers=3", "--out", str(tmp_path / "p")]) == 2
     assert "method.walkers" in capsys.readouterr().err
+
+
+def test_local_workers_give_the_serial_chain_and_outputs(truth_targets, tmp_path):
+    import h5py
+
+    config = calibration_from_dict(tiny(truth_targets, steps=6), ROOT)
+    serial = calibrate(config, tmp_path / "serial", progress=False, predictive_draws=6)
+    pooled = calibrate(config, tmp_path / "pooled", progress=False, predictive_draws=6, executor="local", workers=2)
+    chains = []
+    for name in ("serial", "pooled"):
+        with h5py.File(tmp_path / name / "chain.h5", "r") as f:
+            chains.append(np.array(f["mcmc/chain"]))
+    np.testing.assert_array_equal(chains[0], chains[1])
+    pd.testing.assert_frame_equal(serial["predictive"], pooled["predictive"])
+    assert "2 processes" in pooled["report"]["executor"]

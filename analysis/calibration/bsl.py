@@ -3,7 +3,7 @@
 Contract
 --------
 ``run_bsl(simulate_fn, observed, prior, *, walkers, steps, seed, path=None, resume=False,
-likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None) -> BSLResult``
+likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, evaluator=None) -> BSLResult``
 
 * ``simulate_fn(theta, rng) -> (n_sim, k)`` summary table at ``theta`` (shape (d,)), using FRESH seeds
   drawn from the :class:`numpy.random.Generator` ``rng`` it is given (e.g. a
@@ -28,6 +28,10 @@ likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None) -
       call's position within that step. emcee's stretch move evaluates the proposals of the two
       half-ensembles in walker order, so ``i`` is the walker index. No counter has to be stored.
   The same arguments therefore give a bit-identical chain.
+* Parallelism: emcee is run vectorised, so each half-ensemble's proposals (``walkers / 2`` points)
+  arrive at once and their simulations are mapped through ``evaluator`` (an
+  :class:`~analysis.calibration.parallel.Evaluator`, or None for this process), one task per point.
+  A task is ``(theta, seed key)``, so the chain is bit-identical whatever the executor and workers.
 * Storage: with ``path`` the chain goes to ``emcee.backends.HDFBackend(path, name="mcmc")`` (after
   every step emcee writes the chain row, the log-probabilities, the acceptance counts and its random
   state into the file). Without ``resume`` an existing file is an error (remove it yourself, or pass
@@ -59,6 +63,7 @@ likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None) -
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import numbers
 import os
@@ -89,15 +94,28 @@ def min_replicates(k: int, likelihood: str) -> int:
     return k + 2 if likelihood == "gaussian" else k + 4
 
 
-class _LogPosterior:
-    """Callable log posterior with a deterministic per-evaluation generator (see module docstring)."""
+def simulate_keyed(simulate_fn, task):
+    """One evaluation's simulations: ``task = (theta, key)``; the generator is PCG64(SeedSequence(key)),
+    so the result depends on the task only (not on the process or the order it runs in)."""
+    theta, key = task
+    rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(list(key))))
+    return np.asarray(simulate_fn(np.array(theta, dtype=float), rng), dtype=float)
 
-    def __init__(self, simulate_fn, observed, prior, seed: int, likelihood: str):
+
+class _LogPosterior:
+    """Vectorised log posterior with a deterministic per-evaluation generator (see module docstring).
+
+    Called by emcee with a (n, d) block of points (a half-ensemble of proposals); evaluation ``i`` of
+    the current (phase, step) gets the seed key ``(seed, 2, phase, step, i)``. The points inside the
+    prior's support are simulated through ``evaluator.map`` (one task each, in order)."""
+
+    def __init__(self, simulate_fn, observed, prior, seed: int, likelihood: str, evaluator=None):
         self.simulate_fn = simulate_fn
         self.observed = observed
         self.prior = prior
         self.seed = seed
         self.likelihood = likelihood
+        self.evaluator = evaluator
         self.phase = PHASE_INITIAL
         self.step = 0
         self.index = 0
@@ -105,31 +123,45 @@ class _LogPosterior:
     def begin(self, phase: int, step: int) -> None:
         self.phase, self.step, self.index = phase, step, 0
 
-    def __call__(self, theta) -> float:
-        i = self.index
-        self.index += 1
-        theta = np.asarray(theta, dtype=float)
-        lp = float(self.prior.logpdf(theta))
-        if not math.isfinite(lp):
-            return -math.inf
-        rng = np.random.Generator(np.random.PCG64(
-            np.random.SeedSequence([self.seed, _TAG_EVAL, self.phase, self.step, i])))
-        sims = np.asarray(self.simulate_fn(theta.copy(), rng), dtype=float)
+    def _map(self, tasks) -> list:
+        fn = functools.partial(simulate_keyed, self.simulate_fn)
+        if self.evaluator is None:
+            return [fn(task) for task in tasks]
+        return self.evaluator.map(fn, tasks)
+
+    def _loglik(self, sims: np.ndarray) -> float:
         if sims.ndim != 2:
             raise ValueError(f"simulate_fn must return shape (n_sim, k), got {sims.shape}")
         sims = sims[np.isfinite(sims).all(axis=1)]
         if sims.shape[0] < min_replicates(sims.shape[1], self.likelihood):
             return -math.inf
         ll = synthetic_loglik(self.observed, sims, self.likelihood)
-        return lp + ll if math.isfinite(ll) else -math.inf
+        return ll if math.isfinite(ll) else -math.inf
+
+    def _evaluate(self, coords: np.ndarray, indices) -> np.ndarray:
+        out = np.full(len(coords), -math.inf)
+        log_prior = np.array([float(self.prior.logpdf(theta)) for theta in coords])
+        inside = np.flatnonzero(np.isfinite(log_prior))
+        tasks = [(coords[j].copy(), (self.seed, _TAG_EVAL, self.phase, self.step, int(indices[j])))
+                 for j in inside]
+        for j, sims in zip(inside, self._map(tasks)):
+            out[j] = log_prior[j] + self._loglik(sims)
+        return out
+
+    def __call__(self, coords) -> np.ndarray:
+        coords = np.atleast_2d(np.asarray(coords, dtype=float))
+        first = self.index
+        self.index += len(coords)
+        return self._evaluate(coords, range(first, first + len(coords)))
 
     def evaluate_all(self, coords, phase: int, step: int) -> np.ndarray:
         self.begin(phase, step)
-        return np.array([self(c) for c in coords], dtype=float)
+        return self(coords)
 
-    def evaluate_at(self, theta, phase: int, step: int, index: int) -> float:
-        self.phase, self.step, self.index = phase, step, index
-        return self(theta)
+    def evaluate_at(self, thetas, phase: int, step: int, indices) -> np.ndarray:
+        """Points ``thetas`` (n, d) evaluated as calls number ``indices`` (n,) of (phase, step)."""
+        self.phase, self.step = phase, step
+        return self._evaluate(np.atleast_2d(np.asarray(thetas, dtype=float)), list(indices))
 
 
 def _int(value, name: str, minimum: int) -> int:
@@ -154,7 +186,7 @@ def _tau(chain: np.ndarray) -> float:
 def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int, seed: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
-            progress_every: int | None = None) -> BSLResult:
+            progress_every: int | None = None, evaluator=None) -> BSLResult:
     """Run BSL-MCMC; see the module docstring for the full contract."""
     import emcee
 
@@ -188,8 +220,8 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
                     raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; "
                                      "resume needs the same seed, likelihood and reevaluate_every")
 
-    logpost = _LogPosterior(simulate_fn, observed, prior, seed, likelihood)
-    sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend)
+    logpost = _LogPosterior(simulate_fn, observed, prior, seed, likelihood, evaluator)
+    sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend, vectorize=True)
     if path is not None:
         with backend.open("a") as f:
             for key, value in meta.items():
@@ -206,9 +238,8 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             if bad.size == 0:
                 break
             fresh = np.asarray(prior.sample(init_rng, bad.size), dtype=float).reshape(bad.size, ndim)
-            for j, w in enumerate(bad):
-                coords[w] = fresh[j]
-                log_prob[w] = logpost.evaluate_at(coords[w], PHASE_INITIAL, attempt, int(w))
+            coords[bad] = fresh
+            log_prob[bad] = logpost.evaluate_at(fresh, PHASE_INITIAL, attempt, bad)
         else:
             if not np.all(np.isfinite(log_prob)):
                 raise RuntimeError(f"{int(np.sum(~np.isfinite(log_prob)))} initial walkers still have a "

@@ -3,7 +3,8 @@
 Contract
 --------
 ``run_optimize(simulate_seeds_fn, observed, prior, *, seed, n_sim, algorithm="differential_evolution",
-objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian") -> OptimizeResult``
+objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian", evaluator=None)
+-> OptimizeResult``
 
 * ``simulate_seeds_fn(theta, seeds) -> (len(seeds), k)`` summary table at ``theta`` (shape (d,)), one
   row per seed (e.g. :meth:`~analysis.calibration.simulator.SummarySimulator.simulate`). It is only
@@ -22,7 +23,9 @@ objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian")
   function on its own (for inspection and tests).
 * ``algorithm="differential_evolution"``: :func:`scipy.optimize.differential_evolution` over
   ``prior.bounds`` (all must be finite, else ValueError), seeded with ``seed``, ``maxiter``,
-  ``popsize``, ``polish=False``, ``updating="immediate"``, ``workers=1`` (deterministic).
+  ``popsize``, ``polish=False``, ``updating="deferred"``: each generation's trial population is
+  evaluated as one block through ``evaluator.map`` (an :class:`~analysis.calibration.parallel.Evaluator`;
+  None: this process), so the result is the same for any executor and number of workers.
   ``algorithm="nelder-mead"``: :func:`scipy.optimize.minimize` with ``method="Nelder-Mead"`` started
   at ``prior.mean``, initial simplex ``mean + 0.5 * sd`` along each axis (clipped into the bounds),
   ``options={"maxiter": maxiter}``. A trial point outside the bounds is evaluated at its projection
@@ -30,7 +33,7 @@ objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian")
   (scale = prior sd); the reported optimum is the projection, so it always lies inside the bounds.
 * Re-check with FRESH seeds: ``seeds_for(np.random.default_rng([seed, 7]), R)`` where ``R`` is
   ``recheck`` rounded up to a multiple of ``n_sim``; they are simulated at the optimum in
-  ``B = R / n_sim`` batches of ``n_sim`` (consecutive seeds). The objective of each batch is the
+  ``B = R / n_sim`` batches of ``n_sim`` (consecutive seeds), mapped through ``evaluator`` too. The objective of each batch is the
   same estimator as the CRN search value (same n, so the same estimator bias), and
   ``objective_recheck`` is their mean with the normal-approximation standard error
   ``recheck_se = sd(batch values, ddof=1) / sqrt(B)`` (nan when ``B < 2`` or any batch is infinite).
@@ -49,6 +52,7 @@ Everything is a deterministic function of the arguments: the same call gives an 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import inspect
 import math
 import numbers
@@ -145,6 +149,10 @@ class _Objective:
         return self.evaluate(theta, self.seeds)
 
 
+def _simulate_batch(simulate_seeds_fn, theta, seeds):
+    return simulate_seeds_fn(np.array(theta, dtype=float), list(seeds))
+
+
 def _check_choices(objective: str, likelihood: str) -> None:
     if objective not in OBJECTIVES:
         raise ValueError(f"objective: unknown {objective!r}; allowed: {', '.join(OBJECTIVES)}")
@@ -166,12 +174,16 @@ def _de_kwargs(seed: int) -> dict:
     return {"rng": seed} if "rng" in params else {"seed": seed}
 
 
-def _run_de(func, bounds, seed, maxiter, popsize):
+def _run_de(func, bounds, seed, maxiter, popsize, evaluator=None):
     if not all(math.isfinite(lo) and math.isfinite(hi) for lo, hi in bounds):
         raise ValueError(f"differential_evolution needs finite prior bounds, got {bounds}; "
                          "use bounded priors (or explicit bounds) or algorithm='nelder-mead'")
+    def block_map(_wrapped, thetas):   # scipy's wrapper only forwards to func; evaluate func itself
+        thetas = [np.asarray(t, dtype=float) for t in thetas]
+        return evaluator.map(func, thetas) if evaluator is not None else [func(t) for t in thetas]
+
     res = _opt.differential_evolution(func, bounds, maxiter=maxiter, popsize=popsize, polish=False,
-                                      updating="immediate", workers=1, **_de_kwargs(seed))
+                                      updating="deferred", workers=block_map, **_de_kwargs(seed))
     return np.asarray(res.x, dtype=float), int(res.nfev), bool(res.success), str(res.message)
 
 
@@ -205,7 +217,8 @@ def _run_nm(func, prior, bounds, maxiter):
 
 def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_sim: int,
                  algorithm: str = "differential_evolution", objective: str = "loglik", maxiter: int = 100,
-                 popsize: int = 15, recheck: int = 200, likelihood: str = "gaussian") -> OptimizeResult:
+                 popsize: int = 15, recheck: int = 200, likelihood: str = "gaussian",
+                 evaluator=None) -> OptimizeResult:
     """Minimise the CRN objective, then re-check the optimum with fresh seeds (module docstring)."""
     _check_choices(objective, likelihood)
     algo = algorithm.lower().replace("_", "-") if isinstance(algorithm, str) else algorithm
@@ -222,7 +235,7 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
     func = _Objective(simulate_seeds_fn, observed, prior, common_seeds(seed, n_sim), objective, likelihood)
     bounds = [(float(lo), float(hi)) for lo, hi in prior.bounds]
     if algo == "differential_evolution":
-        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize)
+        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, evaluator)
     else:
         theta, nfev, success, message = _run_nm(func, prior, bounds, maxiter)
     objective_crn = float(func(theta))
@@ -230,13 +243,12 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
     n_batches = -(-recheck // n_sim)
     fresh = seeds_for(np.random.default_rng([seed, RECHECK_TAG]), n_batches * n_sim)
     lp = func.log_prior(theta)
-    values, tables = [], []
-    for b in range(n_batches):
-        batch_seeds = fresh[b * n_sim:(b + 1) * n_sim]
-        sims = np.asarray(simulate_seeds_fn(theta.copy(), batch_seeds), dtype=float)
-        tables.append(sims)
-        values.append(_batch_value(func.observed, sims, objective, likelihood, lp)
-                      if math.isfinite(lp) else math.inf)
+    batches = [fresh[b * n_sim:(b + 1) * n_sim] for b in range(n_batches)]
+    task = functools.partial(_simulate_batch, simulate_seeds_fn, theta.copy())
+    tables = evaluator.map(task, batches) if evaluator is not None else [task(b) for b in batches]
+    tables = [np.asarray(t, dtype=float) for t in tables]
+    values = [_batch_value(func.observed, sims, objective, likelihood, lp) if math.isfinite(lp) else math.inf
+              for sims in tables]
     values = np.asarray(values, dtype=float)
     rows = np.concatenate(tables, axis=0)
     finite_rows = rows[np.isfinite(rows).all(axis=1)]

@@ -25,6 +25,7 @@ a chain. The ``emulator`` method is refused with a clear message (not available 
 """
 from __future__ import annotations
 
+import functools
 import json
 import time
 from pathlib import Path
@@ -33,18 +34,20 @@ import numpy as np
 
 from simcore.schema import ConfigError
 
-from .bsl import run_bsl
+from .bsl import run_bsl, simulate_keyed
 from .config import CalibrationConfig
+from .parallel import Evaluator
 from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
 
 IMPLEMENTED = ("emcee", "optimize")
+PREDICTIVE_TAG = 0x5050
 
 
-def summary_simulator(config: CalibrationConfig) -> SummarySimulator:
-    return SummarySimulator(config.preset_data, config.keys, config.targets.columns,
-                            config.method.settings["n_sim"], config.warmup)
+def summary_simulator(config: CalibrationConfig, n_sim: int | None = None) -> SummarySimulator:
+    n_sim = config.method.settings["n_sim"] if n_sim is None else n_sim
+    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, config.warmup)
 
 
 def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
@@ -73,7 +76,8 @@ def seeded_fn(config: CalibrationConfig, simulator: SummarySimulator):
     return fn
 
 
-def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path, started: float) -> dict:
+def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path, started: float,
+              evaluator: Evaluator) -> dict:
     from sweeps.atomic import write_json
     from sweeps.provenance import stamp
 
@@ -83,7 +87,7 @@ def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path,
     result = run_optimize(seeded_fn(config, simulator), config.targets.observed, config.prior, seed=config.seed,
                           n_sim=settings["n_sim"], algorithm=settings["algorithm"],
                           maxiter=settings["maxiter"], popsize=settings["popsize"], recheck=settings["recheck"],
-                          likelihood=settings["likelihood"])
+                          likelihood=settings["likelihood"], evaluator=evaluator)
     check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
     check.to_csv(out / "predictive.csv")
     predictive_figure(check, result.recheck_summaries, config.targets.observed, config.targets.columns,
@@ -93,7 +97,7 @@ def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path,
                "objective_common_seeds": float(result.objective_crn),
                "objective_recheck": float(result.objective_recheck), "recheck_se": float(result.recheck_se),
                "evaluations": int(result.nfev), "success": bool(result.success), "message": str(result.message),
-               "wall_s": time.time() - started, **stamp()}
+               "wall_s": time.time() - started, "executor": evaluator.description, **stamp()}
     write_json(out / "optimum.json", _plain(optimum))
     return {"out": out, "optimum": optimum, "predictive": check}
 
@@ -103,50 +107,75 @@ def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Ge
     return flat[rng.choice(len(flat), size=min(count, len(flat)), replace=False)]
 
 
+def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, evaluator: Evaluator) -> np.ndarray:
+    """(P, k): one simulated dataset (observation noise included) per posterior draw; draw i uses the
+    seed key (config.seed, PREDICTIVE_TAG, i)."""
+    fn = functools.partial(simulate_keyed, simulate_fn(config, summary_simulator(config, n_sim=1)))
+    tasks = [(theta, (config.seed, PREDICTIVE_TAG, i)) for i, theta in enumerate(draws)]
+    return np.vstack(evaluator.map(fn, tasks))
+
+
 def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
-              predictive_draws: int = 100) -> dict:
+              predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
+              scheduler: str | None = None) -> dict:
+    """Run ``config``'s method, write its outputs into ``out_dir``; see the module docstring."""
+    if config.method.kind not in IMPLEMENTED:
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; this version runs {', '.join(IMPLEMENTED)}")
+    out = Path(out_dir) if out_dir else Path("results") / "calibration" / config.name
+    chain_path = out / "chain.h5"
+    if config.method.kind != "optimize" and chain_path.exists() and not resume:
+        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
+    out.mkdir(parents=True, exist_ok=True)
+    with Evaluator(executor, workers, scheduler) as evaluator:
+        if config.method.kind == "optimize":
+            return _optimize(config, summary_simulator(config), out, time.time(), evaluator)
+        return _emcee(config, out, resume, progress, predictive_draws, evaluator)
+
+
+def _emcee(config: CalibrationConfig, out: Path, resume: bool, progress: bool, predictive_draws: int,
+           evaluator: Evaluator) -> dict:
+    settings = config.method.settings
+    fn = simulate_fn(config, summary_simulator(config))
+    started = time.time()
+    bar = _progress_bar(settings["steps"], config.name, progress)
+    try:
+        result = run_bsl(fn, config.targets.observed, config.prior, walkers=settings["walkers"],
+                         steps=settings["steps"], seed=config.seed, path=out / "chain.h5", resume=resume,
+                         likelihood=settings["likelihood"], reevaluate_every=settings["reevaluate_every"],
+                         progress=bar.update if bar else None, evaluator=evaluator)
+    finally:
+        if bar:
+            bar.close()
+    return write_posterior(config, result, out, evaluator, predictive_draws, started,
+                           extra={"executor": evaluator.description})
+
+
+def write_posterior(config: CalibrationConfig, result, out: Path, evaluator: Evaluator, predictive_draws: int,
+                    started: float, extra: dict | None = None) -> dict:
+    """From a chain (a BSLResult) to posterior.csv, convergence.json, predictive.csv and the figures."""
     from sweeps.atomic import write_json
     from sweeps.provenance import stamp
 
-    if config.method.kind not in IMPLEMENTED:
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; this version runs "
-                                         f"{', '.join(IMPLEMENTED)} (optimize and emulator are not available yet)")
-    out = Path(out_dir) if out_dir else Path("results") / "calibration" / config.name
-    out.mkdir(parents=True, exist_ok=True)
-    if config.method.kind == "optimize":
-        return _optimize(config, summary_simulator(config), out, time.time())
-    chain_path = out / "chain.h5"
-    if chain_path.exists() and not resume:
-        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
-    settings = config.method.settings
-    simulator = summary_simulator(config)
-    fn = simulate_fn(config, simulator)
-    started = time.time()
-    bar = _progress_bar(settings["steps"], config.name, progress)
-    result = run_bsl(fn, config.targets.observed, config.prior, walkers=settings["walkers"],
-                     steps=settings["steps"], seed=config.seed, path=chain_path, resume=resume,
-                     likelihood=settings["likelihood"], reevaluate_every=settings["reevaluate_every"],
-                     progress=bar.update if bar else None)
-    if bar:
-        bar.close()
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     verdict = convergence(result.chain, result.acceptance_fraction)
     warnings = prior_constraint_warnings(summary, config.prior)
     burn = int(summary.attrs.get("burn", 0))
-    rng = np.random.default_rng([config.seed, 0x5050])
+    rng = np.random.default_rng([config.seed, PREDICTIVE_TAG])
     draws = _posterior_draws(result.chain, burn, predictive_draws, rng)
-    predictive = np.vstack([fn(theta, rng)[:1] for theta in draws])
+    predictive = posterior_predictive(config, draws, evaluator)
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
     summary.to_csv(out / "posterior.csv")
     check.to_csv(out / "predictive.csv")
     trace_figure(result.chain, config.names, out / "trace.png", burn=burn)
     corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, out / "corner.png")
     predictive_figure(check, predictive, config.targets.observed, config.targets.columns, out / "predictive.png")
-    report = {"name": config.name, "method": config.method.kind, "settings": settings, "seed": config.seed,
-              "convergence": _plain(verdict), "warnings": warnings, "wall_s": time.time() - started,
-              "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), **stamp()}
-    write_json(out / "convergence.json", report)
-    return {"out": out, "summary": summary, "convergence": verdict, "warnings": warnings, "predictive": check}
+    report = {"name": config.name, "method": config.method.kind, "settings": config.method.settings,
+              "seed": config.seed, "convergence": _plain(verdict), "warnings": warnings,
+              "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),
+              "walkers": int(result.chain.shape[1]), "burn": burn, **(extra or {}), **stamp()}
+    write_json(out / "convergence.json", _plain(report))
+    return {"out": out, "summary": summary, "convergence": verdict, "warnings": warnings, "predictive": check,
+            "report": report}
 
 
 class _Bar:
