@@ -9,6 +9,7 @@
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
+    flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -267,6 +268,53 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _add_targets(sub) -> None:
+    p = sub.add_parser("targets", help="simulate a calibration's target statistics at known parameters",
+                       description="For parameter-recovery studies: run the calibration's model at the given "
+                                   "truth and print a [targets] block to paste into the calibration file.")
+    p.add_argument("config", help="calibration TOML")
+    p.add_argument("--truth", action="append", default=[], metavar="NAME=VALUE",
+                   help="value of a free parameter (repeat for each), e.g. --truth field=150")
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic runs (default 0)")
+    p.add_argument("--replicates", type=int, default=1,
+                   help="runs to average (default 1: one flock's statistics, as the likelihood assumes)")
+    p.add_argument("--sd", help="measurement sd per stat, comma-separated (default: the file's sd)")
+
+
+def cmd_targets(args) -> int:
+    import numpy as np
+
+    from analysis.calibration.config import load_calibration
+    from analysis.calibration.synthetic import synthetic_observation, targets_block
+    from simcore.schema import parse_value
+
+    config = load_calibration(args.config)
+    truth = {}
+    for item in args.truth:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise ConfigError("--truth", f"got {item!r}; expected NAME=VALUE")
+        truth[name.strip()] = parse_value(value.strip())
+    if args.replicates < 1:
+        raise ConfigError("--replicates", f"got {args.replicates}; expected an integer >= 1")
+    if args.sd:
+        sd = [float(v) for v in args.sd.split(",")]
+        if len(sd) != config.targets.k:
+            raise ConfigError("--sd", f"got {len(sd)} values; expected {config.targets.k}, one per stat")
+    elif config.targets.cov is not None:
+        sd = np.sqrt(np.diag(config.targets.cov))
+    else:
+        raise ConfigError("--sd", "the file gives samples, not mean/sd: pass --sd with one value per stat")
+    rows = synthetic_observation(config, truth, args.seed, args.replicates)
+    if not np.isfinite(rows).all():
+        raise ConfigError("--truth", "some runs gave undefined statistics at this truth; choose other stats")
+    truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
+    print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
+          f"--replicates {args.replicates}")
+    print(targets_block(config, rows, sd), end="")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -275,11 +323,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_status(sub)
     _add_report(sub)
     _add_calibrate(sub)
+    _add_targets(sub)
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
-            "calibrate": cmd_calibrate}
+            "calibrate": cmd_calibrate, "targets": cmd_targets}
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,62 @@
+"""Synthetic observations for parameter-recovery studies: simulate a calibration's statistics at a
+known truth.
+
+``synthetic_observation(config, truth, seed, replicates=1) -> (replicates, k)`` runs the calibration's
+fixed model with its free parameters set to ``truth`` (a dict name -> value covering every free
+parameter, or a (d,) array in ``config.names`` order) and returns the target summary columns
+(``config.targets.columns``) of ``replicates`` runs whose seeds are ``common_seeds(seed, replicates)``:
+the same arguments always give the same numbers. A row is one flock's observed statistics, exactly
+what the likelihood models (observation noise is NOT added: the targets' sd is the measurement error
+the user states).
+
+``targets_block(config, rows, sd)`` formats them as a ``[targets]`` TOML block for the calibration file
+(one replicate: its values; several: their means, with the replicate sd in a comment).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from simcore.schema import ConfigError
+
+from .config import CalibrationConfig
+from .simulator import SummarySimulator, common_seeds
+
+
+def truth_vector(config: CalibrationConfig, truth) -> np.ndarray:
+    """(d,) truth in ``config.names`` order; ConfigError naming a missing, unknown or out-of-prior value."""
+    if isinstance(truth, dict):
+        unknown = sorted(set(truth) - set(config.names))
+        if unknown:
+            raise ConfigError("--truth", f"unknown parameter(s) {unknown}; free parameters: {list(config.names)}")
+        missing = [n for n in config.names if n not in truth]
+        if missing:
+            raise ConfigError("--truth", f"missing value(s) for {missing}; give every free parameter "
+                                         f"{list(config.names)}")
+        truth = [truth[n] for n in config.names]
+    vector = np.asarray(truth, dtype=float)
+    if vector.shape != (config.dim,):
+        raise ConfigError("--truth", f"expected {config.dim} values for {list(config.names)}, got {vector.shape}")
+    if not np.isfinite(config.prior.logpdf(vector)):
+        raise ConfigError("--truth", f"{dict(zip(config.names, vector.tolist()))} is outside the prior's support")
+    return vector
+
+
+def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicates: int = 1) -> np.ndarray:
+    """(replicates, k) target statistics of runs at ``truth``; see the module docstring."""
+    theta = truth_vector(config, truth)
+    sim = SummarySimulator(config.preset_data, config.keys, config.targets.columns, replicates, config.warmup)
+    return sim.simulate(theta, common_seeds(seed, replicates))
+
+
+def targets_block(config: CalibrationConfig, rows: np.ndarray, sd) -> str:
+    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error."""
+    rows = np.atleast_2d(rows)
+    mean = rows.mean(axis=0)
+    lines = ["[targets]", f'summary = "{config.targets.summary}"',
+             "stats = [" + ", ".join(f'"{s}"' for s in config.targets.stats) + "]",
+             "mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
+             "sd = [" + ", ".join(f"{v:.6g}" for v in np.broadcast_to(sd, mean.shape)) + "]"]
+    if len(rows) > 1:
+        spread = rows.std(axis=0, ddof=1)
+        lines.append(f"# means of {len(rows)} runs; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))
+    return "\n".join(lines) + "\n"
