@@ -219,7 +219,10 @@ def test_optimize_and_emulator_methods(tmp_path):
     assert emu.method.settings["results"] == tmp_path / "res" / "holland648"
     assert emu.method.settings["surrogate"] == "rbf" and emu.method.settings["confirm"] == 100
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\n') == "method.results"
-    assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nwalkers = 4\n') == "method.walkers"
+    assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nwalkers = 3\n') == "method.walkers"
+    assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nconfirm = 1\n') == "method.confirm"
+    assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nreevaluate_every = 5\n') \
+        == "method.reevaluate_every"
 
 
 def test_frozen(tmp_path):

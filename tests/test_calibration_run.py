@@ -78,10 +78,58 @@ def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
     assert not (tmp_path / "o" / "chain.h5").exists()
 
 
-def test_methods_not_available_yet_are_refused_clearly(truth_targets, tmp_path):
+EMULATOR_SWEEP = """
+name = "emu_sweep"
+seed = 5
+replicates = 3
+[model]
+preset = "{preset}"
+[run]
+n = 10
+duration = 2.0
+record_interval = 0.5
+warmup = 0.5
+[[axes]]
+key = "perception.range"
+values = [5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 40.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def emulator_sweep(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("emu")
+    path = folder / "sweep.toml"
+    path.write_text(EMULATOR_SWEEP.format(preset=HOLLAND))
+    assert main(["run", str(path), "--out", str(folder / "results"), "--executor", "serial",
+                 "--no-progress"]) == 0
+    return folder / "results"
+
+
+def test_emulator_method_end_to_end(truth_targets, emulator_sweep, tmp_path):
     data = tiny(truth_targets)
-    data["method"] = {"kind": "emulator", "n_sim": 8, "results": str(tmp_path)}
-    with pytest.raises(ConfigError, match="this version runs emcee, optimize"):
+    data["method"] = {"kind": "emulator", "results": str(emulator_sweep), "walkers": 8, "steps": 400,
+                      "confirm": 24}
+    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "emu", progress=False, predictive_draws=12)
+    out = tmp_path / "emu"
+    posterior = pd.read_csv(out / "posterior.csv", index_col=0)
+    assert posterior.loc["range", "q5"] <= 20.0 <= posterior.loc["range", "q95"], posterior.loc["range"].to_dict()
+    assert posterior.loc["range", "sd"] < 0.6 * 35 / np.sqrt(12)          # narrower than the U(5, 40) prior
+    comparison = pd.read_csv(out / "confirm.csv", index_col=0)
+    assert list(comparison.index) == ["cohesion_mean", "polarization_mean"]
+    assert (comparison["n_real"] == 24).all() and np.isfinite(comparison["z"]).all()
+    report = json.loads((out / "convergence.json").read_text())
+    assert report["method"] == "emulator" and report["emulator"]["training_points"] == 7
+    assert report["emulator"]["training_runs"] == 21 and report["confirm"]["messages"]
+    assert not any("beyond the swept range" in w for w in report["warnings"])   # box = prior support [5, 40]
+    for name in ("trace.png", "corner.png", "predictive.png", "chain.h5"):
+        assert (out / name).stat().st_size > 1000, name
+    assert result["confirm"]["theta"]["range"] == pytest.approx(posterior.loc["range", "median"], rel=0.05)
+
+
+def test_emulator_refuses_a_missing_results_folder(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "emulator", "n_sim": 8, "results": str(tmp_path / "nowhere")}
+    with pytest.raises(ConfigError, match="method.results"):
         calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
     assert not (tmp_path / "o" / "chain.h5").exists()
 

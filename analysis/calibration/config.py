@@ -44,7 +44,9 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     likelihood = "gaussian"         # "gaussian" (n_sim >= k + 2) or "unbiased" (n_sim >= k + 4)
     # emcee:    walkers (even, >= 2 x parameters), steps (>= 1), reevaluate_every (0: never)
     # optimize: algorithm = "differential_evolution" | "nelder_mead", maxiter, popsize, recheck
-    # emulator: results = "../../results/holland648" (required), surrogate = "gp" | "rbf", confirm
+    # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
+    #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
+    #           walkers, steps (emcee on the surrogate: cheap, default 5000 steps)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
 ``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
@@ -87,7 +89,7 @@ COMMON_METHOD_DEFAULTS = {"n_sim": 50, "likelihood": "gaussian"}
 METHOD_DEFAULTS = {
     "emcee": {"walkers": None, "steps": 2000, "reevaluate_every": 0},  # walkers None: max(16, 2 d), even
     "optimize": {"algorithm": "differential_evolution", "maxiter": 100, "popsize": 15, "recheck": 200},
-    "emulator": {"results": None, "surrogate": "gp", "confirm": 100},
+    "emulator": {"results": None, "surrogate": "gp", "confirm": 100, "walkers": None, "steps": 5000},
 }
 
 
@@ -425,7 +427,7 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
     if n_sim < need:
         raise ConfigError("method.n_sim", f"got {n_sim}; the {likelihood} synthetic likelihood needs at least "
                                           f"{need} replicates for {k} stats (n_sim >= k + {need - k})")
-    if kind == "emcee":
+    if kind in ("emcee", "emulator"):
         walkers = settings["walkers"]
         if walkers is None:
             walkers = max(16, 2 * dim)
@@ -435,6 +437,7 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
         if walkers % 2:
             raise ConfigError("method.walkers", f"got {walkers}; must be even")
         settings["steps"] = _int(settings["steps"], "method.steps", 1)
+    if kind == "emcee":
         settings["reevaluate_every"] = _int(settings["reevaluate_every"], "method.reevaluate_every", 0)
     elif kind == "optimize":
         settings["algorithm"] = _choice(settings["algorithm"], "method.algorithm", ALGORITHMS)
@@ -448,6 +451,8 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
         settings["results"] = _resolve_path(text, base, "method.results", "results folder", must_exist=False)
         settings["surrogate"] = _choice(settings["surrogate"], "method.surrogate", SURROGATES)
         settings["confirm"] = _int(settings["confirm"], "method.confirm", 0)
+        if settings["confirm"] == 1:
+            raise ConfigError("method.confirm", "got 1; use 0 (no confirmation) or >= 2 replicates")
     return Method(kind=kind, settings=settings)
 
 

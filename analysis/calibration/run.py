@@ -21,7 +21,14 @@ given as samples (a CSV of observed datasets) are used as they are.
 Method ``optimize`` (``scipy.optimize``, common random numbers during the search, the optimum
 re-checked with fresh seeds) writes ``optimum.json`` (theta, objective with the common seeds and
 re-checked, its standard error, evaluations) and ``predictive.csv``/``.png`` at the optimum instead of
-a chain. The ``emulator`` method is refused with a clear message (not available yet).
+a chain.
+
+Method ``emulator`` fits a surrogate (Gaussian process or RBF) of the statistics' mean and variance to an
+existing sweep's results (:mod:`analysis.calibration.emulator`), samples the emulated posterior with
+emcee (``chain.h5``, resumable) and writes the same posterior outputs; the posterior predictive check
+uses REAL simulations at posterior draws. With ``confirm = C`` it then runs C real replicates at the
+posterior median: ``confirm.csv`` (emulated against real mean, z per statistic) and
+``confirm_predictive.csv`` (targets against the real runs), summarised in ``convergence.json``.
 """
 from __future__ import annotations
 
@@ -41,7 +48,7 @@ from .diagnostics import convergence, posterior_summary, predictive_check, prior
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
 
-IMPLEMENTED = ("emcee", "optimize")
+IMPLEMENTED = ("emcee", "optimize", "emulator")
 PREDICTIVE_TAG = 0x5050
 
 
@@ -129,6 +136,8 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
     with Evaluator(executor, workers, scheduler) as evaluator:
         if config.method.kind == "optimize":
             return _optimize(config, summary_simulator(config), out, time.time(), evaluator)
+        if config.method.kind == "emulator":
+            return _emulator(config, out, resume, progress, predictive_draws, evaluator)
         return _emcee(config, out, resume, progress, predictive_draws, evaluator)
 
 
@@ -150,15 +159,76 @@ def _emcee(config: CalibrationConfig, out: Path, resume: bool, progress: bool, p
                            extra={"executor": evaluator.description})
 
 
+def _emulator(config: CalibrationConfig, out: Path, resume: bool, progress: bool, predictive_draws: int,
+              evaluator: Evaluator) -> dict:
+    from sweeps.atomic import write_json
+
+    from .emulator import (build_surrogate, confirm, observation_covariance, posterior_median,
+                           prior_outside_box, run_emulator_mcmc, training_set)
+
+    settings = config.method.settings
+    started = time.time()
+    training = training_set(settings["results"], config)
+    surrogate = build_surrogate(training, settings["surrogate"])
+    fitted = time.time()
+    bar = _progress_bar(settings["steps"], f"{config.name} (emulator)", progress)
+    try:
+        result = run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
+                                   walkers=settings["walkers"], steps=settings["steps"], seed=config.seed,
+                                   path=out / "chain.h5", resume=resume, progress=bar.update if bar else None)
+    finally:
+        if bar:
+            bar.close()
+    emulator_info = {"training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
+                     "training_box": {n: [float(lo), float(hi)] for n, lo, hi in
+                                      zip(config.names, training.lower, training.upper)},
+                     "fixed_factors": training.fixed, "notes": list(training.notes),
+                     "fit_s": fitted - started, "results": str(settings["results"])}
+    posterior = write_posterior(config, result, out, evaluator, predictive_draws, started,
+                                extra={"executor": evaluator.description, "emulator": emulator_info},
+                                warnings=prior_outside_box(config.prior, surrogate))
+    if settings["confirm"]:
+        theta = posterior_median(result.chain, posterior["report"]["burn"])
+        check = confirm(config, summary_simulator(config), surrogate, theta, count=settings["confirm"],
+                        seed=config.seed)
+        check["comparison"].to_csv(out / "confirm.csv")
+        check["predictive"].to_csv(out / "confirm_predictive.csv")
+        posterior["confirm"] = check
+        posterior["report"]["confirm"] = {"theta": check["theta"], "count": settings["confirm"],
+                                          "max_abs_z": float(np.nanmax(np.abs(check["comparison"]["z"]))),
+                                          "messages": confirm_messages(check)}
+        posterior["report"]["wall_s"] = time.time() - started
+        write_json(out / "convergence.json", _plain(posterior["report"]))
+    return posterior
+
+
+def confirm_messages(check: dict, z_limit: float = 3.0, p_limit: float = 0.01) -> list[str]:
+    """Plain sentences on the real simulations at the posterior median."""
+    messages = []
+    for stat, row in check["comparison"].iterrows():
+        if abs(row["z"]) > z_limit:
+            messages.append(f"{stat}: the real mean {row['real_mean']:.4g} differs from the emulator's "
+                            f"{row['emulated_mean']:.4g} by {row['z']:.1f} standard errors: the surrogate is "
+                            f"inaccurate here; refine the sweep near the posterior")
+    for stat, row in check["predictive"].iterrows():
+        if row["p"] < p_limit:
+            messages.append(f"{stat}: the target lies in the tail of real simulations at the posterior median "
+                            f"(p = {row['p']:.3g})")
+    if not messages:
+        messages.append(f"confirmed: real simulations at the posterior median agree with the emulator "
+                        f"(|z| <= {z_limit:g}) and with the targets (p >= {p_limit:g})")
+    return messages
+
+
 def write_posterior(config: CalibrationConfig, result, out: Path, evaluator: Evaluator, predictive_draws: int,
-                    started: float, extra: dict | None = None) -> dict:
+                    started: float, extra: dict | None = None, warnings: list | None = None) -> dict:
     """From a chain (a BSLResult) to posterior.csv, convergence.json, predictive.csv and the figures."""
     from sweeps.atomic import write_json
     from sweeps.provenance import stamp
 
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     verdict = convergence(result.chain, result.acceptance_fraction)
-    warnings = prior_constraint_warnings(summary, config.prior)
+    warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     burn = int(summary.attrs.get("burn", 0))
     rng = np.random.default_rng([config.seed, PREDICTIVE_TAG])
     draws = _posterior_draws(result.chain, burn, predictive_draws, rng)
