@@ -213,7 +213,8 @@ def test_optimize_and_emulator_methods(tmp_path):
     method = VALID[VALID.index("[method]"):]
     opt = load_with(tmp_path, method, '[method]\nkind = "optimize"\nalgorithm = "nelder_mead"\n')
     assert opt.method.settings == {"n_sim": 50, "likelihood": "gaussian", "algorithm": "nelder_mead",
-                                   "maxiter": 100, "popsize": 15, "recheck": 200}
+                                   "objective": "loglik", "maxiter": 100, "popsize": 15, "recheck": 200}
+    assert error_key(tmp_path, method, '[method]\nkind = "optimize"\nobjective = "l2"\n') == "method.objective"
     assert error_key(tmp_path, method, '[method]\nkind = "optimize"\nalgorithm = "bfgs"\n') == "method.algorithm"
     emu = load_with(tmp_path, method, '[method]\nkind = "emulator"\nresults = "res/holland648"\nsurrogate = "rbf"\n')
     assert emu.method.settings["results"] == tmp_path / "res" / "holland648"

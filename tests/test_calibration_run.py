@@ -78,6 +78,16 @@ def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
     assert not (tmp_path / "o" / "chain.h5").exists()
 
 
+def test_optimize_distance_objective_with_nelder_mead(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "optimize", "n_sim": 8, "algorithm": "nelder_mead", "objective": "distance",
+                      "maxiter": 15, "recheck": 16}
+    calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    optimum = json.loads((tmp_path / "o" / "optimum.json").read_text())
+    assert optimum["settings"]["objective"] == "distance" and 5 <= optimum["theta"]["range"] <= 40
+    assert 0 <= optimum["objective_common_seeds"] < 20      # a sum of 2 squared z-scores near the fit
+
+
 EMULATOR_SWEEP = """
 name = "emu_sweep"
 seed = 5

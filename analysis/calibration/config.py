@@ -43,7 +43,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     n_sim = 50                      # replicates per likelihood evaluation (all kinds)
     likelihood = "gaussian"         # "gaussian" (n_sim >= k + 2) or "unbiased" (n_sim >= k + 4)
     # emcee:    walkers (even, >= 2 x parameters), steps (>= 1), reevaluate_every (0: never)
-    # optimize: algorithm = "differential_evolution" | "nelder_mead", maxiter, popsize, recheck
+    # optimize: algorithm = "differential_evolution" | "nelder_mead", objective = "loglik" (negative
+    #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
     #           walkers, steps (emcee on the surrogate: cheap, default 5000 steps)
@@ -85,10 +86,12 @@ METHOD_KINDS = ("emcee", "optimize", "emulator")
 LIKELIHOODS = ("gaussian", "unbiased")
 ALGORITHMS = ("differential_evolution", "nelder_mead")
 SURROGATES = ("gp", "rbf")
+OBJECTIVES = ("loglik", "distance")
 COMMON_METHOD_DEFAULTS = {"n_sim": 50, "likelihood": "gaussian"}
 METHOD_DEFAULTS = {
     "emcee": {"walkers": None, "steps": 2000, "reevaluate_every": 0},  # walkers None: max(16, 2 d), even
-    "optimize": {"algorithm": "differential_evolution", "maxiter": 100, "popsize": 15, "recheck": 200},
+    "optimize": {"algorithm": "differential_evolution", "objective": "loglik", "maxiter": 100, "popsize": 15,
+                 "recheck": 200},
     "emulator": {"results": None, "surrogate": "gp", "confirm": 100, "walkers": None, "steps": 5000},
 }
 
@@ -441,6 +444,7 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
         settings["reevaluate_every"] = _int(settings["reevaluate_every"], "method.reevaluate_every", 0)
     elif kind == "optimize":
         settings["algorithm"] = _choice(settings["algorithm"], "method.algorithm", ALGORITHMS)
+        settings["objective"] = _choice(settings["objective"], "method.objective", OBJECTIVES)
         settings["maxiter"] = _int(settings["maxiter"], "method.maxiter", 1)
         settings["popsize"] = _int(settings["popsize"], "method.popsize", 1)
         settings["recheck"] = _int(settings["recheck"], "method.recheck", 0)

@@ -94,7 +94,8 @@ def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path,
     result = run_optimize(seeded_fn(config, simulator), config.targets.observed, config.prior, seed=config.seed,
                           n_sim=settings["n_sim"], algorithm=settings["algorithm"],
                           maxiter=settings["maxiter"], popsize=settings["popsize"], recheck=settings["recheck"],
-                          likelihood=settings["likelihood"], evaluator=evaluator)
+                          likelihood=settings["likelihood"], objective=settings["objective"],
+                          evaluator=evaluator)
     check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
     check.to_csv(out / "predictive.csv")
     predictive_figure(check, result.recheck_summaries, config.targets.observed, config.targets.columns,
