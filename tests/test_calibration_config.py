@@ -4,6 +4,8 @@ Configs are written as TOML into ``tmp_path`` with an absolute preset path; noth
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -232,3 +234,14 @@ def test_frozen(tmp_path):
         cfg.seed = 1
     with pytest.raises(ValueError):
         cfg.targets.observed[0, 0] = 1.0
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parent.parent / "configs/calibration").glob("*.toml")),
+                         ids=lambda p: p.stem)
+def test_shipped_calibrations_are_valid(path):
+    from analysis.calibration.config import load_calibration
+
+    config = load_calibration(path)
+    assert config.name == path.stem
+    assert config.dim >= 1 and config.targets.k >= 1
+    assert np.isfinite(config.prior.logpdf(np.array([m.moments[0] for m in config.prior.marginals])))
