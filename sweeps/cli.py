@@ -10,6 +10,7 @@
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
+    flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -315,6 +316,41 @@ def cmd_targets(args) -> int:
     return 0
 
 
+def _add_sbc(sub) -> None:
+    p = sub.add_parser("sbc", help="simulation-based calibration check of a calibration's posterior",
+                       description="Talts et al. (2018): draw parameters from the prior, simulate a dataset at "
+                                   "each, fit it with the file's emcee settings and test the ranks of the truths "
+                                   "for uniformity. Finished datasets are kept: re-running resumes.")
+    p.add_argument("config", help="calibration TOML with method.kind = \"emcee\", e.g. configs/calibration/sbc_range.toml")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of the calibration file")
+    p.add_argument("--datasets", type=int, default=50, help="synthetic datasets L (default 50)")
+    p.add_argument("--draws", type=int, default=49, help="posterior draws per dataset S (default 49)")
+    p.add_argument("--workers", type=int, default=1, help="datasets fitted at once in worker processes")
+    p.add_argument("--steps", type=int, help="chain length per dataset (default: method.steps)")
+    p.add_argument("--walkers", type=int, help="walkers per dataset (default: method.walkers)")
+    p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>/sbc)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def cmd_sbc(args) -> int:
+    from analysis.calibration.config import load_calibration
+    from analysis.calibration.sbc import run_sbc
+
+    config = load_calibration(args.config, args.overrides)
+    if config.method.kind != "emcee":
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the emcee (BSL) posterior")
+    for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--workers", args.workers)):
+        if value < 1:
+            raise ConfigError(flag, f"got {value}; expected an integer >= 1")
+    result = run_sbc(config, datasets=args.datasets, draws=args.draws, out_dir=args.out,
+                     progress=not args.no_progress, steps=args.steps, walkers=args.walkers, workers=args.workers)
+    print(result["table"].round(4).to_string())
+    print(f"  {result['verdict']}")
+    print(f"  wrote {result['out']}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -324,11 +360,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_report(sub)
     _add_calibrate(sub)
     _add_targets(sub)
+    _add_sbc(sub)
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
-            "calibrate": cmd_calibrate, "targets": cmd_targets}
+            "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc}
 
 
 def main(argv=None) -> int:
