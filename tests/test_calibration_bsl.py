@@ -149,3 +149,22 @@ def test_progress_callback_and_validation():
         run(walkers=3)
     with pytest.raises(ValueError, match="likelihood"):
         run(likelihood="nope")
+
+
+def test_de_moves_are_seeded_resumable_and_recover_the_posterior(tmp_path):
+    """moves="de": the posterior is still found, the chain is a function of the seed, a resume continues
+    it exactly, and a resume with other moves is refused."""
+    full = run(steps=300, moves="de")
+    assert same(full, run(steps=300, moves="de"))
+    assert not np.array_equal(full.chain, run(steps=300).chain)          # really another proposal
+    flat = full.chain[100:].reshape(-1, 2)
+    centre, scale = observed_rows().mean(axis=0), SD / math.sqrt(M)
+    np.testing.assert_allclose(flat.mean(axis=0), centre, atol=0.5 * scale)
+    assert np.all((flat.std(axis=0) > 0.6 * scale) & (flat.std(axis=0) < 1.6 * scale))
+    path = tmp_path / "de.h5"
+    run(steps=120, moves="de", path=path)
+    assert same(run(steps=300, moves="de", path=path, resume=True), full)
+    with pytest.raises(ValueError, match="moves"):
+        run(steps=310, path=path, resume=True)
+    with pytest.raises(ValueError, match="moves"):
+        run(steps=10, moves="gibbs")

@@ -107,11 +107,27 @@ def test_convergence_verdicts():
     c = dg.convergence(short, 0.3)
     assert not c["long_enough"] and not c["converged"]
     assert "too short" in c["messages"][0] and f"at least {c['steps_needed']} steps" in c["messages"][0]
-    assert c["steps_needed"] == int(np.ceil(50 * c["max_tau"]))
+    assert c["steps_needed"] == c["burn"] + int(np.ceil(50 * c["max_tau"]))
+    assert dg.convergence(long, 0.3, burn=0)["burn"] == 0
+    with pytest.raises(ValueError, match="burn"):
+        dg.convergence(long, 0.3, burn=2000)
     c = dg.convergence(long, np.full(16, 0.1))
     assert c["long_enough"] and not c["acceptance_ok"] and not c["converged"]
     assert any("below 0.2" in m for m in c["messages"])
     assert not dg.convergence(long, 0.7)["acceptance_ok"]
+
+
+def test_convergence_judges_tau_after_the_burn_in():
+    """Walkers starting far out (drawn from a wide prior) contract in a few dozen steps; that transient
+    must not be mistaken for slow mixing."""
+    rng = np.random.default_rng(8)
+    chain = ar1_chain(rng, 1500, 16, [0.8, 0.8])           # tau = 9
+    decay = 0.9 ** np.arange(1500)[:, None, None]
+    chain = chain + 40.0 * rng.normal(size=(1, 16, 2)) * decay    # start ~40 sd away, contract with tau 10
+    whole = dg.integrated_times(chain).max()
+    c = dg.convergence(chain, 0.3)
+    assert whole > 1.5 * c["max_tau"]                       # the transient inflates the whole-chain estimate
+    assert 6 < c["max_tau"] < 13 and c["burn"] > 0 and c["long_enough"]
 
 
 def test_prior_constraint_warnings():

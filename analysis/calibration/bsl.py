@@ -26,7 +26,8 @@ likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, e
       where ``phase`` is 0 for the initial walkers (step 0), 1 for the proposals made while computing
       chain row ``step - 1`` (step = 1..steps) and 2 for re-evaluations at step ``step``; ``i`` is the
       call's position within that step. emcee's stretch move evaluates the proposals of the two
-      half-ensembles in walker order, so ``i`` is the walker index. No counter has to be stored.
+      half-ensembles in walker order, so ``i`` is the walker index (so do the DE moves of
+  ``moves="de"``, which also split the ensemble in two). No counter has to be stored.
   The same arguments therefore give a bit-identical chain.
 * Parallelism: emcee is run vectorised, so each half-ensemble's proposals (``walkers / 2`` points)
   arrive at once and their simulations are mapped through ``evaluator`` (an
@@ -54,7 +55,8 @@ likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, e
   the "noisy" (not pseudo-marginal exact) variant of BSL; 0 (default) never re-evaluates.
 * ``progress(step, acceptance_fraction_mean, tau_estimate)`` is called after every ``progress_every``
   rows (default ``max(1, steps // 10)``) and after the last one; ``tau_estimate`` is the mean over
-  parameters of emcee's integrated autocorrelation time of the rows so far (no length check), nan
+  parameters of emcee's integrated autocorrelation time of the second half of the rows so far (the
+  first half taken as burn-in; no length check), nan
   when it cannot be computed (fewer than 2 rows).
 * :class:`BSLResult`: ``chain`` (steps, walkers, d), ``log_prob`` (steps, walkers),
   ``acceptance_fraction`` (walkers,), ``names`` (the prior's parameter names when it has them),
@@ -164,6 +166,22 @@ class _LogPosterior:
         return self._evaluate(np.atleast_2d(np.asarray(thetas, dtype=float)), list(indices))
 
 
+MOVES = ("stretch", "de")
+
+
+def emcee_moves(moves: str):
+    """emcee's proposal: ``"stretch"`` (Goodman & Weare's stretch move, emcee's default) or ``"de"``
+    (differential evolution 80%, DE snooker 20%; ter Braak & Vrugt 2008), which mixes faster for a few
+    parameters and a small ensemble."""
+    import emcee
+
+    if moves == "stretch":
+        return None
+    if moves == "de":
+        return [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    raise ValueError(f"moves: unknown {moves!r}; allowed: {', '.join(MOVES)}")
+
+
 def _int(value, name: str, minimum: int) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
         raise ValueError(f"{name}: got {value!r}; must be an integer >= {minimum}")
@@ -186,7 +204,7 @@ def _tau(chain: np.ndarray) -> float:
 def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int, seed: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
-            progress_every: int | None = None, evaluator=None) -> BSLResult:
+            progress_every: int | None = None, evaluator=None, moves: str = "stretch") -> BSLResult:
     """Run BSL-MCMC; see the module docstring for the full contract."""
     import emcee
 
@@ -203,7 +221,9 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
     if resume and path is None:
         raise ValueError("resume=True needs a path")
 
-    meta = {"bsl_seed": seed, "bsl_likelihood": likelihood, "bsl_reevaluate_every": reevaluate_every}
+    emcee_moves(moves)   # validates
+    meta = {"bsl_seed": seed, "bsl_likelihood": likelihood, "bsl_reevaluate_every": reevaluate_every,
+            "bsl_moves": moves}
     backend = None
     if path is not None:
         path = os.fspath(path)
@@ -214,14 +234,15 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             with backend.open("r") as f:
                 attrs = dict(f[GROUP].attrs)
             for key, want in meta.items():
-                have = attrs.get(key)
+                have = attrs.get(key, "stretch" if key == "bsl_moves" else None)   # files before moves
                 have = have.decode() if isinstance(have, bytes) else have
                 if have is None or (str(have) if isinstance(want, str) else int(have)) != want:
                     raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; "
-                                     "resume needs the same seed, likelihood and reevaluate_every")
+                                     "resume needs the same seed, likelihood, reevaluate_every and moves")
 
     logpost = _LogPosterior(simulate_fn, observed, prior, seed, likelihood, evaluator)
-    sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend, vectorize=True)
+    sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend, vectorize=True,
+                                    moves=emcee_moves(moves))
     if path is not None:
         with backend.open("a") as f:
             for key, value in meta.items():
@@ -266,7 +287,7 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             t += 1
             if progress is not None and (t % progress_every == 0 or t == steps):
                 acc = float(np.mean(sampler.backend.accepted / float(t)))
-                progress(t, acc, _tau(sampler.backend.get_chain()))
+                progress(t, acc, _tau(sampler.backend.get_chain()[t // 2:]))
         gen.close()
 
     b = sampler.backend

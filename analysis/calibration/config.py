@@ -42,7 +42,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     kind = "emcee"                  # "emcee" | "optimize" | "emulator"
     n_sim = 50                      # replicates per likelihood evaluation (all kinds)
     likelihood = "gaussian"         # "gaussian" (n_sim >= k + 2) or "unbiased" (n_sim >= k + 4)
-    # emcee:    walkers (even, >= 2 x parameters), steps (>= 1), reevaluate_every (0: never)
+    # emcee:    walkers (even, >= 2 x parameters), steps (>= 1), reevaluate_every (0: never),
+    #           moves = "stretch" (emcee's default) | "de" (differential evolution + snooker)
     # optimize: algorithm = "differential_evolution" | "nelder_mead", objective = "loglik" (negative
     #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
@@ -87,9 +88,10 @@ LIKELIHOODS = ("gaussian", "unbiased")
 ALGORITHMS = ("differential_evolution", "nelder_mead")
 SURROGATES = ("gp", "rbf")
 OBJECTIVES = ("loglik", "distance")
+MOVES = ("stretch", "de")
 COMMON_METHOD_DEFAULTS = {"n_sim": 50, "likelihood": "gaussian"}
 METHOD_DEFAULTS = {
-    "emcee": {"walkers": None, "steps": 2000, "reevaluate_every": 0},  # walkers None: max(16, 2 d), even
+    "emcee": {"walkers": None, "steps": 2000, "reevaluate_every": 0, "moves": "stretch"},  # walkers None: max(16, 2 d), even
     "optimize": {"algorithm": "differential_evolution", "objective": "loglik", "maxiter": 100, "popsize": 15,
                  "recheck": 200},
     "emulator": {"results": None, "surrogate": "gp", "confirm": 100, "walkers": None, "steps": 5000},
@@ -442,6 +444,7 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
         settings["steps"] = _int(settings["steps"], "method.steps", 1)
     if kind == "emcee":
         settings["reevaluate_every"] = _int(settings["reevaluate_every"], "method.reevaluate_every", 0)
+        settings["moves"] = _choice(settings["moves"], "method.moves", MOVES)
     elif kind == "optimize":
         settings["algorithm"] = _choice(settings["algorithm"], "method.algorithm", ALGORITHMS)
         settings["objective"] = _choice(settings["objective"], "method.objective", OBJECTIVES)

@@ -14,9 +14,12 @@ Functions:
     acceptance``. ``burn`` defaults to ``2 x`` the largest tau of the whole chain, capped at half the
     chain. Moments/quantiles use ``chain[burn::thin]`` pooled over walkers; ``tau`` is estimated on
     ``chain[burn:]`` (unthinned, in steps) and ``ess = steps_after_burn * walkers / tau``.
-``convergence(chain, acceptance)``
-    plain verdicts ``long_enough`` (steps >= 50 x max tau), ``acceptance_ok`` (mean in [0.2, 0.5]),
-    ``converged`` (both), the numbers and ``messages`` (plain sentences).
+``convergence(chain, acceptance, burn=None)``
+    plain verdicts ``long_enough`` (the steps after burn-in >= 50 x the largest tau estimated on them),
+    ``acceptance_ok`` (mean in [0.2, 0.5]), ``converged`` (both), the numbers and ``messages`` (plain
+    sentences). ``burn`` defaults as in ``posterior_summary``. The autocorrelation time is estimated
+    after the burn-in because the walkers' initial contraction from the prior would otherwise dominate
+    the estimate (a chain that mixes well after 70 steps would look as if tau were twice its value).
 ``prior_constraint_warnings(summary, prior)``
     a sentence for each parameter whose posterior sd exceeds 0.8 x its prior marginal's sd.
 ``predictive_check(observed, predictive, names)``
@@ -142,27 +145,32 @@ def posterior_summary(chain, names: Sequence[str] | None, acceptance, burn: int 
     return df
 
 
-def convergence(chain, acceptance) -> dict:
+def convergence(chain, acceptance, burn: int | None = None) -> dict:
     """Plain convergence verdicts for an ensemble chain (see the module docstring)."""
     chain = _chain(chain)
     steps, walkers, _ = chain.shape
-    tau = integrated_times(chain)
+    burn = default_burn(chain) if burn is None else int(burn)
+    if not 0 <= burn < steps - 1:
+        raise ValueError(f"burn must be an integer in [0, {steps - 2}], got {burn!r}")
+    kept = steps - burn
+    tau = integrated_times(chain[burn:])
     max_tau = _max_tau(tau)
     acc = _mean_acceptance(acceptance)
     messages = []
+    after = f"after {burn} burn-in steps, " if burn else ""
     if math.isfinite(max_tau):
-        ratio = steps / max_tau
-        needed = int(math.ceil(TAU_FACTOR * max_tau))
+        ratio = kept / max_tau
+        needed = burn + int(math.ceil(TAU_FACTOR * max_tau))
         long_enough = steps >= needed
         if long_enough:
-            messages.append(f"chain length {steps} steps is {ratio:.0f} x the largest autocorrelation time "
-                            f"{max_tau:.0f}: long enough (at least {TAU_FACTOR} x needed)")
+            messages.append(f"{after}the chain's {kept} steps are {ratio:.0f} x the largest autocorrelation "
+                            f"time {max_tau:.1f}: long enough (at least {TAU_FACTOR} x needed)")
         else:
-            messages.append(f"chain length {steps} steps is {ratio:.0f} x the largest autocorrelation time "
-                            f"{max_tau:.0f}: too short, run at least {needed} steps")
+            messages.append(f"{after}the chain's {kept} steps are {ratio:.0f} x the largest autocorrelation "
+                            f"time {max_tau:.1f}: too short, run at least {needed} steps in all")
     else:
         ratio, needed, long_enough = math.nan, None, False
-        messages.append(f"the autocorrelation time could not be estimated from {steps} steps "
+        messages.append(f"the autocorrelation time could not be estimated from {kept} steps "
                         f"(constant or non-finite chain): cannot judge the chain length")
     lo, hi = ACCEPTANCE_RANGE
     acceptance_ok = bool(math.isfinite(acc) and lo <= acc <= hi)
@@ -181,6 +189,7 @@ def convergence(chain, acceptance) -> dict:
         "long_enough": bool(long_enough),
         "acceptance_ok": acceptance_ok,
         "steps": int(steps),
+        "burn": int(burn),
         "walkers": int(walkers),
         "tau": [float(t) for t in tau],
         "max_tau": max_tau,

@@ -939,7 +939,7 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
         for t, _ in enumerate(generator, start=start + 1):
             if progress is not None and (t % every == 0 or t == steps):
                 acceptance = float(np.mean(sampler.backend.accepted / float(t)))
-                progress(t, acceptance, _mean_tau(sampler.backend.get_chain()))
+                progress(t, acceptance, _mean_tau(sampler.backend.get_chain()[t // 2:]))
     stored = sampler.backend
     n = int(stored.iteration)
     names = getattr(prior, "names", None)

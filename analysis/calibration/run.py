@@ -152,6 +152,7 @@ def _emcee(config: CalibrationConfig, out: Path, resume: bool, progress: bool, p
         result = run_bsl(fn, config.targets.observed, config.prior, walkers=settings["walkers"],
                          steps=settings["steps"], seed=config.seed, path=out / "chain.h5", resume=resume,
                          likelihood=settings["likelihood"], reevaluate_every=settings["reevaluate_every"],
+                         moves=settings["moves"],
                          progress=bar.update if bar else None, evaluator=evaluator)
     finally:
         if bar:
@@ -228,9 +229,9 @@ def write_posterior(config: CalibrationConfig, result, out: Path, evaluator: Eva
     from sweeps.provenance import stamp
 
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
-    verdict = convergence(result.chain, result.acceptance_fraction)
-    warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     burn = int(summary.attrs.get("burn", 0))
+    verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
+    warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     rng = np.random.default_rng([config.seed, PREDICTIVE_TAG])
     draws = _posterior_draws(result.chain, burn, predictive_draws, rng)
     predictive = posterior_predictive(config, draws, evaluator)
