@@ -97,6 +97,7 @@ class SBCProblem:
     steps: int
     likelihood: str = "gaussian"
     reevaluate_every: int = 0
+    moves: str = "stretch"
     meta: dict = dataclasses.field(default_factory=dict, compare=False)
 
     @property
@@ -124,7 +125,7 @@ def problem_from_config(config, steps: int | None = None, walkers: int | None = 
                       walkers=int(walkers if walkers is not None else settings["walkers"]),
                       steps=int(steps if steps is not None else settings["steps"]),
                       likelihood=settings["likelihood"], reevaluate_every=int(settings["reevaluate_every"]),
-                      meta=meta)
+                      moves=settings.get("moves", "stretch"), meta=meta)
 
 
 def _as_problem(source, steps=None, walkers=None) -> SBCProblem:
@@ -205,7 +206,7 @@ def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
     y = draw_observed(problem, theta, j)
     result = run_bsl(problem.simulate_fn, y, problem.prior, walkers=problem.walkers, steps=problem.steps,
                      seed=bsl_seed(problem.seed, j), likelihood=problem.likelihood,
-                     reevaluate_every=problem.reevaluate_every)
+                     reevaluate_every=problem.reevaluate_every, moves=problem.moves)
     sample, info = posterior_draws(result.chain, draws, generator(problem.seed, j, STREAM_SELECT))
     ranks = sbc_ranks(theta[None, :], [sample], rng=generator(problem.seed, j, STREAM_TIES))[0]
     return {"dataset": int(j), "theta": theta.tolist(), "observed": y.tolist(), "ranks": ranks.tolist(),
@@ -219,7 +220,8 @@ def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
 
 def settings_record(problem: SBCProblem, draws: int) -> dict:
     """What the per-dataset results depend on (compared on resume)."""
-    return _plain({"method": "sbc", "seed": problem.seed, "draws": int(draws), "names": list(problem.names),
+    moves = {} if problem.moves == "stretch" else {"moves": problem.moves}   # records before moves: stretch
+    return _plain({**moves, "method": "sbc", "seed": problem.seed, "draws": int(draws), "names": list(problem.names),
                    "columns": list(problem.columns), "walkers": problem.walkers, "steps": problem.steps,
                    "likelihood": problem.likelihood, "reevaluate_every": problem.reevaluate_every,
                    "burn": "first half of the chain", "thin": "ceil(max tau of the kept half)",
