@@ -73,9 +73,9 @@ from typing import Callable
 
 import numpy as np
 
+from .chainfile import GROUP, open_chain, progress_tau
 from .likelihood import METHODS, synthetic_loglik
 
-GROUP = "mcmc"
 _TAG_INIT, _TAG_MOVES, _TAG_EVAL = 0, 1, 2
 PHASE_INITIAL, PHASE_PROPOSAL, PHASE_REEVALUATE = 0, 1, 2
 MAX_INITIAL_ATTEMPTS = 100
@@ -188,19 +188,6 @@ def _int(value, name: str, minimum: int) -> int:
     return int(value)
 
 
-def _tau(chain: np.ndarray) -> float:
-    import emcee
-    if chain.shape[0] < 2:
-        return math.nan
-    try:
-        with np.errstate(all="ignore"):
-            tau = emcee.autocorr.integrated_time(chain, tol=0)
-    except Exception:  # noqa: BLE001 - an estimate only; never abort a run for it
-        return math.nan
-    tau = np.asarray(tau, dtype=float)
-    return float(np.mean(tau)) if np.all(np.isfinite(tau)) else math.nan
-
-
 def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int, seed: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
@@ -227,18 +214,8 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
     backend = None
     if path is not None:
         path = os.fspath(path)
-        if os.path.exists(path) and not resume:
-            raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
-        backend = emcee.backends.HDFBackend(path, name=GROUP)
-        if backend.initialized:
-            with backend.open("r") as f:
-                attrs = dict(f[GROUP].attrs)
-            for key, want in meta.items():
-                have = attrs.get(key, "stretch" if key == "bsl_moves" else None)   # files before moves
-                have = have.decode() if isinstance(have, bytes) else have
-                if have is None or (str(have) if isinstance(want, str) else int(have)) != want:
-                    raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; "
-                                     "resume needs the same seed, likelihood, reevaluate_every and moves")
+        backend = open_chain(path, resume, meta, defaults={"bsl_moves": "stretch"},   # files before moves
+                             needs="the same seed, likelihood, reevaluate_every and moves")
 
     logpost = _LogPosterior(simulate_fn, observed, prior, seed, likelihood, evaluator)
     sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend, vectorize=True,
@@ -287,7 +264,7 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             t += 1
             if progress is not None and (t % progress_every == 0 or t == steps):
                 acc = float(np.mean(sampler.backend.accepted / float(t)))
-                progress(t, acc, _tau(sampler.backend.get_chain()[t // 2:]))
+                progress(t, acc, progress_tau(sampler.backend.get_chain()[t // 2:]))
         gen.close()
 
     b = sampler.backend

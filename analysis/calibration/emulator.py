@@ -119,7 +119,8 @@ from scipy import optimize, special
 
 from simcore.schema import ConfigError, get_dotted, set_dotted
 
-from .bsl import GROUP, BSLResult
+from .bsl import BSLResult
+from .chainfile import GROUP, open_chain, progress_tau
 
 SURROGATE_KINDS = ("gp", "rbf")
 FRAGMENTATION_COLUMNS = ("time_to_fragmentation", "fragmented")
@@ -871,39 +872,6 @@ def _fingerprint(surrogate: Surrogate, observed, obs_cov, prior) -> str:
     return digest.hexdigest()[:32]
 
 
-def _open_backend(path, resume: bool, meta: dict):
-    import emcee
-
-    path = os.fspath(path)
-    if os.path.exists(path) and not resume:
-        raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
-    backend = emcee.backends.HDFBackend(path, name=GROUP)
-    if backend.initialized:
-        with backend.open("r") as f:
-            attrs = dict(f[GROUP].attrs)
-        for key, want in meta.items():
-            have = attrs.get(key)
-            have = have.decode() if isinstance(have, bytes) else have
-            if have is None or type(want)(have) != want:
-                raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; resume "
-                                 "needs the same seed, surrogate, training data, targets and prior")
-    return backend
-
-
-def _mean_tau(chain: np.ndarray) -> float:
-    """Mean integrated autocorrelation time over parameters of the rows so far (nan when unavailable)."""
-    import emcee
-
-    if chain.shape[0] < 2:
-        return math.nan
-    try:
-        with np.errstate(all="ignore"):
-            tau = np.asarray(emcee.autocorr.integrated_time(chain, tol=0), dtype=float)
-    except Exception:  # noqa: BLE001 - an estimate for a progress display only
-        return math.nan
-    return float(np.mean(tau)) if np.all(np.isfinite(tau)) else math.nan
-
-
 def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers: int, steps: int, seed: int,
                       path=None, resume: bool = False, progress: Callable | None = None,
                       progress_every: int | None = None) -> BSLResult:
@@ -921,7 +889,10 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
     observed = _observed_rows(observed, surrogate.k)
     logpost = _EmulatedPosterior(surrogate, observed, obs_cov, prior)
     meta = {"emulator_seed": seed, "emulator_fingerprint": _fingerprint(surrogate, observed, obs_cov, prior)}
-    backend = _open_backend(path, resume, meta) if path is not None else None
+    backend = None
+    if path is not None:
+        backend = open_chain(path, resume, meta,
+                             needs="the same seed, surrogate, training data, targets and prior")
     sampler = emcee.EnsembleSampler(walkers, d, logpost, vectorize=True, backend=backend)
     if backend is not None:
         with backend.open("a") as f:
@@ -939,7 +910,7 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
         for t, _ in enumerate(generator, start=start + 1):
             if progress is not None and (t % every == 0 or t == steps):
                 acceptance = float(np.mean(sampler.backend.accepted / float(t)))
-                progress(t, acceptance, _mean_tau(sampler.backend.get_chain()[t // 2:]))
+                progress(t, acceptance, progress_tau(sampler.backend.get_chain()[t // 2:]))
     stored = sampler.backend
     n = int(stored.iteration)
     names = getattr(prior, "names", None)
