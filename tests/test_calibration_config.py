@@ -99,7 +99,7 @@ def test_valid_config_loads(tmp_path):
     np.testing.assert_allclose(t.cov, np.diag([0.05 ** 2, 0.05 ** 2, 0.3 ** 2]))
     assert cfg.method.kind == "emcee"
     assert cfg.method.settings == {"n_sim": 50, "likelihood": "gaussian", "walkers": 16, "steps": 2000,
-                                   "reevaluate_every": 0}
+                                   "reevaluate_every": 0, "moves": "stretch"}
     assert cfg.source["name"] == "recover_holland"
 
 
@@ -224,6 +224,8 @@ def test_optimize_and_emulator_methods(tmp_path):
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\n') == "method.results"
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nwalkers = 3\n') == "method.walkers"
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nconfirm = 1\n') == "method.confirm"
+    assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nmoves = "walk"\n') == "method.moves"
+    assert error_key(tmp_path, method, '[method]\nkind = "optimize"\nmoves = "de"\n') == "method.moves"
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nreevaluate_every = 5\n') \
         == "method.reevaluate_every"
 

@@ -48,7 +48,7 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
-    #           walkers, steps (emcee on the surrogate: cheap, default 5000 steps)
+    #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
 ``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
@@ -94,7 +94,8 @@ METHOD_DEFAULTS = {
     "emcee": {"walkers": None, "steps": 2000, "reevaluate_every": 0, "moves": "stretch"},  # walkers None: max(16, 2 d), even
     "optimize": {"algorithm": "differential_evolution", "objective": "loglik", "maxiter": 100, "popsize": 15,
                  "recheck": 200},
-    "emulator": {"results": None, "surrogate": "gp", "confirm": 100, "walkers": None, "steps": 5000},
+    "emulator": {"results": None, "surrogate": "gp", "confirm": 100, "walkers": None, "steps": 5000,
+                 "moves": "stretch"},
 }
 
 
@@ -442,9 +443,9 @@ def _parse_method(data: dict, base: Path, dim: int, k: int) -> Method:
         if walkers % 2:
             raise ConfigError("method.walkers", f"got {walkers}; must be even")
         settings["steps"] = _int(settings["steps"], "method.steps", 1)
+        settings["moves"] = _choice(settings["moves"], "method.moves", MOVES)
     if kind == "emcee":
         settings["reevaluate_every"] = _int(settings["reevaluate_every"], "method.reevaluate_every", 0)
-        settings["moves"] = _choice(settings["moves"], "method.moves", MOVES)
     elif kind == "optimize":
         settings["algorithm"] = _choice(settings["algorithm"], "method.algorithm", ALGORITHMS)
         settings["objective"] = _choice(settings["objective"], "method.objective", OBJECTIVES)

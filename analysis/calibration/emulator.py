@@ -76,7 +76,8 @@ on the 2-core development machine (while loaded) for P = 324 points, d = 4, k = 
 predicting 8 points takes milliseconds, so the chain costs seconds.
 
 ``run_emulator_mcmc(surrogate, observed, obs_cov, prior, *, walkers, steps, seed, path=None,
-resume=False, progress=None, progress_every=None) -> BSLResult`` (as :func:`~.bsl.run_bsl`)
+resume=False, progress=None, progress_every=None, moves="stretch") -> BSLResult`` (as
+:func:`~.bsl.run_bsl`, ``moves`` as there)
     emcee, vectorised (each half-ensemble's proposals evaluated at once). Log posterior =
     ``prior.logpdf + emulated_loglik`` (no randomness). Seeds as in bsl: initial walkers from
     ``prior.sample(Generator(PCG64(SeedSequence([seed, 0]))), walkers)``; walkers outside the box (or
@@ -874,8 +875,11 @@ def _fingerprint(surrogate: Surrogate, observed, obs_cov, prior) -> str:
 
 def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers: int, steps: int, seed: int,
                       path=None, resume: bool = False, progress: Callable | None = None,
-                      progress_every: int | None = None) -> BSLResult:
+                      progress_every: int | None = None, moves: str = "stretch") -> BSLResult:
     """emcee on the emulated posterior; see the module docstring for the full contract."""
+    from .bsl import emcee_moves
+
+    emcee_moves(moves)   # validates
     import emcee
 
     steps, seed = _count(steps, "steps", 1), _count(seed, "seed", 0)
@@ -888,12 +892,14 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
         raise ValueError("resume=True needs a path")
     observed = _observed_rows(observed, surrogate.k)
     logpost = _EmulatedPosterior(surrogate, observed, obs_cov, prior)
-    meta = {"emulator_seed": seed, "emulator_fingerprint": _fingerprint(surrogate, observed, obs_cov, prior)}
+    meta = {"emulator_seed": seed, "emulator_fingerprint": _fingerprint(surrogate, observed, obs_cov, prior),
+            "emulator_moves": moves}
     backend = None
     if path is not None:
-        backend = open_chain(path, resume, meta,
-                             needs="the same seed, surrogate, training data, targets and prior")
-    sampler = emcee.EnsembleSampler(walkers, d, logpost, vectorize=True, backend=backend)
+        backend = open_chain(path, resume, meta, defaults={"emulator_moves": "stretch"},
+                             needs="the same seed, surrogate, training data, targets, prior and moves")
+    sampler = emcee.EnsembleSampler(walkers, d, logpost, vectorize=True, backend=backend,
+                                    moves=emcee_moves(moves, d))
     if backend is not None:
         with backend.open("a") as f:
             for key, value in meta.items():

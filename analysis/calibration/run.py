@@ -177,7 +177,8 @@ def _emulator(config: CalibrationConfig, out: Path, resume: bool, progress: bool
     try:
         result = run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
                                    walkers=settings["walkers"], steps=settings["steps"], seed=config.seed,
-                                   path=out / "chain.h5", resume=resume, progress=bar.update if bar else None)
+                                   path=out / "chain.h5", resume=resume, progress=bar.update if bar else None,
+                                   moves=settings["moves"])
     finally:
         if bar:
             bar.close()
