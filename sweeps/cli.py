@@ -238,7 +238,7 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--executor", choices=("serial", "local", "dask"), default="serial",
                    help="where simulations run: serial = this process, each evaluation's replicates on all "
-                        "cores in one threaded compiled call (default, fastest on one machine); local = a "
+                        "cores in one threaded compiled call (default); local = a "
                         "process pool evaluating walkers' proposals in parallel; dask = a cluster")
     p.add_argument("--workers", type=int, help="worker processes for local/dask (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDR", help="dask scheduler address; without it a LocalCluster starts")

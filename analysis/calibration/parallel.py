@@ -8,7 +8,8 @@ the same configuration and seed give a bit-identical chain serially, on 2 local 
 cluster.
 
 * ``serial`` (default): in this process. ``simcore.simulate_batch`` already spreads one evaluation's
-  replicates over all cores with compiled threads, so this is the fastest choice on one machine.
+  replicates over all cores with compiled threads (a local pool of whole evaluations measured 7% faster
+  on 2 cores, bench/RESULTS.md).
 * ``local``: a pool of ``workers`` processes (default: all cores), spawned (a fresh interpreter that
   loads the cached compiled kernels, about a second at start-up); each worker
   runs its compiled kernels on ``cores // workers`` threads so the pool does not oversubscribe the
