@@ -73,7 +73,7 @@ from typing import Callable
 
 import numpy as np
 
-from .chainfile import GROUP, open_chain, progress_tau
+from .chainfile import MOVES, emcee_moves, ensemble_sampler, open_chain, progress_tau  # noqa: F401 (MOVES)
 from .likelihood import METHODS, synthetic_loglik
 
 _TAG_INIT, _TAG_MOVES, _TAG_EVAL = 0, 1, 2
@@ -166,28 +166,6 @@ class _LogPosterior:
         return self._evaluate(np.atleast_2d(np.asarray(thetas, dtype=float)), list(indices))
 
 
-MOVES = ("stretch", "de")
-
-
-DE_SCALE = 0.7   # differential-evolution step: this fraction of ter Braak's 2.38 / sqrt(2 d)
-
-
-def emcee_moves(moves: str, ndim: int = 1):
-    """emcee's proposal: ``"stretch"`` (Goodman & Weare's stretch move, emcee's default) or ``"de"``
-    (differential evolution 90% with step ``DE_SCALE x 2.38 / sqrt(2 d)``, DE snooker 10%; ter Braak &
-    Vrugt 2008), which mixes faster for a few parameters and a small ensemble. The shortened DE step
-    keeps the acceptance within 0.2-0.5 under the synthetic likelihood's noise (recover_holland: 0.28,
-    tau 17 steps; 0.20 with the full step; the stretch move: 0.43 with tau 45-55)."""
-    import emcee
-
-    if moves == "stretch":
-        return None
-    if moves == "de":
-        gamma0 = DE_SCALE * 2.38 / math.sqrt(2 * max(1, ndim))
-        return [(emcee.moves.DEMove(gamma0=gamma0), 0.9), (emcee.moves.DESnookerMove(), 0.1)]
-    raise ValueError(f"moves: unknown {moves!r}; allowed: {', '.join(MOVES)}")
-
-
 def _int(value, name: str, minimum: int) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
         raise ValueError(f"{name}: got {value!r}; must be an integer >= {minimum}")
@@ -224,12 +202,7 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
                              needs="the same seed, likelihood, reevaluate_every and moves")
 
     logpost = _LogPosterior(simulate_fn, observed, prior, seed, likelihood, evaluator)
-    sampler = emcee.EnsembleSampler(walkers, ndim, logpost, backend=backend, vectorize=True,
-                                    moves=emcee_moves(moves, ndim))
-    if path is not None:
-        with backend.open("a") as f:
-            for key, value in meta.items():
-                f[GROUP].attrs[key] = value
+    sampler = ensemble_sampler(logpost, walkers, ndim, backend, meta, moves)
 
     start = int(sampler.backend.iteration)
     if start == 0:

@@ -1,4 +1,4 @@
-"""The chain file of an emcee calibration, shared by BSL and the emulator method.
+"""emcee plumbing shared by BSL and the emulator method: the chain file, the proposal moves, the sampler.
 
 ``open_chain(path, resume, meta, defaults=None, needs="the same settings") -> emcee.backends.HDFBackend``
 opens ``path`` (group ``"mcmc"``). Without ``resume`` an existing file is FileExistsError (remove it or
@@ -6,6 +6,10 @@ resume). An initialised file must carry every ``meta`` key with the same value (
 strings, other values converted to the type of the wanted value); a key missing from an older file takes
 its value from ``defaults`` when given there. A mismatch is ValueError naming the key and ``needs``.
 Writing ``meta`` into the file is the caller's job once emcee has created the group.
+
+``emcee_moves(moves, ndim)``: the proposal for ``moves`` = ``"stretch"`` or ``"de"`` (see there).
+``ensemble_sampler(log_prob, walkers, ndim, backend, meta, moves)``: a vectorised
+:class:`emcee.EnsembleSampler` on ``backend`` (or in memory when None) whose file records ``meta``.
 
 ``progress_tau(chain) -> float``: the mean over parameters of emcee's integrated autocorrelation time of
 ``chain`` (steps, walkers, d), with no length check: an estimate for a progress display, nan when it
@@ -19,6 +23,40 @@ import os
 import numpy as np
 
 GROUP = "mcmc"
+
+
+MOVES = ("stretch", "de")
+
+
+DE_SCALE = 0.7   # differential-evolution step: this fraction of ter Braak's 2.38 / sqrt(2 d)
+
+
+def emcee_moves(moves: str, ndim: int = 1):
+    """emcee's proposal: ``"stretch"`` (Goodman & Weare's stretch move, emcee's default) or ``"de"``
+    (differential evolution 90% with step ``DE_SCALE x 2.38 / sqrt(2 d)``, DE snooker 10%; ter Braak &
+    Vrugt 2008), which mixes faster for a few parameters and a small ensemble. The shortened DE step
+    keeps the acceptance within 0.2-0.5 under the synthetic likelihood's noise (recover_holland: 0.28,
+    tau 17 steps; 0.20 with the full step; the stretch move: 0.43 with tau 45-55)."""
+    import emcee
+
+    if moves == "stretch":
+        return None
+    if moves == "de":
+        gamma0 = DE_SCALE * 2.38 / math.sqrt(2 * max(1, ndim))
+        return [(emcee.moves.DEMove(gamma0=gamma0), 0.9), (emcee.moves.DESnookerMove(), 0.1)]
+    raise ValueError(f"moves: unknown {moves!r}; allowed: {', '.join(MOVES)}")
+
+
+def ensemble_sampler(log_prob, walkers: int, ndim: int, backend, meta: dict, moves: str):
+    import emcee
+
+    sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, backend=backend, vectorize=True,
+                                    moves=emcee_moves(moves, ndim))
+    if backend is not None:
+        with backend.open("a") as f:
+            for key, value in meta.items():
+                f[GROUP].attrs[key] = value
+    return sampler
 
 
 def open_chain(path, resume: bool, meta: dict, defaults: dict | None = None, needs: str = "the same settings"):

@@ -121,7 +121,7 @@ from scipy import optimize, special
 from simcore.schema import ConfigError, get_dotted, set_dotted
 
 from .bsl import BSLResult
-from .chainfile import GROUP, open_chain, progress_tau
+from .chainfile import emcee_moves, ensemble_sampler, open_chain, progress_tau
 
 SURROGATE_KINDS = ("gp", "rbf")
 FRAGMENTATION_COLUMNS = ("time_to_fragmentation", "fragmented")
@@ -877,8 +877,6 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
                       path=None, resume: bool = False, progress: Callable | None = None,
                       progress_every: int | None = None, moves: str = "stretch") -> BSLResult:
     """emcee on the emulated posterior; see the module docstring for the full contract."""
-    from .bsl import emcee_moves
-
     emcee_moves(moves)   # validates
     import emcee
 
@@ -898,17 +896,12 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
     if path is not None:
         backend = open_chain(path, resume, meta, defaults={"emulator_moves": "stretch"},
                              needs="the same seed, surrogate, training data, targets, prior and moves")
-    sampler = emcee.EnsembleSampler(walkers, d, logpost, vectorize=True, backend=backend,
-                                    moves=emcee_moves(moves, d))
-    if backend is not None:
-        with backend.open("a") as f:
-            for key, value in meta.items():
-                f[GROUP].attrs[key] = value
+    sampler = ensemble_sampler(logpost, walkers, d, backend, meta, moves)
     start = int(sampler.backend.iteration)
     if start == 0:
         coords, log_prob = _initial_walkers(logpost, prior, walkers, seed)
-        moves = np.random.RandomState(np.random.MT19937(np.random.SeedSequence([seed, _TAG_MOVES])))
-        state = emcee.State(coords, log_prob=log_prob, random_state=moves.get_state())
+        move_rs = np.random.RandomState(np.random.MT19937(np.random.SeedSequence([seed, _TAG_MOVES])))
+        state = emcee.State(coords, log_prob=log_prob, random_state=move_rs.get_state())
     else:
         state = sampler.backend.get_last_sample()
     if start < steps:
