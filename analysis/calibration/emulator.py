@@ -476,12 +476,17 @@ class EmulatorPrediction:
     var: np.ndarray
 
 
+def _rows(values, width: int, what: str) -> np.ndarray:
+    """``values`` as a (n, width) float array (a (width,) vector is one row); ValueError otherwise."""
+    values = np.asarray(values, dtype=float)
+    values = values[None, :] if values.ndim == 1 else values
+    if values.ndim != 2 or values.shape[1] != width:
+        raise ValueError(f"{what} must have shape (n, {width}) or ({width},), got {np.shape(values)}")
+    return values
+
+
 def _as_points(theta, d: int) -> np.ndarray:
-    theta = np.asarray(theta, dtype=float)
-    theta = theta[None, :] if theta.ndim == 1 else theta
-    if theta.ndim != 2 or theta.shape[1] != d:
-        raise ValueError(f"theta must have shape (n, {d}) or ({d},), got {np.shape(theta)}")
-    return theta
+    return _rows(theta, d, "theta")
 
 
 def _log_variance_targets(var: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -539,6 +544,14 @@ class Surrogate:
         """(n,) whether each point lies in the training box (bounds included)."""
         theta = _as_points(theta, self.d)
         return np.all((theta >= self.lower) & (theta <= self.upper), axis=1)
+
+    def fit(self, output_model) -> None:
+        """One ``output_model(unit points, standardised output)`` per stat for the means and for the
+        log variances."""
+        unit = self.to_unit(self.training.points)
+        means, logs = self.outputs()
+        self.mean_models = [output_model(unit, out) for out in means]
+        self.log_var_models = [output_model(unit, out) for out in logs]
 
     def outputs(self) -> tuple[list[_Standardised], list[_Standardised]]:
         """Standardised training outputs: per stat the point means, then the log variances."""
@@ -668,10 +681,7 @@ class GPSurrogate(Surrogate):
 
     def __init__(self, training: TrainingSet):
         super().__init__(training)
-        unit = self.to_unit(training.points)
-        means, logs = self.outputs()
-        self.mean_models = [_ExactGP(unit, out) for out in means]
-        self.log_var_models = [_ExactGP(unit, out) for out in logs]
+        self.fit(_ExactGP)
 
 
 class _SmoothedRBF:
@@ -721,10 +731,7 @@ class RBFSurrogate(Surrogate):
 
     def __init__(self, training: TrainingSet):
         super().__init__(training)
-        unit = self.to_unit(training.points)
-        means, logs = self.outputs()
-        self.mean_models = [_SmoothedRBF(unit, out) for out in means]
-        self.log_var_models = [_SmoothedRBF(unit, out) for out in logs]
+        self.fit(_SmoothedRBF)
 
 
 def build_surrogate(training: TrainingSet, kind: str = "gp") -> Surrogate:
@@ -750,11 +757,7 @@ def prior_outside_box(prior, surrogate: Surrogate) -> list[str]:
 # ------------------------------------------------------------------------------------------ likelihood
 
 def _observed_rows(observed, k: int) -> np.ndarray:
-    observed = np.asarray(observed, dtype=float)
-    observed = observed[None, :] if observed.ndim == 1 else observed
-    if observed.ndim != 2 or observed.shape[1] != k:
-        raise ValueError(f"observed must be (m, {k}) or ({k},), got {np.shape(observed)}")
-    return observed
+    return _rows(observed, k, "observed")
 
 
 def _obs_cov_matrix(obs_cov, k: int) -> np.ndarray:

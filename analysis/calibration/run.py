@@ -43,8 +43,8 @@ from simcore.schema import ConfigError
 
 from .bsl import run_bsl, simulate_keyed
 from .config import CalibrationConfig
-from .parallel import Evaluator
 from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
+from .parallel import Evaluator
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
 
