@@ -44,7 +44,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .obstacle_spec import (KIND_BOX, KIND_CYLINDER, KIND_PLANE, KIND_SPHERE, OBS_AX, OBS_AY, OBS_AZ, OBS_BOUND,
+from .obstacle_spec import (KIND_BOX, KIND_PLANE, KIND_SPHERE, OBS_AX, OBS_AY, OBS_AZ, OBS_BOUND,
                             OBS_CX, OBS_CY, OBS_CZ, OBS_HALF_LENGTH, OBS_HX, OBS_HY, OBS_HZ, OBS_NX, OBS_NY,
                             OBS_NZ, OBS_RADIUS)
 

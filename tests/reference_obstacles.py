@@ -127,12 +127,15 @@ def outline(obstacle, forward):
 
 def silhouette(obstacle, start, forward, body_radius: float):
     """(delta, o): distance from the ray's image point to the inflated outline (positive inside) and the
-    outline's outward unit normal at its nearest point, as a 3-D vector perpendicular to ``forward``."""
+    outline's outward unit normal at its nearest point, as a 3-D vector perpendicular to ``forward``
+    (None when the ray passes through a sphere's centre: every direction is nearest)."""
     e1, e2, shape, extra = outline(obstacle, forward)
     point = np.array([np.asarray(start) @ e1, np.asarray(start) @ e2])
     if obstacle.kind == "sphere":
         offset = point - shape
         dist = np.linalg.norm(offset)
+        if dist == 0.0:
+            return extra + body_radius, None
         o2 = offset / dist
         return extra + body_radius - dist, o2[0] * e1 + o2[1] * e2
     normals, offsets = extra[:, :2], extra[:, 2]
