@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 
 from .obstacle_spec import KIND_PLANE
-from .obstacles import deepest_overlap, first_hit
+from .obstacles import deepest_overlap, nearest_hit
 from .silhouettes import silhouette_target
 
 FAN_CLEAR = -1   # forward ray unobstructed: no avoidance
@@ -48,7 +48,7 @@ def steer_to_avoid(table, kinds, px, py, pz, fx, fy, fz, ux, uy, uz, body_radius
     k, sd, nx, ny, nz = deepest_overlap(table, kinds, px, py, pz, body_radius)
     if k >= 0:
         return k, 0.0, nx, ny, nz
-    k, t, hx, hy, hz, nx, ny, nz = first_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead)
+    k, t = nearest_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead, True)
     if k < 0:
         return -1, math.inf, 0.0, 0.0, 0.0
     tx, ty, tz, ox, oy, oz, delta = silhouette_target(table, kinds, k, px, py, pz, fx, fy, fz, ux, uy, uz,
@@ -93,16 +93,16 @@ def fan_avoid_direction(table, kinds, fan, px, py, pz, fx, fy, fz, ux, uy, uz, s
     k, sd, nx, ny, nz = deepest_overlap(table, kinds, px, py, pz, body_radius)
     if k >= 0:
         return FAN_INSIDE, nx, ny, nz, 0.0
-    hit = first_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead)
-    if hit[0] < 0:
+    k, t = nearest_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead, True)
+    if k < 0:
         return FAN_CLEAR, 0.0, 0.0, 0.0, lookahead
-    best_ray, best_free = 0, hit[1]
+    best_ray, best_free = 0, t
     bx, by, bz = fx, fy, fz
     for i in range(1, fan.shape[0]):
         dx, dy, dz = fan_direction(fan, i, fx, fy, fz, ux, uy, uz, sx, sy, sz)
-        hit = first_hit(table, kinds, px, py, pz, dx, dy, dz, body_radius, lookahead)
-        if hit[0] < 0:
+        k, t = nearest_hit(table, kinds, px, py, pz, dx, dy, dz, body_radius, lookahead, True)
+        if k < 0:
             return i, dx, dy, dz, lookahead
-        if hit[1] > best_free:
-            best_ray, best_free, bx, by, bz = i, hit[1], dx, dy, dz
+        if t > best_free:
+            best_ray, best_free, bx, by, bz = i, t, dx, dy, dz
     return best_ray, bx, by, bz, best_free

@@ -2,7 +2,9 @@
 
 Obstacles arrive packed by :func:`simcore.obstacle_spec.pack_obstacles` as ``table`` float64 (K, C) and
 ``kinds`` int64 (K,). Every function is ``numba.njit`` (cached, no fastmath), takes scalars and those two
-arrays, returns a tuple of scalars and allocates nothing, except :func:`clearances` (for metrics).
+arrays, returns a tuple of scalars and allocates nothing, except :func:`clearances` (for metrics). The
+per-kind distances and the per-ray dispatch are inlined into their callers (``inline="always"``: a third
+less time per ray cast than plain calls, measured).
 
 Signed clearance
     ``signed_distance`` gives sd(x), the Euclidean distance from x to the solid's surface, negative
@@ -33,7 +35,8 @@ Ray cast
     the ball of radius b + 1e-12 and that of radius b: exact to rounding for a transversal hit; for an
     exactly tangent ray it is located to about sqrt(1e-12 * b).
 
-``first_hit`` scans all obstacles and keeps the smallest t (ties: lower index); ``deepest_overlap`` finds
+``first_hit`` scans all obstacles and keeps the smallest t (ties: lower index; ``nearest_hit`` is its (k, t)
+alone, and can skip the inside test once the caller knows the body touches nothing); ``deepest_overlap`` finds
 the obstacle the body overlaps most (sd(p) <= b, most negative sd, lower index on ties); ``nearest_clearance``
 gives the smallest sd over all obstacles.
 """
@@ -64,7 +67,7 @@ def perpendicular_near_up(ax, ay, az):
     return px / norm, py / norm, pz / norm
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def sphere_distance(cx, cy, cz, radius, x, y, z):
     """(sd, nx, ny, nz) of a point to a ball's surface."""
     ox, oy, oz = x - cx, y - cy, z - cz
@@ -74,13 +77,13 @@ def sphere_distance(cx, cy, cz, radius, x, y, z):
     return -radius, 0.0, 1.0, 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def plane_distance(cx, cy, cz, nx, ny, nz, x, y, z):
     """(sd, nx, ny, nz) of a point to the half-space n . (x - c) <= 0 (n unit, pointing to the free side)."""
     return nx * (x - cx) + ny * (y - cy) + nz * (z - cz), nx, ny, nz
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def box_distance(cx, cy, cz, hx, hy, hz, x, y, z):
     """(sd, nx, ny, nz) of a point to an axis-aligned box's surface (inside: nearest face, ties x, y, z)."""
     ox, oy, oz = x - cx, y - cy, z - cz
@@ -98,7 +101,7 @@ def box_distance(cx, cy, cz, hx, hy, hz, x, y, z):
     return 0.0 - depth_z, 0.0, 0.0, 1.0 if oz >= 0.0 else -1.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def cylinder_distance(cx, cy, cz, ax, ay, az, radius, half_length, x, y, z):
     """(sd, nx, ny, nz) of a point to a capped cylinder's surface (axis a unit; side, cap or rim region)."""
     ox, oy, oz = x - cx, y - cy, z - cz
@@ -121,21 +124,19 @@ def cylinder_distance(cx, cy, cz, ax, ay, az, radius, half_length, x, y, z):
     return d_cap, side * ax, side * ay, side * az
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def distance_normal(table, kinds, k, x, y, z):
     """(sd, nx, ny, nz) of point x to obstacle k."""
     kind = kinds[k]
-    row = table[k]
+    cx, cy, cz = table[k, OBS_CX], table[k, OBS_CY], table[k, OBS_CZ]
     if kind == KIND_SPHERE:
-        return sphere_distance(row[OBS_CX], row[OBS_CY], row[OBS_CZ], row[OBS_RADIUS], x, y, z)
+        return sphere_distance(cx, cy, cz, table[k, OBS_RADIUS], x, y, z)
     if kind == KIND_PLANE:
-        return plane_distance(row[OBS_CX], row[OBS_CY], row[OBS_CZ], row[OBS_NX], row[OBS_NY], row[OBS_NZ],
-                              x, y, z)
+        return plane_distance(cx, cy, cz, table[k, OBS_NX], table[k, OBS_NY], table[k, OBS_NZ], x, y, z)
     if kind == KIND_BOX:
-        return box_distance(row[OBS_CX], row[OBS_CY], row[OBS_CZ], row[OBS_HX], row[OBS_HY], row[OBS_HZ],
-                            x, y, z)
-    return cylinder_distance(row[OBS_CX], row[OBS_CY], row[OBS_CZ], row[OBS_AX], row[OBS_AY], row[OBS_AZ],
-                             row[OBS_RADIUS], row[OBS_HALF_LENGTH], x, y, z)
+        return box_distance(cx, cy, cz, table[k, OBS_HX], table[k, OBS_HY], table[k, OBS_HZ], x, y, z)
+    return cylinder_distance(cx, cy, cz, table[k, OBS_AX], table[k, OBS_AY], table[k, OBS_AZ], table[k, OBS_RADIUS],
+                             table[k, OBS_HALF_LENGTH], x, y, z)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -145,7 +146,7 @@ def signed_distance(table, kinds, k, x, y, z):
     return sd, x - sd * nx, y - sd * ny, z - sd * nz, nx, ny, nz
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def ball_entry(ox, oy, oz, radius, fx, fy, fz, lookahead):
     """(hit, t): first t in [0, lookahead] with |o + t f| <= radius, for a start outside the ball."""
     beta = ox * fx + oy * fy + oz * fz
@@ -164,9 +165,8 @@ def ball_entry(ox, oy, oz, radius, fx, fy, fz, lookahead):
 @nb.njit(cache=True, error_model="numpy")
 def convex_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead):
     """(hit, t) for a box or cylinder and a start outside the inflated shape (see module docstring)."""
-    row = table[k]
-    ox, oy, oz = px - row[OBS_CX], py - row[OBS_CY], pz - row[OBS_CZ]
-    bound = row[OBS_BOUND] + body_radius
+    ox, oy, oz = px - table[k, OBS_CX], py - table[k, OBS_CY], pz - table[k, OBS_CZ]
+    bound = table[k, OBS_BOUND] + body_radius
     t = 0.0
     if ox * ox + oy * oy + oz * oz > bound * bound:
         hit, t = ball_entry(ox, oy, oz, bound, fx, fy, fz, lookahead)
@@ -189,26 +189,33 @@ def convex_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead
     return False, math.inf
 
 
-@nb.njit(cache=True, error_model="numpy")
-def ray_distance(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead):
-    """(hit, t) of the ray cast against obstacle k's inflated shape (see module docstring)."""
-    sd, nx, ny, nz = distance_normal(table, kinds, k, px, py, pz)
-    if sd <= body_radius:
-        return True, 0.0
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def ray_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead):
+    """(hit, t) of the ray cast against obstacle k's inflated shape, for a start known to be outside it
+    (sd(p) > body_radius)."""
     kind = kinds[k]
-    row = table[k]
     if kind == KIND_SPHERE:
-        return ball_entry(px - row[OBS_CX], py - row[OBS_CY], pz - row[OBS_CZ], row[OBS_RADIUS] + body_radius,
-                          fx, fy, fz, lookahead)
+        return ball_entry(px - table[k, OBS_CX], py - table[k, OBS_CY], pz - table[k, OBS_CZ],
+                          table[k, OBS_RADIUS] + body_radius, fx, fy, fz, lookahead)
     if kind == KIND_PLANE:
+        nx, ny, nz = table[k, OBS_NX], table[k, OBS_NY], table[k, OBS_NZ]
         rate = nx * fx + ny * fy + nz * fz
         if rate >= 0.0:
             return False, math.inf
-        t = (sd - body_radius) / -rate
+        gap = nx * (px - table[k, OBS_CX]) + ny * (py - table[k, OBS_CY]) + nz * (pz - table[k, OBS_CZ]) - body_radius
+        t = gap / -rate
         if t > lookahead:
             return False, math.inf
         return True, t
     return convex_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead)
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
+def ray_distance(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead):
+    """(hit, t) of the ray cast against obstacle k's inflated shape (see module docstring)."""
+    if distance_normal(table, kinds, k, px, py, pz)[0] <= body_radius:
+        return True, 0.0
+    return ray_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead)
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -228,18 +235,29 @@ def ray_cast(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, lookahead):
 def first_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead):
     """(k, t, hx, hy, hz, nx, ny, nz): the nearest hit over all obstacles (ties: lower k); k = -1 and
     t = inf when the ray meets none within lookahead."""
-    best_k = -1
-    best_t = math.inf
-    reach = lookahead
-    for k in range(kinds.shape[0]):
-        hit, t = ray_distance(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, reach)
-        if hit and t < best_t:
-            best_k, best_t, reach = k, t, t
+    best_k, best_t = nearest_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead, False)
     if best_k < 0:
         return -1, math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     hx, hy, hz = px + best_t * fx, py + best_t * fy, pz + best_t * fz
     sd, nx, ny, nz = distance_normal(table, kinds, best_k, hx, hy, hz)
     return best_k, best_t, hx, hy, hz, nx, ny, nz
+
+
+@nb.njit(cache=True, error_model="numpy")
+def nearest_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead, start_outside):
+    """(k, t) of ``first_hit`` without the hit point; with ``start_outside`` the caller vouches that the
+    body touches no obstacle at p (as after ``deepest_overlap`` found none), which skips K clearances."""
+    best_k = -1
+    best_t = math.inf
+    reach = lookahead
+    for k in range(kinds.shape[0]):
+        if start_outside:
+            hit, t = ray_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, reach)
+        else:
+            hit, t = ray_distance(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, reach)
+        if hit and t < best_t:
+            best_k, best_t, reach = k, t, t
+    return best_k, best_t
 
 
 @nb.njit(cache=True, error_model="numpy")

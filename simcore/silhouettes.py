@@ -95,22 +95,22 @@ def placed(k, along_k, along_i, along_j):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def box_edge(k, s_i, s_j, centre, half, px, py, pz, fx, fy, fz):
-    """One box edge along axis k at signs (s_i, s_j) of the other axes, seen along f: (outward, dist,
+def box_edge(axis, s_i, s_j, centre, half, px, py, pz, fx, fy, fz):
+    """One box edge along ``axis`` at signs (s_i, s_j) of the other axes, seen along f: (outward, dist,
     qx, qy, qz, vx, vy, vz, mx, my, mz) with m the edge line's outward image normal, outward = (p - edge) . m
     (> 0: P' is outside that line), q the edge point nearest to P' in the image and v = P' - q'."""
     fwd = (fx, fy, fz)
-    i, j = (k + 1) % 3, (k + 2) % 3
+    i, j = (axis + 1) % 3, (axis + 2) % 3
     f_i, f_j = fwd[i], fwd[j]
     across = f_i * f_i + f_j * f_j
-    ax, ay, az = placed(k, centre[k] - half[k], centre[i] + s_i * half[i], centre[j] + s_j * half[j])
-    scale = 1.0 / math.sqrt(across)   # m = +-(f x e_k) / |f x e_k|, pointing away from the centre
+    ax, ay, az = placed(axis, centre[axis] - half[axis], centre[i] + s_i * half[i], centre[j] + s_j * half[j])
+    scale = 1.0 / math.sqrt(across)   # m = +-(f x e_axis) / |f x e_axis|, pointing away from the centre
     if s_i * half[i] * f_j - s_j * half[j] * f_i < 0.0:
         scale = -scale
-    mx, my, mz = placed(k, 0.0, f_j * scale, -f_i * scale)
+    mx, my, mz = placed(axis, 0.0, f_j * scale, -f_i * scale)
     dx, dy, dz = px - ax, py - ay, pz - az
-    lam = ((dx, dy, dz)[k] - fwd[k] * (dx * fx + dy * fy + dz * fz)) / across
-    qx, qy, qz = placed(k, min(max(lam, 0.0), 2.0 * half[k]), 0.0, 0.0)
+    lam = ((dx, dy, dz)[axis] - fwd[axis] * (dx * fx + dy * fy + dz * fz)) / across
+    qx, qy, qz = placed(axis, min(max(lam, 0.0), 2.0 * half[axis]), 0.0, 0.0)
     qx, qy, qz = ax + qx, ay + qy, az + qz
     vx, vy, vz = perpendicular_part(px - qx, py - qy, pz - qz, fx, fy, fz)
     return (dx * mx + dy * my + dz * mz, math.sqrt(vx * vx + vy * vy + vz * vz),
@@ -118,22 +118,22 @@ def box_edge(k, s_i, s_j, centre, half, px, py, pz, fx, fy, fz):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def box_silhouette(row, px, py, pz, fx, fy, fz, body_radius, margin):
+def box_silhouette(table, k, px, py, pz, fx, fy, fz, body_radius, margin):
     """(tx, ty, tz, ox, oy, oz, delta) for an axis-aligned box (see module docstring)."""
-    centre = (row[OBS_CX], row[OBS_CY], row[OBS_CZ])
-    half = (row[OBS_HX], row[OBS_HY], row[OBS_HZ])
+    centre = (table[k, OBS_CX], table[k, OBS_CY], table[k, OBS_CZ])
+    half = (table[k, OBS_HX], table[k, OBS_HY], table[k, OBS_HZ])
     fwd = (fx, fy, fz)
     inside = True
     best = math.inf
     ex = ey = ez = wx = wy = wz = nx = ny = nz = 0.0
-    for k in range(3):
-        f_i, f_j = fwd[(k + 1) % 3], fwd[(k + 2) % 3]
+    for axis in range(3):
+        f_i, f_j = fwd[(axis + 1) % 3], fwd[(axis + 2) % 3]
         for s_i in (-1.0, 1.0):
             for s_j in (-1.0, 1.0):
                 if (s_i * f_i < 0.0) == (s_j * f_j < 0.0):
                     continue  # not a silhouette edge: both faces front-facing or neither
-                out, dist, qx, qy, qz, vx, vy, vz, mx, my, mz = box_edge(k, s_i, s_j, centre, half, px, py, pz,
-                                                                         fx, fy, fz)
+                out, dist, qx, qy, qz, vx, vy, vz, mx, my, mz = box_edge(axis, s_i, s_j, centre, half, px, py,
+                                                                         pz, fx, fy, fz)
                 inside = inside and out <= 0.0
                 if dist < best:
                     best, ex, ey, ez, wx, wy, wz, nx, ny, nz = dist, qx, qy, qz, vx, vy, vz, mx, my, mz
@@ -275,11 +275,11 @@ def oblique_outline(cx, cy, cz, ax, ay, az, radius, half, ca, sa, e1x, e1y, e1z,
 
 
 @nb.njit(cache=True, error_model="numpy")
-def cylinder_silhouette(row, px, py, pz, fx, fy, fz, ux, uy, uz, body_radius, margin):
+def cylinder_silhouette(table, k, px, py, pz, fx, fy, fz, ux, uy, uz, body_radius, margin):
     """(tx, ty, tz, ox, oy, oz, delta) for a capped cylinder (see module docstring)."""
-    cx, cy, cz = row[OBS_CX], row[OBS_CY], row[OBS_CZ]
-    ax, ay, az = row[OBS_AX], row[OBS_AY], row[OBS_AZ]
-    radius, half = row[OBS_RADIUS], row[OBS_HALF_LENGTH]
+    cx, cy, cz = table[k, OBS_CX], table[k, OBS_CY], table[k, OBS_CZ]
+    ax, ay, az = table[k, OBS_AX], table[k, OBS_AY], table[k, OBS_AZ]
+    radius, half = table[k, OBS_RADIUS], table[k, OBS_HALF_LENGTH]
     ca = ax * fx + ay * fy + az * fz
     e1x, e1y, e1z = ax - ca * fx, ay - ca * fy, az - ca * fz
     sa = math.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
@@ -318,14 +318,13 @@ def silhouette_target(table, kinds, k, px, py, pz, fx, fy, fz, ux, uy, uz, body_
     """(tx, ty, tz, ox, oy, oz, delta): steer-to-avoid target of obstacle k for the ray from p along f,
     the outline's outward image normal o and the ray-to-outline distance delta (see module docstring).
     For a plane: target p + d with d along the plane, o = d, delta = inf."""
-    row = table[k]
     kind = kinds[k]
     if kind == KIND_SPHERE:
-        return sphere_silhouette(row[OBS_CX], row[OBS_CY], row[OBS_CZ], row[OBS_RADIUS], px, py, pz,
-                                 fx, fy, fz, ux, uy, uz, body_radius, margin)
+        return sphere_silhouette(table[k, OBS_CX], table[k, OBS_CY], table[k, OBS_CZ], table[k, OBS_RADIUS],
+                                 px, py, pz, fx, fy, fz, ux, uy, uz, body_radius, margin)
     if kind == KIND_BOX:
-        return box_silhouette(row, px, py, pz, fx, fy, fz, body_radius, margin)
+        return box_silhouette(table, k, px, py, pz, fx, fy, fz, body_radius, margin)
     if kind == KIND_PLANE:
-        dx, dy, dz = along_plane(row[OBS_NX], row[OBS_NY], row[OBS_NZ], fx, fy, fz, ux, uy, uz)
+        dx, dy, dz = along_plane(table[k, OBS_NX], table[k, OBS_NY], table[k, OBS_NZ], fx, fy, fz, ux, uy, uz)
         return px + dx, py + dy, pz + dz, dx, dy, dz, math.inf
-    return cylinder_silhouette(row, px, py, pz, fx, fy, fz, ux, uy, uz, body_radius, margin)
+    return cylinder_silhouette(table, k, px, py, pz, fx, fy, fz, ux, uy, uz, body_radius, margin)
