@@ -147,6 +147,15 @@ def signed_distance(table, kinds, k, x, y, z):
 
 
 @nb.njit(cache=True, error_model="numpy", inline="always")
+def beyond_reach(table, k, x, y, z, reach):
+    """True when obstacle k's bounding ball is farther than ``reach`` from x (never for a plane): a
+    cheap exact cull, nothing of the obstacle can be within ``reach``."""
+    dx, dy, dz = x - table[k, OBS_CX], y - table[k, OBS_CY], z - table[k, OBS_CZ]
+    limit = table[k, OBS_BOUND] + reach
+    return dx * dx + dy * dy + dz * dz > limit * limit
+
+
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def ball_entry(ox, oy, oz, radius, fx, fy, fz, lookahead):
     """(hit, t): first t in [0, lookahead] with |o + t f| <= radius, for a start outside the ball."""
     beta = ox * fx + oy * fy + oz * fz
@@ -251,6 +260,8 @@ def nearest_hit(table, kinds, px, py, pz, fx, fy, fz, body_radius, lookahead, st
     best_t = math.inf
     reach = lookahead
     for k in range(kinds.shape[0]):
+        if beyond_reach(table, k, px, py, pz, body_radius + reach):
+            continue
         if start_outside:
             hit, t = ray_entry(table, kinds, k, px, py, pz, fx, fy, fz, body_radius, reach)
         else:
@@ -268,6 +279,8 @@ def deepest_overlap(table, kinds, x, y, z, body_radius):
     best_sd = math.inf
     bx = by = bz = 0.0
     for k in range(kinds.shape[0]):
+        if beyond_reach(table, k, x, y, z, body_radius):
+            continue
         sd, nx, ny, nz = distance_normal(table, kinds, k, x, y, z)
         if sd <= body_radius and sd < best_sd:
             best_k, best_sd, bx, by, bz = k, sd, nx, ny, nz

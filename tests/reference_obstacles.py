@@ -144,16 +144,13 @@ def silhouette(obstacle, start, forward, body_radius: float):
         facet = int(np.argmax(signed))
         o2 = normals[facet] / np.linalg.norm(normals[facet])
         return -signed[facet] / np.linalg.norm(normals[facet]) + body_radius, o2[0] * e1 + o2[1] * e2
-    best = (math.inf, None)
-    for i in range(len(shape)):
-        a, b = shape[i], shape[(i + 1) % len(shape)]
-        lam = np.clip((point - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
-        near = a + lam * (b - a)
-        dist = np.linalg.norm(point - near)
-        if dist < best[0]:
-            best = (dist, near)
-    o2 = (point - best[1]) / best[0]
-    return body_radius - best[0], o2[0] * e1 + o2[1] * e2
+    starts, edges = shape, np.roll(shape, -1, axis=0) - shape
+    lam = np.clip(np.einsum("ij,ij->i", point - starts, edges) / np.einsum("ij,ij->i", edges, edges), 0.0, 1.0)
+    nearest = starts + lam[:, None] * edges
+    dist = np.linalg.norm(point - nearest, axis=1)
+    i = int(np.argmin(dist))
+    o2 = (point - nearest[i]) / dist[i]
+    return body_radius - dist[i], o2[0] * e1 + o2[1] * e2
 
 
 def support_gap(obstacle, start, forward, body_radius: float, direction) -> float:

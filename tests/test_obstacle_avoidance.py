@@ -256,6 +256,9 @@ def test_fan_hand_cases_clear_inside_and_blocked_everywhere():
     assert fan_choice([ball], (0, 0, 0), frame, lookahead=6.4)[0] == avoid.FAN_CLEAR      # hit at 6.5
     ray, *d, free = fan_choice([ball], (10, 3.2, 0), frame)                             # sd 0.2 <= b
     assert ray == avoid.FAN_INSIDE and d == [0.0, 1.0, 0.0] and free == 0.0
+    # zero lookahead: only the inside case acts
+    assert fan_choice([ball], (6.4, 0, 0), frame, lookahead=0.0) == (avoid.FAN_CLEAR, 0.0, 0.0, 0.0, 0.0)
+    assert fan_choice([ball], (6.6, 0, 0), frame, lookahead=0.0)[0] == avoid.FAN_INSIDE
     # ahead: ray i is free when its angle from f exceeds asin(3.5 / 10) = 20.5 deg (grown radius 3.5)
     ray, *d, free = fan_choice([ball], (0, 0, 0), frame)
     fan = avoid.golden_fan(32)
