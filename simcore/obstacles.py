@@ -3,7 +3,7 @@
 Obstacles arrive packed by :func:`simcore.obstacle_spec.pack_obstacles` as ``table`` float64 (K, C) and
 ``kinds`` int64 (K,). Every function is ``numba.njit`` (cached, no fastmath), takes scalars and those two
 arrays, returns a tuple of scalars and allocates nothing, except :func:`clearances` (for metrics). The
-per-kind distances and the per-ray dispatch are inlined into their callers (``inline="always"``: a third
+per-kind distances and the per-ray dispatch are inlined into their callers (``inline="always"``: about 40%
 less time per ray cast than plain calls, measured).
 
 Signed clearance
@@ -35,10 +35,12 @@ Ray cast
     the ball of radius b + 1e-12 and that of radius b: exact to rounding for a transversal hit; for an
     exactly tangent ray it is located to about sqrt(1e-12 * b).
 
-``first_hit`` scans all obstacles and keeps the smallest t (ties: lower index; ``nearest_hit`` is its (k, t)
-alone, and can skip the inside test once the caller knows the body touches nothing); ``deepest_overlap`` finds
-the obstacle the body overlaps most (sd(p) <= b, most negative sd, lower index on ties); ``nearest_clearance``
-gives the smallest sd over all obstacles.
+Over all obstacles
+    ``first_hit`` keeps the smallest t (ties: lower index); ``nearest_hit`` is its (k, t) alone and can skip
+    the inside tests once the caller knows the body touches nothing. ``deepest_overlap`` finds the
+    obstacle the body overlaps most (sd(p) <= b, most negative sd, lower index on ties);
+    ``nearest_clearance`` the smallest sd. The scans first drop, exactly, every obstacle whose bounding
+    ball (``OBS_BOUND``; never a plane) is out of reach.
 """
 from __future__ import annotations
 
