@@ -1,0 +1,609 @@
+// flocksweep viewer: plays one run in 3-D from the page's "flock-data" JSON (format flocksweep-viewer/1,
+// documented in analysis/viewer/encode.py). Boids are instanced cones pointing along their heading;
+// positions and headings are interpolated between stored frames; trails, colourings, obstacles and
+// extra agents (prey, predators) are drawn; the panel shows the current frame's metrics.
+// window.flockViewer exposes the state for tests and scripting.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+
+const $ = (id) => document.getElementById(id);
+const DATA = JSON.parse($("flock-data").textContent);
+const N = DATA.n, F = DATA.frames, TIMES = DATA.times;
+const T0 = TIMES[0], T1 = TIMES[F - 1];
+const DTF = F > 1 ? (T1 - T0) / (F - 1) : 1;
+const BG = new THREE.Color("#eef2f6");
+
+function fail(text) {
+  const box = $("message");
+  box.textContent = text;
+  box.style.display = "block";
+  console.error(text);
+}
+
+// ------------------------------------------------------------------------------------------ streams
+
+function bytesOf(b64) {
+  const bin = atob(b64);
+  const out = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
+  return out;
+}
+
+async function inflate(b64) {
+  const input = new Blob([bytesOf(b64)]).stream().pipeThrough(new DecompressionStream("deflate"));
+  return new Uint8Array(await new Response(input).arrayBuffer());
+}
+
+async function decode(s) {
+  const raw = await inflate(s.data);
+  const count = s.shape.reduce((a, b) => a * b, 1);
+  if (s.dtype === "bits") {
+    const out = new Uint8Array(count);
+    for (let i = 0; i < count; i++) out[i] = (raw[i >> 3] >> (7 - (i & 7))) & 1;
+    return out;
+  }
+  let q;
+  if (s.dtype === "u16") {
+    q = new Uint16Array(count);
+    for (let i = 0; i < count; i++) q[i] = raw[i] | (raw[count + i] << 8);
+  } else {
+    q = raw;
+  }
+  if (s.delta) {
+    const row = count / s.shape[0];
+    for (let i = row; i < count; i++) q[i] = q[i] + q[i - row];  // typed arrays wrap like the encoder
+  }
+  const values = s.dtype === "i8" ? new Int8Array(q.buffer, q.byteOffset, count) : q;
+  if (s.scale === undefined) return values;
+  const k = s.shape[s.shape.length - 1];
+  const off = Array.isArray(s.offset) ? s.offset : null, sc = Array.isArray(s.scale) ? s.scale : null;
+  const out = new Float32Array(count);
+  for (let i = 0; i < count; i++) {
+    const c = i % k;
+    out[i] = (off ? off[c] : s.offset) + (sc ? sc[c] : s.scale) * values[i];
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------ colours
+
+const COLOUR_MODES = ["boid", "pattern", "leader", "group", "speed"];
+const LEADER_HEX = "#e0301e", FOLLOWER_HEX = "#7f93a8", STRAY_HEX = "#c4cad1", OTHER_GROUP_HEX = "#8a8f96";
+
+function paletteAt(name, x) {
+  const p = DATA.palettes[name];
+  return p[Math.max(0, Math.min(p.length - 1, Math.round(x * (p.length - 1))))];
+}
+
+// --------------------------------------------------------------------------------------------- state
+
+const S = {
+  frame: 0, t: T0, playing: false, speed: 1, loop: true,
+  colorBy: COLOUR_MODES.includes(DATA.defaults.color_by) ? DATA.defaults.color_by : "boid",
+  trailS: DATA.defaults.trail_s, boidScale: DATA.defaults.boid_scale, follow: DATA.defaults.follow,
+  renders: 0, drawnFrame: -1, drawnT: NaN, dirty: true,
+};
+
+let pos, heading, speed, group, leader, agentData = [];
+let renderer, scene, camera, controls, boids, trails, grid, agentMeshes = [];
+const tmp = { m: new THREE.Matrix4(), q: new THREE.Quaternion(), v: new THREE.Vector3(), d: new THREE.Vector3(),
+              s: new THREE.Vector3(), z: new THREE.Vector3(0, 0, 1), c: new THREE.Color() };
+let groupSizes = null;
+let lastHead = null;
+
+function frameAt(t) {
+  const x = (t - T0) / DTF;
+  const f = Math.max(0, Math.min(F - 1, Math.floor(x + 1e-9)));
+  return [f, Math.max(0, Math.min(1, x - f))];
+}
+
+// interpolated position and heading of item i (of m per frame) at frame f + a, written to tmp.v, tmp.d
+function sample(p, h, m, i, f, a) {
+  const j = (f * m + i) * 3;
+  let x = p[j], y = p[j + 1], z = p[j + 2];
+  let hx = h[j], hy = h[j + 1], hz = h[j + 2];
+  if (a > 0 && f + 1 < F) {
+    const k = j + m * 3;
+    const dx = p[k] - x, dy = p[k + 1] - y, dz = p[k + 2] - z;
+    const jump = DATA.wrap_jump;
+    if (jump === null || dx * dx + dy * dy + dz * dz <= jump * jump) {
+      x += a * dx; y += a * dy; z += a * dz;
+      hx += a * (h[k] - hx); hy += a * (h[k + 1] - hy); hz += a * (h[k + 2] - hz);
+    } else if (a >= 0.5) {
+      x = p[k]; y = p[k + 1]; z = p[k + 2]; hx = h[k]; hy = h[k + 1]; hz = h[k + 2];
+    }
+  }
+  tmp.v.set(x, y, z);
+  tmp.d.set(hx, hy, hz);
+}
+
+function boidColour(i, f) {
+  switch (S.colorBy) {
+    case "pattern": {
+      if (!DATA.pattern) return tmp.c.set(paletteAt("turbo", 0.2));
+      return tmp.c.set(DATA.pattern_colours[String(DATA.pattern[i])] || "#888888");
+    }
+    case "leader": return tmp.c.set(leader && leader[f * N + i] ? LEADER_HEX : FOLLOWER_HEX);
+    case "group": {
+      const g = group[f * N + i];
+      if (groupSizes[g] === 1) return tmp.c.set(STRAY_HEX);
+      return tmp.c.set(g < 10 ? DATA.palettes.tab10[g] : OTHER_GROUP_HEX);
+    }
+    case "speed": return tmp.c.set(paletteAt("viridis", speed[f * N + i] / SPEED_TOP));
+    default: return tmp.c.set(paletteAt("turbo", N > 1 ? i / (N - 1) : 0));
+  }
+}
+let SPEED_TOP = 1;
+
+function countGroups(f) {
+  const sizes = new Int32Array(N + 1);
+  for (let i = 0; i < N; i++) sizes[group[f * N + i]]++;
+  return sizes;
+}
+
+// ---------------------------------------------------------------------------------------------- scene
+
+function coneGeometry(length) {
+  const g = new THREE.ConeGeometry(0.32 * length, length, 10);
+  g.rotateX(Math.PI / 2);  // tip along +z
+  return g;
+}
+
+function addWorld() {
+  const w = DATA.world || {};
+  const mat = new THREE.LineBasicMaterial({ color: 0x9aa6b2, transparent: true, opacity: 0.5 });
+  if (w.boundary === "sphere_wrap") {
+    const geo = new THREE.WireframeGeometry(new THREE.SphereGeometry(w.sphere_radius, 24, 12));
+    scene.add(new THREE.LineSegments(geo, mat));
+  } else if (w.boundary === "periodic_box") {
+    const L = w.box_size;
+    scene.add(new THREE.LineSegments(new THREE.EdgesGeometry(new THREE.BoxGeometry(L, L, L)), mat));
+  }
+}
+
+function addSceneObjects() {
+  for (const o of DATA.scene) {
+    const mat = new THREE.MeshLambertMaterial({ color: o.color, transparent: o.opacity < 1, opacity: o.opacity,
+                                                wireframe: o.wireframe, side: THREE.DoubleSide, depthWrite: o.opacity >= 1 });
+    let mesh;
+    if (o.type === "sphere") {
+      mesh = new THREE.Mesh(new THREE.SphereGeometry(o.radius, 32, 16), mat);
+      mesh.position.fromArray(o.center);
+    } else if (o.type === "plane") {
+      mesh = new THREE.Mesh(new THREE.PlaneGeometry(o.size, o.size), mat);
+      mesh.position.fromArray(o.point);
+      mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), new THREE.Vector3().fromArray(o.normal).normalize());
+    } else if (o.type === "box") {
+      mesh = new THREE.Mesh(new THREE.BoxGeometry(o.size[0], o.size[1], o.size[2]), mat);
+      mesh.position.fromArray(o.center);
+      mesh.quaternion.fromArray(o.rotation);
+    } else if (o.type === "cylinder") {
+      const a = new THREE.Vector3().fromArray(o.a), b = new THREE.Vector3().fromArray(o.b);
+      const axis = b.clone().sub(a), length = axis.length();
+      const geo = o.caps === "round" ? new THREE.CapsuleGeometry(o.radius, length, 8, 24)
+                                     : new THREE.CylinderGeometry(o.radius, o.radius, length, 32);
+      mesh = new THREE.Mesh(geo, mat);
+      mesh.position.copy(a).add(b).multiplyScalar(0.5);
+      mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), axis.normalize());
+    }
+    mesh.name = "scene:" + o.type;
+    scene.add(mesh);
+  }
+}
+
+function addGrid() {
+  const lo = DATA.bounds.min, hi = DATA.bounds.max;
+  const span = Math.max(hi[0] - lo[0], hi[2] - lo[2], 20);
+  const step = Math.pow(10, Math.floor(Math.log10(span / 4)));
+  const size = Math.ceil(span * 1.2 / step) * step;
+  grid = new THREE.GridHelper(size, Math.round(size / step), 0xb4bfcb, 0xd3dae2);
+  grid.position.set((lo[0] + hi[0]) / 2, lo[1] - 0.02 * span, (lo[2] + hi[2]) / 2);
+  scene.add(grid);
+}
+
+function makeTrails() {
+  const maxK = Math.max(1, Math.ceil(10 / DTF));
+  const count = N * Math.min(maxK, F) * 2;
+  const geo = new THREE.BufferGeometry();
+  geo.setAttribute("position", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
+  geo.setAttribute("color", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
+  geo.setDrawRange(0, 0);
+  trails = new THREE.LineSegments(geo, new THREE.LineBasicMaterial({ vertexColors: true }));
+  trails.frustumCulled = false;
+  scene.add(trails);
+}
+
+function setupScene() {
+  try {
+    renderer = new THREE.WebGLRenderer({ antialias: true });
+  } catch (err) {
+    fail("WebGL is not available in this browser, so the flock cannot be drawn: " + err.message);
+    return false;
+  }
+  renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  $("stage").appendChild(renderer.domElement);
+  scene = new THREE.Scene();
+  scene.background = BG;
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x8899aa, 2.2));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+  sun.position.set(0.4, 1, 0.6);
+  scene.add(sun);
+  camera = new THREE.PerspectiveCamera(45, 1, 0.05, 1e6);
+  controls = new OrbitControls(camera, renderer.domElement);
+  controls.enableDamping = false;
+  controls.addEventListener("change", () => { S.dirty = true; });
+  boids = new THREE.InstancedMesh(coneGeometry(1.6), new THREE.MeshLambertMaterial({ color: 0xffffff }), N);
+  boids.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+  boids.frustumCulled = false;
+  for (let i = 0; i < N; i++) boids.setColorAt(i, tmp.c.set(0xffffff));
+  scene.add(boids);
+  for (const a of agentData) {
+    const mesh = new THREE.InstancedMesh(coneGeometry(1.6 * a.size), new THREE.MeshLambertMaterial({ color: a.color }), a.m);
+    mesh.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+    mesh.frustumCulled = false;
+    mesh.name = "agent:" + a.kind;
+    agentMeshes.push(mesh);
+    scene.add(mesh);
+  }
+  makeTrails();
+  addGrid();
+  addWorld();
+  addSceneObjects();
+  resize();
+  fitView(0);
+  return true;
+}
+
+function resize() {
+  const stage = $("stage");
+  const w = Math.max(1, stage.clientWidth), h = Math.max(1, stage.clientHeight);
+  renderer.setSize(w, h, false);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+  S.dirty = true;
+}
+
+function centroid(f, largestOnly) {
+  const c = new THREE.Vector3();
+  let count = 0;
+  for (let i = 0; i < N; i++) {
+    if (largestOnly && group[f * N + i] !== 0) continue;
+    const j = (f * N + i) * 3;
+    c.x += pos[j]; c.y += pos[j + 1]; c.z += pos[j + 2];
+    count++;
+  }
+  return count ? c.multiplyScalar(1 / count) : c;
+}
+
+function fitView(f) {
+  const c = centroid(f, false);
+  let r = 1;
+  for (let i = 0; i < N; i++) {
+    const j = (f * N + i) * 3;
+    r = Math.max(r, Math.hypot(pos[j] - c.x, pos[j + 1] - c.y, pos[j + 2] - c.z));
+  }
+  const w = DATA.world || {};
+  if (w.boundary === "sphere_wrap") r = Math.max(r, w.sphere_radius);
+  if (w.boundary === "periodic_box") r = Math.max(r, 0.87 * w.box_size);
+  const dist = 1.15 * r / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
+  controls.target.copy(c);
+  camera.position.copy(c).add(new THREE.Vector3(0.75, 0.45, 0.95).normalize().multiplyScalar(dist));
+  camera.near = Math.max(0.01, dist / 2000);
+  camera.far = dist * 200;
+  camera.updateProjectionMatrix();
+  controls.update();
+  lastHead = null;
+  S.dirty = true;
+}
+
+// --------------------------------------------------------------------------------------------- draw
+
+function placeInstances(mesh, p, h, m, f, a, scale) {
+  for (let i = 0; i < m; i++) {
+    sample(p, h, m, i, f, a);
+    if (tmp.d.lengthSq() > 1e-12) {
+      tmp.q.setFromUnitVectors(tmp.z, tmp.d.normalize());
+    }  // a stopped boid keeps the orientation of the previous one drawn: harmless, it has none
+    tmp.s.setScalar(scale);
+    tmp.m.compose(tmp.v, tmp.q, tmp.s);
+    mesh.setMatrixAt(i, tmp.m);
+  }
+  mesh.instanceMatrix.needsUpdate = true;
+}
+
+function colourBoids(f) {
+  if (S.colorBy === "group") groupSizes = countGroups(f);
+  for (let i = 0; i < N; i++) boids.setColorAt(i, boidColour(i, f));
+  boids.instanceColor.needsUpdate = true;
+}
+
+function drawTrails(f, a) {
+  const k = Math.min(F - 1, Math.round(S.trailS / DTF));
+  const geo = trails.geometry;
+  if (k < 1 || S.trailS <= 0) { geo.setDrawRange(0, 0); trails.visible = false; return; }
+  trails.visible = true;
+  const P = geo.attributes.position.array, C = geo.attributes.color.array;
+  const cap = P.length / 6 / N;
+  const kk = Math.min(k, cap);
+  const jump2 = DATA.wrap_jump === null ? Infinity : DATA.wrap_jump * DATA.wrap_jump;
+  let v = 0;
+  for (let i = 0; i < N; i++) {
+    const col = boidColour(i, f);
+    let px, py, pz;
+    sample(pos, heading, N, i, f, a);
+    px = tmp.v.x; py = tmp.v.y; pz = tmp.v.z;
+    for (let s = 0; s < kk; s++) {
+      const g = f - s;
+      if (g < 0) break;
+      const j = (g * N + i) * 3;
+      const qx = pos[j], qy = pos[j + 1], qz = pos[j + 2];
+      const dx = qx - px, dy = qy - py, dz = qz - pz;
+      if (dx * dx + dy * dy + dz * dz > jump2) break;
+      const fade = 0.3 + 0.7 * (1 - s / kk), fade2 = 0.3 + 0.7 * (1 - (s + 1) / kk);
+      P[v] = px; P[v + 1] = py; P[v + 2] = pz;
+      C[v] = BG.r + (col.r - BG.r) * fade; C[v + 1] = BG.g + (col.g - BG.g) * fade; C[v + 2] = BG.b + (col.b - BG.b) * fade;
+      P[v + 3] = qx; P[v + 4] = qy; P[v + 5] = qz;
+      C[v + 3] = BG.r + (col.r - BG.r) * fade2; C[v + 4] = BG.g + (col.g - BG.g) * fade2; C[v + 5] = BG.b + (col.b - BG.b) * fade2;
+      v += 6;
+      px = qx; py = qy; pz = qz;
+    }
+  }
+  geo.setDrawRange(0, v / 3);
+  geo.attributes.position.needsUpdate = true;
+  geo.attributes.color.needsUpdate = true;
+}
+
+function follow(f, a) {
+  if (!S.follow) { lastHead = null; return; }
+  const c = centroid(f, true);
+  if (a > 0 && f + 1 < F) c.lerp(centroid(f + 1, true), a);
+  if (lastHead) {
+    const shift = c.clone().sub(lastHead);
+    camera.position.add(shift);
+    controls.target.add(shift);
+  }
+  lastHead = c;
+}
+
+function draw() {
+  const [f, a] = frameAt(S.t);
+  const frameChanged = f !== S.drawnFrame;
+  if (S.t !== S.drawnT || S.dirty) {
+    follow(f, a);
+    placeInstances(boids, pos, heading, N, f, a, S.boidScale);
+    agentData.forEach((ag, k) => placeInstances(agentMeshes[k], ag.pos, ag.heading, ag.m, f, a, S.boidScale));
+    if (frameChanged || S.dirty) colourBoids(f);
+    drawTrails(f, a);
+    if (frameChanged) updatePanel(f);
+    S.frame = f;
+    S.drawnFrame = f;
+    S.drawnT = S.t;
+  }
+  controls.update();
+  renderer.render(scene, camera);
+  S.renders++;
+  S.dirty = false;
+}
+
+let lastNow = null;
+function tick(now) {
+  if (S.playing && lastNow !== null) {
+    S.t += ((now - lastNow) / 1000) * S.speed;
+    if (S.t > T1) {
+      if (S.loop && F > 1) { S.t = T0; lastHead = null; } else { S.t = T1; setPlaying(false); }
+    }
+  }
+  lastNow = now;
+  draw();
+  requestAnimationFrame(tick);
+}
+
+// --------------------------------------------------------------------------------------------- panel
+
+const METRIC_ROWS = [["polarization", "polarization", 3], ["n_groups", "groups", 0],
+                     ["nn_distance", "nearest-neighbour distance", 2], ["cohesion", "cohesion (largest group)", 3]];
+
+function fmt(v, digits) {
+  return v === null || v === undefined ? "n/a" : Number(v).toFixed(digits);
+}
+
+function updatePanel(f) {
+  const rows = [["time", TIMES[f].toFixed(2) + " s"]];
+  for (const [key, label, digits] of METRIC_ROWS) if (DATA.metrics[key]) rows.push([label, fmt(DATA.metrics[key][f], digits)]);
+  if (leader) {
+    let count = 0;
+    for (let i = 0; i < N; i++) count += leader[f * N + i];
+    rows.push(["leaders", String(count)]);
+  }
+  $("metrics").innerHTML = "";
+  for (const [k, v] of rows) addRow($("metrics"), k, v);
+  $("slider").value = String(f);
+  $("time").textContent = `t = ${TIMES[f].toFixed(2)} s of ${T1.toFixed(1)} s  (frame ${f + 1}/${F})`;
+  drawChart(f);
+}
+
+function addRow(table, key, value) {
+  const tr = document.createElement("tr");
+  const a = document.createElement("td"), b = document.createElement("td");
+  a.textContent = key;
+  b.textContent = typeof value === "object" && value !== null ? JSON.stringify(value) : String(value);
+  tr.append(a, b);
+  table.appendChild(tr);
+}
+
+const CHART_LINES = [["polarization", "#1f77b4", 1], ["cohesion", "#ff7f0e", 1], ["nn_distance", "#6b7785", null]];
+
+function drawChart(f) {
+  const cv = $("chart"), g = cv.getContext("2d");
+  const W = cv.width, H = cv.height, pad = 8;
+  g.clearRect(0, 0, W, H);
+  g.fillStyle = "#fbfcfd";
+  g.fillRect(0, 0, W, H);
+  const xOf = (k) => pad + (W - 2 * pad) * (F > 1 ? k / (F - 1) : 0);
+  for (const [key, colour, top] of CHART_LINES) {
+    const ys = DATA.metrics[key];
+    if (!ys) continue;
+    const finite = ys.filter((v) => v !== null);
+    const hi = top || Math.max(1e-9, ...finite);
+    g.strokeStyle = colour;
+    g.lineWidth = 2;
+    g.setLineDash(top ? [] : [6, 4]);
+    g.beginPath();
+    let pen = false;
+    ys.forEach((v, k) => {
+      if (v === null) { pen = false; return; }
+      const y = H - pad - (H - 2 * pad) * Math.min(1, v / hi);
+      if (pen) g.lineTo(xOf(k), y); else g.moveTo(xOf(k), y);
+      pen = true;
+    });
+    g.stroke();
+  }
+  g.setLineDash([]);
+  g.strokeStyle = "#d62728";
+  g.lineWidth = 2;
+  g.beginPath();
+  g.moveTo(xOf(f), 0);
+  g.lineTo(xOf(f), H);
+  g.stroke();
+  g.font = "22px system-ui, sans-serif";
+  let x = pad + 4;
+  for (const [key, colour, top] of CHART_LINES) {
+    if (!DATA.metrics[key]) continue;
+    g.fillStyle = colour;
+    const text = key === "nn_distance" ? "NND (scaled)" : key;
+    g.fillText(text, x, 24);
+    x += g.measureText(text).width + 16;
+  }
+}
+
+function legend() {
+  const box = $("legend");
+  box.innerHTML = "";
+  const swatch = (hex, text) => {
+    const span = document.createElement("span");
+    const sw = document.createElement("span");
+    sw.className = "sw";
+    sw.style.background = hex;
+    span.append(sw, document.createTextNode(text));
+    box.appendChild(span);
+  };
+  const bar = (name, left, right) => {
+    const b = document.createElement("div");
+    b.className = "bar";
+    b.style.background = `linear-gradient(to right, ${DATA.palettes[name].join(",")})`;
+    const ends = document.createElement("div");
+    ends.className = "ends";
+    ends.innerHTML = `<span>${left}</span><span>${right}</span>`;
+    box.append(b, ends);
+  };
+  if (S.colorBy === "boid") bar("turbo", "boid 0", `boid ${N - 1}`);
+  else if (S.colorBy === "pattern") {
+    if (!DATA.pattern) swatch(paletteAt("turbo", 0.2), "no patterns in this run");
+    else for (const [v, hex] of Object.entries(DATA.pattern_colours)) swatch(hex, "pattern " + Number(v).toString(2).padStart(8, "0"));
+  } else if (S.colorBy === "leader") {
+    swatch(LEADER_HEX, "leader");
+    swatch(FOLLOWER_HEX, leader ? "not leading" : "no leaders in this run");
+  } else if (S.colorBy === "group") {
+    for (let g = 0; g < 5; g++) swatch(DATA.palettes.tab10[g], g === 0 ? "largest group" : `group ${g + 1}`);
+    swatch(DATA.palettes.tab10[5], "6th to 10th: more colours");
+    swatch(OTHER_GROUP_HEX, "11th and smaller");
+    swatch(STRAY_HEX, "stray (alone)");
+  } else if (S.colorBy === "speed") bar("viridis", "0", `${SPEED_TOP.toFixed(1)} units/s`);
+  for (const a of DATA.agents) swatch(a.color, `${a.label} (${a.m})`);
+}
+
+function fillTables() {
+  const info = $("info"), params = $("params");
+  addRow(info, "frames", `${F} (every ${DTF.toFixed(3)} s; stride ${DATA.encoding.stride})`);
+  for (const [k, v] of Object.entries(DATA.info)) addRow(info, k, v);
+  if (DATA.scene.length) addRow(info, "scene objects", DATA.scene.map((o) => o.label || o.type).join(", "));
+  const entries = Object.entries(DATA.params);
+  if (!entries.length) addRow(params, "parameters", "not recorded with this trajectory");
+  for (const [k, v] of entries) addRow(params, k, v);
+}
+
+function setPlaying(on) {
+  S.playing = on;
+  $("play").innerHTML = on ? "&#10074;&#10074; pause" : "&#9654; play";
+  lastNow = null;
+}
+
+function seekFrame(f) {
+  f = Math.max(0, Math.min(F - 1, f));
+  S.t = TIMES[f];
+  lastHead = null;
+  S.dirty = true;
+}
+
+function bindControls() {
+  $("slider").max = String(F - 1);
+  $("play").addEventListener("click", () => setPlaying(!S.playing));
+  $("step").addEventListener("click", () => { setPlaying(false); seekFrame(S.frame + 1); });
+  $("back").addEventListener("click", () => { setPlaying(false); seekFrame(S.frame - (frameAt(S.t)[1] > 0 ? 0 : 1)); });
+  $("speed").addEventListener("change", (e) => { S.speed = Number(e.target.value); });
+  $("slider").addEventListener("input", (e) => { seekFrame(Number(e.target.value)); });
+  const colorby = $("colorby");
+  colorby.value = S.colorBy;
+  colorby.addEventListener("change", (e) => { S.colorBy = e.target.value; legend(); S.dirty = true; });
+  const trail = $("trail");
+  trail.value = String(S.trailS);
+  $("trail-v").textContent = S.trailS + " s";
+  trail.addEventListener("input", (e) => { S.trailS = Number(e.target.value); $("trail-v").textContent = S.trailS + " s"; S.dirty = true; });
+  const size = $("size");
+  size.value = String(S.boidScale);
+  $("size-v").textContent = "\u00d7" + S.boidScale;
+  size.addEventListener("input", (e) => { S.boidScale = Number(e.target.value); $("size-v").textContent = "\u00d7" + S.boidScale; S.dirty = true; });
+  $("follow").checked = S.follow;
+  $("follow").addEventListener("change", (e) => { S.follow = e.target.checked; lastHead = null; });
+  $("loop").addEventListener("change", (e) => { S.loop = e.target.checked; });
+  $("grid").addEventListener("change", (e) => { grid.visible = e.target.checked; S.dirty = true; });
+  $("fit").addEventListener("click", () => fitView(S.frame));
+  const chart = $("chart");
+  const seekChart = (e) => {
+    const r = chart.getBoundingClientRect();
+    seekFrame(Math.round(((e.clientX - r.left) / r.width) * (F - 1)));
+  };
+  chart.addEventListener("mousedown", seekChart);
+  chart.addEventListener("mousemove", (e) => { if (e.buttons & 1) seekChart(e); });
+  window.addEventListener("keydown", (e) => {
+    if (e.target.tagName === "INPUT" && e.target.type !== "range" || e.target.tagName === "SELECT") return;
+    if (e.code === "Space") { e.preventDefault(); setPlaying(!S.playing); }
+    else if (e.code === "ArrowRight") { e.preventDefault(); setPlaying(false); seekFrame(S.frame + 1); }
+    else if (e.code === "ArrowLeft") { e.preventDefault(); setPlaying(false); seekFrame(S.frame - 1); }
+    else if (e.code === "Home") seekFrame(0);
+    else if (e.code === "End") seekFrame(F - 1);
+  });
+  window.addEventListener("resize", resize);
+}
+
+// ---------------------------------------------------------------------------------------------- start
+
+async function start() {
+  if (DATA.format !== "flocksweep-viewer/1") throw new Error("unknown data format " + DATA.format);
+  [pos, heading, speed, group] = await Promise.all([decode(DATA.pos), decode(DATA.heading), decode(DATA.speed), decode(DATA.group)]);
+  leader = DATA.leader ? await decode(DATA.leader) : null;
+  SPEED_TOP = DATA.speed.scale * 255;
+  for (const a of DATA.agents) {
+    const [p, h] = await Promise.all([decode(a.pos), decode(a.heading)]);
+    agentData.push({ ...a, pos: p, heading: h });
+  }
+  if (!setupScene()) return;
+  bindControls();
+  legend();
+  fillTables();
+  updatePanel(0);
+  window.flockViewer = {
+    get ready() { return true; }, frames: F, n: N, data: DATA,
+    get frame() { return S.frame; }, get time() { return S.t; }, get playing() { return S.playing; },
+    get colorBy() { return S.colorBy; }, get renders() { return S.renders; },
+    play: () => setPlaying(true), pause: () => setPlaying(false), seek: seekFrame,
+    setColorBy: (mode) => { $("colorby").value = mode; $("colorby").dispatchEvent(new Event("change")); },
+    setSpeed: (x) => { S.speed = x; },
+    boidMatrix: (i) => { const m = new THREE.Matrix4(); boids.getMatrixAt(i, m); return m.elements.slice(); },
+    sceneNames: () => scene.children.map((c) => c.name).filter(Boolean),
+  };
+  document.body.dataset.ready = "1";
+  requestAnimationFrame(tick);
+}
+
+start().catch((err) => fail("The viewer could not start: " + (err && err.message ? err.message : err)));
