@@ -58,7 +58,7 @@ def view(source, path=None, *, preset=None, title: str | None = None, color_by: 
 
 
 def animate(source, path, *, preset=None, color_by: str = "auto", fps: float = 20.0, speed: float = 1.0,
-            rotate: bool = False, trail_s: float = 1.0, size=(6.4, 4.8), dpi: int = 100,
+            rotate: bool = False, trail_s: float = 1.0, size=(640, 480), dpi: int = 100,
             title: str | None = None, progress: bool = False):
     """Write a GIF or MP4 (by the extension of ``path``) of ``source`` (as for :func:`view`) and return
     an :class:`~analysis.viewer.animate.Animation`; see ``analysis/viewer/animate.py``."""

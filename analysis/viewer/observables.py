@@ -11,6 +11,9 @@
 * ``speed``: float64 (F, N), |v|;
 * ``group_radius`` used and whether it was ``assumed`` (the track did not say).
 
+``record_metrics(obs, every, group_radius, model)`` gives the metric series of a sweep's record frames
+(for the re-simulation check of :mod:`analysis.viewer.resimulate`); ``flock_polarization(vel)``.
+
 When analysis/metrics.py moves, only the imports below change.
 """
 from __future__ import annotations
@@ -18,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.groups import neighbour_graph
-from analysis.metrics import frame_metrics, polarization
+from analysis.metrics import frame_metrics, polarization, world_box
 
 from .track import DEFAULT_GROUP_RADIUS, Track
 
@@ -38,3 +41,11 @@ def frame_observables(track: Track) -> dict:
 def flock_polarization(vel: np.ndarray) -> np.ndarray:
     """Polarization of (..., N, 3) velocities (for the animation's time stamp)."""
     return polarization(vel)
+
+
+def record_metrics(obs, every: int, group_radius: float, model) -> dict:
+    """``frame_metrics`` of every ``every``-th record of simulator observations, as a sweep's worker
+    computes them (same arrays, radius and box): used to check a re-simulated run's trajectory."""
+    pick = slice(None, None, every)
+    return frame_metrics(obs.pos[pick], obs.vel[pick], obs.visible[pick], obs.binocular[pick], obs.pattern,
+                         group_radius, world_box(model))
