@@ -289,7 +289,7 @@ def page_data(track: Track, observables: dict, stride: int = 1, color_by: str = 
                                                                  if observables["assumed"] else "")}
     return {
         "format": FORMAT, "title": track.title, "n": track.n, "frames": track.frames,
-        "times": [round(float(t), 6) for t in track.times], **streams,
+        "times": [round(float(t), 9) for t in track.times], **streams,
         "group": label_stream(observables["labels"]),
         "leader": stream(track.leader, "bits") if track.leader is not None and track.leader.any() else None,
         "pattern": None if track.pattern is None else [int(v) for v in track.pattern],

@@ -93,7 +93,7 @@ let lastHead = null;
 
 function frameAt(t) {
   const x = (t - T0) / DTF;
-  const f = Math.max(0, Math.min(F - 1, Math.floor(x + 1e-9)));
+  const f = Math.max(0, Math.min(F - 1, Math.floor(x + 1e-4)));  // stored times are rounded
   return [f, Math.max(0, Math.min(1, x - f))];
 }
 
