@@ -72,7 +72,8 @@ def source_frames(track: Track, fps: float, speed: float) -> np.ndarray:
     return np.clip(np.rint((times - track.times[0]) / track.frame_interval), 0, track.frames - 1).astype(int)
 
 
-def _check(path: Path, fps, speed, size, dpi, color_by) -> str:
+def check_options(path: Path, fps, speed, size, dpi, color_by) -> str:
+    """The format (gif or mp4) of ``path``, after checking every option (ValueError naming it)."""
     kind = FORMATS.get(path.suffix.lower())
     if kind is None:
         raise ValueError(f"{path}: animation format from the extension: .gif or .mp4, got {path.suffix!r}")
@@ -221,7 +222,7 @@ def write_animation(track: Track, path, color_by: str = "auto", fps: float = 20.
     from sweeps.atomic import atomic_path
 
     path = Path(path)
-    kind = _check(path, fps, speed, size, dpi, color_by)
+    kind = check_options(path, fps, speed, size, dpi, color_by)
     if kind == "mp4":
         matplotlib.rcParams["animation.ffmpeg_path"] = ffmpeg_exe()
     shown = source_frames(track, fps, speed)

@@ -147,7 +147,7 @@ def _sweep_track(args):
 def run(args) -> int:
     from simcore import ConfigError
 
-    from .animate import AnimationUnavailable, write_animation
+    from .animate import AnimationUnavailable, check_options, ffmpeg_exe, write_animation
     from .page import MB, build_page
     from .resimulate import NotReproduced, RunNotFound
     from .track import from_npz
@@ -158,6 +158,8 @@ def run(args) -> int:
     _check_flags(args, kind)
     size = _size(args.size)
     try:
+        if args.animate and check_options(args.animate, args.fps, args.speed, size, args.dpi, args.color_by) == "mp4":
+            ffmpeg_exe()  # before simulating: say now if MP4 cannot be written
         if kind == "model":
             track, default = _model_track(args)
         elif kind == "sweep":

@@ -9,7 +9,7 @@ Inlining: three.js (``vendor/three``, see its README) and the page's own script 
 sit in ``<script type="text/plain">`` blocks; a small classic script turns each into a ``blob:`` URL,
 installs an import map naming them (``three``, ``three-core``, the OrbitControls add-on) and starts
 the page's module. So the page opens from a ``file://`` URL with no server and no network. Inlined
-text must not contain ``</script`` (checked; JSON escapes it as ``<\\/``).
+text must not contain ``</script`` or ``<!--`` (checked); the JSON data has every ``<`` escaped as ``\\u003c``.
 
 :class:`ViewerPage` holds the HTML; ``save(path)`` writes it atomically and ``_repr_html_`` shows it
 inline in Jupyter (an ``iframe`` with ``srcdoc``).
@@ -58,7 +58,7 @@ def scripts() -> dict[str, str]:
 
 
 def _json_for_script(data: dict) -> str:
-    return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/").replace("<!--", "<\\!--")
+    return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
 
 
 def render_html(data: dict) -> str:
