@@ -2,7 +2,7 @@
 
 Used by tests/test_viewer_browser.py, bench/bench_viewer.py and for the README's screenshot::
 
-    python tests/browser.py PAGE.html OUT.png [--play SECONDS] [--color-by MODE]
+    python tests/browser.py PAGE.html OUT.png [--play SECONDS] [--seek FRAME] [--color-by MODE] [--fit] [--whole-page]
 
 :class:`Browser` starts Chromium with a fresh profile and the flags that work on a machine without a
 GPU (WebGL through SwiftShader); :meth:`Browser.open` loads a page from a ``file://`` URL with every
@@ -114,6 +114,7 @@ def main(argv=None) -> int:
     parser.add_argument("--play", type=float, default=0.0, help="seconds to play before the screenshot")
     parser.add_argument("--seek", type=int, help="frame to show")
     parser.add_argument("--color-by", help="colouring to select first")
+    parser.add_argument("--fit", action="store_true", help="press 'fit view' before the screenshot")
     parser.add_argument("--whole-page", action="store_true", help="the page with its panel, not only the 3-D stage")
     args = parser.parse_args(argv)
     with Browser() as browser:
@@ -126,6 +127,9 @@ def main(argv=None) -> int:
             opened.page.click("#play")
             opened.page.wait_for_timeout(args.play * 1000)
             opened.page.click("#play")
+        if args.fit:
+            opened.page.wait_for_timeout(300)
+            opened.page.click("#fit")
         opened.page.wait_for_timeout(300)
         opened.screenshot(args.out, "body" if args.whole_page else "#stage")
         print(f"{args.out}: load {opened.load_s:.2f} s, console errors {len(opened.errors)}, "

@@ -390,7 +390,7 @@ function tick(now) {
   if (S.playing && lastNow !== null) {
     S.t += ((now - lastNow) / 1000) * S.speed;
     if (S.t > T1) {
-      if (S.loop && F > 1) { S.t = T0; lastHead = null; } else { S.t = T1; setPlaying(false); }
+      if (S.loop && F > 1) S.t = T0; else { S.t = T1; setPlaying(false); }
     }
   }
   lastNow = now;
@@ -530,8 +530,7 @@ function setPlaying(on) {
 
 function seekFrame(f) {
   f = Math.max(0, Math.min(F - 1, f));
-  S.t = TIMES[f];
-  lastHead = null;
+  S.t = TIMES[f];  // a following camera jumps with the flock
   S.dirty = true;
 }
 
