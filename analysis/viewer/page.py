@@ -5,10 +5,10 @@ that keeps the page under ``max_mb`` megabytes (``stride`` fixes it instead; ``m
 every frame), computes the per-frame observables of the kept frames, encodes them
 (:mod:`analysis.viewer.encode`) and renders ``templates/viewer.html.j2`` with jinja2.
 
-Inlining: three.js (``vendor/three``, see its README) and the page's own script (``static/viewer.js``)
+Inlining: three.js (``vendor/three``, see its README) and the page's own scripts (``static/*.js``)
 sit in ``<script type="text/plain">`` blocks; a small classic script turns each into a ``blob:`` URL,
-installs an import map naming them (``three``, ``three-core``, the OrbitControls add-on) and starts
-the page's module. So the page opens from a ``file://`` URL with no server and no network. Inlined
+installs an import map naming them (``three``, ``three-core``, the OrbitControls add-on, the page's
+``flock/streams.js`` and ``flock/panel.js``) and starts the page's module (``static/viewer.js``). So the page opens from a ``file://`` URL with no server and no network. Inlined
 text must not contain ``</script`` or ``<!--`` (checked); the JSON data has every ``<`` escaped as ``\\u003c``.
 
 :class:`ViewerPage` holds the HTML; ``save(path)`` writes it atomically and ``_repr_html_`` shows it
@@ -46,7 +46,7 @@ def _inline(text: str, name: str) -> str:
 
 def scripts() -> dict[str, str]:
     """The inlined sources: three's core and module builds (the module's import of the core renamed to
-    the import-map name ``three-core``), the OrbitControls add-on and the page's own module."""
+    the import-map name ``three-core``), the OrbitControls add-on and the page's own modules."""
     module = _asset("vendor/three/three.module.min.js")
     if '"./three.core.min.js"' not in module:
         raise RuntimeError("vendor/three/three.module.min.js no longer imports ./three.core.min.js; "
@@ -54,6 +54,8 @@ def scripts() -> dict[str, str]:
     return {"three_core": _inline(_asset("vendor/three/three.core.min.js"), "three.core.min.js"),
             "three": _inline(module.replace('"./three.core.min.js"', '"three-core"'), "three.module.min.js"),
             "orbit": _inline(_asset("vendor/three/OrbitControls.js"), "OrbitControls.js"),
+            "streams": _inline(_asset("static/streams.js"), "streams.js"),
+            "panel": _inline(_asset("static/panel.js"), "panel.js"),
             "app": _inline(_asset("static/viewer.js"), "viewer.js")}
 
 

@@ -2,9 +2,12 @@
 // documented in analysis/viewer/encode.py). Boids are instanced cones pointing along their heading;
 // positions and headings are interpolated between stored frames; trails, colourings, obstacles and
 // extra agents (prey, predators) are drawn; the panel shows the current frame's metrics.
-// window.flockViewer exposes the state for tests and scripting.
+// window.flockViewer exposes the state for tests and scripting. Part 3 of 3 (streams.js, panel.js).
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { decode } from "flock/streams.js";
+import { COLOUR_MODES, FOLLOWER_HEX, LEADER_HEX, OTHER_GROUP_HEX, STRAY_HEX, fillTables, legend as drawLegend,
+         paletteAt as palette, updatePanel as drawPanel } from "flock/panel.js";
 
 const $ = (id) => document.getElementById(id);
 const DATA = JSON.parse($("flock-data").textContent);
@@ -18,61 +21,6 @@ function fail(text) {
   box.textContent = text;
   box.style.display = "block";
   console.error(text);
-}
-
-// ------------------------------------------------------------------------------------------ streams
-
-function bytesOf(b64) {
-  const bin = atob(b64);
-  const out = new Uint8Array(bin.length);
-  for (let i = 0; i < bin.length; i++) out[i] = bin.charCodeAt(i);
-  return out;
-}
-
-async function inflate(b64) {
-  const input = new Blob([bytesOf(b64)]).stream().pipeThrough(new DecompressionStream("deflate"));
-  return new Uint8Array(await new Response(input).arrayBuffer());
-}
-
-async function decode(s) {
-  const raw = await inflate(s.data);
-  const count = s.shape.reduce((a, b) => a * b, 1);
-  if (s.dtype === "bits") {
-    const out = new Uint8Array(count);
-    for (let i = 0; i < count; i++) out[i] = (raw[i >> 3] >> (7 - (i & 7))) & 1;
-    return out;
-  }
-  let q;
-  if (s.dtype === "u16") {
-    q = new Uint16Array(count);
-    for (let i = 0; i < count; i++) q[i] = raw[i] | (raw[count + i] << 8);
-  } else {
-    q = raw;
-  }
-  if (s.delta) {
-    const row = count / s.shape[0];
-    for (let i = row; i < count; i++) q[i] = q[i] + q[i - row];  // typed arrays wrap like the encoder
-  }
-  const values = s.dtype === "i8" ? new Int8Array(q.buffer, q.byteOffset, count) : q;
-  if (s.scale === undefined) return values;
-  const k = s.shape[s.shape.length - 1];
-  const off = Array.isArray(s.offset) ? s.offset : null, sc = Array.isArray(s.scale) ? s.scale : null;
-  const out = new Float32Array(count);
-  for (let i = 0; i < count; i++) {
-    const c = i % k;
-    out[i] = (off ? off[c] : s.offset) + (sc ? sc[c] : s.scale) * values[i];
-  }
-  return out;
-}
-
-// ------------------------------------------------------------------------------------------ colours
-
-const COLOUR_MODES = ["boid", "pattern", "leader", "group", "speed"];
-const LEADER_HEX = "#e0301e", FOLLOWER_HEX = "#7f93a8", STRAY_HEX = "#c4cad1", OTHER_GROUP_HEX = "#8a8f96";
-
-function paletteAt(name, x) {
-  const p = DATA.palettes[name];
-  return p[Math.max(0, Math.min(p.length - 1, Math.round(x * (p.length - 1))))];
 }
 
 // --------------------------------------------------------------------------------------------- state
@@ -120,7 +68,7 @@ function sample(p, h, m, i, f, a) {
 function boidColour(i, f) {
   switch (S.colorBy) {
     case "pattern": {
-      if (!DATA.pattern) return tmp.c.set(paletteAt("turbo", 0.2));
+      if (!DATA.pattern) return tmp.c.set(palette(DATA, "turbo", 0.2));
       return tmp.c.set(DATA.pattern_colours[String(DATA.pattern[i])] || "#888888");
     }
     case "leader": return tmp.c.set(leader && leader[f * N + i] ? LEADER_HEX : FOLLOWER_HEX);
@@ -129,11 +77,15 @@ function boidColour(i, f) {
       if (groupSizes[g] === 1) return tmp.c.set(STRAY_HEX);
       return tmp.c.set(g < 10 ? DATA.palettes.tab10[g] : OTHER_GROUP_HEX);
     }
-    case "speed": return tmp.c.set(paletteAt("viridis", speed[f * N + i] / SPEED_TOP));
-    default: return tmp.c.set(paletteAt("turbo", N > 1 ? i / (N - 1) : 0));
+    case "speed": return tmp.c.set(palette(DATA, "viridis", speed[f * N + i] / SPEED_TOP));
+    default: return tmp.c.set(palette(DATA, "turbo", N > 1 ? i / (N - 1) : 0));
   }
 }
 let SPEED_TOP = 1;
+
+function panelState() {
+  return { data: DATA, n: N, frames: F, times: TIMES, dtf: DTF, leader, colorBy: S.colorBy, speedTop: SPEED_TOP };
+}
 
 function countGroups(f) {
   const sizes = new Int32Array(N + 1);
@@ -374,7 +326,7 @@ function draw() {
     agentData.forEach((ag, k) => placeInstances(agentMeshes[k], ag.pos, ag.heading, ag.m, f, a, S.boidScale));
     if (frameChanged || S.dirty) colourBoids(f);
     drawTrails(f, a);
-    if (frameChanged) updatePanel(f);
+    if (frameChanged) drawPanel(panelState(), f);
     S.frame = f;
     S.drawnFrame = f;
     S.drawnT = S.t;
@@ -398,130 +350,6 @@ function tick(now) {
   requestAnimationFrame(tick);
 }
 
-// --------------------------------------------------------------------------------------------- panel
-
-const METRIC_ROWS = [["polarization", "polarization", 3], ["n_groups", "groups", 0],
-                     ["nn_distance", "nearest-neighbour distance", 2], ["cohesion", "cohesion (largest group)", 3]];
-
-function fmt(v, digits) {
-  return v === null || v === undefined ? "n/a" : Number(v).toFixed(digits);
-}
-
-function updatePanel(f) {
-  const rows = [["time", TIMES[f].toFixed(2) + " s"]];
-  for (const [key, label, digits] of METRIC_ROWS) if (DATA.metrics[key]) rows.push([label, fmt(DATA.metrics[key][f], digits)]);
-  if (leader) {
-    let count = 0;
-    for (let i = 0; i < N; i++) count += leader[f * N + i];
-    rows.push(["leaders", String(count)]);
-  }
-  $("metrics").innerHTML = "";
-  for (const [k, v] of rows) addRow($("metrics"), k, v);
-  $("slider").value = String(f);
-  $("time").textContent = `t = ${TIMES[f].toFixed(2)} s of ${T1.toFixed(1)} s  (frame ${f + 1}/${F})`;
-  drawChart(f);
-}
-
-function addRow(table, key, value) {
-  const tr = document.createElement("tr");
-  const a = document.createElement("td"), b = document.createElement("td");
-  a.textContent = key;
-  b.textContent = typeof value === "object" && value !== null ? JSON.stringify(value) : String(value);
-  tr.append(a, b);
-  table.appendChild(tr);
-}
-
-const CHART_LINES = [["polarization", "#1f77b4", 1], ["cohesion", "#ff7f0e", 1], ["nn_distance", "#6b7785", null]];
-
-function drawChart(f) {
-  const cv = $("chart"), g = cv.getContext("2d");
-  const W = cv.width, H = cv.height, pad = 8;
-  g.clearRect(0, 0, W, H);
-  g.fillStyle = "#fbfcfd";
-  g.fillRect(0, 0, W, H);
-  const xOf = (k) => pad + (W - 2 * pad) * (F > 1 ? k / (F - 1) : 0);
-  for (const [key, colour, top] of CHART_LINES) {
-    const ys = DATA.metrics[key];
-    if (!ys) continue;
-    const finite = ys.filter((v) => v !== null);
-    const hi = top || Math.max(1e-9, ...finite);
-    g.strokeStyle = colour;
-    g.lineWidth = 2;
-    g.setLineDash(top ? [] : [6, 4]);
-    g.beginPath();
-    let pen = false;
-    ys.forEach((v, k) => {
-      if (v === null) { pen = false; return; }
-      const y = H - pad - (H - 2 * pad) * Math.min(1, v / hi);
-      if (pen) g.lineTo(xOf(k), y); else g.moveTo(xOf(k), y);
-      pen = true;
-    });
-    g.stroke();
-  }
-  g.setLineDash([]);
-  g.strokeStyle = "#d62728";
-  g.lineWidth = 2;
-  g.beginPath();
-  g.moveTo(xOf(f), 0);
-  g.lineTo(xOf(f), H);
-  g.stroke();
-  g.font = "22px system-ui, sans-serif";
-  let x = pad + 4;
-  for (const [key, colour, top] of CHART_LINES) {
-    if (!DATA.metrics[key]) continue;
-    g.fillStyle = colour;
-    const text = key === "nn_distance" ? "NND (scaled)" : key;
-    g.fillText(text, x, 24);
-    x += g.measureText(text).width + 16;
-  }
-}
-
-function legend() {
-  const box = $("legend");
-  box.innerHTML = "";
-  const swatch = (hex, text) => {
-    const span = document.createElement("span");
-    const sw = document.createElement("span");
-    sw.className = "sw";
-    sw.style.background = hex;
-    span.append(sw, document.createTextNode(text));
-    box.appendChild(span);
-  };
-  const bar = (name, left, right) => {
-    const b = document.createElement("div");
-    b.className = "bar";
-    b.style.background = `linear-gradient(to right, ${DATA.palettes[name].join(",")})`;
-    const ends = document.createElement("div");
-    ends.className = "ends";
-    ends.innerHTML = `<span>${left}</span><span>${right}</span>`;
-    box.append(b, ends);
-  };
-  if (S.colorBy === "boid") bar("turbo", "boid 0", `boid ${N - 1}`);
-  else if (S.colorBy === "pattern") {
-    if (!DATA.pattern) swatch(paletteAt("turbo", 0.2), "no patterns in this run");
-    else for (const [v, hex] of Object.entries(DATA.pattern_colours)) swatch(hex, "pattern " + Number(v).toString(2).padStart(8, "0"));
-  } else if (S.colorBy === "leader") {
-    swatch(LEADER_HEX, "leader");
-    swatch(FOLLOWER_HEX, leader ? "not leading" : "no leaders in this run");
-  } else if (S.colorBy === "group") {
-    for (let g = 0; g < 5; g++) swatch(DATA.palettes.tab10[g], g === 0 ? "largest group" : `group ${g + 1}`);
-    swatch(DATA.palettes.tab10[5], "6th to 10th: more colours");
-    swatch(OTHER_GROUP_HEX, "11th and smaller");
-    swatch(STRAY_HEX, "stray (alone)");
-  } else if (S.colorBy === "speed") bar("viridis", "0", `${SPEED_TOP.toFixed(1)} units/s`);
-  for (const a of DATA.agents) swatch(a.color, `${a.label} (${a.m})`);
-}
-
-function fillTables() {
-  const info = $("info"), params = $("params");
-  addRow(info, "frames", `${F} (every ${DTF.toFixed(3)} s; stride ${DATA.encoding.stride})`);
-  for (const [k, v] of Object.entries(DATA.info)) addRow(info, k, v);
-  if (DATA.scene.length) addRow(info, "scene objects", DATA.scene.map((o) => o.label || o.type).join(", "));
-  const entries = Object.entries(DATA.params);
-  if (!entries.length) addRow(params, "parameters", "not recorded with this trajectory");
-  for (const [k, v] of entries) addRow(params, k, v);
-}
-
 function setPlaying(on) {
   S.playing = on;
   $("play").innerHTML = on ? "&#10074;&#10074; pause" : "&#9654; play";
@@ -543,7 +371,7 @@ function bindControls() {
   $("slider").addEventListener("input", (e) => { seekFrame(Number(e.target.value)); });
   const colorby = $("colorby");
   colorby.value = S.colorBy;
-  colorby.addEventListener("change", (e) => { S.colorBy = e.target.value; legend(); S.dirty = true; });
+  colorby.addEventListener("change", (e) => { S.colorBy = e.target.value; drawLegend(panelState()); S.dirty = true; });
   const trail = $("trail");
   trail.value = String(S.trailS);
   $("trail-v").textContent = S.trailS + " s";
@@ -588,9 +416,9 @@ async function start() {
   }
   if (!setupScene()) return;
   bindControls();
-  legend();
-  fillTables();
-  updatePanel(0);
+  drawLegend(panelState());
+  fillTables(panelState());
+  drawPanel(panelState(), 0);
   window.flockViewer = {
     get ready() { return true; }, frames: F, n: N, data: DATA,
     get frame() { return S.frame; }, get time() { return S.t; }, get playing() { return S.playing; },
