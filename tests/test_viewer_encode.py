@@ -141,14 +141,24 @@ def test_page_is_self_contained_and_carries_the_data():
     assert data["pattern_colours"] == {"58": "#008000", "197": "#0000ff"}  # Holland's Table 1 colours
 
 
-def test_metrics_in_the_page_are_the_flock_metrics():
-    track = milling_track(with_scene=False)
+def test_metrics_in_the_page_are_the_sweep_metrics():
+    """The panel's numbers follow the definitions of analysis.metrics (to rounding), on a flock that
+    splits into several groups."""
+    from analysis.metrics import frame_metrics
+
+    rng = np.random.default_rng(4)
+    pos = np.cumsum(rng.normal(0, 0.4, (40, 25, 3)), axis=0) + rng.normal(0, 6, (1, 25, 3))
+    track = from_arrays(np.arange(40) * 0.1, pos, group_radius=3.0)
+    series = frame_metrics(track.pos, track.vel, None, None, None, 3.0)
+    observed = frame_observables(track)
+    assert series["n_groups"].max() >= 3
+    for name in ("polarization", "n_groups", "nn_distance", "cohesion"):
+        np.testing.assert_allclose(observed["metrics"][name], series[name], rtol=1e-12, atol=1e-12)
     data = page_json(view(track).html)
-    obs = frame_observables(track)
-    np.testing.assert_allclose(data["metrics"]["polarization"], obs["metrics"]["polarization"], atol=1e-5)
-    # a ring of 30 boids circling at radius 12 (omega 1): headings are spread round the circle
-    assert max(data["metrics"]["polarization"]) < 0.35
-    assert data["metrics"]["n_groups"][0] == obs["metrics"]["n_groups"][0]
+    np.testing.assert_allclose(data["metrics"]["cohesion"], series["cohesion"], atol=5e-6)  # JSON: 5 decimals
+    assert (observed["labels"] == 0).sum(axis=1).tolist() == np.rint(series["cohesion"] * 25).astype(int).tolist()
+    # a ring of 30 boids circling (omega 1): headings are spread round the circle, polarization is low
+    assert max(page_json(view(milling_track(with_scene=False)).html)["metrics"]["polarization"]) < 0.35
 
 
 def test_title_cannot_break_out_of_its_script_block():

@@ -3,15 +3,15 @@
 ``frame_observables(track)`` returns, for every frame of a :class:`~analysis.viewer.track.Track`:
 
 * ``metrics``: {name: float64 (F,)} for :data:`PANEL_METRICS` (polarization, number of groups, mean
-  nearest-neighbour distance, cohesion = largest group's share), computed by
-  ``analysis.metrics.frame_metrics`` with the track's group radius and periodic box, so they are the
-  same numbers as a sweep's time series at the same record;
-* ``labels``: int32 (F, N), each boid's group rank at that frame (0 = the largest group, 1 the next;
-  ``analysis.groups.neighbour_graph``);
+  nearest-neighbour distance, cohesion = largest group's share), with the definitions of
+  docs/metrics.md, from one pass of ``analysis.groups.neighbour_graph`` (the graph the sweep's metrics
+  use) with the track's group radius and periodic box: a sweep's time series at the same record agree
+  to rounding (summation order);
+* ``labels``: int32 (F, N), each boid's group rank at that frame (0 = the largest group, 1 the next);
 * ``speed``: float64 (F, N), |v|;
 * ``group_radius`` used and whether it was ``assumed`` (the track did not say).
 
-``record_metrics(obs, every, group_radius, model)`` gives the metric series of a sweep's record frames
+``group_labels(track)`` gives the labels alone; ``record_metrics(obs, every, group_radius, model)`` gives the metric series of a sweep's record frames
 (for the re-simulation check of :mod:`analysis.viewer.resimulate`); ``flock_polarization(vel)``.
 
 When analysis/metrics.py moves, only the imports below change.
@@ -28,14 +28,26 @@ from .track import DEFAULT_GROUP_RADIUS, Track
 PANEL_METRICS = ("polarization", "n_groups", "nn_distance", "cohesion")
 
 
-def frame_observables(track: Track) -> dict:
+def _radius(track: Track) -> tuple[float, bool]:
     assumed = track.group_radius is None
-    radius = DEFAULT_GROUP_RADIUS if assumed else float(track.group_radius)
-    series = frame_metrics(track.pos, track.vel, track.visible, track.binocular, track.pattern, radius, track.box)
+    return (DEFAULT_GROUP_RADIUS if assumed else float(track.group_radius)), assumed
+
+
+def frame_observables(track: Track) -> dict:
+    radius, assumed = _radius(track)
     graph = neighbour_graph(track.pos, radius, track.box)
-    return {"metrics": {name: np.asarray(series[name], dtype=np.float64) for name in PANEL_METRICS},
-            "labels": graph.labels, "speed": np.linalg.norm(track.vel, axis=-1),
+    n = track.n
+    nn = np.full(track.frames, np.nan) if n < 2 else graph.nn.mean(axis=1)
+    metrics = {"polarization": np.asarray(polarization(track.vel), dtype=np.float64),
+               "n_groups": graph.n_groups.astype(np.float64), "nn_distance": nn,
+               "cohesion": (graph.labels == 0).sum(axis=1) / n}
+    return {"metrics": metrics, "labels": graph.labels, "speed": np.linalg.norm(track.vel, axis=-1),
             "group_radius": radius, "assumed": assumed}
+
+
+def group_labels(track: Track) -> np.ndarray:
+    """Group ranks (F, N) alone (for page size estimates)."""
+    return neighbour_graph(track.pos, _radius(track)[0], track.box).labels
 
 
 def flock_polarization(vel: np.ndarray) -> np.ndarray:

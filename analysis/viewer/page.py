@@ -19,18 +19,21 @@ from __future__ import annotations
 import html as html_lib
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
-from .encode import core_streams, check_agents, page_data
-from .observables import frame_observables
+import numpy as np
+
+from .encode import (check_agents, heading_stream, label_stream, page_data, position_stream,
+                     speed_stream, stream)
+from .observables import frame_observables, group_labels
 from .track import Track
 
 MB = 1_000_000
-LABEL_BYTES_PER_BOID = 0.25   # allowance for the group and leader streams (they compress well)
 METRIC_BYTES_PER_FRAME = 90   # times and four metrics as JSON text
+WINDOW = 20                   # consecutive frames per sample of a size estimate
 
 
 @lru_cache(maxsize=None)
@@ -84,14 +87,36 @@ def overhead_bytes() -> int:
     return sum(len(s.encode()) for s in scripts().values()) + len(_asset("templates/viewer.html.j2").encode()) + 40_000
 
 
+def _windows(frames: int, length: int = WINDOW, count: int = 3) -> list[slice]:
+    """Up to ``count`` runs of ``length`` consecutive frames spread over ``frames`` (all when few)."""
+    if frames <= length * count:
+        return [slice(0, frames)]
+    starts = np.linspace(0, frames - length, count).astype(int)
+    return [slice(int(a), int(a) + length) for a in starts]
+
+
 def estimate_bytes(track: Track, stride: int) -> int:
-    """Page size at ``stride``: the position, heading and speed streams encoded for real, plus
-    allowances for groups, leaders and metrics, plus the fixed scripts."""
+    """Page size at ``stride``: every stream (positions, headings, speeds, groups, leaders, agents) encoded
+    for real on a few windows of consecutive kept frames, scaled to all kept frames, plus the metrics'
+    JSON and the fixed scripts."""
     thin = track.every(stride)
-    streams, _ = core_streams(thin, check_agents(thin.agents, thin.frames))
-    data = sum(len(s["data"]) for s in streams.values())
-    extra = thin.frames * (thin.n * LABEL_BYTES_PER_BOID * 4 / 3 + METRIC_BYTES_PER_FRAME)
-    return int(overhead_bytes() + data + extra)
+    agents = check_agents(thin.agents, thin.frames)
+    points = np.concatenate([thin.pos.reshape(-1, 3)] + [a["pos"].reshape(-1, 3) for a in agents])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    sampled, size = 0, 0
+    for window in _windows(thin.frames):
+        part = replace(thin, times=thin.times[window], pos=thin.pos[window], vel=thin.vel[window],
+                       leader=None if thin.leader is None else thin.leader[window], visible=None, binocular=None,
+                       agents=())
+        streams = [position_stream(part.pos, lo, hi), heading_stream(part.vel),
+                   speed_stream(np.linalg.norm(part.vel, axis=-1)), label_stream(group_labels(part))]
+        if part.leader is not None:
+            streams.append(stream(part.leader, "bits"))
+        for agent in agents:
+            streams += [position_stream(agent["pos"][window], lo, hi), heading_stream(agent["vel"][window])]
+        size += sum(len(s["data"]) for s in streams)
+        sampled += part.frames
+    return int(overhead_bytes() + size / sampled * thin.frames + thin.frames * METRIC_BYTES_PER_FRAME)
 
 
 def choose_stride(track: Track, max_bytes: float) -> int:

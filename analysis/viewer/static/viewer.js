@@ -7,7 +7,7 @@ import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { decode } from "flock/streams.js";
 import { COLOUR_MODES, FOLLOWER_HEX, LEADER_HEX, OTHER_GROUP_HEX, STRAY_HEX, fillTables, legend as drawLegend,
-         paletteAt as palette, updatePanel as drawPanel } from "flock/panel.js";
+         updatePanel as drawPanel } from "flock/panel.js";
 
 const $ = (id) => document.getElementById(id);
 const DATA = JSON.parse($("flock-data").textContent);
@@ -65,20 +65,36 @@ function sample(p, h, m, i, f, a) {
   tmp.d.set(hx, hy, hz);
 }
 
+// colours parsed once: boidColour returns a shared THREE.Color, never parses a string per boid
+const C = {};
+function prepareColours() {
+  const list = (hexes) => hexes.map((h) => new THREE.Color(h));
+  C.turbo = list(DATA.palettes.turbo);
+  C.viridis = list(DATA.palettes.viridis);
+  C.tab10 = list(DATA.palettes.tab10);
+  C.leader = new THREE.Color(LEADER_HEX);
+  C.follower = new THREE.Color(FOLLOWER_HEX);
+  C.stray = new THREE.Color(STRAY_HEX);
+  C.otherGroup = new THREE.Color(OTHER_GROUP_HEX);
+  C.byBoid = Array.from({ length: N }, (_, i) => C.turbo[Math.round((N > 1 ? i / (N - 1) : 0) * (C.turbo.length - 1))]);
+  C.byPattern = Array.from({ length: N }, (_, i) => DATA.pattern
+    ? new THREE.Color(DATA.pattern_colours[String(DATA.pattern[i])] || "#888888") : C.turbo[13]);
+}
+
 function boidColour(i, f) {
   switch (S.colorBy) {
-    case "pattern": {
-      if (!DATA.pattern) return tmp.c.set(palette(DATA, "turbo", 0.2));
-      return tmp.c.set(DATA.pattern_colours[String(DATA.pattern[i])] || "#888888");
-    }
-    case "leader": return tmp.c.set(leader && leader[f * N + i] ? LEADER_HEX : FOLLOWER_HEX);
+    case "pattern": return C.byPattern[i];
+    case "leader": return leader && leader[f * N + i] ? C.leader : C.follower;
     case "group": {
       const g = group[f * N + i];
-      if (groupSizes[g] === 1) return tmp.c.set(STRAY_HEX);
-      return tmp.c.set(g < 10 ? DATA.palettes.tab10[g] : OTHER_GROUP_HEX);
+      if (groupSizes[g] === 1) return C.stray;
+      return g < 10 ? C.tab10[g] : C.otherGroup;
     }
-    case "speed": return tmp.c.set(palette(DATA, "viridis", speed[f * N + i] / SPEED_TOP));
-    default: return tmp.c.set(palette(DATA, "turbo", N > 1 ? i / (N - 1) : 0));
+    case "speed": {
+      const x = Math.min(1, speed[f * N + i] / SPEED_TOP);
+      return C.viridis[Math.round(x * (C.viridis.length - 1))];
+    }
+    default: return C.byBoid[i];
   }
 }
 let SPEED_TOP = 1;
@@ -153,9 +169,10 @@ function addGrid() {
   scene.add(grid);
 }
 
+const TRAIL_POINTS = 24;  // at most this many stored frames per trail (longer trails skip frames)
+
 function makeTrails() {
-  const maxK = Math.max(1, Math.ceil(10 / DTF));
-  const count = N * Math.min(maxK, F) * 2;
+  const count = N * TRAIL_POINTS * 2;
   const geo = new THREE.BufferGeometry();
   geo.setAttribute("position", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
   geo.setAttribute("color", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
@@ -165,9 +182,22 @@ function makeTrails() {
   scene.add(trails);
 }
 
+// The GPU's name, or "" when the browser hides it; software renderers (no GPU) draw without
+// antialiasing, which halves their frame rate.
+function rendererName() {
+  const gl = document.createElement("canvas").getContext("webgl2") || document.createElement("canvas").getContext("webgl");
+  if (!gl) return "";
+  const info = gl.getExtension("WEBGL_debug_renderer_info");
+  const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER) || "");
+  const lose = gl.getExtension("WEBGL_lose_context");
+  if (lose) lose.loseContext();
+  return name;
+}
+
 function setupScene() {
+  const software = /swiftshader|llvmpipe|software|softpipe/i.test(rendererName());
   try {
-    renderer = new THREE.WebGLRenderer({ antialias: true });
+    renderer = new THREE.WebGLRenderer({ antialias: !software });
   } catch (err) {
     fail("WebGL is not available in this browser, so the flock cannot be drawn: " + err.message);
     return false;
@@ -275,23 +305,21 @@ function drawTrails(f, a) {
   if (k < 1 || S.trailS <= 0) { geo.setDrawRange(0, 0); trails.visible = false; return; }
   trails.visible = true;
   const P = geo.attributes.position.array, C = geo.attributes.color.array;
-  const cap = P.length / 6 / N;
-  const kk = Math.min(k, cap);
+  const step = Math.ceil(k / TRAIL_POINTS), points = Math.ceil(k / step);
   const jump2 = DATA.wrap_jump === null ? Infinity : DATA.wrap_jump * DATA.wrap_jump;
   let v = 0;
   for (let i = 0; i < N; i++) {
     const col = boidColour(i, f);
-    let px, py, pz;
     sample(pos, heading, N, i, f, a);
-    px = tmp.v.x; py = tmp.v.y; pz = tmp.v.z;
-    for (let s = 0; s < kk; s++) {
-      const g = f - s;
+    let px = tmp.v.x, py = tmp.v.y, pz = tmp.v.z;
+    for (let s = 0; s < points; s++) {
+      const g = f - s * step;  // the segment runs from the newer point back to stored frame g
       if (g < 0) break;
       const j = (g * N + i) * 3;
       const qx = pos[j], qy = pos[j + 1], qz = pos[j + 2];
       const dx = qx - px, dy = qy - py, dz = qz - pz;
-      if (dx * dx + dy * dy + dz * dz > jump2) break;
-      const fade = 0.3 + 0.7 * (1 - s / kk), fade2 = 0.3 + 0.7 * (1 - (s + 1) / kk);
+      if (dx * dx + dy * dy + dz * dz > jump2) break;  // a boundary wrap: the trail stops there
+      const fade = 0.3 + 0.7 * (1 - s / points), fade2 = 0.3 + 0.7 * (1 - (s + 1) / points);
       P[v] = px; P[v + 1] = py; P[v + 2] = pz;
       C[v] = BG.r + (col.r - BG.r) * fade; C[v + 1] = BG.g + (col.g - BG.g) * fade; C[v + 2] = BG.b + (col.b - BG.b) * fade;
       P[v + 3] = qx; P[v + 4] = qy; P[v + 5] = qz;
@@ -414,6 +442,7 @@ async function start() {
     const [p, h] = await Promise.all([decode(a.pos), decode(a.heading)]);
     agentData.push({ ...a, pos: p, heading: h });
   }
+  prepareColours();
   if (!setupScene()) return;
   bindControls();
   drawLegend(panelState());
