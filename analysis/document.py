@@ -115,7 +115,8 @@ STYLE = """body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-widt
 padding:0 1em;color:#222;line-height:1.45}table{border-collapse:collapse;margin:.5em 0 1.2em;font-size:.85em}
 th,td{border:1px solid #ccc;padding:.25em .5em;text-align:right}th{background:#f2f2f2}
 td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #eee}
-figure{margin:1em 0 2em}.gallery{display:flex;flex-wrap:wrap;gap:1em}.gallery figure{margin:0;width:32%}figcaption{font-size:.9em;color:#555}code{background:#f4f4f4;padding:0 .2em}
+figure{margin:1em 0 2em}.gallery{display:flex;flex-wrap:wrap;gap:1em}.gallery figure{margin:0;width:32%}
+figcaption{font-size:.9em;color:#555}code{background:#f4f4f4;padding:0 .2em}
 .verdict-supported{color:#0a6b2a;font-weight:600}.verdict-not{color:#a11;font-weight:600}
 .verdict-inconclusive{color:#9a6700;font-weight:600}"""
 
@@ -148,8 +149,9 @@ def to_html(blocks: list, title: str) -> str:
             for png, cap, link in block.items:
                 data = base64.b64encode(Path(png).read_bytes()).decode()
                 href = html.escape(link, quote=True)
-                cells.append(f"<figure><a href='{href}'><img alt='{html.escape(cap)}' src='data:image/png;base64,{data}'>"
-                             f"</a><figcaption><a href='{href}'>{html.escape(cap)}</a></figcaption></figure>")
+                img = f"<img alt='{html.escape(cap)}' src='data:image/png;base64,{data}'>"
+                caption = f"<figcaption><a href='{href}'>{html.escape(cap)}</a></figcaption>"
+                cells.append(f"<figure><a href='{href}'>{img}</a>{caption}</figure>")
             out.append(f"<div class='gallery'>{''.join(cells)}</div>")
     out.append("</body></html>")
     return "\n".join(out)

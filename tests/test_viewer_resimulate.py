@@ -88,7 +88,8 @@ def test_every_run_reproduces_its_stored_metrics_bit_for_bit(sweep):
         result = reproduce(sweep, row, record_step=1)
         assert result.checks["identical"].all()
         metrics = result.checks[~result.checks["column"].str.startswith("series:")]
-        assert len(metrics) >= 30 and {"polarization_mean", "cohesion_final", "nn_distance_mean"} <= set(metrics["column"])
+        assert len(metrics) >= 30
+        assert {"polarization_mean", "cohesion_final", "nn_distance_mean"} <= set(metrics["column"])
         assert (result.checks["column"].str.startswith("series:")).sum() >= 10
         assert result.obs.pos.shape == (121, 10, 3)  # every step of 2 s at dt = 1/60
         # the viewed trajectory's 0.5 s records give the stored polarization_final exactly

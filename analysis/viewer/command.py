@@ -70,8 +70,9 @@ def _kind(source: Path) -> str:
     if source.suffix == ".toml":
         data = read_toml(source)
         if "axes" in data or isinstance(data.get("model"), dict):
+            name = data.get("name", "NAME")
             raise ConfigError("source", f"{source} is a sweep file; view one of its runs from its results "
-                                        f"directory, e.g. flocksweep view results/{data.get('name', 'NAME')} --run RUN_ID")
+                                        f"directory, e.g. flocksweep view results/{name} --run RUN_ID")
         return "model"
     raise ConfigError("source", f"{source}: expected a model preset .toml, a sweep results directory or a .npz")
 

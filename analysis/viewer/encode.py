@@ -85,7 +85,10 @@ def stream(q: np.ndarray, dtype: str, offset=0.0, scale=1.0, delta: bool = True)
     if delta and q.shape[0] > 1:
         q = _delta(q)
     flat = q.reshape(-1)
-    raw = flat.tobytes() if dtype != "u16" else (flat & 0xFF).astype(np.uint8).tobytes() + (flat >> 8).astype(np.uint8).tobytes()
+    if dtype == "u16":  # byte planes: all low bytes, then all high bytes
+        raw = (flat & 0xFF).astype(np.uint8).tobytes() + (flat >> 8).astype(np.uint8).tobytes()
+    else:
+        raw = flat.tobytes()
     as_list = lambda v: [float(x) for x in np.atleast_1d(v)] if np.ndim(v) else float(v)  # noqa: E731
     return {"dtype": dtype, "shape": shape, "delta": bool(delta), "offset": as_list(offset),
             "scale": as_list(scale), "data": _b64(raw)}
@@ -140,7 +143,8 @@ def _vector(obj: dict, key: str, where: str, nonzero: bool = False) -> list[floa
     ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) == 3
     vec = [float(v) for v in value] if ok else []
     if not ok or not all(math.isfinite(v) for v in vec) or (nonzero and not any(vec)):
-        raise ValueError(f"{where}.{key}: got {value!r}; expected 3 finite numbers" + (", not all 0" if nonzero else ""))
+        raise ValueError(f"{where}.{key}: got {value!r}; expected 3 finite numbers"
+                         + (", not all 0" if nonzero else ""))
     return vec
 
 

@@ -11,7 +11,8 @@
 * ``speed``: float64 (F, N), |v|;
 * ``group_radius`` used and whether it was ``assumed`` (the track did not say).
 
-``group_labels(track)`` gives the labels alone; ``record_metrics(obs, every, group_radius, model)`` gives the metric series of a sweep's record frames
+``group_labels(track)`` gives the labels alone; ``record_metrics(obs, every, group_radius, model)``
+gives the metric series of a sweep's record frames
 (for the re-simulation check of :mod:`analysis.viewer.resimulate`); ``flock_polarization(vel)``.
 
 When analysis/metrics.py moves, only the imports below change.

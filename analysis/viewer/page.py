@@ -8,7 +8,8 @@ every frame), computes the per-frame observables of the kept frames, encodes the
 Inlining: three.js (``vendor/three``, see its README) and the page's own scripts (``static/*.js``)
 sit in ``<script type="text/plain">`` blocks; a small classic script turns each into a ``blob:`` URL,
 installs an import map naming them (``three``, ``three-core``, the OrbitControls add-on, the page's
-``flock/streams.js`` and ``flock/panel.js``) and starts the page's module (``static/viewer.js``). So the page opens from a ``file://`` URL with no server and no network. Inlined
+``flock/streams.js`` and ``flock/panel.js``) and starts the page's module (``static/viewer.js``). So the
+page opens from a ``file://`` URL with no server and no network. Inlined
 text must not contain ``</script`` or ``<!--`` (checked); the JSON data has every ``<`` escaped as ``\\u003c``.
 
 :class:`ViewerPage` holds the HTML; ``save(path)`` writes it atomically and ``_repr_html_`` shows it
@@ -88,35 +89,45 @@ def overhead_bytes() -> int:
 
 
 def _windows(frames: int, length: int = WINDOW, count: int = 3) -> list[slice]:
-    """Up to ``count`` runs of ``length`` consecutive frames spread over ``frames`` (all when few)."""
+    """``count`` runs of ``length`` consecutive frames spread over ``frames`` (one run of all when few)."""
     if frames <= length * count:
         return [slice(0, frames)]
     starts = np.linspace(0, frames - length, count).astype(int)
     return [slice(int(a), int(a) + length) for a in starts]
 
 
+def _stream_bytes(part: Track, agents: list[dict], window: slice, lo, hi) -> int:
+    streams = [position_stream(part.pos, lo, hi), heading_stream(part.vel),
+               speed_stream(np.linalg.norm(part.vel, axis=-1)), label_stream(group_labels(part))]
+    if part.leader is not None:
+        streams.append(stream(part.leader, "bits"))
+    for agent in agents:
+        streams += [position_stream(agent["pos"][window], lo, hi), heading_stream(agent["vel"][window])]
+    return sum(len(s["data"]) for s in streams)
+
+
 def estimate_bytes(track: Track, stride: int) -> int:
     """Page size at ``stride``: every stream (positions, headings, speeds, groups, leaders, agents) encoded
-    for real on a few windows of consecutive kept frames, scaled to all kept frames, plus the metrics'
-    JSON and the fixed scripts."""
+    for real on a few windows of consecutive kept frames. A window's first frame is stored whole and the
+    others as differences, so the page's first frame is costed as a window's first frame and every other
+    as a window's later frames (their cost: the window's bytes less its first frame's alone). Plus the
+    metrics' JSON and the fixed scripts."""
     thin = track.every(stride)
     agents = check_agents(thin.agents, thin.frames)
     points = np.concatenate([thin.pos.reshape(-1, 3)] + [a["pos"].reshape(-1, 3) for a in agents])
     lo, hi = points.min(axis=0), points.max(axis=0)
-    sampled, size = 0, 0
+    first = later = counted = 0
     for window in _windows(thin.frames):
         part = replace(thin, times=thin.times[window], pos=thin.pos[window], vel=thin.vel[window],
                        leader=None if thin.leader is None else thin.leader[window], visible=None, binocular=None,
                        agents=())
-        streams = [position_stream(part.pos, lo, hi), heading_stream(part.vel),
-                   speed_stream(np.linalg.norm(part.vel, axis=-1)), label_stream(group_labels(part))]
-        if part.leader is not None:
-            streams.append(stream(part.leader, "bits"))
-        for agent in agents:
-            streams += [position_stream(agent["pos"][window], lo, hi), heading_stream(agent["vel"][window])]
-        size += sum(len(s["data"]) for s in streams)
-        sampled += part.frames
-    return int(overhead_bytes() + size / sampled * thin.frames + thin.frames * METRIC_BYTES_PER_FRAME)
+        head = slice(window.start, window.start + 1)
+        alone = _stream_bytes(part.every(part.frames), agents, head, lo, hi)  # the window's first frame
+        first = first or alone
+        later += _stream_bytes(part, agents, window, lo, hi) - alone
+        counted += part.frames - 1
+    frames_bytes = first + (later / counted * (thin.frames - 1) if counted else 0)
+    return int(overhead_bytes() + frames_bytes + thin.frames * METRIC_BYTES_PER_FRAME)
 
 
 def choose_stride(track: Track, max_bytes: float) -> int:

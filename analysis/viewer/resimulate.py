@@ -104,7 +104,8 @@ def select_run(results_dir, run_id: str | None = None, where: dict | None = None
     if runs.empty:
         raise RunNotFound(f"{root}: no runs stored yet")
     if sum(x is not None for x in (run_id, where, showcase)) != 1:
-        raise RunNotFound("name the run with exactly one of --run RUN_ID, --where \"key=value, ...\" or --showcase NAME")
+        raise RunNotFound("name the run with exactly one of --run RUN_ID, --where \"key=value, ...\" "
+                          "or --showcase NAME")
     if run_id is not None:
         hits = runs[runs["run_id"] == run_id]
         if hits.empty and len(run_id) >= 6:
@@ -117,8 +118,10 @@ def select_run(results_dir, run_id: str | None = None, where: dict | None = None
         mask = np.ones(len(runs), bool)
         for key, value in where.items():
             if key not in runs.columns:
-                factors = [c for c in runs.columns if "." in c or c == "mode"]
-                raise RunNotFound(f"--where: {key!r} is not a column of runs.parquet; swept columns: {', '.join(factors)}")
+                design = store.design()
+                columns = design.columns if design is not None else ()
+                factors = ", ".join(c for c in columns if c not in NOT_METRICS + ("n", "steps"))
+                raise RunNotFound(f"--where: {key!r} is not a column of runs.parquet; swept columns: {factors}")
             hit = _matches(runs[key], value)
             if not (mask & hit).any():
                 raise RunNotFound(f"--where: no run has {key} = {value!r} together with the keys before it; "
@@ -192,7 +195,8 @@ def reproduce(results_dir, row: dict, record_step: int = 1) -> Reproduction:
         listed = "; ".join(f"{r.column}: stored {r.stored!r}, re-simulated {r.resimulated!r}" for r in bad.itertuples())
         raise NotReproduced(f"run {row['run_id']} does not reproduce its stored results bit for bit "
                             f"({listed or 'no metric columns to compare'}); refusing to show a different run")
-    return Reproduction(obs=thin_observations(obs, int(record_step) // step), preset=spec.preset, row=row, group_radius=spec.group_radius, checks=checks)
+    return Reproduction(obs=thin_observations(obs, int(record_step) // step), preset=spec.preset, row=row,
+                        group_radius=spec.group_radius, checks=checks)
 
 
 def thin_observations(obs, k: int):

@@ -227,6 +227,9 @@ def as_track(source, preset=None, **options) -> Track:
         return replace(source, **options) if options else source
     if isinstance(source, Observations):
         return from_observations(source, preset, **options)
+    if preset is not None:
+        raise ValueError("preset: only used with simulator Observations (a Track or a saved trajectory "
+                         "carries its own parameters)")
     if isinstance(source, (str, Path)):
         track = from_npz(source)
         return replace(track, **options) if options else track
