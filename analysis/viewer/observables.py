@@ -11,9 +11,9 @@
 * ``speed``: float64 (F, N), |v|;
 * ``group_radius`` used and whether it was ``assumed`` (the track did not say).
 
-``group_labels(track)`` gives the labels alone; ``record_metrics(obs, every, group_radius, model)``
-gives the metric series of a sweep's record frames
-(for the re-simulation check of :mod:`analysis.viewer.resimulate`); ``flock_polarization(vel)``.
+``metric_settings(model)`` gives a model's (group radius, periodic box); ``group_labels(track)`` the
+labels alone; ``record_metrics(obs, every, group_radius, model)`` the metric series of a sweep's record
+frames (for the re-simulation check of :mod:`analysis.viewer.resimulate`).
 
 When analysis/metrics.py moves, only the imports below change.
 """
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.groups import neighbour_graph
-from analysis.metrics import frame_metrics, polarization, world_box
+from analysis.metrics import default_group_radius, frame_metrics, polarization, world_box
 
 from .track import DEFAULT_GROUP_RADIUS, Track
 
@@ -51,9 +51,9 @@ def group_labels(track: Track) -> np.ndarray:
     return neighbour_graph(track.pos, _radius(track)[0], track.box).labels
 
 
-def flock_polarization(vel: np.ndarray) -> np.ndarray:
-    """Polarization of (..., N, 3) velocities (for the animation's time stamp)."""
-    return polarization(vel)
+def metric_settings(model) -> tuple[float, float | None]:
+    """(group radius, periodic box side or None) of a model, as the sweeps use them."""
+    return float(default_group_radius(model)), world_box(model)
 
 
 def record_metrics(obs, every: int, group_radius: float, model) -> dict:

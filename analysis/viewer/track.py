@@ -136,11 +136,12 @@ def agents_of(obs) -> tuple:
 
 
 def _preset_meta(preset) -> dict:
-    from analysis.metrics import default_group_radius, world_box
+    from .observables import metric_settings  # the viewer's one door to analysis.metrics
 
     model = preset.model
-    return {"params": flat_params(preset.to_dict()), "group_radius": float(default_group_radius(model)),
-            "box": world_box(model), "world": world_of(model), "scene": scene_of(model)}
+    radius, box = metric_settings(model)
+    return {"params": flat_params(preset.to_dict()), "group_radius": radius, "box": box,
+            "world": world_of(model), "scene": scene_of(model)}
 
 
 def from_observations(obs, preset=None, title: str | None = None, info: dict | None = None,
