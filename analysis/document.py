@@ -1,7 +1,8 @@
 """A tiny document model rendered to Markdown and to self-contained HTML.
 
 A report is a list of blocks: ``Heading(text, level)``, ``Para(text)`` (Markdown-light: **bold** and
-`code` only), ``Table(df, caption, max_rows)``, ``Figure(png_path, caption, svg_path=None)``.
+`code` only), ``Table(df, caption, max_rows)``, ``Figure(png_path, caption, svg_path=None)``, ``Gallery(items)``
+(thumbnails, each a PNG linked to a page: items are (png_path, caption, link relative to the report)).
 ``to_markdown(blocks, base)`` writes figure links relative to ``base``; ``to_html(blocks, title)`` embeds
 each PNG as base64, so the HTML file stands alone.
 """
@@ -42,6 +43,11 @@ class Figure:
     path: Path
     caption: str = ""
     svg_path: Path | None = None
+
+
+@dataclass
+class Gallery:
+    items: list  # (png_path, caption, link relative to the report)
 
 
 def fmt(value) -> str:
@@ -93,6 +99,9 @@ def to_markdown(blocks: list, base: Path) -> str:
             rel = os.path.relpath(block.path, base)
             svg = f" ([SVG]({os.path.relpath(block.svg_path, base)}))" if block.svg_path else ""
             out.append(f"![{block.caption}]({rel})\n\n*{block.caption}*{svg}\n")
+        elif isinstance(block, Gallery):
+            out.append("\n".join(f"[![{cap}]({os.path.relpath(png, base)})]({link}) [{cap}]({link})  "
+                                  for png, cap, link in block.items) + "\n")
     return "\n".join(out)
 
 
@@ -106,7 +115,8 @@ STYLE = """body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-widt
 padding:0 1em;color:#222;line-height:1.45}table{border-collapse:collapse;margin:.5em 0 1.2em;font-size:.85em}
 th,td{border:1px solid #ccc;padding:.25em .5em;text-align:right}th{background:#f2f2f2}
 td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #eee}
-figure{margin:1em 0 2em}figcaption{font-size:.9em;color:#555}code{background:#f4f4f4;padding:0 .2em}
+figure{margin:1em 0 2em}.gallery{display:flex;flex-wrap:wrap;gap:1em}.gallery figure{margin:0;width:32%}
+figcaption{font-size:.9em;color:#555}code{background:#f4f4f4;padding:0 .2em}
 .verdict-supported{color:#0a6b2a;font-weight:600}.verdict-not{color:#a11;font-weight:600}
 .verdict-inconclusive{color:#9a6700;font-weight:600}"""
 
@@ -134,5 +144,14 @@ def to_html(blocks: list, title: str) -> str:
             data = base64.b64encode(Path(block.path).read_bytes()).decode()
             out.append(f"<figure><img alt='{html.escape(block.caption)}' src='data:image/png;base64,{data}'>"
                        f"<figcaption>{html.escape(block.caption)}</figcaption></figure>")
+        elif isinstance(block, Gallery):
+            cells = []
+            for png, cap, link in block.items:
+                data = base64.b64encode(Path(png).read_bytes()).decode()
+                href = html.escape(link, quote=True)
+                img = f"<img alt='{html.escape(cap)}' src='data:image/png;base64,{data}'>"
+                caption = f"<figcaption><a href='{href}'>{html.escape(cap)}</a></figcaption>"
+                cells.append(f"<figure><a href='{href}'>{img}</a>{caption}</figure>")
+            out.append(f"<div class='gallery'>{''.join(cells)}</div>")
     out.append("</body></html>")
     return "\n".join(out)

@@ -13,7 +13,8 @@ CI over replicates and the other factors), a Kruskal-Wallis test per factor with
 Holm correction over the whole family, a rank-based two-way ANOVA for a pair of factors, adjacent-level
 comparisons; heatmaps over field x direction of vision (panels per range, rows per mode and flock size
 when swept); time series of chosen cells; 3-D trace thumbnails of the ``[report.showcase]`` runs,
-re-simulated from their seeds (and checked against the table); replicate adequacy (CI half-width per
+re-simulated from their seeds (and checked against the table), each with an interactive 3-D viewer page
+(``viewer/<name>.html``, linked from its still; analysis/viewer); replicate adequacy (CI half-width per
 cell); Holland & Semwal's findings when their factors are present; with ``leadership.x`` swept, the
 leadership metrics against X and Hartman & Benes' findings. Factors and metrics are read from the
 results, so any sweep works.
@@ -32,6 +33,7 @@ from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
 from .findings import FIELD, DIRECTION, LEAD, findings_table, holland_findings, leadership_findings
 from .results import Results, load_results
+from .viewer.hooks import report_blocks as viewer_blocks
 from sweeps.atomic import write_text
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
@@ -386,6 +388,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     cells = _showcase_rows(ctx) or _default_cells(ctx)
     _timeseries(ctx, cells)
     _thumbnails(ctx, cells)
+    ctx.blocks += viewer_blocks(ctx.results.path, ctx.out, cells)  # interactive 3-D pages of those runs
     _adequacy(ctx)
     written = {}
     if "md" in formats:

@@ -11,6 +11,8 @@
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
     flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
+    flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
+                    [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -351,6 +353,19 @@ def cmd_sbc(args) -> int:
     return 0
 
 
+def _add_view(sub) -> None:
+    from analysis.viewer.command import DESCRIPTION, add_arguments
+
+    add_arguments(sub.add_parser("view", help="interactive 3-D viewer page (and GIF/MP4) of a run",
+                                 description=DESCRIPTION))
+
+
+def cmd_view(args) -> int:
+    from analysis.viewer.command import run
+
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -361,11 +376,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate(sub)
     _add_targets(sub)
     _add_sbc(sub)
+    _add_view(sub)
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
-            "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc}
+            "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
+            "view": cmd_view}
 
 
 def main(argv=None) -> int:

@@ -10,7 +10,8 @@ writes into ``out_dir`` (default ``results/calibration/<name>/``):
   warnings for parameters the targets do not constrain, and the provenance stamp;
 * ``predictive.csv``: the posterior predictive check (each target against its distribution under
   posterior draws, with its two-sided tail probability);
-* ``trace.png``, ``corner.png``, ``predictive.png``.
+* ``trace.png``, ``corner.png``, ``predictive.png``;
+* ``viewer_posterior_median.html``: an interactive 3-D page of one run at the posterior median.
 
 The simulator runs ``n_sim`` replicates per evaluation in one batched compiled call, with fresh seeds
 at every evaluation. When the targets are given as mean and sd (or a covariance), that observation
@@ -47,6 +48,7 @@ from .diagnostics import convergence, posterior_summary, predictive_check, prior
 from .parallel import Evaluator
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
+from ..viewer.hooks import posterior_median_page
 
 IMPLEMENTED = ("emcee", "optimize", "emulator")
 PREDICTIVE_TAG = 0x5050
@@ -242,6 +244,7 @@ def write_posterior(config: CalibrationConfig, result, out: Path, evaluator: Eva
     trace_figure(result.chain, config.names, out / "trace.png", burn=burn)
     corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, out / "corner.png")
     predictive_figure(check, predictive, config.targets.observed, config.targets.columns, out / "predictive.png")
+    posterior_median_page(config, summary, out)  # viewer page of a run at the posterior median
     report = {"name": config.name, "method": config.method.kind, "settings": config.method.settings,
               "seed": config.seed, "convergence": _plain(verdict), "warnings": warnings,
               "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),

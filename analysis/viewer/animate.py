@@ -1,0 +1,259 @@
+"""Animation export: a run as a GIF (Pillow) or MP4 (the ffmpeg bundled in the imageio-ffmpeg wheel).
+
+``write_animation(track, path, color_by="auto", fps=20, speed=1, rotate=False, trail_s=1, size=(640, 480),
+dpi=100, title=None, progress=False) -> Animation`` draws the run with matplotlib's 3-D axes (the world's
+y axis up): boids as arrows along their heading, trails of the last ``trail_s`` seconds, a time stamp
+with the frame's polarization and number of groups, and optionally a camera turning slowly about the
+vertical (``rotate``: 6 degrees per second of video).
+
+Frames: frame k shows simulated time t0 + k * speed / fps, k = 0 .. floor((t_end - t0) * fps / speed),
+each drawn from the nearest recorded frame of the track, so the file has exactly
+``frame_count(track, fps, speed)`` frames of ``size`` pixels (MP4 sizes must be even; an odd size is a
+ValueError). Colours (``boid``, ``pattern``, ``leader``, ``group``, ``speed``) follow the viewer page.
+The view follows the flock (the centroid of its largest group, at a fixed scale) in an open world and
+shows the whole world when it wraps. The file is written atomically. Without ``imageio-ffmpeg`` an MP4
+raises :class:`AnimationUnavailable` naming the install command.
+
+:class:`Animation` (path, format, frames, fps, width, height) displays inline in Jupyter.
+``poster(track, path, frame=-1)`` draws one frame the same way as a PNG (the report's linked thumbnails).
+"""
+from __future__ import annotations
+
+import base64
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .encode import COLOR_MODES, TABLE_1_HEX, default_color_by
+from .observables import frame_observables
+from .track import Track
+
+FORMATS = {".gif": "gif", ".mp4": "mp4"}
+ROTATE_DEG_PER_S = 6.0
+
+
+class AnimationUnavailable(RuntimeError):
+    pass
+
+
+@dataclass
+class Animation:
+    path: Path
+    format: str
+    frames: int
+    fps: float
+    width: int
+    height: int
+
+    def _repr_html_(self) -> str:
+        data = base64.b64encode(Path(self.path).read_bytes()).decode()
+        if self.format == "gif":
+            return f"<img src='data:image/gif;base64,{data}' width='{self.width}' height='{self.height}'>"
+        return (f"<video controls loop autoplay muted width='{self.width}' height='{self.height}' "
+                f"src='data:video/mp4;base64,{data}'></video>")
+
+    def __repr__(self) -> str:
+        return (f"<Animation {self.path}: {self.format}, {self.frames} frames at {self.fps:g} fps, "
+                f"{self.width}x{self.height}>")
+
+
+def frame_count(track: Track, fps: float, speed: float) -> int:
+    span = float(track.times[-1] - track.times[0])
+    return int(math.floor(span * fps / speed + 1e-9)) + 1
+
+
+def source_frames(track: Track, fps: float, speed: float) -> np.ndarray:
+    """Index of the recorded frame shown by each video frame (nearest in time)."""
+    times = track.times[0] + np.arange(frame_count(track, fps, speed)) * (speed / fps)
+    if track.frames == 1:
+        return np.zeros(len(times), dtype=int)
+    return np.clip(np.rint((times - track.times[0]) / track.frame_interval), 0, track.frames - 1).astype(int)
+
+
+def check_options(path: Path, fps, speed, size, dpi, color_by) -> str:
+    """The format (gif or mp4) of ``path``, after checking every option (ValueError naming it)."""
+    kind = FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise ValueError(f"{path}: animation format from the extension: .gif or .mp4, got {path.suffix!r}")
+    for name, value in (("fps", fps), ("speed", speed), ("dpi", dpi)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: got {value!r}; expected a number > 0")
+    if len(size) != 2 or any(int(s) != s or s < 16 for s in size):
+        raise ValueError(f"size: got {size!r}; expected (width, height) in whole pixels >= 16")
+    if kind == "mp4" and any(int(s) % 2 for s in size):
+        raise ValueError(f"size: got {size!r}; an MP4 (H.264) needs an even width and height")
+    if color_by != "auto" and color_by not in COLOR_MODES:
+        raise ValueError(f"color_by: got {color_by!r}; allowed: auto, {', '.join(COLOR_MODES)}")
+    return kind
+
+
+def ffmpeg_exe() -> str:
+    """The ffmpeg binary of the imageio-ffmpeg wheel, or AnimationUnavailable saying how to get it."""
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        raise AnimationUnavailable("MP4 export needs the ffmpeg of the imageio-ffmpeg wheel: "
+                                   "pip install imageio-ffmpeg (or pip install 'flocksweep[video]'); "
+                                   "GIF export works without it (--animate out.gif)") from None
+    return imageio_ffmpeg.get_ffmpeg_exe()
+
+
+def _colours(track: Track, mode: str, obs: dict, frames: np.ndarray) -> np.ndarray:
+    """RGBA (K, N, 4) colour of every boid at every shown frame."""
+    import matplotlib
+    from matplotlib.colors import to_rgba
+
+    k, n = len(frames), track.n
+    if mode == "boid":
+        return np.broadcast_to(matplotlib.colormaps["turbo"](np.linspace(0, 1, n)), (k, n, 4))
+    if mode == "pattern":
+        pattern = track.pattern if track.pattern is not None else np.zeros(n)
+        values = np.unique(pattern)
+        tab10 = matplotlib.colormaps["tab10"]
+        lookup = {v: to_rgba(TABLE_1_HEX.get(int(v), tab10(j % 10))) for j, v in enumerate(values)}
+        return np.broadcast_to(np.array([lookup[v] for v in pattern]), (k, n, 4))
+    if mode == "leader":
+        lead = track.leader[frames] if track.leader is not None else np.zeros((k, n), bool)
+        return np.where(lead[..., None], to_rgba("#e0301e"), to_rgba("#7f93a8"))
+    if mode == "speed":
+        speed = obs["speed"][frames]
+        return matplotlib.colormaps["viridis"](speed / max(float(obs["speed"].max()), 1e-12))
+    labels = obs["labels"][frames]
+    sizes = np.stack([np.bincount(row, minlength=n)[row] for row in labels])
+    colours = matplotlib.colormaps["tab10"](np.minimum(labels, 9))
+    colours[labels >= 10] = to_rgba("#8a8f96")
+    colours[sizes == 1] = to_rgba("#c4cad1")
+    return colours
+
+
+def _view_box(track: Track, labels: np.ndarray) -> tuple[np.ndarray, float]:
+    """Per shown frame the centre of the view, and one half-width for all frames."""
+    if track.wrap_jump is not None:
+        half = track.world.get("sphere_radius", track.world.get("box_size", 0) / 2)
+        return np.zeros((track.frames, 3)), float(half) * 1.05
+    largest = labels == 0
+    centre = (track.pos * largest[..., None]).sum(axis=1) / largest.sum(axis=1)[:, None]
+    spread = np.linalg.norm(track.pos - centre[:, None], axis=-1)[largest]
+    return centre, max(float(np.percentile(spread, 95)) * 1.3, 5.0)
+
+
+def _trail_segments(pos: np.ndarray, frame: int, length: int, jump: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """(S, 2, 3) segments of every boid's last ``length`` recorded steps up to ``frame``, and the boid
+    of each segment; steps longer than ``jump`` (boundary wraps) are left out."""
+    start = max(0, frame - length)
+    n = pos.shape[1]
+    if frame - start < 1:
+        return np.zeros((0, 2, 3)), np.zeros(0, dtype=int)
+    segments = np.stack([pos[start:frame], pos[start + 1:frame + 1]], axis=2).reshape(-1, 2, 3)
+    boid = np.tile(np.arange(n), frame - start)
+    if jump is not None:
+        keep = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1) <= jump
+        segments, boid = segments[keep], boid[keep]
+    return segments, boid
+
+
+class _Drawing:
+    """One matplotlib 3-D figure of a track; ``draw(k, f)`` shows recorded frame ``f`` as video frame ``k``."""
+
+    def __init__(self, track: Track, color_by: str, shown: np.ndarray, trail_s: float, size, dpi: int,
+                 title: str | None, rotate: bool, fps: float):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        self.track, self.rotate, self.fps, self.plt = track, rotate, fps, plt
+        self.mode = default_color_by(track) if color_by == "auto" else color_by
+        self.obs = frame_observables(track)
+        self.colours = _colours(track, self.mode, self.obs, shown)
+        self.centre, self.half = _view_box(track, self.obs["labels"])
+        self.trail = int(round(trail_s / track.frame_interval)) if track.frames > 1 else 0
+        self.arrow = max(self.half / 12, 1.5)
+        self.fig = plt.figure(figsize=(int(size[0]) / dpi, int(size[1]) / dpi), dpi=dpi)
+        self.ax = self.fig.add_axes((0, 0, 1, 0.94), projection="3d")
+        self.fig.suptitle(title or track.title, fontsize=9, y=0.985)
+        self.stamp = self.fig.text(0.02, 0.02, "", fontsize=8, family="monospace")
+        for axis_label, text in ((self.ax.set_xlabel, "x"), (self.ax.set_ylabel, "z"), (self.ax.set_zlabel, "y (up)")):
+            axis_label(text, fontsize=7)
+        self.ax.tick_params(labelsize=6)
+        self.trails = Line3DCollection([], linewidths=0.6, alpha=0.45)
+        self.ax.add_collection3d(self.trails, autolim=False)
+        self.quiver = None
+
+    def draw(self, k: int, f: int) -> None:
+        track, ax = self.track, self.ax
+        swap = [0, 2, 1]  # world (x, y, z) -> plot (x, z, y): y up
+        c, half = self.centre[f][swap], self.half
+        ax.set_xlim(c[0] - half, c[0] + half)
+        ax.set_ylim(c[1] - half, c[1] + half)
+        ax.set_zlim(c[2] - half, c[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=18, azim=-60 + (ROTATE_DEG_PER_S * k / self.fps if self.rotate else 0.0))
+        p, v = track.pos[f][:, swap], track.vel[f][:, swap]
+        norm = np.linalg.norm(v, axis=1, keepdims=True)
+        h = np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
+        if self.quiver is not None:
+            self.quiver.remove()
+        # a 3-D quiver draws every shaft, then every left head line, then every right one
+        colours = self.colours[k]
+        self.quiver = ax.quiver(p[:, 0], p[:, 1], p[:, 2], h[:, 0], h[:, 1], h[:, 2], length=self.arrow,
+                                colors=np.concatenate([colours] * 3), linewidths=1.4, arrow_length_ratio=0.4)
+        segments, boid = _trail_segments(track.pos, f, self.trail, track.wrap_jump)
+        self.trails.set_segments(segments[:, :, swap])
+        self.trails.set_color(colours[boid])
+        metrics = self.obs["metrics"]
+        self.stamp.set_text(f"t = {track.times[f]:6.2f} s   polarization {metrics['polarization'][f]:.2f}"
+                            f"   groups {metrics['n_groups'][f]:.0f}   (colour: {self.mode})")
+
+    def close(self) -> None:
+        self.plt.close(self.fig)
+
+
+def write_animation(track: Track, path, color_by: str = "auto", fps: float = 20.0, speed: float = 1.0,
+                    rotate: bool = False, trail_s: float = 1.0, size=(640, 480), dpi: int = 100,
+                    title: str | None = None, progress: bool = False) -> Animation:
+    import matplotlib
+    from matplotlib import animation
+    from tqdm import tqdm
+
+    from sweeps.atomic import atomic_path
+
+    path = Path(path)
+    kind = check_options(path, fps, speed, size, dpi, color_by)
+    if kind == "mp4":
+        matplotlib.rcParams["animation.ffmpeg_path"] = ffmpeg_exe()
+    shown = source_frames(track, fps, speed)
+    drawing = _Drawing(track, color_by, shown, trail_s, size, dpi, title, rotate, fps)
+    writer = (animation.PillowWriter(fps=fps) if kind == "gif"
+              else animation.FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"]))
+    try:
+        with atomic_path(path) as tmp:
+            target = tmp.with_suffix(path.suffix)
+            with writer.saving(drawing.fig, str(target), dpi):
+                for k, f in enumerate(tqdm(shown, desc=path.name, unit="frame", disable=not progress)):
+                    drawing.draw(k, int(f))
+                    writer.grab_frame()
+            target.replace(tmp)
+    finally:
+        drawing.close()
+    return Animation(path, kind, len(shown), float(fps), int(size[0]), int(size[1]))
+
+
+def poster(track: Track, path, color_by: str = "auto", frame: int = -1, trail_s: float = 3.0,
+           size=(480, 400), dpi: int = 100, title: str | None = None) -> Path:
+    """A still PNG of one recorded frame (default the last), drawn as the animation draws it."""
+    from sweeps.atomic import atomic_path
+
+    path = Path(path)
+    f = range(track.frames)[frame]
+    drawing = _Drawing(track, color_by, np.array([f]), trail_s, size, dpi, title, False, 1.0)
+    try:
+        drawing.draw(0, f)
+        with atomic_path(path) as tmp:
+            drawing.fig.savefig(tmp, format="png")
+    finally:
+        drawing.close()
+    return path

@@ -1,0 +1,190 @@
+"""``flocksweep view``: the viewer page (and optionally an animation) of a run from any source.
+
+    flocksweep view MODEL.toml [--set KEY=VALUE ...] [--seed S] [--n N] [--duration T] [--dt DT]
+    flocksweep view RESULTS_DIR (--run RUN_ID | --where "KEY=VALUE, ..." [--replicate K] | --showcase NAME)
+    flocksweep view TRAJECTORY.npz
+      common: [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--no-page] [--color-by MODE] [--trail SECONDS]
+              [--max-mb MB] [--stride K] [--fps F] [--speed X] [--rotate] [--size WxH] [--dpi D]
+
+A model preset is simulated (seed 0 unless ``--seed``); a sweep run is re-simulated from its stored spec
+and seed and must reproduce its stored results bit for bit (:mod:`analysis.viewer.resimulate`), or
+nothing is written; a trajectory is shown as saved (with its ``params.json`` or its sweep's spec when
+found). Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
+showcase>.html``, or the trajectory's path with ``.html``. ``sweeps/cli.py`` registers the subcommand
+with :func:`add_arguments` and :func:`run`.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .encode import COLOR_MODES
+
+DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
+               "(simulated), a sweep run (re-simulated and checked bit for bit) or a saved trajectory; "
+               "--animate also exports a GIF or MP4.")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("source", help="model preset TOML, sweep results directory, or trajectory .npz")
+    sweep = p.add_argument_group("sweep runs (SOURCE is a results directory)")
+    sweep.add_argument("--run", metavar="RUN_ID", help="run id (or a unique prefix of >= 6 characters)")
+    sweep.add_argument("--where", metavar='"KEY=VALUE, ..."',
+                       help='parameter point, e.g. "perception.field_deg=60, init.n=100" (n = init.n)')
+    sweep.add_argument("--replicate", type=int, default=0, help="replicate at the --where point (default 0)")
+    sweep.add_argument("--showcase", metavar="NAME", help="an entry of the sweep's [report.showcase], e.g. sample1")
+    model = p.add_argument_group("model presets (SOURCE is a model TOML)")
+    model.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a preset key (repeatable)")
+    model.add_argument("--seed", type=int, help="run seed (default 0)")
+    model.add_argument("--n", type=int, help="number of boids (init.n)")
+    model.add_argument("--duration", type=float, help="simulated seconds (run.duration)")
+    model.add_argument("--dt", type=float, help="time step in seconds (run.dt)")
+    page = p.add_argument_group("page and animation")
+    page.add_argument("--out", type=Path, help="page path (default: see flocksweep view --help)")
+    page.add_argument("--color-by", choices=("auto",) + COLOR_MODES, default="auto",
+                      help="initial colouring (switchable in the page; auto: pattern in pattern mode, leader "
+                           "with change of leadership, else boid)")
+    page.add_argument("--trail", type=float, default=2.0, metavar="SECONDS", help="trail length (default 2 s)")
+    page.add_argument("--max-mb", type=float, default=5.0, help="page size cap: frames are thinned to fit (default 5)")
+    page.add_argument("--stride", type=int, help="keep every K-th recorded step (overrides --max-mb)")
+    page.add_argument("--animate", type=Path, metavar="OUT.gif|OUT.mp4", help="also write an animation")
+    page.add_argument("--no-page", action="store_true", help="with --animate: write only the animation")
+    page.add_argument("--fps", type=float, default=20.0, help="animation frames per second (default 20)")
+    page.add_argument("--speed", type=float, default=1.0, help="simulated seconds per second of animation")
+    page.add_argument("--rotate", action="store_true", help="animation camera turns slowly about the vertical")
+    page.add_argument("--size", default="640x480", metavar="WxH", help="animation size in pixels (default 640x480)")
+    page.add_argument("--dpi", type=int, default=100, help="animation dots per inch (text size; default 100)")
+
+
+def _kind(source: Path) -> str:
+    from simcore import ConfigError
+    from simcore.params import read_toml
+
+    if source.is_dir():
+        return "sweep"
+    if not source.exists():
+        raise ConfigError("source", f"{source}: no such file or directory")
+    if source.suffix == ".npz":
+        return "trajectory"
+    if source.suffix == ".toml":
+        data = read_toml(source)
+        if "axes" in data or isinstance(data.get("model"), dict):
+            name = data.get("name", "NAME")
+            raise ConfigError("source", f"{source} is a sweep file; view one of its runs from its results "
+                                        f"directory, e.g. flocksweep view results/{name} --run RUN_ID")
+        return "model"
+    raise ConfigError("source", f"{source}: expected a model preset .toml, a sweep results directory or a .npz")
+
+
+def _check_flags(args, kind: str) -> None:
+    from simcore import ConfigError
+
+    sweep_flags = {"--run": args.run, "--where": args.where, "--showcase": args.showcase,
+                   "--replicate": args.replicate or None}
+    model_flags = {"--set": args.overrides or None, "--seed": args.seed, "--n": args.n,
+                   "--duration": args.duration, "--dt": args.dt}
+    for flags, only in ((sweep_flags, "sweep"), (model_flags, "model")):
+        for flag, value in flags.items():
+            if value is not None and kind != only:
+                where = "a sweep results directory" if only == "sweep" else "a model preset TOML"
+                raise ConfigError(flag, f"only applies when SOURCE is {where} (got a {kind} source)")
+    if args.no_page and not args.animate:
+        raise ConfigError("--no-page", "only with --animate (otherwise nothing would be written)")
+    if args.replicate < 0:
+        raise ConfigError("--replicate", f"got {args.replicate}; must be an integer >= 0")
+
+
+def _size(text: str) -> tuple[int, int]:
+    from simcore import ConfigError
+
+    width, sep, height = text.lower().partition("x")
+    if not (sep and width.isdigit() and height.isdigit()):
+        raise ConfigError("--size", f"got {text!r}; expected WIDTHxHEIGHT in pixels, e.g. 640x480")
+    return int(width), int(height)
+
+
+def _model_track(args):
+    from simcore import ConfigError, load_preset, simulate_preset
+
+    from .resimulate import record_step_for
+    from .track import from_observations
+
+    overrides = list(args.overrides)
+    for flag, key in ((args.n, "init.n"), (args.duration, "run.duration"), (args.dt, "run.dt")):
+        if flag is not None:
+            overrides.append(f"{key}={flag!r}")
+    preset = load_preset(args.source, overrides)
+    seed = 0 if args.seed is None else args.seed
+    if seed < 0:
+        raise ConfigError("--seed", f"got {seed}; must be an integer >= 0")
+    obs = simulate_preset(preset, seed, record_step_for(preset.run.n_steps, preset.init.n))
+    info = {"model": str(args.source), "seed": seed, "overrides": ", ".join(overrides) or "none"}
+    track = from_observations(obs, preset, title=f"{preset.model.name}: N = {obs.n}, seed {seed}", info=info)
+    return track, Path("results") / "view" / f"{preset.model.name}-seed{seed}.html"
+
+
+def _sweep_track(args):
+    from .resimulate import parse_where, record_step_for, reproduce, select_run
+    from .hooks import run_steps, slug
+    from .track import from_observations
+
+    where = parse_where(args.where) if args.where is not None else None
+    row = select_run(args.source, args.run, where, args.replicate, args.showcase)
+    reproduced = reproduce(args.source, row, record_step_for(*run_steps(args.source, row)))
+    checked = int(reproduced.checks["identical"].sum())
+    print(f"run {row['run_id']} (seed {int(row['seed'])}, replicate {int(row['replicate'])}) re-simulated: "
+          f"reproduces its stored results bit for bit ({checked} checks)")
+    info = {"sweep": args.source.resolve().name, "run id": row["run_id"], "replicate": int(row["replicate"]),
+            "seed": int(row["seed"]), "reproduced": f"bit for bit ({checked} checks)"}
+    if args.showcase:
+        info["showcase"] = args.showcase
+    name = args.showcase or row["run_id"]
+    track = from_observations(reproduced.obs, reproduced.preset, info=info, group_radius=reproduced.group_radius,
+                              title=f"{args.source.resolve().name}: {name}")
+    return track, args.source / "viewer" / f"{slug(name)}.html"
+
+
+def run(args) -> int:
+    from simcore import ConfigError
+
+    from .animate import AnimationUnavailable, check_options, ffmpeg_exe, write_animation
+    from .page import MB, build_page
+    from .resimulate import NotReproduced, RunNotFound
+    from .track import from_npz
+
+    source = Path(args.source)
+    args.source = source
+    kind = _kind(source)
+    _check_flags(args, kind)
+    size = _size(args.size)
+    try:
+        if args.animate and check_options(args.animate, args.fps, args.speed, size, args.dpi, args.color_by) == "mp4":
+            ffmpeg_exe()  # before simulating: say now if MP4 cannot be written
+        if kind == "model":
+            track, default = _model_track(args)
+        elif kind == "sweep":
+            if not (args.run or args.where or args.showcase):
+                print("flocksweep: name the run to view: --run RUN_ID, --where \"KEY=VALUE, ...\" [--replicate K] "
+                      "or --showcase NAME", file=sys.stderr)
+                return 2
+            track, default = _sweep_track(args)
+        else:
+            track, default = from_npz(source), source.with_suffix(".html")
+        if not args.no_page:
+            page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
+                              trail_s=args.trail)
+            path = page.save(args.out or default)
+            print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {page.n} boids, {page.frames} frames every "
+                  f"{page.frame_interval:.3g} s, stride {page.stride}); open it in a browser, it works offline")
+        if args.animate:
+            anim = write_animation(track, args.animate, color_by=args.color_by, fps=args.fps,
+                                   speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
+                                   size=size, dpi=args.dpi, progress=True)
+            print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
+    except ConfigError:
+        raise
+    except (RunNotFound, NotReproduced, AnimationUnavailable, ValueError, FileNotFoundError) as err:
+        print(f"flocksweep: {err}", file=sys.stderr)
+        return 2
+    return 0

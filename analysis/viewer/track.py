@@ -1,0 +1,242 @@
+"""What the viewer and the animation show: one run as a :class:`Track`, from whatever the user has.
+
+A :class:`Track` holds a run's recorded frames and what is known about it:
+
+* ``times`` float64 (F,) seconds, evenly spaced; ``pos``, ``vel`` float64 (F, N, 3);
+* ``pattern`` (N,) uint or None; ``leader`` bool (F, N) or None (change of leadership);
+  ``visible``, ``binocular`` int (F, N) or None (perception counts, for the metrics);
+* ``title``; ``params`` {dotted key: value} (the resolved preset, shown in the page's panel);
+  ``info`` {label: value} (seed, run id, source, ...);
+* ``group_radius`` (links boids into groups; None: unknown), ``box`` (periodic box side for the
+  metrics, None otherwise), ``world`` {"boundary": ..., "sphere_radius" | "box_size": ...} (drawn);
+* ``scene`` and ``agents``: obstacles and extra agents (prey, predators), in the format of
+  :mod:`analysis.viewer.encode` (validated there).
+
+Constructors: :func:`from_observations` (a simulator ``Observations``, optionally with its preset),
+:func:`from_npz` (``trajectory.npz`` of ``flocksweep simulate --out`` with its ``params.json``, or a
+sweep's ``trajectories/<run_id>.npz``), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
+of these). :meth:`Track.every` keeps every k-th frame.
+
+Scene objects of a model are read by :func:`scene_of` (obstacles, when the model has them);
+extra agents of a run by :func:`agents_of` (prey and predators, when the observations record them).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_GROUP_RADIUS = 20.0  # used, and said so in the page, when nothing tells the run's radius
+
+
+@dataclass(frozen=True)
+class Track:
+    times: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    pattern: np.ndarray | None = None
+    leader: np.ndarray | None = None
+    visible: np.ndarray | None = None
+    binocular: np.ndarray | None = None
+    title: str = "flock"
+    params: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+    group_radius: float | None = None
+    box: float | None = None
+    world: dict = field(default_factory=lambda: {"boundary": "open"})
+    scene: tuple = ()
+    agents: tuple = ()
+
+    def __post_init__(self):
+        pos, vel, times = np.asarray(self.pos), np.asarray(self.vel), np.asarray(self.times)
+        if pos.ndim != 3 or pos.shape[2] != 3 or pos.shape[0] < 1 or pos.shape[1] < 1:
+            raise ValueError(f"pos: expected shape (F, N, 3) with F, N >= 1, got {pos.shape}")
+        if vel.shape != pos.shape:
+            raise ValueError(f"vel: expected the shape of pos {pos.shape}, got {vel.shape}")
+        if times.shape != pos.shape[:1]:
+            raise ValueError(f"times: expected shape ({pos.shape[0]},), got {times.shape}")
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all() and np.isfinite(times).all()):
+            raise ValueError("pos, vel and times must be finite (a run that went non-finite cannot be shown)")
+        if len(times) > 1 and not (np.diff(times) > 0).all():
+            raise ValueError("times must increase")
+        f, n = pos.shape[:2]
+        for name, shape in (("pattern", (n,)), ("leader", (f, n)), ("visible", (f, n)), ("binocular", (f, n))):
+            value = getattr(self, name)
+            if value is not None and np.shape(value) != shape:
+                raise ValueError(f"{name}: expected shape {shape}, got {np.shape(value)}")
+
+    @property
+    def n(self) -> int:
+        return self.pos.shape[1]
+
+    @property
+    def frames(self) -> int:
+        return self.pos.shape[0]
+
+    @property
+    def frame_interval(self) -> float:
+        """Seconds between frames (0 for a single frame)."""
+        return float(self.times[1] - self.times[0]) if self.frames > 1 else 0.0
+
+    @property
+    def wrap_jump(self) -> float | None:
+        """A step longer than this is a boundary wrap, not motion (None: the world never wraps)."""
+        if self.world.get("boundary") == "sphere_wrap":
+            return float(self.world["sphere_radius"])
+        if self.world.get("boundary") == "periodic_box":
+            return float(self.world["box_size"]) / 2
+        return None
+
+    def every(self, k: int) -> "Track":
+        """Every ``k``-th frame (the first always kept); agents' tracks likewise."""
+        if k == 1:
+            return self
+        pick = slice(None, None, k)
+        cut = {name: None if getattr(self, name) is None else getattr(self, name)[pick]
+               for name in ("leader", "visible", "binocular")}
+        agents = tuple({**a, **{key: np.asarray(a[key])[pick] for key in ("pos", "vel") if key in a}}
+                       for a in self.agents)
+        return replace(self, times=self.times[pick], pos=self.pos[pick], vel=self.vel[pick], agents=agents, **cut)
+
+
+def flat_params(preset_dict: dict, prefix: str = "") -> dict:
+    """A nested preset dict as {dotted key: value}, in the preset's order."""
+    out = {}
+    for key, value in preset_dict.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(flat_params(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def world_of(model) -> dict:
+    world = model.world
+    out = {"boundary": world.boundary}
+    if world.boundary == "sphere_wrap":
+        out["sphere_radius"] = float(world.sphere_radius)
+    elif world.boundary == "periodic_box":
+        out["box_size"] = float(world.box_size)
+    return out
+
+
+def scene_of(model) -> tuple:
+    """Scene objects (obstacles) of a model, as :mod:`analysis.viewer.encode` dicts. The simulator has
+    no obstacles yet; when it does, this reads ``model.obstacles`` (each with an ``as_scene()`` dict)."""
+    return tuple(obstacle.as_scene() for obstacle in getattr(model, "obstacles", ()))
+
+
+def agents_of(obs) -> tuple:
+    """Extra agents (prey, predators) recorded by the simulator, as :mod:`analysis.viewer.encode` dicts
+    with their (F, M, 3) tracks; () when the observations record none."""
+    return tuple(getattr(obs, "agents", ()) or ())
+
+
+def _preset_meta(preset) -> dict:
+    from .observables import metric_settings  # the viewer's one door to analysis.metrics
+
+    model = preset.model
+    radius, box = metric_settings(model)
+    return {"params": flat_params(preset.to_dict()), "group_radius": radius, "box": box,
+            "world": world_of(model), "scene": scene_of(model)}
+
+
+def from_observations(obs, preset=None, title: str | None = None, info: dict | None = None,
+                      scene=(), agents=(), group_radius: float | None = None) -> Track:
+    """A Track of simulator observations; with ``preset`` the panel shows its parameters and the metrics
+    use its group radius and world."""
+    meta = _preset_meta(preset) if preset is not None else {}
+    if group_radius is not None:
+        meta["group_radius"] = float(group_radius)
+    leader = obs.leader if obs.leader is not None and obs.leader.any() else None
+    name = title or (f"{preset.model.name}: N = {obs.n}" if preset is not None else f"flock of {obs.n}")
+    return Track(times=obs.times, pos=obs.pos, vel=obs.vel, pattern=obs.pattern, leader=leader,
+                 visible=obs.visible, binocular=obs.binocular, title=name, info=dict(info or {}),
+                 **{**meta, "scene": tuple(meta.get("scene", ())) + tuple(scene)},
+                 agents=agents_of(obs) + tuple(agents))
+
+
+def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Track:
+    """A Track of plain arrays; without ``vel`` the velocities are finite differences of ``pos``."""
+    times = np.asarray(times, dtype=np.float64)
+    pos = np.asarray(pos, dtype=np.float64)
+    if vel is None:
+        vel = np.gradient(pos, times, axis=0) if len(times) > 1 else np.zeros_like(pos)
+    return Track(times=times, pos=pos, vel=np.asarray(vel, dtype=np.float64),
+                 pattern=None if pattern is None else np.asarray(pattern),
+                 leader=None if leader is None else np.asarray(leader, dtype=bool), **meta)
+
+
+def _sweep_meta(path: Path, run_id: str) -> dict:
+    """Parameters of a sweep trajectory ``<results>/trajectories/<run_id>.npz`` from its results store."""
+    from sweeps.design import rebuild
+    from sweeps.store import ResultsStore
+
+    store = ResultsStore(path.parent.parent)
+    record = store.model()
+    design = store.design()
+    if not record or design is None or run_id not in set(design["run_id"]):
+        return {}
+    row = design[design["run_id"] == run_id].iloc[0].to_dict()
+    preset, radius = rebuild(record, row)
+    meta = _preset_meta(preset)
+    meta["group_radius"] = float(radius)
+    meta["info"] = {"run id": run_id, "replicate": int(row["replicate"]), "seed": int(row["seed"])}
+    meta["title"] = f"{path.parent.parent.name}: run {run_id}"
+    return meta
+
+
+def from_npz(path) -> Track:
+    """A Track of a saved trajectory (see the module docstring)."""
+    from simcore import preset_from_dict
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such trajectory file")
+    with np.load(path) as data:
+        arrays = {key: data[key] for key in data.files}
+    missing = [key for key in ("times", "pos", "vel") if key not in arrays]
+    if missing:
+        raise ValueError(f"{path}: not a flocksweep trajectory (missing {', '.join(missing)}; "
+                         "expected times, pos, vel and optionally pattern, visible, binocular, leader)")
+    meta: dict = {"title": path.stem, "info": {"source": str(path)}}
+    params_path = path.with_name("params.json")
+    if params_path.is_file():
+        saved = json.loads(params_path.read_text())
+        meta.update(_preset_meta(preset_from_dict(saved["preset"])))
+        meta["title"] = f"{saved['preset'].get('name', path.stem)}: seed {saved.get('seed')}"
+        meta["info"] = {"source": str(path), "seed": saved.get("seed")}
+    elif path.parent.name == "trajectories":
+        meta.update(_sweep_meta(path, path.stem))
+        meta["info"] = {**meta.get("info", {}), "source": str(path)}
+    if "seed" in arrays and "seed" not in meta["info"]:
+        meta["info"]["seed"] = int(arrays["seed"])
+    return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
+                 vel=arrays["vel"].astype(np.float64), pattern=arrays.get("pattern"),
+                 leader=arrays.get("leader"), visible=arrays.get("visible"),
+                 binocular=arrays.get("binocular"), **meta)
+
+
+def as_track(source, preset=None, **options) -> Track:
+    """A Track of a Track, an ``Observations``, a path to a ``.npz`` or a mapping of arrays."""
+    from simcore import Observations
+
+    if isinstance(source, Track):
+        return replace(source, **options) if options else source
+    if isinstance(source, Observations):
+        return from_observations(source, preset, **options)
+    if preset is not None:
+        raise ValueError("preset: only used with simulator Observations (a Track or a saved trajectory "
+                         "carries its own parameters)")
+    if isinstance(source, (str, Path)):
+        track = from_npz(source)
+        return replace(track, **options) if options else track
+    if isinstance(source, dict) or hasattr(source, "files"):
+        arrays = {key: source[key] for key in (source.files if hasattr(source, "files") else source)}
+        return from_arrays(**{k: v for k, v in arrays.items()
+                              if k in ("times", "pos", "vel", "pattern", "leader")}, **options)
+    raise TypeError(f"cannot view a {type(source).__name__}: pass Observations, a Track, a trajectory .npz "
+                    "path or a dict with times, pos (and vel)")
