@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator, common_seeds, seeds_for
-from analysis.leadership import leadership_metrics
-from analysis.metrics import default_group_radius, frame_metrics, summarize, world_box
+from analysis.observables.leadership import leadership_metrics
+from analysis.observables.metrics import frame_metrics, summarize
+from analysis.observables.summary import default_group_radius, world_box
 from simcore.params import read_toml
 from simcore.schema import ConfigError, set_dotted
 from simcore.simulate import simulate

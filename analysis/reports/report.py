@@ -28,11 +28,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.observables.metrics import polarization
+from simcore import simulate
+from sweeps.design import rebuild
+from sweeps.files import write_text
+from sweeps.results import Results, load_results
+from sweeps.store import ResultsStore
+
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .findings import FIELD, DIRECTION, LEAD, findings_table, holland_findings, leadership_findings
-from .results import Results, load_results
-from sweeps.atomic import write_text
+from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",
@@ -238,8 +243,6 @@ def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
 
 
 def _timeseries(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
-    from sweeps.store import ResultsStore
-
     if not cells:
         return
     run_ids = [rid for _, rows in cells for rid in rows["run_id"]]
@@ -254,12 +257,6 @@ def _timeseries(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
 
 
 def _thumbnails(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
-    from simcore import simulate
-
-    from analysis.metrics import polarization
-    from sweeps.design import rebuild
-    from sweeps.store import ResultsStore
-
     record = ResultsStore(ctx.results.path).model()
     if not record or not cells:
         return
