@@ -15,13 +15,12 @@ Angles are in degrees, lengths in world units (body radius 0.5), times in second
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field, fields
 
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
-                     check_positive as _positive, check_within as _within, convert_field, field_names, join,
-                     read_toml as _read_toml, to_dict, unknown_key, within)
+                     check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
+                     to_dict, unknown_key)
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
 DYNAMICS = ("opensteer", "hartman_benes")
@@ -363,10 +362,10 @@ class Preset:
         if whole["init"] or whole["run"]:
             init = build(InitParams, whole["init"][-1], "init") if whole["init"] else init
             run = build(RunSettings, whole["run"][-1], "run") if whole["run"] else run
-        model = _replace_fields(self.model, sections["model"], "")
+        model = replace_fields(self.model, sections["model"], "")
         _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
-        return Preset(model=model, init=_replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
-                      run=_replace_fields(run, [c for c in sections["run"] if c[0]], "run"))
+        return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
+                      run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"))
 
 
 def _perception_keys(changes) -> list[str]:
@@ -380,32 +379,6 @@ def _perception_keys(changes) -> list[str]:
         elif isinstance(value, dict):
             keys += list(value)
     return keys
-
-
-def _replace_fields(obj, changes, path: str):
-    """``obj`` (a frozen dataclass) with ``changes`` [(key parts, value), ...] applied in one
-    ``dataclasses.replace`` per table, converted and validated as :func:`~simcore.schema.build` does."""
-    if not changes:
-        return obj
-    cls = type(obj)
-    names = field_names(cls)
-    kwargs, nested = {}, {}
-    for parts, value in changes:
-        if parts[0] not in names:
-            raise unknown_key(join(path, parts[0]), names)
-        if len(parts) == 1:
-            kwargs[parts[0]] = convert_field(cls, parts[0], value, path)
-        else:
-            nested.setdefault(parts[0], []).append((parts[1:], value))
-    for name, sub in nested.items():
-        child = kwargs.get(name, getattr(obj, name))
-        if not dataclasses.is_dataclass(child):
-            raise ConfigError(join(path, ".".join((name,) + sub[0][0])), f"'{name}' is a value, not a table")
-        kwargs[name] = _replace_fields(child, sub, join(path, name))
-    try:
-        return dataclasses.replace(obj, **kwargs)
-    except ConfigError as err:
-        raise within(err, path) from None
 
 
 def model_dict(model: ModelParams) -> dict:

@@ -11,14 +11,16 @@ dataclass ``cls``:
   bools and floats with a fractional part, ``bool`` only booleans, ``str`` only strings,
   ``Literal[...]`` one of its values (with a did-you-mean), ``tuple[X, ...]`` a list of X (a list of
   tables when X is a dataclass: key ``name[i]``), ``dict`` a table taken as it is, ``dict[str, X]`` a
-  table whose values are X, ``X | None`` None or X, ``Any`` anything; nested dataclasses recurse;
+  table whose values are X, ``Path`` a non-empty string (not resolved), ``X | None`` None or X, ``Any``
+  anything; nested dataclasses recurse;
 * a missing key takes the field default; a field without default is required;
 * a field's ``metadata["expected"]`` (e.g. ``"a non-empty string naming the sweep"``) is what type and
   missing-key errors say is allowed;
 * the dataclass' own ``__post_init__`` checks ranges (with the ``check_*`` helpers below) and raises
   :class:`ConfigError` itself; a key it names is prefixed with ``path``.
 
-``to_dict(obj)`` is the inverse (plain, JSON-ready). ``read_config`` reads a TOML file and applies
+``replace_fields(obj, changes)`` changes dotted fields of a built instance with the same conversions and
+checks. ``to_dict(obj)`` is the inverse of ``build`` (plain, JSON-ready). ``read_config`` reads a TOML file and applies
 ``key=value`` overrides (``parse_value``, ``set_dotted``, ``apply_overrides``). ``resolve_path`` finds a
 file a config names relative to the config, absolutely or relative to the working directory.
 ``suggest`` is the one did-you-mean. Nothing here knows about flocking.
@@ -150,6 +152,10 @@ def _convert(value: Any, tp, key: str, expected: str | None = None):
         if not isinstance(value, str):
             raise _wrong(key, value, expected, "a string")
         return value
+    if tp is Path:
+        if not isinstance(value, str) or not value:
+            raise _wrong(key, value, expected, "a path")
+        return Path(value)
     raise TypeError(f"schema: unsupported annotation {_type_name(tp)} at {key}")
 
 
@@ -206,6 +212,33 @@ def within(err: ConfigError, path: str) -> ConfigError:
     if not path or err.key.startswith(path):
         return err
     return ConfigError(join(path, err.key) if err.key else path, err.detail)
+
+
+def replace_fields(obj, changes, path: str = ""):
+    """``obj`` (a frozen dataclass, built by :func:`build`) with ``changes`` [(key parts, value), ...]
+    applied: one ``dataclasses.replace`` per table (so the keys of a table change together), each value
+    converted by its field's type, each table's own checks run; errors as :func:`build`'s."""
+    if not changes:
+        return obj
+    cls = type(obj)
+    names = field_names(cls)
+    kwargs, nested = {}, {}
+    for parts, value in changes:
+        if parts[0] not in names:
+            raise unknown_key(join(path, parts[0]), names)
+        if len(parts) == 1:
+            kwargs[parts[0]] = convert_field(cls, parts[0], value, path)
+        else:
+            nested.setdefault(parts[0], []).append((parts[1:], value))
+    for name, sub in nested.items():
+        child = kwargs.get(name, getattr(obj, name))
+        if not dataclasses.is_dataclass(child):
+            raise ConfigError(join(path, ".".join((name,) + sub[0][0])), f"'{name}' is a value, not a table")
+        kwargs[name] = replace_fields(child, sub, join(path, name))
+    try:
+        return dataclasses.replace(obj, **kwargs)
+    except ConfigError as err:
+        raise within(err, path) from None
 
 
 def to_dict(obj) -> Any:

@@ -26,8 +26,6 @@ from simcore.params import canonical_key
 
 from .store import ResultsStore
 
-ID_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s", "part")
-
 
 @dataclass
 class Results:
