@@ -27,6 +27,7 @@ from pathlib import Path
 
 from analysis.observables.summary import summary_columns
 from simcore import ConfigError, load_preset
+from simcore.params import RUN_SHORTHANDS
 
 from .store import StoreLocked
 
@@ -55,9 +56,9 @@ def cmd_simulate(args) -> int:
     from sweeps.single import run_single
 
     overrides = list(args.overrides)
-    for flag, key in ((args.n, "init.n"), (args.duration, "run.duration"), (args.dt, "run.dt")):
-        if flag is not None:
-            overrides.append(f"{key}={flag!r}")
+    for short in ("n", "duration", "dt"):  # the [run] shorthands of sweep files
+        if getattr(args, short) is not None:
+            overrides.append(f"{RUN_SHORTHANDS[short]}={getattr(args, short)!r}")
     preset = load_preset(args.model, overrides)
     if args.record_every < 1:
         raise ConfigError("--record-every", f"got {args.record_every}; must be an integer >= 1")

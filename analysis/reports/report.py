@@ -30,6 +30,7 @@ import pandas as pd
 
 from analysis.observables.metrics import polarization
 from simcore import simulate
+from simcore.params import canonical_key
 from sweeps.design import rebuild
 from sweeps.files import write_text
 from sweeps.results import Results, load_results
@@ -213,7 +214,7 @@ def _showcase_rows(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     for name, where in showcase.items():
         mask = np.ones(len(ctx.runs), dtype=bool)
         for column, value in where.items():
-            column = "init.n" if column == "n" else column
+            column = canonical_key(column)
             if column not in ctx.runs:
                 mask[:] = False
                 break
