@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.observables.summary import summary_columns
+
 TIMING = ("wall_s", "sim_s", "part")
 
 
@@ -35,7 +37,7 @@ def compare_sweep(old: Path, new: Path) -> str:
     pd.testing.assert_frame_equal(a[keep], b[keep], check_exact=True)
     ta, tb = _timeseries(old), _timeseries(new)
     pd.testing.assert_frame_equal(ta, tb, check_exact=True)
-    metrics = [c for c in keep if c.endswith(("_mean", "_final")) or c in ("time_to_fragmentation", "fragmented")]
+    metrics = [c for c in keep if c in set(summary_columns(leadership=True))]
     return (f"identical: {len(a)} runs, same run ids, {len(metrics)} metric columns and {len(keep)} columns "
             f"in all bit for bit, {len(ta)} time-series rows bit for bit")
 
