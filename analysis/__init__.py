@@ -1,1 +1,4 @@
-"""analysis: flock metrics, figures and reports."""
+"""analysis: flock observables (below the sweep machinery), reports and calibration (above it).
+
+See docs/architecture.md for the layers and what each may import.
+"""

@@ -39,28 +39,29 @@ def evaluation(path: str, repeats: int) -> None:
         start = time.perf_counter()
         synthetic_loglik(config.targets.observed, fn(theta, rng))
         times.append(time.perf_counter() - start)
-    n_sim = config.method.settings["n_sim"]
+    n_sim = config.method.n_sim
     print(f"{config.name}: one evaluation ({n_sim} runs) {1e3 * statistics.median(times):.0f} ms median "
           f"(min {1e3 * min(times):.0f}, max {1e3 * max(times):.0f}; {len(times)} calls)")
 
 
 def emulator(path: str) -> None:
     from analysis.calibration.config import load_calibration
-    from analysis.calibration.emulator import (build_surrogate, observation_covariance, run_emulator_mcmc,
-                                               training_set)
+    from analysis.calibration.emulated import observation_covariance, run_emulator_mcmc
+    from analysis.calibration.surrogates import build_surrogate
+    from analysis.calibration.training import training_set
 
     config = load_calibration(path)
-    settings = config.method.settings
+    settings = config.method
     start = time.perf_counter()
-    training = training_set(settings["results"], config)
+    training = training_set(settings.results, config)
     loaded = time.perf_counter()
-    surrogate = build_surrogate(training, settings["surrogate"])
+    surrogate = build_surrogate(training, settings.surrogate)
     fitted = time.perf_counter()
     run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
-                      walkers=settings["walkers"], steps=settings["steps"], seed=config.seed)
+                      walkers=settings.walkers, steps=settings.steps, seed=config.seed)
     done = time.perf_counter()
-    print(f"{config.name}: load {loaded - start:.1f} s, fit ({settings['surrogate']}, {len(training.points)} points) "
-          f"{fitted - loaded:.1f} s, chain {settings['walkers']} x {settings['steps']} {done - fitted:.1f} s")
+    print(f"{config.name}: load {loaded - start:.1f} s, fit ({settings.surrogate}, {len(training.points)} points) "
+          f"{fitted - loaded:.1f} s, chain {settings.walkers} x {settings.steps} {done - fitted:.1f} s")
 
 
 def whole(path: str) -> None:

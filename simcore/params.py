@@ -1,21 +1,26 @@
-"""Validated, frozen simulation parameters (MODEL.md sections 0-3 and 7).
+"""Validated, frozen simulation parameters (docs/model.md: configuration keys and the models).
 
 A model preset is a TOML file whose top-level keys are the fields of :class:`ModelParams` plus two tables,
 ``[init]`` (:class:`InitParams`) and ``[run]`` (:class:`RunSettings`). :func:`load_preset` reads one,
-applies ``key=value`` overrides and returns a frozen :class:`Preset`. Every check raises
+applies ``key=value`` overrides and returns a frozen :class:`Preset`; :meth:`Preset.replace` gives a
+copy with dotted keys changed, validated the same way. Every check raises
 :class:`~simcore.schema.ConfigError` naming the dotted key, the bad value and what is allowed; the
 compiled kernel trusts what passes.
+
+Preset keys have one alias, ``n`` for ``init.n`` (:data:`KEY_ALIASES`, :func:`canonical_key`); the
+``[run]`` tables of sweep and calibration files set four preset keys by short names
+(:data:`RUN_SHORTHANDS`).
 
 Angles are in degrees, lengths in world units (body radius 0.5), times in seconds.
 """
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 
-from .schema import ConfigError, apply_overrides, build, suggest, to_dict
+from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
+                     check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
+                     to_dict, unknown_key)
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
 DYNAMICS = ("opensteer", "hartman_benes")
@@ -24,28 +29,14 @@ BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
 SEPARATION_WEIGHTS = ("similarity", "dissimilarity", "uniform")
 
-
-def _choice(key: str, value, allowed) -> None:
-    if value not in allowed:
-        raise ConfigError(key, f"got {value!r}; allowed: {', '.join(map(repr, allowed))}" +
-                          suggest(str(value), allowed))
+KEY_ALIASES = {"n": "init.n"}  # the one alias table of preset keys
+RUN_SHORTHANDS = {"n": "init.n", "duration": "run.duration", "dt": "run.dt",
+                  "record_interval": "run.record_interval"}  # [run] keys of sweep and calibration files
 
 
-def _positive(key: str, value: float) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise ConfigError(key, f"got {value!r}; must be a finite number > 0")
-
-
-def _non_negative(key: str, value: float) -> None:
-    if not (math.isfinite(value) and value >= 0):
-        raise ConfigError(key, f"got {value!r}; must be a finite number >= 0")
-
-
-def _within(key: str, value: float, lo: float, hi: float, lo_open=False) -> None:
-    ok = math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi
-    if not ok:
-        bracket = "(" if lo_open else "["
-        raise ConfigError(key, f"got {value!r}; allowed range {bracket}{lo}, {hi}]")
+def canonical_key(key: str) -> str:
+    """The dotted preset key an alias stands for (``n`` -> ``init.n``); other keys unchanged."""
+    return KEY_ALIASES.get(key, key)
 
 
 # Keys of [perception] that only mean something for one kind; setting them for another kind is an error.
@@ -60,7 +51,7 @@ PERCEPTION_KIND_KEYS = {
 
 @dataclass(frozen=True)
 class Perception:
-    """Who boid i sees (MODEL.md section 2)."""
+    """Who boid i sees (docs/model.md, perception)."""
 
     kind: str = "opensteer"
     # sphere
@@ -113,7 +104,7 @@ class Perception:
 
 @dataclass(frozen=True)
 class Steering:
-    """Weights of the combined OpenSteer steering force (MODEL.md section 3)."""
+    """Weights of the combined OpenSteer steering force (docs/model.md, steering)."""
 
     separation_weight: float = 12.0
     alignment_weight: float = 8.0
@@ -139,7 +130,7 @@ class Vehicle:
 
 @dataclass(frozen=True)
 class World:
-    """Boundary and update order (MODEL.md section 0)."""
+    """Boundary and update order (docs/model.md, the world)."""
 
     boundary: str = "open"
     sphere_radius: float = 50.0
@@ -180,7 +171,7 @@ HOLLAND_TABLE_1 = (
 
 @dataclass(frozen=True)
 class Patterns:
-    """Holland's pattern recognition (MODEL.md section 3)."""
+    """Holland's pattern recognition (docs/model.md, patterns)."""
 
     enabled: bool = False
     separation_weight: str = "similarity"
@@ -204,7 +195,7 @@ class Patterns:
 
 @dataclass(frozen=True)
 class Gains:
-    """Hartman-Benes raw velocity update (MODEL.md section 5), gains per frame (= per step):
+    """Hartman-Benes raw velocity update (docs/model.md, Hartman-Benes), gains per frame (= per step):
     v' = v + (S s + K k) / dt + M m, with s = sum_j (p_i - p_j) / |p_i - p_j|^falloff."""
 
     separation: float = 0.005
@@ -220,7 +211,7 @@ class Gains:
 
 @dataclass(frozen=True)
 class Leadership:
-    """Hartman-Benes change of leadership (MODEL.md section 5); ``x = 0`` disables it exactly.
+    """Hartman-Benes change of leadership (docs/model.md, change of leadership); ``x = 0`` disables it exactly.
     Available on every dynamics: the escape acts through a velocity boost and a raised speed cap."""
 
     x: float = 0.0
@@ -283,7 +274,7 @@ class ModelParams:
 
 @dataclass(frozen=True)
 class InitParams:
-    """Initial conditions (MODEL.md section 0): N boids uniform in a ball, headings uniform on the
+    """Initial conditions (docs/model.md, initial conditions): N boids uniform in a ball, headings uniform on the
     sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``."""
 
     n: int = 100
@@ -351,6 +342,44 @@ class Preset:
         perception kinds left out. ``preset_from_dict(p.to_dict()) == p`` up to that resolution."""
         return {**model_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
 
+    def replace(self, changes: dict | None = None, /, **values) -> "Preset":
+        """A copy with dotted keys set: ``p.replace({"perception.field_deg": 90, "n": 50})`` or
+        ``p.replace(**{"run.duration": 10.0})``. A value may be a whole table (``{"perception": {...}}``,
+        which replaces the table as a preset file would). The result is exactly what the preset file
+        with those values gives, and is validated the same way: ConfigError naming the key. Keys of
+        the same table change together (``run.dt`` with ``run.duration`` is one change)."""
+        sections: dict[str, list] = {"model": [], "init": [], "run": []}
+        for key, value in {**(changes or {}), **values}.items():
+            parts = tuple(canonical_key(key).split("."))
+            if not all(parts):
+                raise ConfigError(key, "a preset key must be dotted names like perception.field_deg")
+            section = parts[0] if parts[0] in ("init", "run") else "model"
+            if section == "model" and parts[0] not in _MODEL_KEYS:
+                raise unknown_key(parts[0], _MODEL_KEYS + ("init", "run"))
+            sections[section].append((parts[1:] if section != "model" else parts, value))
+        whole = {section: [v for p, v in items if not p] for section, items in sections.items()}
+        init, run = self.init, self.run
+        if whole["init"] or whole["run"]:
+            init = build(InitParams, whole["init"][-1], "init") if whole["init"] else init
+            run = build(RunSettings, whole["run"][-1], "run") if whole["run"] else run
+        model = replace_fields(self.model, sections["model"], "")
+        _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
+        return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
+                      run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"))
+
+
+def _perception_keys(changes) -> list[str]:
+    """The perception keys a list of model changes sets (leaves, or the keys of a whole table)."""
+    keys = []
+    for parts, value in changes:
+        if parts[0] != "perception":
+            continue
+        if len(parts) > 1:
+            keys.append(parts[1])
+        elif isinstance(value, dict):
+            keys += list(value)
+    return keys
+
 
 def model_dict(model: ModelParams) -> dict:
     """Canonical resolved dict of a model (see :meth:`Preset.to_dict`): tables that cannot affect the
@@ -370,16 +399,16 @@ def model_dict(model: ModelParams) -> dict:
 _MODEL_KEYS = tuple(f.name for f in fields(ModelParams))
 
 
-def _check_kind_keys(perception: dict) -> None:
-    kind = perception.get("kind", Perception.kind)
+def _check_kind_keys(kind, keys) -> None:
+    """Perception ``keys`` that belong to another perception kind than ``kind`` are an error."""
     if not isinstance(kind, str):
         raise ConfigError("perception.kind", f"expected a string, got {kind!r}")
     _choice("perception.kind", kind, PERCEPTION_KINDS)
-    for other_kind, keys in PERCEPTION_KIND_KEYS.items():
+    for other_kind, kind_keys in PERCEPTION_KIND_KEYS.items():
         if other_kind == kind:
             continue
         for key in keys:
-            if key in perception and key not in PERCEPTION_KIND_KEYS.get(kind, ()):
+            if key in kind_keys and key not in PERCEPTION_KIND_KEYS.get(kind, ()):
                 raise ConfigError(f"perception.{key}",
                                   f"applies only to perception.kind = '{other_kind}', not '{kind}'")
 
@@ -391,10 +420,9 @@ def preset_from_dict(data: dict) -> Preset:
     run = data.pop("run", {})
     for key in data:
         if key not in _MODEL_KEYS:
-            allowed = _MODEL_KEYS + ("init", "run")
-            raise ConfigError(key, "unknown key" + suggest(key, allowed) + f"; allowed keys: {', '.join(allowed)}")
+            raise unknown_key(key, _MODEL_KEYS + ("init", "run"))
     if isinstance(data.get("perception"), dict):
-        _check_kind_keys(data["perception"])
+        _check_kind_keys(data["perception"].get("kind", Perception.kind), data["perception"])
     for name, table in (("init", init), ("run", run)):
         if not isinstance(table, dict):
             raise ConfigError(name, f"expected a table, got {table!r}")
@@ -403,14 +431,8 @@ def preset_from_dict(data: dict) -> Preset:
 
 
 def read_toml(path) -> dict:
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError("", f"model file not found: {path}")
-    try:
-        with path.open("rb") as handle:
-            return tomllib.load(handle)
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError("", f"{path}: not valid TOML: {err}") from None
+    """A model preset file as a dict (ConfigError naming the file when it is missing or not TOML)."""
+    return _read_toml(path, "model file")
 
 
 def load_preset(path, overrides=()) -> Preset:

@@ -1,19 +1,29 @@
-"""Strict conversion of plain dicts (parsed TOML) into frozen dataclasses.
+"""The one schema engine for every configuration file: model presets, sweeps and calibrations.
 
 Contract
 --------
-``build(cls, data, path)`` turns a nested ``dict`` into an instance of the frozen dataclass ``cls``:
+``build(cls, data, path)`` turns a nested ``dict`` (parsed TOML) into an instance of the frozen
+dataclass ``cls``:
 
 * every key must name a field; an unknown key raises :class:`ConfigError` naming the dotted key and the
-  closest known key ("did you mean ...");
-* values are type-checked against the field annotation (``float`` accepts ints, ``int`` rejects floats
-  with a fractional part and bools, ``bool`` accepts only booleans, ``str`` only strings); nested
-  dataclasses recurse; ``tuple[X, ...]`` accepts lists;
-* missing keys take the field default;
-* the dataclass' own ``__post_init__`` checks ranges and raises :class:`ConfigError` itself.
+  closest known key ("did you mean ...") and listing the allowed keys;
+* values are converted by the field annotation: ``float`` accepts ints (not bools), ``int`` rejects
+  bools and floats with a fractional part, ``bool`` only booleans, ``str`` only strings,
+  ``Literal[...]`` one of its values (with a did-you-mean), ``tuple[X, ...]`` a list of X (a list of
+  tables when X is a dataclass: key ``name[i]``), ``dict`` a table taken as it is, ``dict[str, X]`` a
+  table whose values are X, ``Path`` a non-empty string (not resolved), ``X | None`` None or X, ``Any``
+  anything; nested dataclasses recurse;
+* a missing key takes the field default; a field without default is required;
+* a field's ``metadata["expected"]`` (e.g. ``"a non-empty string naming the sweep"``) is what type and
+  missing-key errors say is allowed;
+* the dataclass' own ``__post_init__`` checks ranges (with the ``check_*`` helpers below) and raises
+  :class:`ConfigError` itself; a key it names is prefixed with ``path``.
 
-``to_dict(obj)`` is the inverse (plain, JSON-ready); ``parse_value``/``set_dotted``/``apply_overrides``
-handle ``a.b.c=value`` override strings. Nothing here knows about flocking; sweeps and calibration reuse it.
+``replace_fields(obj, changes)`` changes dotted fields of a built instance with the same conversions and
+checks. ``to_dict(obj)`` is the inverse of ``build`` (plain, JSON-ready). ``read_config`` reads a TOML file and applies
+``key=value`` overrides (``parse_value``, ``set_dotted``, ``apply_overrides``). ``resolve_path`` finds a
+file a config names relative to the config, absolutely or relative to the working directory.
+``suggest`` is the one did-you-mean. Nothing here knows about flocking.
 """
 from __future__ import annotations
 
@@ -21,9 +31,11 @@ import dataclasses
 import difflib
 import functools
 import json
+import math
 import tomllib
 import types
 import typing
+from pathlib import Path
 from typing import Any
 
 
@@ -34,10 +46,15 @@ class ConfigError(ValueError):
         self.key = key
         super().__init__(f"{key}: {message}" if key else message)
 
+    @property
+    def detail(self) -> str:
+        """The message without its key."""
+        return str(self).split(": ", 1)[-1] if self.key else str(self)
+
 
 def suggest(name: str, known) -> str:
     """' (did you mean 'x'?)' for the closest known name, or '' when nothing is close."""
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
@@ -45,46 +62,100 @@ def join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
 
+# ------------------------------------------------------------------------------------------- checks
+
+def check_choice(key: str, value, allowed) -> None:
+    if value not in allowed:
+        raise ConfigError(key, f"got {value!r}; allowed: {', '.join(map(repr, allowed))}" + suggest(str(value), allowed))
+
+
+def check_positive(key: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(key, f"got {value!r}; must be a finite number > 0")
+
+
+def check_non_negative(key: str, value: float) -> None:
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigError(key, f"got {value!r}; must be a finite number >= 0")
+
+
+def check_within(key: str, value: float, lo: float, hi: float, lo_open: bool = False) -> None:
+    ok = math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise ConfigError(key, f"got {value!r}; allowed range {bracket}{lo}, {hi}]")
+
+
+def check_at_least(key: str, value: int, minimum: int) -> None:
+    if value < minimum:
+        raise ConfigError(key, f"got {value!r}; expected an integer >= {minimum}")
+
+
+def check_finite(key: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ConfigError(key, f"got {value!r}; expected a finite number")
+
+
+# ------------------------------------------------------------------------------------------ building
+
 def _type_name(tp) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
-def _convert(value: Any, tp, key: str):
+def _wrong(key: str, value, expected: str | None, default: str):
+    return ConfigError(key, f"expected {expected or default}, got {value!r}")
+
+
+def _convert(value: Any, tp, key: str, expected: str | None = None):
     origin = typing.get_origin(tp)
+    if tp is Any:
+        return value
     if origin in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
         if value is None:
             return None
-        return _convert(value, args[0], key)
+        return _convert(value, args[0], key, expected)
+    if origin is typing.Literal:
+        check_choice(key, value, typing.get_args(tp))
+        return value
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
-            raise ConfigError(key, f"expected a table, got {value!r}")
+            raise _wrong(key, value, expected, "a table")
         return build(tp, value, key)
+    if tp is dict or origin is dict:
+        if not isinstance(value, dict):
+            raise _wrong(key, value, expected, "a table")
+        args = typing.get_args(tp)
+        if not args or args[1] is Any:
+            return dict(value)
+        return {k: _convert(v, args[1], join(key, k), expected) for k, v in value.items()}
     if origin is tuple:
         (item_tp, _) = typing.get_args(tp)
         if not isinstance(value, (list, tuple)):
-            raise ConfigError(key, f"expected a list, got {value!r}")
-        return tuple(_convert(v, item_tp, f"{key}[{i}]") for i, v in enumerate(value))
+            raise _wrong(key, value, expected, "a list")
+        return tuple(_convert(v, item_tp, f"{key}[{i}]", expected) for i, v in enumerate(value))
     if tp is bool:
         if not isinstance(value, bool):
-            raise ConfigError(key, f"expected true or false, got {value!r}")
+            raise _wrong(key, value, expected, "true or false")
         return value
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(key, f"expected a number, got {value!r}")
+            raise _wrong(key, value, expected, "a number")
         return float(value)
     if tp is int:
-        if isinstance(value, bool):
-            raise ConfigError(key, f"expected an integer, got {value!r}")
         if isinstance(value, float) and value.is_integer():
             return int(value)
-        if not isinstance(value, int):
-            raise ConfigError(key, f"expected an integer, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise _wrong(key, value, expected, "an integer")
         return value
     if tp is str:
         if not isinstance(value, str):
-            raise ConfigError(key, f"expected a string, got {value!r}")
+            raise _wrong(key, value, expected, "a string")
         return value
+    if tp is Path:
+        if not isinstance(value, str) or not value:
+            raise _wrong(key, value, expected, "a path")
+        return Path(value)
     raise TypeError(f"schema: unsupported annotation {_type_name(tp)} at {key}")
 
 
@@ -94,24 +165,80 @@ def _schema(cls) -> tuple[dict, dict]:
     return typing.get_type_hints(cls), {f.name: f for f in dataclasses.fields(cls) if f.init}
 
 
+def convert_field(cls, name: str, value, path: str = ""):
+    """``value`` converted to the type of field ``name`` of dataclass ``cls`` (key ``path.name``)."""
+    hints, fields = _schema(cls)
+    return _convert(value, hints[name], join(path, name), fields[name].metadata.get("expected"))
+
+
+def field_names(cls) -> tuple[str, ...]:
+    return tuple(_schema(cls)[1])
+
+
+def unknown_key(key: str, allowed) -> ConfigError:
+    allowed = list(allowed)
+    name = key.rsplit(".", 1)[-1]
+    return ConfigError(key, "unknown key" + suggest(name, allowed) + f"; allowed keys: {', '.join(allowed)}")
+
+
+def check_table(data, allowed, path: str) -> None:
+    """``data`` must be a table whose keys are all in ``allowed``."""
+    if not isinstance(data, dict):
+        raise ConfigError(path, f"expected a table, got {data!r}")
+    for key in data:
+        if key not in allowed:
+            raise unknown_key(join(path, key), allowed)
+
+
 def build(cls, data: dict, path: str = ""):
     """Instance of dataclass ``cls`` from ``data``; errors name the dotted key."""
     hints, fields = _schema(cls)
-    for key in data:
-        if key not in fields:
-            raise ConfigError(join(path, key), "unknown key" + suggest(key, fields) +
-                              f"; allowed keys: {', '.join(sorted(fields))}")
+    check_table(data, fields, path)
     for name, spec in fields.items():
         required = spec.default is dataclasses.MISSING and spec.default_factory is dataclasses.MISSING
         if required and name not in data:
-            raise ConfigError(join(path, name), "missing required key")
-    kwargs = {k: _convert(v, hints[k], join(path, k)) for k, v in data.items()}
+            expected = spec.metadata.get("expected")
+            raise ConfigError(join(path, name), "missing required key" + (f": expected {expected}" if expected else ""))
+    kwargs = {k: convert_field(cls, k, v, path) for k, v in data.items()}
     try:
         return cls(**kwargs)
     except ConfigError as err:
-        if path and not err.key.startswith(path):
-            raise ConfigError(join(path, err.key), str(err).split(": ", 1)[-1]) from None
-        raise
+        raise within(err, path) from None
+
+
+def within(err: ConfigError, path: str) -> ConfigError:
+    """``err`` raised by a table's own checks, re-keyed under the table's ``path`` (unchanged when its
+    key already starts there; the table itself when it names no key)."""
+    if not path or err.key.startswith(path):
+        return err
+    return ConfigError(join(path, err.key) if err.key else path, err.detail)
+
+
+def replace_fields(obj, changes, path: str = ""):
+    """``obj`` (a frozen dataclass, built by :func:`build`) with ``changes`` [(key parts, value), ...]
+    applied: one ``dataclasses.replace`` per table (so the keys of a table change together), each value
+    converted by its field's type, each table's own checks run; errors as :func:`build`'s."""
+    if not changes:
+        return obj
+    cls = type(obj)
+    names = field_names(cls)
+    kwargs, nested = {}, {}
+    for parts, value in changes:
+        if parts[0] not in names:
+            raise unknown_key(join(path, parts[0]), names)
+        if len(parts) == 1:
+            kwargs[parts[0]] = convert_field(cls, parts[0], value, path)
+        else:
+            nested.setdefault(parts[0], []).append((parts[1:], value))
+    for name, sub in nested.items():
+        child = kwargs.get(name, getattr(obj, name))
+        if not dataclasses.is_dataclass(child):
+            raise ConfigError(join(path, ".".join((name,) + sub[0][0])), f"'{name}' is a value, not a table")
+        kwargs[name] = replace_fields(child, sub, join(path, name))
+    try:
+        return dataclasses.replace(obj, **kwargs)
+    except ConfigError as err:
+        raise within(err, path) from None
 
 
 def to_dict(obj) -> Any:
@@ -120,8 +247,14 @@ def to_dict(obj) -> Any:
         return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
     if isinstance(obj, tuple):
         return [to_dict(v) for v in obj]
+    if isinstance(obj, dict):
+        return {k: to_dict(v) for k, v in obj.items()}
+    if isinstance(obj, Path):
+        return str(obj)
     return obj
 
+
+# ------------------------------------------------------------------------------------- files, overrides
 
 def parse_value(text: str):
     """Value of an override string: TOML syntax when it parses (numbers, booleans, lists, quoted
@@ -156,20 +289,22 @@ def get_dotted(data: dict, dotted: str):
     return node
 
 
-def read_config(path, what: str, overrides=()) -> dict:
-    """A TOML config file as a dict with ``key=value`` overrides applied; a missing file or bad TOML is
-    a ConfigError naming the file (``what`` says which kind of file it is)."""
-    from pathlib import Path
-
+def read_toml(path, what: str) -> dict:
+    """A TOML file as a dict; a missing file or bad TOML is a ConfigError naming the file (``what``
+    says which kind of file it is)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError("", f"{what} not found: {path}")
     try:
         with path.open("rb") as handle:
-            data = tomllib.load(handle)
+            return tomllib.load(handle)
     except tomllib.TOMLDecodeError as err:
         raise ConfigError("", f"{path}: not valid TOML: {err}") from None
-    return apply_overrides(data, overrides)
+
+
+def read_config(path, what: str, overrides=()) -> dict:
+    """A TOML config file as a dict with ``key=value`` overrides applied (see :func:`read_toml`)."""
+    return apply_overrides(read_toml(path, what), overrides)
 
 
 def apply_overrides(data: dict, overrides) -> dict:
@@ -181,3 +316,19 @@ def apply_overrides(data: dict, overrides) -> dict:
         key, text = item.split("=", 1)
         set_dotted(out, key.strip(), parse_value(text.strip()))
     return out
+
+
+def resolve_path(text, base, key: str, what: str, must_exist: bool = True) -> Path:
+    """The path a config names: absolute, else relative to ``base`` (the config's folder), else to the
+    working directory; the first that exists, resolved. A missing one is a ConfigError at ``key``
+    listing where it looked, or (``must_exist=False``) the path relative to ``base``."""
+    if not isinstance(text, str) or not text:
+        raise ConfigError(key, f"got {text!r}; expected a path to the {what}")
+    candidates = [Path(text)] if Path(text).is_absolute() else [Path(base) / text, Path.cwd() / text]
+    for path in candidates:
+        if path.exists():
+            return path.resolve()
+    if not must_exist:
+        return candidates[0]
+    tried = ", ".join(str(p) for p in candidates)
+    raise ConfigError(key, f"{what} not found: {text!r} (looked at {tried})")

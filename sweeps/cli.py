@@ -16,6 +16,9 @@
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
+
+This module is the top of the import graph (docs/architecture.md): it may import every layer. Each
+command imports what it needs when it runs, so ``flocksweep simulate`` does not load the calibration.
 """
 from __future__ import annotations
 
@@ -24,7 +27,9 @@ import os
 import sys
 from pathlib import Path
 
+from analysis.observables.summary import summary_columns
 from simcore import ConfigError, load_preset
+from simcore.params import RUN_SHORTHANDS
 
 from .store import StoreLocked
 
@@ -49,12 +54,13 @@ def _add_simulate(sub) -> None:
 
 
 def cmd_simulate(args) -> int:
+    from analysis.reports.traces import plot_traces, wrap_distance
     from sweeps.single import run_single
 
     overrides = list(args.overrides)
-    for flag, key in ((args.n, "init.n"), (args.duration, "run.duration"), (args.dt, "run.dt")):
-        if flag is not None:
-            overrides.append(f"{key}={flag!r}")
+    for short in ("n", "duration", "dt"):  # the [run] shorthands of sweep files
+        if getattr(args, short) is not None:
+            overrides.append(f"{RUN_SHORTHANDS[short]}={getattr(args, short)!r}")
     preset = load_preset(args.model, overrides)
     if args.record_every < 1:
         raise ConfigError("--record-every", f"got {args.record_every}; must be an integer >= 1")
@@ -63,7 +69,12 @@ def cmd_simulate(args) -> int:
     out = args.out
     if out is None and args.plot:
         out = Path("results") / "simulate" / f"{preset.model.name}-seed{args.seed}"
-    summary, written = run_single(preset, args.seed, out, args.plot, args.color_by, args.record_every)
+    summary, written, obs = run_single(preset, args.seed, out, args.record_every)
+    if args.plot:
+        title = (f"{preset.model.name}: N={obs.n}, {obs.times[-1]:g} s, seed {args.seed}, "
+                 f"final polarization {summary['final_polarization']:.2f}")
+        written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
+                                   wrap_distance(preset.model), title))
     print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s")
     print(f"  final polarization     {summary['final_polarization']:.3f}")
     print(f"  final mean speed       {summary['final_mean_speed']:.3f}")
@@ -143,8 +154,7 @@ def _parse_until_ci(text: str) -> tuple[str, float]:
     if not metric or not target > 0:
         raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with HALFWIDTH > 0, "
                                         "e.g. cohesion_mean=0.05")
-    return (metric if metric.endswith(("_mean", "_final")) or metric in ("time_to_fragmentation", "fragmented")
-            else f"{metric}_mean"), target
+    return (metric if metric in summary_columns(leadership=True) else f"{metric}_mean"), target
 
 
 def _run_until_ci(args, config, out) -> int:
@@ -209,7 +219,7 @@ def _add_report(sub) -> None:
 
 
 def cmd_report(args) -> int:
-    from analysis.report import ReportError, build_report
+    from analysis.reports.report import ReportError, build_report
 
     formats = ("html", "md") if args.format == "both" else (args.format,)
     try:

@@ -50,32 +50,189 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 Axis keys are preset keys (``perception.*``, ``steering.*``, ``vehicle.*``, ``world.*``,
 ``patterns.*``, ``init.*``, ``run.*``) or ``n`` (= ``init.n``). Values are validated by building every
 run's preset before anything runs (see :mod:`sweeps.design`).
+
+The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
+and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
+:func:`model_data` applies them to the preset the same way for both. ``warmup``, ``group_radius`` and
+``fragmentation_cohesion`` (and the leadership switch) become the run's
+:class:`~analysis.observables.summary.MetricSettings`; ``keep`` and ``trajectory_every`` what is stored
+(:class:`Storage`).
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
-from simcore.params import read_toml
-from simcore.schema import ConfigError, read_config, set_dotted, suggest
+from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
+from analysis.observables.summary import MetricSettings
+from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
+from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
+                            set_dotted)
 
-SAMPLE_METHODS = ("random", "lhs", "sobol")
-KEEP = ("metrics", "trajectories")
-KEY_ALIASES = {"n": "init.n"}
-
-TOP_KEYS = ("name", "description", "seed", "replicates", "common_random_numbers", "model", "run", "axes",
-            "sample", "report")
-MODEL_KEYS = ("preset", "set")
-RUN_KEYS = ("n", "duration", "dt", "record_interval", "warmup", "group_radius", "fragmentation_cohesion",
-            "keep", "trajectory_every", "leadership_metrics")
-AXIS_KEYS = ("name", "key", "keys", "values", "labels", "linspace", "range")
-SAMPLE_KEYS = ("method", "n", "bounds", "scramble")
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
 
+
+# ----------------------------------------------------------------------------------------- the file
+
+@dataclass(frozen=True)
+class ModelTable:
+    """``[model]`` of sweep and calibration files: the preset and fixed overrides of its keys."""
+
+    preset: str = field(metadata={"expected": "a path to a model preset TOML"})
+    set: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RunTable:
+    """``[run]`` of sweep and calibration files: four preset keys by short names (RUN_SHORTHANDS) and
+    the metric settings."""
+
+    n: int | None = None
+    duration: float | None = None
+    dt: float | None = None
+    record_interval: float | None = None
+    warmup: float = WARMUP_S
+    group_radius: Any = field(default="auto", metadata={"expected": '"auto" or a number > 0'})
+    fragmentation_cohesion: float = FRAGMENTATION_COHESION
+
+    def __post_init__(self):
+        radius = self.group_radius
+        if radius != "auto" and (isinstance(radius, bool) or not isinstance(radius, (int, float))):
+            raise ConfigError("group_radius", f'got {radius!r}; expected "auto" or a number > 0')
+        self.metrics(leadership=False)  # validates the metric settings
+
+    def preset_changes(self) -> dict:
+        """{short key: (preset key, value)} of the shorthands given."""
+        return {short: (key, getattr(self, short)) for short, key in RUN_SHORTHANDS.items()
+                if getattr(self, short) is not None}
+
+    def metrics(self, leadership: bool) -> MetricSettings:
+        radius = None if self.group_radius == "auto" else float(self.group_radius)
+        return MetricSettings(warmup=self.warmup, group_radius=radius,
+                              fragmentation_cohesion=self.fragmentation_cohesion, leadership=leadership)
+
+
+@dataclass(frozen=True)
+class SweepRunTable(RunTable):
+    """A sweep's ``[run]``: the shared keys, what is stored and whether leadership metrics are computed."""
+
+    keep: Literal["metrics", "trajectories"] = "metrics"
+    trajectory_every: int = 6
+    leadership_metrics: Any = "auto"
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_at_least("trajectory_every", self.trajectory_every, 1)
+        if self.leadership_metrics not in ("auto", True, False):
+            raise ConfigError("leadership_metrics", f'got {self.leadership_metrics!r}; allowed: "auto", true, false')
+
+
+@dataclass(frozen=True)
+class Linspace:
+    start: float
+    stop: float
+    num: int
+
+    def __post_init__(self):
+        check_finite("start", self.start)
+        check_finite("stop", self.stop)
+        check_at_least("num", self.num, 1)
+
+    def values(self) -> list[float]:
+        num, start, stop = self.num, self.start, self.stop
+        return [start + (stop - start) * k / (num - 1) if num > 1 else start for k in range(num)]
+
+
+@dataclass(frozen=True)
+class Steps:
+    """An axis' ``range = { start, stop, step }``."""
+
+    start: float
+    stop: float
+    step: float
+
+    def __post_init__(self):
+        for name in ("start", "stop", "step"):
+            check_finite(name, getattr(self, name))
+        if self.step <= 0 or self.stop < self.start:
+            raise ConfigError("", "needs step > 0 and stop >= start")
+
+    def values(self) -> list[float]:
+        count = int(math.floor((self.stop - self.start) / self.step + 1e-9)) + 1
+        return [self.start + k * self.step for k in range(count)]
+
+
+@dataclass(frozen=True)
+class AxisTable:
+    """One ``[[axes]]`` table as written (see the module docstring); :func:`parse_axis` checks the rest."""
+
+    name: str | None = None
+    key: str | None = None
+    keys: tuple[str, ...] | None = None
+    values: Any = None
+    labels: tuple[str, ...] | None = None
+    linspace: Linspace | None = None
+    range: Steps | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class SampleTable:
+    method: Literal["random", "lhs", "sobol"] = "lhs"
+    n: int = field(metadata={"expected": "an integer >= 1"})
+    bounds: Any = None
+    scramble: bool = True
+
+    def __post_init__(self):
+        check_at_least("n", self.n, 1)
+
+
+@dataclass(frozen=True)
+class SweepFile:
+    """A sweep file's tables, type-checked (see the module docstring)."""
+
+    name: str = field(metadata={"expected": "a non-empty string naming the sweep"})
+    model: ModelTable = field(metadata={"expected": 'a table naming a preset: [model] preset = "..."'})
+    description: str = ""
+    seed: int = 0
+    replicates: int = 1
+    common_random_numbers: bool = False
+    run: SweepRunTable = field(default_factory=SweepRunTable)
+    axes: tuple[AxisTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[axes]]"})
+    sample: SampleTable | None = None
+    report: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        check_name(self.name, "the sweep")
+        check_at_least("seed", self.seed, 0)
+        check_at_least("replicates", self.replicates, 1)
+
+
+def check_name(name: str, what: str) -> None:
+    if not name or "/" in name or name.startswith("."):
+        raise ConfigError("name", f"got {name!r}; expected a plain folder name for {what}")
+
+
+def model_data(model: ModelTable, run: RunTable, base) -> tuple[Path, dict, dict]:
+    """(preset path, the preset dict with ``model.set`` then the ``[run]`` shorthands applied, and for
+    every key set that way the key of the file that set it). ``base``: the folder of the file."""
+    preset_path = resolve_path(model.preset, base, "model.preset", "model file")
+    if not preset_path.is_file():
+        raise ConfigError("model.preset", f"not a file: {preset_path}")
+    data = read_toml(preset_path)
+    origin = {}
+    for key, value in model.set.items():
+        set_dotted(data, canonical_key(key), value)
+        origin[canonical_key(key)] = f"model.set.{key}"
+    for short, (key, value) in run.preset_changes().items():
+        set_dotted(data, key, value)
+        origin[key] = f"run.{short}"
+    return preset_path, data, origin
+
+
+# --------------------------------------------------------------------------------------- the config
 
 @dataclass(frozen=True)
 class Axis:
@@ -96,15 +253,12 @@ class Sample:
 
 
 @dataclass(frozen=True)
-class Analysis:
-    """Run settings that shape what is computed from a simulation (not the simulation itself)."""
+class Storage:
+    """What a run stores beside its row: ``keep = "trajectories"`` adds positions and velocities every
+    ``trajectory_every`` steps."""
 
-    warmup: float = 3.0
-    group_radius: float | None = None  # None: the model's perception range
-    fragmentation_cohesion: float = 0.5
     keep: str = "metrics"
     trajectory_every: int = 6
-    leadership: bool = False  # leadership metrics (trigger rate, follow response, ...) for every run
 
 
 @dataclass(frozen=True)
@@ -116,7 +270,8 @@ class SweepConfig:
     common_random_numbers: bool
     preset_path: Path
     preset_data: dict = field(repr=False, compare=False, hash=False)  # preset TOML with all overrides
-    analysis: Analysis
+    metrics: MetricSettings
+    storage: Storage
     axes: tuple[Axis, ...]
     sample: Sample | None
     report: dict = field(repr=False, compare=False, hash=False)
@@ -129,65 +284,34 @@ class SweepConfig:
             names += [key for key, _, _ in self.sample.bounds]
         return tuple(names)
 
+    @property
+    def swept_keys(self) -> list[str]:
+        keys = [k for axis in self.axes for k in axis.keys]
+        return keys + ([k for k, _, _ in self.sample.bounds] if self.sample else [])
 
-def _check_keys(table: dict, allowed, where: str) -> None:
-    if not isinstance(table, dict):
-        raise ConfigError(where, f"expected a table, got {table!r}")
-    for key in table:
-        if key not in allowed:
-            raise ConfigError(f"{where}.{key}" if where else key,
-                              "unknown key" + suggest(key, allowed) + f"; allowed keys: {', '.join(allowed)}")
-
-
-def _typed(value, kind, key: str, allowed: str):
-    ok = isinstance(value, kind) and not (kind is not bool and isinstance(value, bool))
-    if kind is float:
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok:
-        raise ConfigError(key, f"got {value!r}; expected {allowed}")
-    return float(value) if kind is float else value
+    def analysis_record(self) -> dict:
+        """The metric and storage settings as stored in ``model.json`` (``analysis``)."""
+        m, s = self.metrics, self.storage
+        return {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
+                "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
 
 
-def _resolve_preset_path(text: str, base: Path) -> Path:
-    candidates = [Path(text)] if Path(text).is_absolute() else [base / text, Path.cwd() / text]
-    for path in candidates:
-        if path.is_file():
-            return path.resolve()
-    tried = ", ".join(str(p) for p in candidates)
-    raise ConfigError("model.preset", f"model file not found: {text!r} (looked at {tried})")
-
-
-def canonical_key(key: str, where: str) -> str:
+def canonical_axis_key(key, where: str) -> str:
     if not isinstance(key, str) or not key:
         raise ConfigError(where, f"got {key!r}; expected a dotted preset key such as 'perception.field_deg'")
-    return KEY_ALIASES.get(key, key)
+    return canonical_key(key)
 
 
-def _axis_points(axis: dict, where: str, n_keys: int) -> list:
-    given = [k for k in ("values", "linspace", "range") if k in axis]
+def _axis_points(axis: AxisTable, where: str, n_keys: int) -> list:
+    given = [k for k in ("values", "linspace", "range") if getattr(axis, k) is not None]
     if len(given) != 1:
         raise ConfigError(where, "give exactly one of 'values', 'linspace' or 'range'")
-    if "values" in axis:
-        values = axis["values"]
+    if axis.values is not None:
+        values = axis.values
         if not isinstance(values, list) or not values:
             raise ConfigError(f"{where}.values", f"got {values!r}; expected a non-empty list")
-    elif "linspace" in axis:
-        spec = axis["linspace"]
-        _check_keys(spec, ("start", "stop", "num"), f"{where}.linspace")
-        start, stop = (_typed(spec.get(k), float, f"{where}.linspace.{k}", "a number") for k in ("start", "stop"))
-        num = _typed(spec.get("num"), int, f"{where}.linspace.num", "an integer >= 1")
-        if num < 1:
-            raise ConfigError(f"{where}.linspace.num", f"got {num}; expected an integer >= 1")
-        values = [start + (stop - start) * k / (num - 1) if num > 1 else start for k in range(num)]
     else:
-        spec = axis["range"]
-        _check_keys(spec, ("start", "stop", "step"), f"{where}.range")
-        start, stop, step = (_typed(spec.get(k), float, f"{where}.range.{k}", "a number")
-                             for k in ("start", "stop", "step"))
-        if step <= 0 or stop < start:
-            raise ConfigError(f"{where}.range", "needs step > 0 and stop >= start")
-        count = int(math.floor((stop - start) / step + 1e-9)) + 1
-        values = [start + k * step for k in range(count)]
+        values = (axis.linspace or axis.range).values()
     if n_keys == 1:
         return [(v,) for v in values]
     points = []
@@ -199,138 +323,72 @@ def _axis_points(axis: dict, where: str, n_keys: int) -> list:
     return points
 
 
-def parse_axis(axis: dict, index: int) -> Axis:
+def parse_axis(axis: AxisTable, index: int) -> Axis:
     where = f"axes[{index}]"
-    _check_keys(axis, AXIS_KEYS, where)
-    if ("key" in axis) == ("keys" in axis):
+    if (axis.key is None) == (axis.keys is None):
         raise ConfigError(where, "give exactly one of 'key' (one factor) or 'keys' (zipped factors)")
-    if "key" in axis:
-        keys = (canonical_key(axis["key"], f"{where}.key"),)
+    if axis.key is not None:
+        keys = (canonical_axis_key(axis.key, f"{where}.key"),)
     else:
-        raw = axis["keys"]
-        if not isinstance(raw, list) or len(raw) < 2:
-            raise ConfigError(f"{where}.keys", f"got {raw!r}; a zipped axis needs a list of >= 2 keys")
-        keys = tuple(canonical_key(k, f"{where}.keys") for k in raw)
+        if len(axis.keys) < 2:
+            raise ConfigError(f"{where}.keys", f"got {list(axis.keys)!r}; a zipped axis needs a list of >= 2 keys")
+        keys = tuple(canonical_axis_key(k, f"{where}.keys") for k in axis.keys)
     points = _axis_points(axis, where, len(keys))
-    name = axis.get("name", keys[0] if len(keys) == 1 else "+".join(keys))
-    _typed(name, str, f"{where}.name", "a string")
+    name = axis.name if axis.name is not None else (keys[0] if len(keys) == 1 else "+".join(keys))
     if name in RESERVED_COLUMNS:
         raise ConfigError(f"{where}.name", f"got {name!r}; that name is a results column "
                                            f"({', '.join(RESERVED_COLUMNS)}); choose another")
-    labels = axis.get("labels")
-    if labels is not None:
-        if not isinstance(labels, list) or len(labels) != len(points) or not all(isinstance(s, str) for s in labels):
-            raise ConfigError(f"{where}.labels", f"got {labels!r}; expected {len(points)} strings, one per value")
-        labels = tuple(labels)
+    if axis.labels is not None and len(axis.labels) != len(points):
+        raise ConfigError(f"{where}.labels", f"got {list(axis.labels)!r}; expected {len(points)} strings, one per value")
     if len(set(map(repr, points))) != len(points):
         raise ConfigError(f"{where}.values", "values repeat; use 'replicates' for repeated runs")
-    return Axis(name=name, keys=keys, points=tuple(points), labels=labels)
+    return Axis(name=name, keys=keys, points=tuple(points), labels=axis.labels)
 
 
-def parse_sample(sample: dict) -> Sample:
-    _check_keys(sample, SAMPLE_KEYS, "sample")
-    method = sample.get("method", "lhs")
-    if method not in SAMPLE_METHODS:
-        raise ConfigError("sample.method", f"got {method!r}; allowed: {', '.join(SAMPLE_METHODS)}" +
-                          suggest(str(method), SAMPLE_METHODS))
-    n = _typed(sample.get("n"), int, "sample.n", "an integer >= 1")
-    if n < 1:
-        raise ConfigError("sample.n", f"got {n}; expected an integer >= 1")
-    bounds = sample.get("bounds")
+def parse_sample(sample: SampleTable) -> Sample:
+    bounds = sample.bounds
     if not isinstance(bounds, dict) or not bounds:
         raise ConfigError("sample.bounds", "expected a table of key = [low, high]")
     out = []
     for key, pair in bounds.items():
         where = f"sample.bounds.{key}"
-        if not (isinstance(pair, list) and len(pair) == 2):
-            raise ConfigError(where, f"got {pair!r}; expected [low, high]")
-        low, high = (_typed(v, float, where, "numbers [low, high]") for v in pair)
+        numbers = isinstance(pair, list) and len(pair) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pair)
+        if not numbers:
+            raise ConfigError(where, f"got {pair!r}; expected [low, high] (finite numbers)")
+        low, high = map(float, pair)
         if not low < high:
             raise ConfigError(where, f"got {pair!r}; low must be < high")
-        out.append((canonical_key(key, where), low, high))
-    scramble = _typed(sample.get("scramble", True), bool, "sample.scramble", "true or false")
-    return Sample(method=method, n=n, bounds=tuple(out), scramble=scramble)
+        out.append((canonical_axis_key(key, where), low, high))
+    return Sample(method=sample.method, n=sample.n, bounds=tuple(out), scramble=sample.scramble)
 
 
-def _parse_run(run: dict) -> tuple[list[str], Analysis]:
-    _check_keys(run, RUN_KEYS, "run")
-    overrides = []
-    for key, target in (("n", "init.n"), ("duration", "run.duration"), ("dt", "run.dt"),
-                        ("record_interval", "run.record_interval")):
-        if key in run:
-            overrides.append((target, run[key]))
-    warmup = _typed(run.get("warmup", 3.0), float, "run.warmup", "a number >= 0")
-    if warmup < 0:
-        raise ConfigError("run.warmup", f"got {warmup}; expected a number >= 0")
-    radius = run.get("group_radius", "auto")
-    if radius != "auto":
-        radius = _typed(radius, float, "run.group_radius", "\"auto\" or a number > 0")
-        if radius <= 0:
-            raise ConfigError("run.group_radius", f"got {radius}; expected \"auto\" or a number > 0")
-    frag = _typed(run.get("fragmentation_cohesion", 0.5), float, "run.fragmentation_cohesion", "a number in (0, 1]")
-    if not 0 < frag <= 1:
-        raise ConfigError("run.fragmentation_cohesion", f"got {frag}; expected a number in (0, 1]")
-    keep = run.get("keep", "metrics")
-    if keep not in KEEP:
-        raise ConfigError("run.keep", f"got {keep!r}; allowed: {', '.join(KEEP)}" + suggest(str(keep), KEEP))
-    every = _typed(run.get("trajectory_every", 6), int, "run.trajectory_every", "an integer >= 1")
-    if every < 1:
-        raise ConfigError("run.trajectory_every", f"got {every}; expected an integer >= 1")
-    lead = run.get("leadership_metrics", "auto")
-    if lead not in ("auto", True, False):
-        raise ConfigError("run.leadership_metrics", f"got {lead!r}; allowed: \"auto\", true, false")
-    analysis = Analysis(warmup=warmup, group_radius=None if radius == "auto" else radius,
-                        fragmentation_cohesion=frag, keep=keep, trajectory_every=every,
-                        leadership=lead is True)
-    return overrides, analysis, lead == "auto"
+def _leadership_on(setting, preset_data: dict, swept: list[str]) -> bool:
+    """``leadership_metrics``: true/false as given; "auto" when leadership is swept or switched on."""
+    if setting != "auto":
+        return bool(setting)
+    x = preset_data.get("leadership", {}).get("x", 0)
+    return "leadership.x" in swept or (isinstance(x, (int, float)) and x > 0)
 
 
 def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
     """Validated sweep from a parsed TOML dict; ``base`` is the folder relative paths start from."""
-    _check_keys(data, TOP_KEYS, "")
-    name = _typed(data.get("name"), str, "name", "a non-empty string naming the sweep")
-    if not name or "/" in name or name.startswith("."):
-        raise ConfigError("name", f"got {name!r}; expected a plain folder name")
-    seed = _typed(data.get("seed", 0), int, "seed", "an integer >= 0")
-    replicates = _typed(data.get("replicates", 1), int, "replicates", "an integer >= 1")
-    if seed < 0:
-        raise ConfigError("seed", f"got {seed}; expected an integer >= 0")
-    if replicates < 1:
-        raise ConfigError("replicates", f"got {replicates}; expected an integer >= 1")
-    crn = _typed(data.get("common_random_numbers", False), bool, "common_random_numbers", "true or false")
-    model = data.get("model")
-    if model is None:
-        raise ConfigError("model", "missing table: name a preset with [model] preset = \"...\"")
-    _check_keys(model, MODEL_KEYS, "model")
-    preset_text = _typed(model.get("preset"), str, "model.preset", "a path to a model preset TOML")
-    preset_path = _resolve_preset_path(preset_text, base)
-    model_set = model.get("set", {})
-    _check_keys(model_set, tuple(model_set), "model.set")
-    run_overrides, analysis, lead_auto = _parse_run(data.get("run", {}))
-    preset_data = read_toml(preset_path)
-    for key, value in list(model_set.items()) + run_overrides:
-        set_dotted(preset_data, canonical_key(key, f"model.set.{key}"), value)
-    axes_data = data.get("axes", [])
-    if not isinstance(axes_data, list):
-        raise ConfigError("axes", "expected an array of tables: [[axes]]")
-    axes = tuple(parse_axis(a, k) for k, a in enumerate(axes_data))
-    sample = parse_sample(data["sample"]) if "sample" in data else None
+    table = build(SweepFile, data)
+    preset_path, preset_data, _ = model_data(table.model, table.run, base)
+    axes = tuple(parse_axis(a, k) for k, a in enumerate(table.axes))
+    sample = parse_sample(table.sample) if table.sample else None
     names = [a.name for a in axes] + ([k for k, _, _ in sample.bounds] if sample else [])
     keys = [k for a in axes for k in a.keys] + ([k for k, _, _ in sample.bounds] if sample else [])
     for label, items in (("axis name", names), ("key", keys)):
         dupes = sorted({x for x in items if items.count(x) > 1})
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
-    if lead_auto:  # leadership metrics when leadership is swept or switched on
-        x = preset_data.get("leadership", {}).get("x", 0)
-        uses = "leadership.x" in keys or (isinstance(x, (int, float)) and x > 0)
-        analysis = dataclasses.replace(analysis, leadership=bool(uses))
-    report = data.get("report", {})
-    _check_keys(report, tuple(report), "report")
-    return SweepConfig(name=name, description=str(data.get("description", "")), seed=seed,
-                       replicates=replicates, common_random_numbers=crn, preset_path=preset_path,
-                       preset_data=preset_data, analysis=analysis, axes=axes, sample=sample, report=report,
-                       source=data)
+    metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys))
+    return SweepConfig(name=table.name, description=table.description, seed=table.seed,
+                       replicates=table.replicates, common_random_numbers=table.common_random_numbers,
+                       preset_path=preset_path, preset_data=preset_data, metrics=metrics,
+                       storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
+                       report=table.report, source=data)
 
 
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:

@@ -4,7 +4,10 @@ The design is the cartesian product of the axes (a zipped axis is one factor; a 
 one more factor whose levels are its sampled points), times ``replicates``. Every run's preset is built
 and validated here, before anything runs, so a bad value fails with its axis and key named.
 
-Identity (:mod:`sweeps.identity`): a run's seed derives from the sweep seed, the run's parameter point
+Every point's preset is the base preset (the preset file with ``model.set`` and the ``[run]``
+shorthands, which must itself be valid) with the point's values set by :meth:`simcore.Preset.replace`.
+
+Identity (:mod:`sweeps.identity`, :mod:`sweeps.seeds`): a run's seed derives from the sweep seed, the run's parameter point
 (the resolved values of the swept keys) and its replicate index, so it does not change when the grid
 grows, shrinks or is reordered; with ``common_random_numbers`` it derives from the sweep seed and the
 replicate only. The run id is a hash of everything that determines the run's results.
@@ -18,16 +21,13 @@ import copy
 import itertools
 from dataclasses import dataclass
 
-import numpy as np
-
-from analysis.metrics import default_group_radius
+from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, preset_from_dict
-from simcore.schema import ConfigError, get_dotted, set_dotted
+from simcore.schema import ConfigError, get_dotted
 
-from .config import Analysis, SweepConfig
-from .identity import point_key, run_id, run_seed
-
-SAMPLE_STREAM = 0x5A3D1E  # entropy word separating the sampled design's draws from run seeds
+from .config import Storage, SweepConfig
+from .identity import point_key, run_id
+from .seeds import Tag, generator, run_seed
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,8 @@ class RunSpec:
     seed: int
     columns: tuple[tuple[str, object], ...]  # swept parameters as (column, value), in factor order
     preset: Preset
-    analysis: Analysis
-    group_radius: float
+    metrics: MetricSettings  # resolved for this run's model
+    storage: Storage
 
     @property
     def cost(self) -> float:
@@ -48,12 +48,17 @@ class RunSpec:
         return self.preset.run.n_steps * float(self.preset.init.n) ** 2
 
 
-def sample_points(config: SweepConfig) -> list[tuple]:
+def base_preset(config: SweepConfig) -> Preset:
+    """The preset every design point starts from (ConfigError naming the key when it is invalid)."""
+    return preset_from_dict(copy.deepcopy(config.preset_data))
+
+
+def sample_points(config: SweepConfig, base: Preset) -> list[tuple]:
     """The sampled block's points (tuples in bounds order), integer keys rounded."""
     from scipy.stats import qmc  # imported here: scipy.stats takes most of a second to import
 
     sample = config.sample
-    rng = np.random.default_rng([config.seed, SAMPLE_STREAM])
+    rng = generator(config.seed, Tag.DESIGN_SAMPLE)
     d = len(sample.bounds)
     if sample.method == "random":
         unit = rng.random((sample.n, d))
@@ -61,20 +66,20 @@ def sample_points(config: SweepConfig) -> list[tuple]:
         unit = qmc.LatinHypercube(d=d, seed=rng).random(sample.n)
     else:
         unit = qmc.Sobol(d=d, scramble=sample.scramble, seed=rng).random(sample.n)
-    lows = np.array([lo for _, lo, _ in sample.bounds])
-    highs = np.array([hi for _, _, hi in sample.bounds])
+    lows = [lo for _, lo, _ in sample.bounds]
+    highs = [hi for _, _, hi in sample.bounds]
     scaled = qmc.scale(unit, lows, highs) if d else unit
-    base = preset_from_dict(copy.deepcopy(config.preset_data)).full_dict()
-    integer = [isinstance(get_dotted(base, key), int) and not isinstance(get_dotted(base, key), bool)
+    values = base.full_dict()
+    integer = [isinstance(get_dotted(values, key), int) and not isinstance(get_dotted(values, key), bool)
                for key, _, _ in sample.bounds]
     return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
 
 
-def factor_levels(config: SweepConfig) -> list[tuple[tuple[str, ...], list[tuple]]]:
+def factor_levels(config: SweepConfig, base: Preset) -> list[tuple[tuple[str, ...], list[tuple]]]:
     """Per factor of the product: (keys, points); the sampled block, if any, is the last factor."""
     factors = [(axis.keys, list(axis.points)) for axis in config.axes]
     if config.sample:
-        factors.append((tuple(key for key, _, _ in config.sample.bounds), sample_points(config)))
+        factors.append((tuple(key for key, _, _ in config.sample.bounds), sample_points(config, base)))
     return factors
 
 
@@ -96,37 +101,38 @@ def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, obje
     return cols
 
 
-def _build_preset(config: SweepConfig, overrides: list[tuple[str, object]], where: str) -> Preset:
-    data = copy.deepcopy(config.preset_data)
+def _point_preset(base: Preset, overrides: list[tuple[str, object]], where: str) -> Preset:
     try:
-        for key, value in overrides:
-            set_dotted(data, key, value)
-        return preset_from_dict(data)
+        return base.replace(dict(overrides))
     except ConfigError as err:
-        raise ConfigError(err.key, f"{str(err).split(': ', 1)[-1]} (at design point {where})") from None
+        raise ConfigError(err.key, f"{err.detail} (at design point {where})") from None
 
 
-def rebuild(model_record: dict, row: dict) -> tuple[Preset, float]:
-    """(preset, group radius) of a stored run from ``model.json`` and its design/runs row."""
-    data = copy.deepcopy(model_record["preset"])
+def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
+    """(preset, resolved metric settings) of a stored run from ``model.json`` and its design/runs row."""
+    changes = {}
     for key in model_record["swept_keys"]:
         value = row[key]
-        set_dotted(data, key, value.item() if hasattr(value, "item") else value)
-    preset = preset_from_dict(data)
-    radius = model_record["analysis"].get("group_radius") or default_group_radius(preset.model)
-    return preset, radius
+        changes[key] = value.item() if hasattr(value, "item") else value
+    preset = preset_from_dict(copy.deepcopy(model_record["preset"])).replace(changes)
+    analysis = model_record["analysis"]
+    metrics = MetricSettings(warmup=analysis["warmup"], group_radius=analysis.get("group_radius"),
+                             fragmentation_cohesion=analysis["fragmentation_cohesion"],
+                             leadership=bool(analysis.get("leadership", False)))
+    return preset, metrics.resolve(preset.model)
 
 
 def expand(config: SweepConfig) -> list[RunSpec]:
     """All runs of the sweep, validated, in design order."""
-    factors = factor_levels(config)
+    base = base_preset(config)
+    factors = factor_levels(config, base)
     specs = []
     seen: dict[str, str] = {}
     combos = itertools.product(*[range(len(points)) for _, points in factors])
     for point_index, combo in enumerate(combos):
         overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
         where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
-        preset = _build_preset(config, overrides, where)
+        preset = _point_preset(base, overrides, where)
         resolved = preset.to_dict()
         values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
         point = point_key({k: get_dotted(values, k) for k, _ in overrides})
@@ -134,12 +140,12 @@ def expand(config: SweepConfig) -> list[RunSpec]:
             raise ConfigError("axes", f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")
         seen[point] = where
-        radius = config.analysis.group_radius or default_group_radius(preset.model)
+        metrics = config.metrics.resolve(preset.model)
         columns = tuple(_columns(config, combo, values))
         for replicate in range(config.replicates):
             seed = run_seed(config.seed, None if config.common_random_numbers else point, replicate)
-            rid = run_id(resolved, config.analysis, radius, seed)
+            rid = run_id(resolved, metrics, config.storage, seed)
             specs.append(RunSpec(run_id=rid, index=point_index * config.replicates + replicate,
                                  point_index=point_index, replicate=replicate, seed=seed, columns=columns,
-                                 preset=preset, analysis=config.analysis, group_radius=radius))
+                                 preset=preset, metrics=metrics, storage=config.storage))
     return specs

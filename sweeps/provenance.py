@@ -10,6 +10,8 @@ import platform
 import subprocess
 from pathlib import Path
 
+from simcore import MODEL_VERSION
+
 PACKAGES = ("flocksweep", "numpy", "numba", "llvmlite", "scipy", "pandas", "pyarrow", "matplotlib")
 
 
@@ -42,7 +44,5 @@ def machine() -> dict:
 
 
 def stamp() -> dict:
-    from simcore import MODEL_VERSION
-
     return {"model_version": MODEL_VERSION, "packages": package_versions(), "git_revision": git_revision(),
             "machine": machine()}

@@ -9,6 +9,8 @@ progress bar, writes each batch as it finishes and consolidates ``runs.parquet``
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import math
 import os
 import sys
@@ -18,16 +20,17 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from simcore import simulate
 
+from . import worker
 from .config import SweepConfig, describe
 from .design import RunSpec, expand
-from .executors import execute
+from .executors import Executor
 from .identity import canonical
 from .provenance import stamp
 from .store import ResultsStore
-from .worker import warm_up
 
 
 @dataclass
@@ -46,10 +49,8 @@ def design_table(specs: list[RunSpec]) -> pd.DataFrame:
 
 def model_record(config: SweepConfig) -> dict:
     """What is needed to rebuild any run of the design from its row: the base preset, the swept keys."""
-    keys = [k for axis in config.axes for k in axis.keys]
-    keys += [k for k, _, _ in config.sample.bounds] if config.sample else []
-    return {"preset": config.preset_data, "preset_path": str(config.preset_path), "swept_keys": keys,
-            "analysis": dataclasses.asdict(config.analysis)}
+    return {"preset": config.preset_data, "preset_path": str(config.preset_path), "swept_keys": config.swept_keys,
+            "analysis": config.analysis_record()}
 
 
 def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_failed: bool) -> Plan:
@@ -98,8 +99,6 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> d
 
 
 def _progress(total: int, name: str, enabled: bool):
-    from tqdm import tqdm
-
     return tqdm(total=total, desc=name, unit="run", disable=not enabled, file=sys.stderr,
                 mininterval=0.5, dynamic_ncols=True)
 
@@ -130,8 +129,6 @@ def _manifest(config: SweepConfig, store: ResultsStore, plan: Plan, executor: st
 
 
 def stamp_hash(config: SweepConfig) -> str:
-    import hashlib
-
     return hashlib.sha256(canonical(config.source).encode()).hexdigest()[:16]
 
 
@@ -196,21 +193,31 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
         store.write_inputs(sweep_text, effective, model_record(config), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         if plan.todo:
-            try:
-                warm_up(plan.todo[0])
-            except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
-                pass
-            batches = make_batches(plan.todo, workers, batch_size)
-            failures = 0
-            with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer:
-                for batch, rows, ts in execute(batches, executor, workers, scheduler, store.root):
-                    writer.add(rows, ts)
-                    failures += sum(r["status"] != "ok" for r in rows)
-                    bar.set_postfix(failed=failures, refresh=False)
-                    bar.update(len(rows))
+            _compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
         table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
     return SweepResult(Path(out_dir), plan, table, time.time() - started)
+
+
+def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
+             scheduler: str | None, progress: bool, batch_size: int | None) -> None:
+    """Compute the plan's runs in batches on the executor, writing parts as batches finish."""
+    try:
+        worker.warm_up(plan.todo[0])
+    except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
+        pass
+    batches = make_batches(plan.todo, workers, batch_size)
+    task = functools.partial(worker.execute_batch, out_dir=store.root)
+    failures = 0
+    with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer, \
+            Executor(executor, workers, scheduler) as pool:
+        for outcome in pool.as_completed(task, batches):
+            rows, ts = outcome.value if outcome.error is None else (worker.failed_rows(outcome.item, outcome.reason),
+                                                                     None)
+            writer.add(rows, ts)
+            failures += sum(r["status"] != "ok" for r in rows)
+            bar.set_postfix(failed=failures, refresh=False)
+            bar.update(len(rows))
 
 
 def status(out_dir) -> dict:
@@ -230,7 +237,7 @@ def status(out_dir) -> dict:
 
 def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:
     """Per design point: replicates with a value, and the Student-t CI half-width of the metric's mean."""
-    from scipy import stats
+    from scipy import stats  # imported here: scipy.stats takes most of a second to import
 
     ok = table[(table["status"] == "ok")].dropna(subset=[metric])
     grouped = ok.groupby("point_index")[metric]

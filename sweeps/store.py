@@ -1,6 +1,11 @@
-"""The results store of one sweep: ``results/<sweep name>/``.
+"""Where results live: an output folder (locked, written atomically, stamped) and the sweep's layout.
 
-Layout::
+:class:`OutputFolder` is any result folder (a sweep's, a calibration's, an SBC study's): ``lock()``
+holds an exclusive flock on ``<root>/.lock`` while one process writes there (a second one gets
+:class:`StoreLocked` naming the holder; the lock goes when its process dies), every ``write_*`` is atomic
+(:mod:`sweeps.files`) and ``provenance()`` is the stamp every result carries (:mod:`sweeps.provenance`).
+
+:class:`ResultsStore` is a sweep's folder, ``results/<sweep name>/``::
 
     sweep.toml            the sweep file as given
     sweep.effective.json  the sweep as run (after --set / --replicates)
@@ -13,16 +18,14 @@ Layout::
     trajectories/<run_id>.npz       only with keep = "trajectories"
     .lock                 held (flock) while a runner works here
 
-Every file is written atomically (temporary file, then rename). A batch's time series part is written
-before its runs part, so a runs part is the commit record: a crash can leave an unreferenced time
-series part (ignored) but never a row without its data. Parts are never rewritten; a recomputed run
-(``--force``, ``--retry-failed``) appears in a later part and the latest part wins. Nothing here holds
-more than one batch's time series in memory.
+A batch's time series part is written before its runs part, so a runs part is the commit record: a
+crash can leave an unreferenced time series part (ignored) but never a row without its data. Parts are
+never rewritten; a recomputed run (``--force``, ``--retry-failed``) appears in a later part and the
+latest part wins. Nothing here holds more than one batch's time series in memory.
 """
 from __future__ import annotations
 
 import fcntl
-import json
 import os
 import re
 import socket
@@ -32,7 +35,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .atomic import atomic_path, write_json, write_text
+from .files import read_json, write_csv, write_json, write_parquet, write_text
+from .provenance import stamp
 
 PART = re.compile(r"part-(\d{6})\.parquet$")
 
@@ -41,19 +45,15 @@ class StoreLocked(RuntimeError):
     pass
 
 
-def write_parquet(df: pd.DataFrame, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        df.to_parquet(tmp, index=False)
+class OutputFolder:
+    """A result folder: exclusive lock, atomic writes, provenance (see the module docstring)."""
 
-
-class ResultsStore:
     def __init__(self, root):
         self.root = Path(root)
 
-    # -- locking ---------------------------------------------------------------------------------
     @contextmanager
     def lock(self):
-        """Exclusive lock on the directory for one runner (released even if the process is killed)."""
+        """Exclusive lock on the folder for one writer (released even if the process is killed)."""
         self.root.mkdir(parents=True, exist_ok=True)
         path = self.root / ".lock"
         handle = open(path, "a+")
@@ -76,17 +76,42 @@ class ResultsStore:
             fcntl.flock(handle, fcntl.LOCK_UN)
             handle.close()
 
+    def path(self, name: str) -> Path:
+        return self.root / name
+
+    def write_json(self, name: str, data) -> Path:
+        write_json(self.root / name, data)
+        return self.root / name
+
+    def write_text(self, name: str, text: str) -> Path:
+        write_text(self.root / name, text)
+        return self.root / name
+
+    def write_csv(self, name: str, frame, **options) -> Path:
+        write_csv(self.root / name, frame, **options)
+        return self.root / name
+
+    def read_json(self, name: str, missing=None):
+        return read_json(self.root / name, missing)
+
+    @staticmethod
+    def provenance() -> dict:
+        return stamp()
+
+
+class ResultsStore(OutputFolder):
+    """A sweep's results folder (layout in the module docstring)."""
+
     # -- inputs ----------------------------------------------------------------------------------
     def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
         write_text(self.root / "sweep.toml", sweep_text)
         write_json(self.root / "sweep.effective.json", effective)
         write_json(self.root / "model.json", model)
-        write_parquet(design, self.root / "design.parquet")
+        write_parquet(self.root / "design.parquet", design)
 
     def model(self) -> dict:
         """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
-        path = self.root / "model.json"
-        return json.loads(path.read_text()) if path.exists() else {}
+        return self.read_json("model.json", {})
 
     def design(self) -> pd.DataFrame | None:
         path = self.root / "design.parquet"
@@ -106,10 +131,10 @@ class ResultsStore:
     def write_part(self, number: int, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
         name = f"part-{number:06d}.parquet"
         if timeseries is not None and len(timeseries):
-            write_parquet(timeseries, self.root / "timeseries" / name)
+            write_parquet(self.root / "timeseries" / name, timeseries)
         table = pd.DataFrame(rows)
         table["part"] = number
-        write_parquet(table, self.root / "runs" / name)
+        write_parquet(self.root / "runs" / name, table)
 
     def all_rows(self) -> pd.DataFrame:
         """Every stored row of every part (latest part last)."""
@@ -137,7 +162,7 @@ class ResultsStore:
                 table[column] = present[column].to_numpy()
         if "index" in table:
             table = table.sort_values("index", kind="stable").reset_index(drop=True)
-        write_parquet(table, self.root / "runs.parquet")
+        write_parquet(self.root / "runs.parquet", table)
         return table
 
     def runs(self) -> pd.DataFrame:
@@ -158,8 +183,7 @@ class ResultsStore:
 
     # -- manifest --------------------------------------------------------------------------------
     def manifest(self) -> dict:
-        path = self.root / "manifest.json"
-        return json.loads(path.read_text()) if path.exists() else {}
+        return self.read_json("manifest.json", {})
 
     def write_manifest(self, data: dict) -> None:
         write_json(self.root / "manifest.json", data)

@@ -5,11 +5,14 @@ becomes a row with ``status = "failed"`` and the reason in ``error``, and the sw
 ``execute_batch(specs, out_dir)`` runs several in a row (a worker's unit of work) and returns
 ``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric).
 
-Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
+A row is the run's identity and swept parameters, then ``status``, ``error``, ``sim_s``, ``wall_s``,
+then its summary (:func:`analysis.observables.summary.measure_run` of the records at the run's record
+interval). Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
 ``<out_dir>/trajectories/<run_id>.npz``; on a cluster ``out_dir`` must be on a shared file system.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import traceback
@@ -18,38 +21,26 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.leadership import leadership_metrics
-from analysis.metrics import frame_metrics, summarize, world_box
+from analysis.observables.summary import check_finite, every_nth, measure_run
 from simcore import simulate
 
-from .atomic import atomic_path
 from .design import RunSpec
-
-
-class NonFiniteState(RuntimeError):
-    pass
+from .files import atomic_path
 
 
 def _simulate(spec: RunSpec):
-    """Simulate; returns (metric-step observations, trajectory observations or None)."""
+    """Simulate; returns the observations, recorded every gcd(record_every, trajectory_every) steps
+    when trajectories are kept, else every record_every steps."""
     run = spec.preset.run
-    every = run.record_every
-    keep = spec.analysis.keep == "trajectories"
-    step = math.gcd(every, spec.analysis.trajectory_every) if keep else every
-    obs = simulate(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, step)
-    return obs, every // step
-
-
-def _check_finite(obs) -> None:
-    bad = ~(np.isfinite(obs.pos).all(axis=(1, 2)) & np.isfinite(obs.vel).all(axis=(1, 2)))
-    if bad.any():
-        raise NonFiniteState(f"non-finite position or velocity at t = {obs.times[np.argmax(bad)]:g} s")
+    step = run.record_every
+    if spec.storage.keep == "trajectories":
+        step = math.gcd(step, spec.storage.trajectory_every)
+    return simulate(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, step)
 
 
 def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
-    """Positions and velocities every ``trajectory_every`` steps (the observations are recorded every
-    gcd(record_every, trajectory_every) steps)."""
-    pick = slice(None, None, spec.analysis.trajectory_every // obs.record_every)
+    """Positions and velocities every ``trajectory_every`` steps."""
+    pick = slice(None, None, spec.storage.trajectory_every // obs.record_every)
     path = Path(out_dir) / "trajectories" / f"{spec.run_id}.npz"
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as handle:
@@ -57,7 +48,7 @@ def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
                                 pattern=obs.pattern, seed=spec.seed)
 
 
-def _base_row(spec: RunSpec) -> dict:
+def base_row(spec: RunSpec) -> dict:
     """Identity and parameters first, then status columns; metrics are appended after them."""
     row = {"run_id": spec.run_id, "index": spec.index, "point_index": spec.point_index,
            "replicate": spec.replicate, "seed": spec.seed}
@@ -66,27 +57,30 @@ def _base_row(spec: RunSpec) -> dict:
     return row
 
 
+def failed_rows(specs, reason: str) -> list[dict]:
+    """Rows recording ``specs`` as failed for ``reason`` (e.g. their worker died)."""
+    rows = []
+    for spec in specs:
+        row = base_row(spec)
+        row["error"] = reason
+        rows.append(row)
+    return rows
+
+
 def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]:
-    row = _base_row(spec)
+    row = base_row(spec)
     start = time.perf_counter()
     try:
-        obs, stride = _simulate(spec)
+        obs = _simulate(spec)
         sim_s = time.perf_counter() - start
-        _check_finite(obs)
-        if spec.analysis.keep == "trajectories" and out_dir is not None:
+        check_finite(obs)
+        if spec.storage.keep == "trajectories" and out_dir is not None:
             _save_trajectory(spec, obs, out_dir)
-        pick = slice(None, None, stride)
-        series = frame_metrics(obs.pos[pick], obs.vel[pick], obs.visible[pick], obs.binocular[pick],
-                               obs.pattern, spec.group_radius, world_box(spec.preset.model))
-        times = obs.times[pick]
-        row.update(summarize(series, times, spec.analysis.warmup, spec.analysis.fragmentation_cohesion))
-        if spec.analysis.leadership:
-            model = spec.preset.model
-            row.update(leadership_metrics(obs, spec.group_radius, model.leadership.duration, world_box(model)))
-            series["leaders"] = obs.leader[pick].sum(axis=1).astype(np.float64)
+        records = every_nth(obs, spec.preset.run.record_every // obs.record_every)
+        series, summary = measure_run(records, spec.metrics)
+        row.update(summary)
         row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
-        ts = pd.DataFrame({"run_id": spec.run_id, "t": times, **series})
-        return row, ts
+        return row, pd.DataFrame({"run_id": spec.run_id, "t": records.times, **series})
     except Exception as err:  # a failing run is recorded, never fatal to the sweep
         detail = traceback.format_exception_only(type(err), err)[-1].strip()
         row.update(status="failed", error=detail, sim_s=float("nan"), wall_s=time.perf_counter() - start)
@@ -95,16 +89,10 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
 
 def warm_up(spec: RunSpec) -> None:
     """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run, so that
-    forked workers inherit them instead of each compiling its own."""
-    from dataclasses import replace
-
+    workers find them in the cache instead of each compiling its own."""
     run = spec.preset.run
-    obs = simulate(spec.preset.model, replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
-    frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, spec.group_radius,
-                  world_box(spec.preset.model))
-    if spec.analysis.leadership:
-        leadership_metrics(obs, spec.group_radius, spec.preset.model.leadership.duration,
-                           world_box(spec.preset.model))
+    obs = simulate(spec.preset.model, dataclasses.replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
+    measure_run(obs, spec.metrics)
 
 
 def execute_batch(specs: list[RunSpec], out_dir=None) -> tuple[list[dict], pd.DataFrame | None]:

@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from analysis.calibration.bsl import BSLResult, run_bsl
+from analysis.calibration.bsl import run_bsl
+from analysis.calibration.mcmc import ChainResult
 from analysis.calibration.priors import JointPrior, Uniform
 
 SD = 1.0
@@ -41,7 +42,7 @@ def run(steps=50, seed=3, walkers=12, **kw):
     return run_bsl(toy_simulator(), observed_rows(), wide_prior(), walkers=walkers, steps=steps, seed=seed, **kw)
 
 
-def same(r1: BSLResult, r2: BSLResult) -> bool:
+def same(r1: ChainResult, r2: ChainResult) -> bool:
     return (np.array_equal(r1.chain, r2.chain) and np.array_equal(r1.log_prob, r2.log_prob)
             and np.array_equal(r1.acceptance_fraction, r2.acceptance_fraction))
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from analysis.calibration.config import CalibrationConfig, load_calibration
+from analysis.calibration.settings import EmceeSettings, EmulatorSettings, OptimizeSettings
 from analysis.calibration.priors import TruncatedNormal, Uniform
 from simcore.schema import ConfigError
 
@@ -98,8 +99,8 @@ def test_valid_config_loads(tmp_path):
     assert t.cov.shape == (3, 3)
     np.testing.assert_allclose(t.cov, np.diag([0.05 ** 2, 0.05 ** 2, 0.3 ** 2]))
     assert cfg.method.kind == "emcee"
-    assert cfg.method.settings == {"n_sim": 50, "likelihood": "gaussian", "walkers": 16, "steps": 2000,
-                                   "reevaluate_every": 0, "moves": "stretch"}
+    assert cfg.method == EmceeSettings(n_sim=50, likelihood="gaussian", walkers=16, steps=2000,
+                                       reevaluate_every=0, moves="stretch")
     assert cfg.source["name"] == "recover_holland"
 
 
@@ -113,7 +114,7 @@ def test_preset_relative_to_config_file(tmp_path):
 
 def test_overrides_apply(tmp_path):
     cfg = load_calibration(write(tmp_path), ["method.walkers=40", "targets.summary=final"])
-    assert cfg.method.settings["walkers"] == 40
+    assert cfg.method.walkers == 40
     assert cfg.targets.columns == ("cohesion_final", "polarization_final", "nn_distance_final")
 
 
@@ -195,10 +196,10 @@ def test_unknown_stat_suggests(tmp_path):
 
 
 def test_n_sim_minimum_is_k_plus_2(tmp_path):
-    assert load_with(tmp_path, "n_sim = 50", "n_sim = 5").method.settings["n_sim"] == 5
+    assert load_with(tmp_path, "n_sim = 50", "n_sim = 5").method.n_sim == 5
     assert error_key(tmp_path, "n_sim = 50", "n_sim = 4") == "method.n_sim"
     unbiased = ["method.likelihood=unbiased"]
-    assert load_calibration(write(tmp_path), unbiased + ["method.n_sim=7"]).method.settings["n_sim"] == 7
+    assert load_calibration(write(tmp_path), unbiased + ["method.n_sim=7"]).method.n_sim == 7
     with pytest.raises(ConfigError) as info:  # the unbiased estimator needs n_sim >= k + 4
         load_calibration(write(tmp_path), unbiased + ["method.n_sim=6"])
     assert info.value.key == "method.n_sim"
@@ -214,13 +215,13 @@ def test_integer_parameter_key(tmp_path):
 def test_optimize_and_emulator_methods(tmp_path):
     method = VALID[VALID.index("[method]"):]
     opt = load_with(tmp_path, method, '[method]\nkind = "optimize"\nalgorithm = "nelder_mead"\n')
-    assert opt.method.settings == {"n_sim": 50, "likelihood": "gaussian", "algorithm": "nelder_mead",
-                                   "objective": "loglik", "maxiter": 100, "popsize": 15, "recheck": 200}
+    assert opt.method == OptimizeSettings(n_sim=50, likelihood="gaussian", algorithm="nelder_mead",
+                                          objective="loglik", maxiter=100, popsize=15, recheck=200)
     assert error_key(tmp_path, method, '[method]\nkind = "optimize"\nobjective = "l2"\n') == "method.objective"
     assert error_key(tmp_path, method, '[method]\nkind = "optimize"\nalgorithm = "bfgs"\n') == "method.algorithm"
     emu = load_with(tmp_path, method, '[method]\nkind = "emulator"\nresults = "res/holland648"\nsurrogate = "rbf"\n')
-    assert emu.method.settings["results"] == tmp_path / "res" / "holland648"
-    assert emu.method.settings["surrogate"] == "rbf" and emu.method.settings["confirm"] == 100
+    assert isinstance(emu.method, EmulatorSettings) and emu.method.results == tmp_path / "res" / "holland648"
+    assert emu.method.surrogate == "rbf" and emu.method.confirm == 100
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\n') == "method.results"
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nwalkers = 3\n') == "method.walkers"
     assert error_key(tmp_path, method, '[method]\nkind = "emulator"\nresults = "r"\nconfirm = 1\n') == "method.confirm"

@@ -1,4 +1,4 @@
-"""The emulator calibration method (analysis.calibration.emulator).
+"""The emulator calibration method (analysis.calibration.training, .surrogates, .emulated).
 
 * the GP and RBF surrogates recover known smooth mean and sd functions from noisy replicated data;
   the GP's emulator variance grows away from the data;
@@ -19,10 +19,10 @@ import pytest
 from scipy import stats
 
 from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.emulator import (GPSurrogate, RBFSurrogate, Surrogate, TrainingSet, build_surrogate,
-                                           confirm, emulated_loglik, emulated_logliks, group_replicates,
-                                           observation_covariance, posterior_median, prior_outside_box,
-                                           run_emulator_mcmc, training_set)
+from analysis.calibration.emulated import (confirm, emulated_loglik, emulated_logliks, observation_covariance,
+                                           posterior_median, run_emulator_mcmc)
+from analysis.calibration.surrogates import GPSurrogate, RBFSurrogate, Surrogate, build_surrogate, prior_outside_box
+from analysis.calibration.training import TrainingSet, group_replicates, training_set
 from analysis.calibration.priors import JointPrior, Uniform
 from analysis.calibration.simulator import SummarySimulator
 from simcore import ConfigError

@@ -14,7 +14,7 @@ import pytest
 
 from analysis.calibration.optimize import OptimizeResult, crn_objective, run_optimize
 from analysis.calibration.priors import JointPrior, Normal, Uniform
-from analysis.calibration.simulator import common_seeds, seeds_for
+from sweeps.seeds import common_seeds, seeds_for
 
 SD = 0.5
 N_SIM = 50

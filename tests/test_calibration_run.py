@@ -12,9 +12,9 @@ import pytest
 
 from analysis.calibration.config import calibration_from_dict
 from analysis.calibration.run import calibrate, summary_simulator
-from analysis.calibration.simulator import common_seeds
 from simcore import ConfigError
 from sweeps.cli import main
+from sweeps.seeds import common_seeds
 
 ROOT = Path(__file__).resolve().parent.parent
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -10,9 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration import sbc
+from analysis.calibration import sbc, sbc_report
 from analysis.calibration.config import load_calibration
 from analysis.calibration.priors import JointPrior, Uniform
+from sweeps.seeds import SBCStream
 
 ROOT = Path(__file__).resolve().parent.parent
 SBC_CONFIG = ROOT / "configs/calibration/sbc_range.toml"
@@ -135,13 +136,14 @@ def test_posterior_draws_burn_half_thin_by_tau_and_flag_short_chains():
 def test_too_few_datasets_are_not_judged():
     table = pd.DataFrame({"chi2": [0.0], "dof": [0], "p": [np.nan], "n": [2], "bins": [1], "ecdf_p": [0.9]},
                          index=pd.Index(["mu"], name="parameter"))
-    calibrated, sentence = sbc.verdict(table, 0.05)
+    calibrated, sentence = sbc_report.verdict(table, 0.05)
     assert not calibrated and sentence.startswith("cannot judge")
 
 
 def test_default_bins_divide_the_rank_values():
-    assert sbc.default_bins(49, 50) == 10 and sbc.default_bins(49, 100) == 10 and sbc.default_bins(19, 60) == 10
-    assert sbc.default_bins(99, 100) == 20 and sbc.default_bins(19, 20) == 4
+    assert sbc_report.default_bins(49, 50) == 10 and sbc_report.default_bins(49, 100) == 10 \
+        and sbc_report.default_bins(19, 60) == 10
+    assert sbc_report.default_bins(99, 100) == 20 and sbc_report.default_bins(19, 20) == 4
 
 
 def test_worker_processes_give_the_same_results(tmp_path):
@@ -162,7 +164,7 @@ def test_shipped_config_data_model_matches_the_likelihood_and_runs(tmp_path):
     low, high = config.prior.bounds[0]
     assert low <= theta[0] <= high
     one = SummarySimulator(config.preset_data, config.keys, config.targets.columns, 1, config.warmup)
-    expected = simulate_fn(config, one)(theta, sbc.generator(config.seed, 0, sbc.STREAM_OBSERVED))
+    expected = simulate_fn(config, one)(theta, sbc.generator(config.seed, 0, SBCStream.OBSERVED))
     assert np.array_equal(sbc.draw_observed(problem, theta, 0), expected) and expected.shape == (1, 2)
     result = sbc.run_sbc(config, datasets=2, draws=3, out_dir=tmp_path, progress=False, steps=6, walkers=4)
     assert result["ranks"]["rank_range"].between(0, 3).all()

@@ -8,12 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator, common_seeds, seeds_for
-from analysis.leadership import leadership_metrics
-from analysis.metrics import default_group_radius, frame_metrics, summarize, world_box
+from analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator
+from analysis.observables.leadership import leadership_metrics
+from analysis.observables.metrics import frame_metrics, summarize
+from analysis.observables.summary import default_group_radius, world_box
 from simcore.params import read_toml
 from simcore.schema import ConfigError, set_dotted
 from simcore.simulate import simulate
+from sweeps.seeds import common_seeds, seeds_for
 
 MODELS = Path(__file__).resolve().parents[1] / "configs" / "models"
 COLUMNS = ("cohesion_mean", "polarization_final", "nn_distance_mean")

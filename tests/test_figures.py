@@ -1,4 +1,4 @@
-"""Report figures (analysis.figures) and the trace plot refactor (analysis.traces), on synthetic data.
+"""Report figures (analysis.reports.figures) and the trace plot refactor (analysis.reports.traces), on synthetic data.
 
 Each figure function must write a non-empty PNG (or SVG, by extension), close its figure and return
 the path; the inputs mimic a sweep's tables: categorical and numeric (numpy-typed) factors, NaN and
@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import figures
-from analysis.traces import draw_traces, plot_traces
+from analysis.reports import figures
+from analysis.reports.traces import draw_traces, plot_traces
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 ROOT = Path(__file__).resolve().parents[1]
@@ -254,7 +254,7 @@ def test_draw_traces_into_existing_axes():
 
 
 def test_importing_figures_has_no_side_effects():
-    code = ("import sys, analysis.figures, analysis.traces; "
+    code = ("import sys, analysis.reports.figures, analysis.reports.traces; "
             "print('matplotlib' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert result.stdout.strip() == "False"

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input, leadership_metrics,
-                                 observation_leadership)
+from analysis.observables.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input,
+                                             leadership_metrics)
+from analysis.observables.summary import observation_leadership
 from simcore import load_preset, simulate_preset
 
 PRESET = Path(__file__).resolve().parents[1] / "configs" / "models" / "hartman_benes.toml"

@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.findings import holland_findings
-from analysis.report import ReportError, build_report, resolve_metrics
-from analysis.results import load_results
+from analysis.reports.findings import holland_findings
+from analysis.reports.report import ReportError, build_report, resolve_metrics
 from sweeps.cli import main
 from sweeps.config import load_sweep, sweep_from_dict
+from sweeps.results import load_results
 from sweeps.runner import halfwidths, run_sweep, run_until_ci
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -192,7 +192,7 @@ def _leadership_table(seed: int = 0, reverse: bool = False) -> pd.DataFrame:
 
 
 def test_leadership_verdicts_follow_planted_effects():
-    from analysis.findings import leadership_findings
+    from analysis.reports.findings import leadership_findings
 
     verdicts = {f.key: f.verdict for f in leadership_findings(_leadership_table())}
     assert verdicts == {"a": "supported", "b": "supported", "c": "supported", "d": "supported"}

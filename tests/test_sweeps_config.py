@@ -78,7 +78,7 @@ def test_holland648_expands_to_the_full_grid_with_distinct_ids_and_seeds():
         assert spec.preset.model.patterns.enabled == c["patterns.enabled"]
         assert spec.preset.init.n == c["init.n"]
         assert spec.preset.model.perception.field_deg == c[FIELD]
-        assert spec.group_radius == c[RANGE]  # group_radius = "auto": the perception range
+        assert spec.metrics.group_radius == c[RANGE]  # group_radius = "auto": the perception range
 
 
 def test_holland648_r5_has_five_replicates_per_cell_and_contains_holland648():
@@ -358,7 +358,7 @@ def test_load_sweep_applies_set_overrides_and_replicates():
                                                   "model.set.steering.cohesion_weight=3.5"], replicates=3)
     assert (plain.replicates, plain.seed, plain.preset_data["run"]["duration"]) == (2, 1, 4.0)
     assert config.replicates == 3 and config.seed == 9
-    assert config.analysis.keep == "trajectories"
+    assert config.storage.keep == "trajectories"
     specs = expand(config)
     assert len(specs) == 2 * 2 * 3
     assert all(s.preset.run.duration == 2.0 for s in specs)
@@ -436,11 +436,11 @@ def test_leadership_metrics_are_switched_on_when_leadership_is_swept_or_on():
     from sweeps.config import load_sweep as load
 
     configs = Path(__file__).resolve().parent.parent / "configs" / "sweeps"
-    assert load(configs / "leadership.toml").analysis.leadership
-    assert load(configs / "leadership_vision.toml").analysis.leadership
-    assert not load(configs / "holland648.toml").analysis.leadership
-    assert load(configs / "smoke.toml", ["model.set.leadership.x=1"]).analysis.leadership
-    assert not load(configs / "smoke.toml", ["run.leadership_metrics=false", "model.set.leadership.x=1"]).analysis.leadership
+    assert load(configs / "leadership.toml").metrics.leadership
+    assert load(configs / "leadership_vision.toml").metrics.leadership
+    assert not load(configs / "holland648.toml").metrics.leadership
+    assert load(configs / "smoke.toml", ["model.set.leadership.x=1"]).metrics.leadership
+    assert not load(configs / "smoke.toml", ["run.leadership_metrics=false", "model.set.leadership.x=1"]).metrics.leadership
     with pytest.raises(ConfigError) as info:
         load(configs / "smoke.toml", ["run.leadership_metrics=sometimes"])
     assert info.value.key == "run.leadership_metrics"

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 from pandas.testing import assert_frame_equal
 
-from analysis.metrics import METRIC_NAMES
+from analysis.observables.metrics import METRIC_NAMES
 from simcore import simulate
 from sweeps import worker
 from sweeps.cli import main
@@ -122,6 +122,23 @@ def fail_when_n_is_7(make_failure):
 
 def raise_boom(obs):
     raise RuntimeError("boom: seven boids")
+
+
+def batches_simulating_with(simulate_fn):
+    """A stand-in for sweeps.worker.execute_batch that runs its batch with ``simulate_fn`` as the worker's
+    simulate. The runner ships the batch function with every task, so this reaches worker processes too
+    (they are spawned: a patch of the parent's module would not)."""
+    real = worker.execute_batch
+
+    def patched(specs, out_dir=None):
+        original = worker.simulate
+        worker.simulate = simulate_fn
+        try:
+            return real(specs, out_dir)
+        finally:
+            worker.simulate = original
+
+    return patched
 
 
 # -- end to end through the CLI --------------------------------------------------------------------
@@ -269,7 +286,8 @@ def test_resume_after_sigkill_finishes_without_recomputing_or_duplicating(tmp_pa
 def test_failing_run_is_recorded_the_rest_finish_and_retry_fixes_it(executor, tmp_path, monkeypatch, capsys):
     sweep = write_sweep(tmp_path, N_AXIS)
     out = tmp_path / "results"
-    monkeypatch.setattr(worker, "simulate", fail_when_n_is_7(raise_boom))  # forked workers inherit it
+    real_batch = worker.execute_batch
+    monkeypatch.setattr(worker, "execute_batch", batches_simulating_with(fail_when_n_is_7(raise_boom)))
     result = run(sweep, out, executor=executor, workers=2, batch_size=1)
     runs = table(out)
     assert list(runs["init.n"]) == [6, 7, 8]
@@ -290,7 +308,7 @@ def test_failing_run_is_recorded_the_rest_finish_and_retry_fixes_it(executor, tm
     assert f"failed {failed_id}: RuntimeError: boom: seven boids" in printed
     assert len(result.plan.todo) == 3
 
-    monkeypatch.setattr(worker, "simulate", simulate)  # the cause is fixed
+    monkeypatch.setattr(worker, "execute_batch", real_batch)  # the cause is fixed
     again = run(sweep, out, executor=executor, workers=2)
     assert again.plan.todo == [] and [s.run_id for s in again.plan.failed] == [failed_id]
     assert_frame_equal(table(out), runs)  # still failed: failures are kept without --retry-failed

@@ -1,6 +1,10 @@
-"""calibration: priors and synthetic likelihoods for fitting flocking-model parameters to data.
+"""analysis.calibration: fitting a flocking model's free parameters to observed flock statistics.
 
-``priors`` holds one-parameter prior distributions and their product (:class:`JointPrior`);
-``likelihood`` holds the Gaussian synthetic log-likelihood (Wood 2010; Price et al. 2018) and a
-diagonal standardised distance for optimisation.
+Configuration (``config``: calibration files on the one schema engine, typed settings per method),
+priors and synthetic likelihoods (``priors``, ``likelihood``), the theta -> summaries simulator
+(``simulator``), the one emcee driver (``mcmc``) and the methods on it: BSL (``bsl``), the emulator
+(``training``, ``surrogates``, ``emulated``), optimisation (``optimize``); ``flocksweep calibrate``
+(``run``), diagnostics and figures (``diagnostics``, ``plots``), simulation-based calibration (``sbc``,
+``sbc_report``) and synthetic targets (``synthetic``). This layer sits above ``sweeps`` (its executor,
+seed registry and output folders) and ``analysis.reports`` (figure plumbing); see docs/architecture.md.
 """

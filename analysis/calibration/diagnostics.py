@@ -36,6 +36,7 @@ from typing import Sequence
 
 import numpy as np
 import pandas as pd
+from emcee.autocorr import integrated_time
 from scipy import stats
 
 TAU_FACTOR = 50            # chain length should be at least this many autocorrelation times
@@ -73,8 +74,6 @@ def integrated_times(chain) -> np.ndarray:
     """Integrated autocorrelation time per parameter, shape (d,); ``nan`` where it cannot be estimated."""
     chain = _chain(chain)
     out = np.full(chain.shape[2], np.nan)
-    from emcee.autocorr import integrated_time
-
     for j in range(chain.shape[2]):
         x = chain[:, :, j:j + 1]
         if not np.all(np.isfinite(x)) or np.ptp(x, axis=0).max() == 0.0:
@@ -280,6 +279,12 @@ def sbc_ranks(prior_draws, posterior_samples, rng: np.random.Generator | None = 
         extra = np.array([rng.integers(0, t + 1) if t else 0 for t in ties])
         ranks[i] = below + extra
     return ranks
+
+
+def ecdf_counts(ranks: np.ndarray, S: int) -> np.ndarray:
+    """(..., S) counts of ranks <= m for m = 0..S-1; ``ranks`` (..., L)."""
+    below = ranks[..., None] <= np.arange(S)
+    return below.sum(axis=-2)
 
 
 def _bin_probs(S: int, bins: int) -> tuple[np.ndarray, np.ndarray]:

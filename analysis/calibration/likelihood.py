@@ -53,6 +53,11 @@ MATCH_RTOL = 1e-9
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
+def min_replicates(k: int, method: str) -> int:
+    """Fewest simulated replicates the ``method`` estimator accepts for ``k`` statistics."""
+    return k + 2 if method == "gaussian" else k + 4
+
+
 def _arrays(observed, simulated) -> tuple[np.ndarray, np.ndarray]:
     obs = np.asarray(observed, dtype=float)
     sim = np.asarray(simulated, dtype=float)
@@ -102,7 +107,7 @@ def synthetic_loglik(observed, simulated, method: str = "gaussian", shrinkage: f
                                                       "(the unbiased estimator needs the raw covariance)")
     obs, sim = _arrays(observed, simulated)
     n, k = sim.shape
-    need = k + 2 if method == "gaussian" else k + 4
+    need = min_replicates(k, method)
     if n < need:
         rule = "n >= k + 2" if method == "gaussian" else "n > k + 3"
         raise ValueError(f"method={method!r} needs at least {need} simulated replicates for k={k} "

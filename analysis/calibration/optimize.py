@@ -3,7 +3,7 @@
 Contract
 --------
 ``run_optimize(simulate_seeds_fn, observed, prior, *, seed, n_sim, algorithm="differential_evolution",
-objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian", evaluator=None)
+objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian", executor=None)
 -> OptimizeResult``
 
 * ``simulate_seeds_fn(theta, seeds) -> (len(seeds), k)`` summary table at ``theta`` (shape (d,)), one
@@ -24,17 +24,17 @@ objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian",
 * ``algorithm="differential_evolution"``: :func:`scipy.optimize.differential_evolution` over
   ``prior.bounds`` (all must be finite, else ValueError), seeded with ``seed``, ``maxiter``,
   ``popsize``, ``polish=False``, ``updating="deferred"``: each generation's trial population is
-  evaluated as one block through ``evaluator.map`` (an :class:`~analysis.calibration.parallel.Evaluator`;
-  None: this process), so the result is the same for any executor and number of workers.
-  ``algorithm="nelder-mead"``: :func:`scipy.optimize.minimize` with ``method="Nelder-Mead"`` started
-  at ``prior.mean``, initial simplex ``mean + 0.5 * sd`` along each axis (clipped into the bounds),
+  evaluated as one block through ``executor.map`` (a :class:`sweeps.executors.Executor`; None: this
+  process), so the result is the same for any executor and number of workers.
+  ``algorithm="nelder_mead"`` (or ``"nelder-mead"``): :func:`scipy.optimize.minimize` with
+  ``method="Nelder-Mead"`` started at ``prior.mean``, initial simplex ``mean + 0.5 * sd`` along each axis (clipped into the bounds),
   ``options={"maxiter": maxiter}``. A trial point outside the bounds is evaluated at its projection
   onto the bounds plus a penalty ``1e3 * (1 + |f|) * sum(((theta - clipped) / scale)^2)``
   (scale = prior sd); the reported optimum is the projection, so it always lies inside the bounds.
-* Re-check with FRESH seeds: ``seeds_for(np.random.default_rng([seed, 7]), R)`` where ``R`` is
-  ``recheck`` rounded up to a multiple of ``n_sim``; they are simulated at the optimum in
-  ``B = R / n_sim`` batches of ``n_sim`` (consecutive seeds), mapped through ``evaluator`` too. The objective of each batch is the
-  same estimator as the CRN search value (same n, so the same estimator bias), and
+* Re-check with FRESH seeds: ``seeds_for(generator(seed, Tag.RECHECK), R)`` (:mod:`sweeps.seeds`) where
+  ``R`` is ``recheck`` rounded up to a multiple of ``n_sim``; they are simulated at the optimum in
+  ``B = R / n_sim`` batches of ``n_sim`` (consecutive seeds), mapped through ``executor`` too. The
+  objective of each batch is the same estimator as the CRN search value (same n, so the same estimator bias), and
   ``objective_recheck`` is their mean with the normal-approximation standard error
   ``recheck_se = sd(batch values, ddof=1) / sqrt(B)`` (nan when ``B < 2`` or any batch is infinite).
   ``objective_crn`` is the search value at the optimum (common seeds). The CRN value is selected by
@@ -55,18 +55,18 @@ import dataclasses
 import functools
 import inspect
 import math
-import numbers
 from typing import Callable
 
 import numpy as np
 from scipy import optimize as _opt
 
-from .likelihood import METHODS, standardized_distance, synthetic_loglik
-from .simulator import common_seeds, seeds_for
+from sweeps.seeds import Tag, common_seeds, generator, seeds_for
 
-ALGORITHMS = ("differential_evolution", "nelder-mead")
+from .checks import integer
+from .likelihood import METHODS, min_replicates, standardized_distance, synthetic_loglik
+
+ALGORITHMS = ("differential_evolution", "nelder_mead")
 OBJECTIVES = ("loglik", "distance")
-RECHECK_TAG = 7
 PENALTY = 1e3
 
 
@@ -97,16 +97,8 @@ class OptimizeResult:
         return (self.objective_recheck - self.objective_crn) / self.recheck_se
 
 
-def _int(value, name: str, minimum: int) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise ValueError(f"{name}: got {value!r}; must be an integer >= {minimum}")
-    return int(value)
-
-
 def _min_rows(k: int, objective: str, likelihood: str) -> int:
-    if objective == "distance":
-        return 2
-    return k + 2 if likelihood == "gaussian" else k + 4
+    return 2 if objective == "distance" else min_replicates(k, likelihood)
 
 
 def _batch_value(observed, sims, objective: str, likelihood: str, log_prior: float) -> float:
@@ -164,8 +156,8 @@ def crn_objective(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_
                   objective: str = "loglik", likelihood: str = "gaussian") -> Callable:
     """The deterministic search objective ``theta -> float`` using ``common_seeds(seed, n_sim)``."""
     _check_choices(objective, likelihood)
-    seed = _int(seed, "seed", 0)
-    n_sim = _int(n_sim, "n_sim", 1)
+    seed = integer(seed, "seed", 0)
+    n_sim = integer(n_sim, "n_sim", 1)
     return _Objective(simulate_seeds_fn, observed, prior, common_seeds(seed, n_sim), objective, likelihood)
 
 
@@ -174,13 +166,13 @@ def _de_kwargs(seed: int) -> dict:
     return {"rng": seed} if "rng" in params else {"seed": seed}
 
 
-def _run_de(func, bounds, seed, maxiter, popsize, evaluator=None):
+def _run_de(func, bounds, seed, maxiter, popsize, executor=None):
     if not all(math.isfinite(lo) and math.isfinite(hi) for lo, hi in bounds):
         raise ValueError(f"differential_evolution needs finite prior bounds, got {bounds}; "
-                         "use bounded priors (or explicit bounds) or algorithm='nelder-mead'")
+                         "use bounded priors (or explicit bounds) or algorithm='nelder_mead'")
     def block_map(_wrapped, thetas):   # scipy's wrapper only forwards to func; evaluate func itself
         thetas = [np.asarray(t, dtype=float) for t in thetas]
-        return evaluator.map(func, thetas) if evaluator is not None else [func(t) for t in thetas]
+        return executor.map(func, thetas) if executor is not None else [func(t) for t in thetas]
 
     res = _opt.differential_evolution(func, bounds, maxiter=maxiter, popsize=popsize, polish=False,
                                       updating="deferred", workers=block_map, **_de_kwargs(seed))
@@ -218,34 +210,34 @@ def _run_nm(func, prior, bounds, maxiter):
 def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_sim: int,
                  algorithm: str = "differential_evolution", objective: str = "loglik", maxiter: int = 100,
                  popsize: int = 15, recheck: int = 200, likelihood: str = "gaussian",
-                 evaluator=None) -> OptimizeResult:
+                 executor=None) -> OptimizeResult:
     """Minimise the CRN objective, then re-check the optimum with fresh seeds (module docstring)."""
     _check_choices(objective, likelihood)
-    algo = algorithm.lower().replace("_", "-") if isinstance(algorithm, str) else algorithm
-    algo = {"differential-evolution": "differential_evolution", "de": "differential_evolution",
-            "nelder-mead": "nelder-mead", "neldermead": "nelder-mead"}.get(algo)
+    algo = algorithm.lower().replace("-", "_") if isinstance(algorithm, str) else algorithm
+    algo = {"differential_evolution": "differential_evolution", "de": "differential_evolution",
+            "nelder_mead": "nelder_mead", "neldermead": "nelder_mead"}.get(algo)
     if algo is None:
         raise ValueError(f"algorithm: unknown {algorithm!r}; allowed: {', '.join(ALGORITHMS)}")
-    seed = _int(seed, "seed", 0)
-    n_sim = _int(n_sim, "n_sim", 1)
-    maxiter = _int(maxiter, "maxiter", 1)
-    popsize = _int(popsize, "popsize", 1)
-    recheck = _int(recheck, "recheck", 1)
+    seed = integer(seed, "seed", 0)
+    n_sim = integer(n_sim, "n_sim", 1)
+    maxiter = integer(maxiter, "maxiter", 1)
+    popsize = integer(popsize, "popsize", 1)
+    recheck = integer(recheck, "recheck", 1)
 
     func = _Objective(simulate_seeds_fn, observed, prior, common_seeds(seed, n_sim), objective, likelihood)
     bounds = [(float(lo), float(hi)) for lo, hi in prior.bounds]
     if algo == "differential_evolution":
-        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, evaluator)
+        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, executor)
     else:
         theta, nfev, success, message = _run_nm(func, prior, bounds, maxiter)
     objective_crn = float(func(theta))
 
     n_batches = -(-recheck // n_sim)
-    fresh = seeds_for(np.random.default_rng([seed, RECHECK_TAG]), n_batches * n_sim)
+    fresh = seeds_for(generator(seed, Tag.RECHECK), n_batches * n_sim)
     lp = func.log_prior(theta)
     batches = [fresh[b * n_sim:(b + 1) * n_sim] for b in range(n_batches)]
     task = functools.partial(_simulate_batch, simulate_seeds_fn, theta.copy())
-    tables = evaluator.map(task, batches) if evaluator is not None else [task(b) for b in batches]
+    tables = executor.map(task, batches) if executor is not None else [task(b) for b in batches]
     tables = [np.asarray(t, dtype=float) for t in tables]
     values = [_batch_value(func.observed, sims, objective, likelihood, lp) if math.isfinite(lp) else math.inf
               for sims in tables]

@@ -1,9 +1,9 @@
-"""Calibration figures: MCMC traces, corner plot, posterior predictive check and SBC rank histograms.
+"""Calibration figures: MCMC traces, corner plot, posterior predictive check and SBC rank figures.
 
-Same contract as :mod:`analysis.figures`: each function takes data and an output ``path`` (format by
-extension, ``.png`` or ``.svg``; parent directories created), draws with the Agg backend selected inside
-the function, saves, closes the figure and returns the ``Path`` written. Importing this module does not
-import matplotlib.
+Same contract as :mod:`analysis.reports.figures`: each function takes data and an output ``path``
+(format by extension, ``.png`` or ``.svg``; parent directories created), draws with the Agg backend
+selected inside the function, saves atomically, closes the figure and returns the ``Path`` written
+(:mod:`analysis.reports.plotting`). Importing this module does not import matplotlib.
 
 ``trace_figure(chain, names, path, burn=None)``
     one panel per parameter, every walker's trace vs step, burn-in shaded.
@@ -15,6 +15,9 @@ import matplotlib.
     in the title (``check_df`` from :func:`analysis.calibration.diagnostics.predictive_check`).
 ``sbc_figure(ranks, S, bins, names, path)``
     rank histograms with the uniform expectation and a 99% binomial band.
+``ecdf_figure(ranks, S, names, band, path, level=0.95)``
+    ECDF of the fractional ranks minus the uniform CDF with a simultaneous band (band from
+    :func:`analysis.calibration.sbc_report.ecdf_band`), one panel per parameter.
 """
 from __future__ import annotations
 
@@ -23,32 +26,24 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from scipy import stats
 
-from analysis.calibration.diagnostics import _bin_probs, _names, sbc_histogram
+from analysis.reports.plotting import pyplot, save
+
+from .diagnostics import _bin_probs, _names, ecdf_counts, sbc_histogram
 
 SCATTER_MAX = 500
 
 
-def _pyplot():
-    from analysis.figures import _pyplot as pyplot
-
-    return pyplot()
-
-
-def _save(fig, path) -> Path:
-    from analysis.figures import _save as save
-
-    return save(fig, path)
-
-
-def _grid(n: int, ncols_max: int = 4) -> tuple[int, int]:
+def _panels(n: int, width: float, height: float, ncols_max: int = 4):
+    """(figure, flat axes) of a grid of ``n`` panels of ``width`` x ``height`` inches, unused ones hidden."""
     ncols = min(n, ncols_max)
-    return int(math.ceil(n / ncols)), ncols
-
-
-def _hide_unused(axes, n):
-    for ax in axes[n:]:
+    nrows = int(math.ceil(n / ncols))
+    fig, axes = pyplot().subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False)
+    flat = axes.ravel()
+    for ax in flat[n:]:
         ax.set_visible(False)
+    return fig, flat
 
 
 def trace_figure(chain, names: Sequence[str] | None, path, burn: int | None = None) -> Path:
@@ -57,8 +52,7 @@ def trace_figure(chain, names: Sequence[str] | None, path, burn: int | None = No
         raise ValueError(f"chain must have shape (steps, walkers, d), got {chain.shape}")
     steps, walkers, d = chain.shape
     names = _names(names, d)
-    plt = _pyplot()
-    fig, axes = plt.subplots(d, 1, figsize=(8, 1.8 * d + 0.6), sharex=True, squeeze=False)
+    fig, axes = pyplot().subplots(d, 1, figsize=(8, 1.8 * d + 0.6), sharex=True, squeeze=False)
     t = np.arange(steps)
     alpha = max(0.05, min(0.6, 8.0 / walkers))
     for j, ax in enumerate(axes[:, 0]):
@@ -70,7 +64,7 @@ def trace_figure(chain, names: Sequence[str] | None, path, burn: int | None = No
     if burn:
         axes[0, 0].legend(loc="upper right", fontsize="small")
     axes[-1, 0].set_xlabel("step")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Path:
@@ -85,9 +79,8 @@ def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Pa
     truths = None if truths is None else np.asarray(truths, dtype=float).ravel()
     if truths is not None and truths.size != d:
         raise ValueError(f"got {truths.size} truths for {d} parameters")
-    plt = _pyplot()
     size = max(2.0, min(2.5, 10.0 / d))
-    fig, axes = plt.subplots(d, d, figsize=(size * d, size * d), squeeze=False)
+    fig, axes = pyplot().subplots(d, d, figsize=(size * d, size * d), squeeze=False)
     nbins = int(np.clip(np.sqrt(max(S, 1)), 10, 40))
     for i in range(d):
         for j in range(d):
@@ -120,7 +113,7 @@ def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Pa
                 ax.set_ylabel(names[i])
             elif j > 0:
                 ax.set_yticklabels([])
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def predictive_figure(check_df, predictive, observed, names: Sequence[str] | None, path) -> Path:
@@ -132,10 +125,7 @@ def predictive_figure(check_df, predictive, observed, names: Sequence[str] | Non
     obs = np.asarray(observed, dtype=float)
     if obs.ndim == 1:
         obs = obs[None, :]
-    plt = _pyplot()
-    nrows, ncols = _grid(k)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 2.6 * nrows), squeeze=False)
-    flat = axes.ravel()
+    fig, flat = _panels(k, 3.2, 2.6)
     for j, name in enumerate(names):
         ax = flat[j]
         p = pred[:, j][np.isfinite(pred[:, j])]
@@ -148,13 +138,10 @@ def predictive_figure(check_df, predictive, observed, names: Sequence[str] | Non
         ax.set_title(f"{name}  (p = {pval:.2f})", fontsize="medium")
         ax.set_yticks([])
     flat[0].legend(fontsize="small")
-    _hide_unused(flat, k)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def sbc_figure(ranks, S: int, bins: int, names: Sequence[str] | None, path) -> Path:
-    from scipy import stats
-
     counts, expected = sbc_histogram(ranks, S, bins)
     n_bins, d = counts.shape
     L = int(np.asarray(ranks).shape[0])
@@ -162,10 +149,7 @@ def sbc_figure(ranks, S: int, bins: int, names: Sequence[str] | None, path) -> P
     _, probs = _bin_probs(int(S), int(bins))
     low = stats.binom.ppf(0.005, L, probs)
     high = stats.binom.ppf(0.995, L, probs)
-    plt = _pyplot()
-    nrows, ncols = _grid(d)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.2 * ncols, 2.6 * nrows), squeeze=False)
-    flat = axes.ravel()
+    fig, flat = _panels(d, 3.2, 2.6)
     edges = np.arange(n_bins + 1)
     for j, name in enumerate(names):
         ax = flat[j]
@@ -179,5 +163,24 @@ def sbc_figure(ranks, S: int, bins: int, names: Sequence[str] | None, path) -> P
         ax.set_title(name, fontsize="medium")
         ax.set_xlabel(f"rank bin (S = {int(S)})")
     flat[0].legend(fontsize="small")
-    _hide_unused(flat, d)
-    return _save(fig, path)
+    return save(fig, path)
+
+
+def ecdf_figure(ranks, S: int, names: Sequence[str], band, path, level: float = 0.95) -> Path:
+    """ECDF of the fractional ranks minus the uniform CDF, one panel per parameter, with the ``level``
+    simultaneous band ``band`` = (z, lower, upper, ...)."""
+    ranks = np.asarray(ranks)
+    L, d = ranks.shape
+    z, lower, upper = band[:3]
+    counts = ecdf_counts(ranks.T, S) / L
+    fig, flat = _panels(d, 3.6, 2.8)
+    for j, name in enumerate(names):
+        ax = flat[j]
+        ax.fill_between(z, lower - z, upper - z, step="post", color="0.85", label=f"{level:.0%} simultaneous band")
+        ax.step(z, counts[j] - z, where="post", color="tab:blue", lw=1.5, label="ECDF - uniform")
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_xlim(0, 1)
+        ax.set_title(name, fontsize="medium")
+        ax.set_xlabel(f"fractional rank (L = {L}, S = {S})")
+    flat[0].legend(fontsize="small", loc="lower left")
+    return save(fig, path)

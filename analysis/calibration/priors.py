@@ -29,7 +29,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import special, stats
 
-from simcore.schema import ConfigError, join, suggest
+from simcore.schema import ConfigError, build, check_choice, join, suggest
 
 _LOG_2PI = math.log(2.0 * math.pi)
 
@@ -77,8 +77,21 @@ def _ppf_guard(u, values):
     return _out(np.where((u >= 0.0) & (u <= 1.0), values, np.nan))
 
 
+class _Interval:
+    """A prior on [low, high] whose ``mean`` and ``sd`` are its own moments."""
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return (self.low, self.high)
+
+    @property
+    def moments(self) -> tuple[float, float]:
+        """(mean, sd) of the distribution."""
+        return (self.mean, self.sd)
+
+
 @dataclasses.dataclass(frozen=True)
-class Uniform:
+class Uniform(_Interval):
     """Uniform on [low, high]."""
 
     low: float
@@ -89,21 +102,12 @@ class Uniform:
         _check_order(self.low, self.high)
 
     @property
-    def bounds(self) -> tuple[float, float]:
-        return (self.low, self.high)
-
-    @property
     def mean(self) -> float:
         return 0.5 * (self.low + self.high)
 
     @property
     def sd(self) -> float:
         return (self.high - self.low) / math.sqrt(12.0)
-
-    @property
-    def moments(self) -> tuple[float, float]:
-        """(mean, sd) of the distribution."""
-        return (self.mean, self.sd)
 
     def logpdf(self, x):
         x = np.asarray(x, dtype=float)
@@ -120,7 +124,7 @@ class Uniform:
 
 
 @dataclasses.dataclass(frozen=True)
-class LogUniform:
+class LogUniform(_Interval):
     """Log-uniform (reciprocal) on [low, high], 0 < low < high: density 1 / (x log(high/low))."""
 
     low: float
@@ -137,10 +141,6 @@ class LogUniform:
         return math.log(self.high / self.low)
 
     @property
-    def bounds(self) -> tuple[float, float]:
-        return (self.low, self.high)
-
-    @property
     def mean(self) -> float:
         return (self.high - self.low) / self._log_ratio
 
@@ -148,11 +148,6 @@ class LogUniform:
     def sd(self) -> float:
         second = (self.high ** 2 - self.low ** 2) / (2.0 * self._log_ratio)
         return math.sqrt(max(second - self.mean ** 2, 0.0))
-
-    @property
-    def moments(self) -> tuple[float, float]:
-        """(mean, sd) of the distribution."""
-        return (self.mean, self.sd)
 
     def logpdf(self, x):
         x = np.asarray(x, dtype=float)
@@ -281,29 +276,15 @@ def prior_from_dict(d: Mapping, key: str = "prior") -> Prior:
     """One prior from a TOML-like table ``{"dist": "uniform", "low": 0, "high": 1}``.
 
     ``dist`` is one of uniform | loguniform | normal | truncnormal; the other keys are that family's
-    fields (all required). Errors are ConfigError naming ``<key>.<field>``."""
+    fields (all required), read by the schema engine (:func:`simcore.schema.build`). Errors are
+    ConfigError naming ``<key>.<field>``."""
     if not isinstance(d, Mapping):
         raise ConfigError(key, f"expected a table with a 'dist' key, got {d!r}")
     if "dist" not in d:
         raise ConfigError(join(key, "dist"), f"missing required key; allowed: {', '.join(DISTRIBUTIONS)}")
-    dist = d["dist"]
-    if not isinstance(dist, str) or dist not in DISTRIBUTIONS:
-        hint = suggest(dist, DISTRIBUTIONS) if isinstance(dist, str) else ""
-        raise ConfigError(join(key, "dist"), f"unknown distribution {dist!r}{hint}; "
-                                             f"allowed: {', '.join(DISTRIBUTIONS)}")
-    cls = DISTRIBUTIONS[dist]
-    fields = [f.name for f in dataclasses.fields(cls)]
-    allowed = ["dist", *fields]
-    for k in d:
-        if k not in allowed:
-            raise ConfigError(join(key, str(k)), f"unknown key for a {dist} prior{suggest(str(k), allowed)}; "
-                                                 f"allowed keys: {', '.join(allowed)}")
-    for name in fields:
-        if name not in d:
-            raise ConfigError(join(key, name), f"missing required key for a {dist} prior "
-                                               f"(needs {', '.join(fields)})")
+    check_choice(join(key, "dist"), d["dist"], tuple(DISTRIBUTIONS))
     try:
-        return cls(**{name: d[name] for name in fields})
+        return build(DISTRIBUTIONS[d["dist"]], {k: v for k, v in d.items() if k != "dist"})
     except ConfigError as err:
         raise _rekey(err, key) from None
 

@@ -1,7 +1,12 @@
 """``flocksweep calibrate``: from a calibration TOML to a posterior with its diagnostics, on disk.
 
-``calibrate(config, out_dir, resume=False, progress=True) -> dict`` runs the configured method and
-writes into ``out_dir`` (default ``results/calibration/<name>/``):
+``calibrate(config, out_dir, resume=False, progress=True, executor="serial", workers=None,
+scheduler=None) -> dict`` runs the configured method and writes into ``out_dir`` (default
+``results/calibration/<name>/``), an :class:`sweeps.store.OutputFolder`: locked while it runs (a
+second calibration writing there gets ``StoreLocked``), every file written atomically, the provenance
+stamp in ``convergence.json`` / ``optimum.json``. Simulations run on a :class:`sweeps.executors.Executor`
+(``serial``: this process, each evaluation's replicates in one threaded compiled call; ``local``: a
+process pool evaluating proposals in parallel; ``dask``); the results do not depend on it.
 
 * ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly);
 * ``posterior.csv``: mean, sd, median, 95% and 90% intervals, integrated autocorrelation time, effective
@@ -25,7 +30,8 @@ re-checked, its standard error, evaluations) and ``predictive.csv``/``.png`` at 
 a chain.
 
 Method ``emulator`` fits a surrogate (Gaussian process or RBF) of the statistics' mean and variance to an
-existing sweep's results (:mod:`analysis.calibration.emulator`), samples the emulated posterior with
+existing sweep's results (:mod:`~analysis.calibration.training`, :mod:`~analysis.calibration.surrogates`,
+:mod:`~analysis.calibration.emulated`), samples the emulated posterior with
 emcee (``chain.h5``, resumable) and writes the same posterior outputs; the posterior predictive check
 uses REAL simulations at posterior draws. With ``confirm = C`` it then runs C real replicates at the
 posterior median: ``confirm.csv`` (emulated against real mean, z per statistic) and
@@ -34,34 +40,40 @@ posterior median: ``confirm.csv`` (emulated against real mean, z per statistic) 
 from __future__ import annotations
 
 import functools
-import json
 import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
-from simcore.schema import ConfigError
+from simcore.schema import ConfigError, to_dict
+from sweeps.executors import Executor
+from sweeps.files import json_ready
+from sweeps.seeds import Tag, generator
+from sweeps.store import OutputFolder
 
 from .bsl import run_bsl, simulate_keyed
 from .config import CalibrationConfig
 from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
-from .parallel import Evaluator
+from .emulated import confirm, observation_covariance, posterior_median, run_emulator_mcmc
+from .optimize import run_optimize
 from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
-from ..viewer.hooks import posterior_median_page
-
-IMPLEMENTED = ("emcee", "optimize", "emulator")
-PREDICTIVE_TAG = 0x5050
+from .surrogates import build_surrogate, prior_outside_box
+from .training import training_set
+from analysis.viewer.hooks import posterior_median_page
 
 
 def summary_simulator(config: CalibrationConfig, n_sim: int | None = None) -> SummarySimulator:
-    n_sim = config.method.settings["n_sim"] if n_sim is None else n_sim
-    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, config.warmup)
+    n_sim = config.method.n_sim if n_sim is None else n_sim
+    m = config.metrics
+    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
+                            m.group_radius, m.fragmentation_cohesion)
 
 
 def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
     """theta, rng -> (n_sim, k) summaries, with the observation noise of mean/sd targets added."""
-    cov = config.targets.cov if config.targets.samples_path is None else None
+    cov = observation_covariance(config)
 
     def fn(theta, rng):
         sims = simulator(np.asarray(theta, dtype=float), rng)
@@ -74,42 +86,52 @@ def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
 def seeded_fn(config: CalibrationConfig, simulator: SummarySimulator):
     """theta, seeds -> (n_sim, k): a deterministic function of the seeds (observation noise included,
     drawn from a generator seeded by the same seeds), as common random numbers need."""
-    cov = config.targets.cov if config.targets.samples_path is None else None
+    cov = observation_covariance(config)
 
     def fn(theta, seeds):
         sims = simulator.simulate(np.asarray(theta, dtype=float), seeds)
         if cov is not None:
-            rng = np.random.default_rng([int(s) for s in seeds])
+            rng = generator(*seeds)
             sims = sims + rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
         return sims
     return fn
 
 
-def _optimize(config: CalibrationConfig, simulator: SummarySimulator, out: Path, started: float,
-              evaluator: Evaluator) -> dict:
-    from sweeps.atomic import write_json
-    from sweeps.provenance import stamp
+def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
+              predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
+              scheduler: str | None = None) -> dict:
+    """Run ``config``'s method, write its outputs into ``out_dir``; see the module docstring."""
+    folder = OutputFolder(Path(out_dir) if out_dir else Path("results") / "calibration" / config.name)
+    chain_path = folder.path("chain.h5")
+    if config.method.kind != "optimize" and chain_path.exists() and not resume:
+        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
+    with folder.lock(), Executor(executor, workers, scheduler) as pool:
+        if config.method.kind == "optimize":
+            return _optimize(config, folder, pool)
+        if config.method.kind == "emulator":
+            return _emulator(config, folder, resume, progress, predictive_draws, pool)
+        return _emcee(config, folder, resume, progress, predictive_draws, pool)
 
-    from .optimize import run_optimize
 
-    settings = config.method.settings
-    result = run_optimize(seeded_fn(config, simulator), config.targets.observed, config.prior, seed=config.seed,
-                          n_sim=settings["n_sim"], algorithm=settings["algorithm"],
-                          maxiter=settings["maxiter"], popsize=settings["popsize"], recheck=settings["recheck"],
-                          likelihood=settings["likelihood"], objective=settings["objective"],
-                          evaluator=evaluator)
+def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -> dict:
+    started = time.time()
+    settings = config.method
+    result = run_optimize(seeded_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
+                          seed=config.seed, n_sim=settings.n_sim, algorithm=settings.algorithm,
+                          maxiter=settings.maxiter, popsize=settings.popsize, recheck=settings.recheck,
+                          likelihood=settings.likelihood, objective=settings.objective, executor=pool)
     check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
-    check.to_csv(out / "predictive.csv")
+    folder.write_csv("predictive.csv", check)
     predictive_figure(check, result.recheck_summaries, config.targets.observed, config.targets.columns,
-                      out / "predictive.png")
-    optimum = {"name": config.name, "method": "optimize", "settings": settings, "seed": config.seed,
+                      folder.path("predictive.png"))
+    optimum = {"name": config.name, "method": "optimize", "settings": to_dict(settings), "seed": config.seed,
                "theta": dict(zip(config.names, map(float, result.theta))),
                "objective_common_seeds": float(result.objective_crn),
                "objective_recheck": float(result.objective_recheck), "recheck_se": float(result.recheck_se),
                "evaluations": int(result.nfev), "success": bool(result.success), "message": str(result.message),
-               "wall_s": time.time() - started, "executor": evaluator.description, **stamp()}
-    write_json(out / "optimum.json", _plain(optimum))
-    return {"out": out, "optimum": optimum, "predictive": check}
+               "wall_s": time.time() - started, "executor": pool.description, **folder.provenance()}
+    folder.write_json("optimum.json", optimum)
+    return {"out": folder.root, "optimum": json_ready(optimum), "predictive": check}
 
 
 def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -117,93 +139,60 @@ def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Ge
     return flat[rng.choice(len(flat), size=min(count, len(flat)), replace=False)]
 
 
-def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, evaluator: Evaluator) -> np.ndarray:
+def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None) -> np.ndarray:
     """(P, k): one simulated dataset (observation noise included) per posterior draw; draw i uses the
-    seed key (config.seed, PREDICTIVE_TAG, i)."""
+    seed key (config.seed, Tag.PREDICTIVE, i)."""
     fn = functools.partial(simulate_keyed, simulate_fn(config, summary_simulator(config, n_sim=1)))
-    tasks = [(theta, (config.seed, PREDICTIVE_TAG, i)) for i, theta in enumerate(draws)]
-    return np.vstack(evaluator.map(fn, tasks))
+    tasks = [(theta, (config.seed, Tag.PREDICTIVE, i)) for i, theta in enumerate(draws)]
+    return np.vstack(pool.map(fn, tasks) if pool is not None else [fn(task) for task in tasks])
 
 
-def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
-              predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
-              scheduler: str | None = None) -> dict:
-    """Run ``config``'s method, write its outputs into ``out_dir``; see the module docstring."""
-    if config.method.kind not in IMPLEMENTED:
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; this version runs {', '.join(IMPLEMENTED)}")
-    out = Path(out_dir) if out_dir else Path("results") / "calibration" / config.name
-    chain_path = out / "chain.h5"
-    if config.method.kind != "optimize" and chain_path.exists() and not resume:
-        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
-    out.mkdir(parents=True, exist_ok=True)
-    with Evaluator(executor, workers, scheduler) as evaluator:
-        if config.method.kind == "optimize":
-            return _optimize(config, summary_simulator(config), out, time.time(), evaluator)
-        if config.method.kind == "emulator":
-            return _emulator(config, out, resume, progress, predictive_draws, evaluator)
-        return _emcee(config, out, resume, progress, predictive_draws, evaluator)
-
-
-def _emcee(config: CalibrationConfig, out: Path, resume: bool, progress: bool, predictive_draws: int,
-           evaluator: Evaluator) -> dict:
-    settings = config.method.settings
-    fn = simulate_fn(config, summary_simulator(config))
+def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool, predictive_draws: int,
+           pool: Executor) -> dict:
+    settings = config.method
     started = time.time()
-    bar = _progress_bar(settings["steps"], config.name, progress)
-    try:
-        result = run_bsl(fn, config.targets.observed, config.prior, walkers=settings["walkers"],
-                         steps=settings["steps"], seed=config.seed, path=out / "chain.h5", resume=resume,
-                         likelihood=settings["likelihood"], reevaluate_every=settings["reevaluate_every"],
-                         moves=settings["moves"],
-                         progress=bar.update if bar else None, evaluator=evaluator)
-    finally:
-        if bar:
-            bar.close()
-    return write_posterior(config, result, out, evaluator, predictive_draws, started,
-                           extra={"executor": evaluator.description})
+    with _ProgressBar(settings.steps, config.name, progress) as bar:
+        result = run_bsl(simulate_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
+                         walkers=settings.walkers, steps=settings.steps, seed=config.seed,
+                         path=folder.path("chain.h5"), resume=resume, likelihood=settings.likelihood,
+                         reevaluate_every=settings.reevaluate_every, moves=settings.moves, progress=bar.callback,
+                         executor=pool)
+    return write_posterior(config, result, folder, pool, predictive_draws, started,
+                           extra={"executor": pool.description})
 
 
-def _emulator(config: CalibrationConfig, out: Path, resume: bool, progress: bool, predictive_draws: int,
-              evaluator: Evaluator) -> dict:
-    from sweeps.atomic import write_json
-
-    from .emulator import (build_surrogate, confirm, observation_covariance, posterior_median,
-                           prior_outside_box, run_emulator_mcmc, training_set)
-
-    settings = config.method.settings
+def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool,
+              predictive_draws: int, pool: Executor) -> dict:
+    settings = config.method
     started = time.time()
-    training = training_set(settings["results"], config)
-    surrogate = build_surrogate(training, settings["surrogate"])
+    training = training_set(settings.results, config)
+    surrogate = build_surrogate(training, settings.surrogate)
     fitted = time.time()
-    bar = _progress_bar(settings["steps"], f"{config.name} (emulator)", progress)
-    try:
+    with _ProgressBar(settings.steps, f"{config.name} (emulator)", progress) as bar:
         result = run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
-                                   walkers=settings["walkers"], steps=settings["steps"], seed=config.seed,
-                                   path=out / "chain.h5", resume=resume, progress=bar.update if bar else None,
-                                   moves=settings["moves"])
-    finally:
-        if bar:
-            bar.close()
+                                   walkers=settings.walkers, steps=settings.steps, seed=config.seed,
+                                   path=folder.path("chain.h5"), resume=resume, progress=bar.callback,
+                                   moves=settings.moves)
     emulator_info = {"training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
                      "training_box": {n: [float(lo), float(hi)] for n, lo, hi in
                                       zip(config.names, training.lower, training.upper)},
                      "fixed_factors": training.fixed, "notes": list(training.notes),
-                     "fit_s": fitted - started, "results": str(settings["results"])}
-    posterior = write_posterior(config, result, out, evaluator, predictive_draws, started,
-                                extra={"executor": evaluator.description, "emulator": emulator_info},
+                     "fit_s": fitted - started, "results": str(settings.results)}
+    posterior = write_posterior(config, result, folder, pool, predictive_draws, started,
+                                extra={"executor": pool.description, "emulator": emulator_info},
                                 warnings=prior_outside_box(config.prior, surrogate))
-    if settings["confirm"]:
+    if settings.confirm:
         theta = posterior_median(result.chain, posterior["report"]["burn"])
-        check = confirm(config, summary_simulator(config), surrogate, theta, count=settings["confirm"],
+        check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm,
                         seed=config.seed)
-        check["comparison"].to_csv(out / "confirm.csv")
-        check["predictive"].to_csv(out / "confirm_predictive.csv")
+        folder.write_csv("confirm.csv", check["comparison"])
+        folder.write_csv("confirm_predictive.csv", check["predictive"])
         posterior["confirm"] = check
-        posterior["report"]["confirm"] = {"theta": check["theta"], "count": settings["confirm"],
+        posterior["report"]["confirm"] = {"theta": check["theta"], "count": settings.confirm,
                                           "max_abs_z": float(np.nanmax(np.abs(check["comparison"]["z"]))),
                                           "messages": confirm_messages(check)}
         posterior["report"]["wall_s"] = time.time() - started
-        write_json(out / "convergence.json", _plain(posterior["report"]))
+        folder.write_json("convergence.json", posterior["report"])
     return posterior
 
 
@@ -225,55 +214,54 @@ def confirm_messages(check: dict, z_limit: float = 3.0, p_limit: float = 0.01) -
     return messages
 
 
-def write_posterior(config: CalibrationConfig, result, out: Path, evaluator: Evaluator, predictive_draws: int,
-                    started: float, extra: dict | None = None, warnings: list | None = None) -> dict:
-    """From a chain (a BSLResult) to posterior.csv, convergence.json, predictive.csv and the figures."""
-    from sweeps.atomic import write_json
-    from sweeps.provenance import stamp
-
+def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, pool: Executor | None,
+                    predictive_draws: int, started: float, extra: dict | None = None,
+                    warnings: list | None = None) -> dict:
+    """From a chain (a ChainResult) to posterior.csv, convergence.json, predictive.csv and the figures."""
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     burn = int(summary.attrs.get("burn", 0))
     verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
-    rng = np.random.default_rng([config.seed, PREDICTIVE_TAG])
-    draws = _posterior_draws(result.chain, burn, predictive_draws, rng)
-    predictive = posterior_predictive(config, draws, evaluator)
+    draws = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
+    predictive = posterior_predictive(config, draws, pool)
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
-    summary.to_csv(out / "posterior.csv")
-    check.to_csv(out / "predictive.csv")
-    trace_figure(result.chain, config.names, out / "trace.png", burn=burn)
-    corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, out / "corner.png")
-    predictive_figure(check, predictive, config.targets.observed, config.targets.columns, out / "predictive.png")
-    posterior_median_page(config, summary, out)  # viewer page of a run at the posterior median
-    report = {"name": config.name, "method": config.method.kind, "settings": config.method.settings,
-              "seed": config.seed, "convergence": _plain(verdict), "warnings": warnings,
-              "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),
-              "walkers": int(result.chain.shape[1]), "burn": burn, **(extra or {}), **stamp()}
-    write_json(out / "convergence.json", _plain(report))
-    return {"out": out, "summary": summary, "convergence": verdict, "warnings": warnings, "predictive": check,
-            "report": report}
+    folder.write_csv("posterior.csv", summary)
+    folder.write_csv("predictive.csv", check)
+    trace_figure(result.chain, config.names, folder.path("trace.png"), burn=burn)
+    corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, folder.path("corner.png"))
+    predictive_figure(check, predictive, config.targets.observed, config.targets.columns,
+                      folder.path("predictive.png"))
+    posterior_median_page(config, summary, folder.root)  # viewer page of a run at the posterior median
+    report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
+                         "seed": config.seed, "convergence": verdict, "warnings": warnings,
+                         "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),
+                         "walkers": int(result.chain.shape[1]), "burn": burn, **(extra or {}),
+                         **folder.provenance()})
+    folder.write_json("convergence.json", report)
+    return {"out": folder.root, "summary": summary, "convergence": verdict, "warnings": warnings,
+            "predictive": check, "report": report}
 
 
-class _Bar:
-    def __init__(self, total: int, name: str):
-        from tqdm import tqdm
+class _ProgressBar:
+    """tqdm of MCMC steps with the acceptance and tau estimate; does nothing when disabled."""
 
-        self.bar = tqdm(total=total, desc=name, unit="step", mininterval=0.5)
+    def __init__(self, total: int, name: str, enabled: bool):
+        self.bar = tqdm(total=total, desc=name, unit="step", mininterval=0.5) if enabled else None
         self.done = 0
+
+    @property
+    def callback(self):
+        """The progress callback for the MCMC driver, or None when disabled (no tau is computed then)."""
+        return self.update if self.bar is not None else None
 
     def update(self, step, acceptance, tau):
         self.bar.update(step - self.done)
         self.done = step
         self.bar.set_postfix(acceptance=f"{acceptance:.2f}", tau=f"{tau:.1f}", refresh=False)
 
-    def close(self):
-        self.bar.close()
+    def __enter__(self):
+        return self
 
-
-def _progress_bar(total: int, name: str, enabled: bool):
-    return _Bar(total, name) if enabled else None
-
-
-def _plain(value):
-    """JSON-ready copy (numpy scalars and arrays to Python)."""
-    return json.loads(json.dumps(value, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o)))
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()

@@ -14,7 +14,7 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
 * ``config`` is a :class:`~analysis.calibration.config.CalibrationConfig` with method ``emcee`` (or an
   :class:`SBCProblem`, e.g. a cheap toy model in tests). ``steps`` / ``walkers`` override the config's.
 * For dataset ``j = 0..datasets-1``, every random number comes from ``(config.seed, j)`` only, through
-  ``SeedSequence([seed, SBC_TAG, j, stream])``:
+  ``seed_sequence(seed, Tag.SBC, j, stream)`` (:mod:`sweeps.seeds`, streams :class:`~sweeps.seeds.SBCStream`):
     - stream 0: ``theta_j = prior.sample(rng, 1)[0]``, shape (d,);
     - stream 1: the observed data ``y_j``, shape (m, k) (m = rows of the config's targets, 1 for
       mean/sd targets), from the SAME data model the likelihood assumes: the summary simulator plus,
@@ -31,7 +31,8 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
   When fewer than S thinned draws exist the thinning is reduced until S exist and the dataset is
   flagged ``short`` (its draws are autocorrelated; too many short datasets mean the chains are too
   short for SBC).
-* Storage in ``out_dir`` (default ``results/calibration/<name>/sbc``): ``settings.json`` (everything
+* Storage in ``out_dir`` (default ``results/calibration/<name>/sbc``, an :class:`sweeps.store.OutputFolder`,
+  locked while it runs): ``settings.json`` (everything
   the results depend on; a resume with other settings is refused, except a larger ``datasets``),
   ``datasets/<j:06d>.json`` per dataset, written atomically when that dataset is done (theta, y,
   ranks, posterior draws, tau, thinning, acceptance, wall time), so an interrupted run resumes where it
@@ -41,26 +42,29 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
   ``rank_histogram.png`` (:func:`~analysis.calibration.plots.sbc_figure`), ``ecdf_diff.png`` (ECDF
   of the fractional ranks minus the uniform CDF with a simultaneous band) and ``summary.json``.
 * Two uniformity tests per parameter: the chi-square test of the binned rank histogram
-  (:func:`~analysis.calibration.diagnostics.sbc_uniformity`, ``bins`` default :func:`default_bins`)
+  (:func:`~analysis.calibration.diagnostics.sbc_uniformity`, ``bins`` default
+  :func:`~analysis.calibration.sbc_report.default_bins`)
   and the ECDF test (Saeilynoja et al. 2022), whose p-value is the probability, under uniform ranks, of
   a rank ECDF whose most extreme point-wise binomial tail probability is as small as the observed one
   (more powerful against U and hump shapes than a coarse histogram). Verdict: no significant
   miscalibration when every p-value is at least ``alpha / (2 d)`` (Bonferroni over both tests and the
   d parameters).
-* ``workers > 1`` runs datasets in that many "spawn" worker processes (each builds the simulators
-  from the config once; an :class:`SBCProblem` must then be picklable). As with any spawn pool, a
-  script calling it needs the ``if __name__ == "__main__":`` guard. Results are the same as with 1.
-* ``write_report(out, names, datasets, draws, bins=None, alpha=0.05, seed=0, columns=None)`` rebuilds
-  the tables and figures from the stored datasets alone (run_sbc calls it at the end).
+* ``workers > 1`` runs datasets on a local :class:`sweeps.executors.Executor` of that many processes
+  (the problem travels to them with cloudpickle). As with any spawn pool, a script calling it needs the
+  ``if __name__ == "__main__":`` guard. Results are the same as with 1.
+* :func:`analysis.calibration.sbc_report.write_report` rebuilds the tables and figures from the
+  stored datasets alone (run_sbc calls it at the end).
 * Return value: ``{"out", "table" (DataFrame, index parameter: chi2, dof, p, n, bins, ecdf_p),
   "ranks" (DataFrame), "calibrated" (bool), "verdict" (sentence), "paths" (name -> Path), "wall_s"}``.
 
 Array shapes: theta (d,), y (m, k), posterior draws (S, d), ranks (L, d) for L datasets; ranks are
-integers in 0..S. Nothing runs at import; matplotlib, emcee and tqdm are imported inside functions.
+integers in 0..S. Nothing runs at import.
 """
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import json
 import math
 import time
@@ -68,14 +72,18 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
-import pandas as pd
+from tqdm import tqdm
 
-from .diagnostics import integrated_times, sbc_ranks, sbc_uniformity
+from sweeps.executors import Executor
+from sweeps.files import json_ready
+from sweeps.seeds import SBCStream, Tag, seed_sequence
+from sweeps.store import OutputFolder
 
-SBC_TAG = 0x5BC
-STREAM_THETA, STREAM_OBSERVED, STREAM_BSL, STREAM_SELECT, STREAM_TIES = range(5)
-BAND_TRIALS = 4000          # uniform rank sets simulated for the ECDF band and test
-MIN_EXPECTED_PER_BIN = 5    # default bins keep at least this many expected ranks per bin
+from .bsl import run_bsl
+from .checks import integer
+from .diagnostics import integrated_times, sbc_ranks
+from .run import simulate_fn, summary_simulator
+from .sbc_report import dataset_path, write_report
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,23 +117,20 @@ class SBCProblem:
 
 def problem_from_config(config, steps: int | None = None, walkers: int | None = None) -> SBCProblem:
     """The SBC problem of an emcee calibration config (optionally with other steps / walkers)."""
-    from .run import simulate_fn, summary_simulator
-    from .simulator import SummarySimulator
-
     if config.method.kind != "emcee":
         raise ValueError(f"SBC runs the emcee (BSL) method; this config's method is {config.method.kind!r}")
-    settings = config.method.settings
+    settings = config.method
     rows = int(np.asarray(config.targets.observed).shape[0])
-    observer = SummarySimulator(config.preset_data, config.keys, config.targets.columns, rows, config.warmup)
-    meta = {"name": config.name, "n_sim": int(settings["n_sim"]), "observed_rows": rows,
-            "config": _plain(config.source), "preset_sha256": _digest(config.preset_data)}
+    observer = summary_simulator(config, n_sim=rows)
+    meta = {"name": config.name, "n_sim": int(settings.n_sim), "observed_rows": rows,
+            "config": json_ready(config.source), "preset_sha256": _digest(config.preset_data)}
     return SBCProblem(prior=config.prior, simulate_fn=simulate_fn(config, summary_simulator(config)),
                       observe_fn=simulate_fn(config, observer), names=tuple(config.names),
                       columns=tuple(config.targets.columns), seed=int(config.seed),
-                      walkers=int(walkers if walkers is not None else settings["walkers"]),
-                      steps=int(steps if steps is not None else settings["steps"]),
-                      likelihood=settings["likelihood"], reevaluate_every=int(settings["reevaluate_every"]),
-                      moves=settings.get("moves", "stretch"), meta=meta)
+                      walkers=int(walkers if walkers is not None else settings.walkers),
+                      steps=int(steps if steps is not None else settings.steps),
+                      likelihood=settings.likelihood, reevaluate_every=int(settings.reevaluate_every),
+                      moves=settings.moves, meta=meta)
 
 
 def _as_problem(source, steps=None, walkers=None) -> SBCProblem:
@@ -139,7 +144,7 @@ def _as_problem(source, steps=None, walkers=None) -> SBCProblem:
 
 def stream(seed: int, j: int, which: int) -> np.random.SeedSequence:
     """The seed sequence of stream ``which`` of dataset ``j`` (see the module docstring)."""
-    return np.random.SeedSequence([int(seed), SBC_TAG, int(j), int(which)])
+    return seed_sequence(seed, Tag.SBC, j, which)
 
 
 def generator(seed: int, j: int, which: int) -> np.random.Generator:
@@ -148,7 +153,7 @@ def generator(seed: int, j: int, which: int) -> np.random.Generator:
 
 def bsl_seed(seed: int, j: int) -> int:
     """The integer seed of dataset ``j``'s BSL run, in [0, 2**63)."""
-    word = stream(seed, j, STREAM_BSL).generate_state(1, np.uint64)[0]
+    word = stream(seed, j, SBCStream.BSL).generate_state(1, np.uint64)[0]
     return int(word >> np.uint64(1))
 
 
@@ -156,13 +161,13 @@ def bsl_seed(seed: int, j: int) -> int:
 
 def draw_theta(problem: SBCProblem, j: int) -> np.ndarray:
     """theta_j ~ prior, shape (d,)."""
-    return np.asarray(problem.prior.sample(generator(problem.seed, j, STREAM_THETA), 1), dtype=float)[0]
+    return np.asarray(problem.prior.sample(generator(problem.seed, j, SBCStream.THETA), 1), dtype=float)[0]
 
 
 def draw_observed(problem: SBCProblem, theta, j: int) -> np.ndarray:
     """y_j ~ p(y | theta_j), shape (m, k)."""
     y = np.asarray(problem.observe_fn(np.asarray(theta, dtype=float), generator(problem.seed, j,
-                                                                                STREAM_OBSERVED)), dtype=float)
+                                                                                SBCStream.OBSERVED)), dtype=float)
     return y[None, :] if y.ndim == 1 else y
 
 
@@ -199,16 +204,14 @@ def posterior_draws(chain, draws: int, rng: np.random.Generator) -> tuple[np.nda
 
 def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
     """Run SBC dataset ``j``: theta, y, BSL posterior, ranks. A JSON-ready record."""
-    from .bsl import run_bsl
-
     started = time.time()
     theta = draw_theta(problem, j)
     y = draw_observed(problem, theta, j)
     result = run_bsl(problem.simulate_fn, y, problem.prior, walkers=problem.walkers, steps=problem.steps,
                      seed=bsl_seed(problem.seed, j), likelihood=problem.likelihood,
                      reevaluate_every=problem.reevaluate_every, moves=problem.moves)
-    sample, info = posterior_draws(result.chain, draws, generator(problem.seed, j, STREAM_SELECT))
-    ranks = sbc_ranks(theta[None, :], [sample], rng=generator(problem.seed, j, STREAM_TIES))[0]
+    sample, info = posterior_draws(result.chain, draws, generator(problem.seed, j, SBCStream.SELECT))
+    ranks = sbc_ranks(theta[None, :], [sample], rng=generator(problem.seed, j, SBCStream.TIES))[0]
     return {"dataset": int(j), "theta": theta.tolist(), "observed": y.tolist(), "ranks": ranks.tolist(),
             "draws": sample.tolist(), "post_mean": sample.mean(axis=0).tolist(),
             "post_sd": sample.std(axis=0, ddof=1).tolist(), "acceptance": float(result.acceptance_fraction.mean()),
@@ -221,68 +224,30 @@ def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
 def settings_record(problem: SBCProblem, draws: int) -> dict:
     """What the per-dataset results depend on (compared on resume)."""
     moves = {} if problem.moves == "stretch" else {"moves": problem.moves}   # records before moves: stretch
-    return _plain({**moves, "method": "sbc", "seed": problem.seed, "draws": int(draws), "names": list(problem.names),
-                   "columns": list(problem.columns), "walkers": problem.walkers, "steps": problem.steps,
-                   "likelihood": problem.likelihood, "reevaluate_every": problem.reevaluate_every,
-                   "burn": "first half of the chain", "thin": "ceil(max tau of the kept half)",
-                   "problem": problem.meta})
+    return json_ready({**moves, "method": "sbc", "seed": problem.seed, "draws": int(draws),
+                       "names": list(problem.names), "columns": list(problem.columns), "walkers": problem.walkers,
+                       "steps": problem.steps, "likelihood": problem.likelihood,
+                       "reevaluate_every": problem.reevaluate_every, "burn": "first half of the chain",
+                       "thin": "ceil(max tau of the kept half)", "problem": problem.meta})
 
 
-def dataset_path(out: Path, j: int) -> Path:
-    return Path(out) / "datasets" / f"{int(j):06d}.json"
-
-
-def load_record(out: Path, j: int) -> dict | None:
-    path = dataset_path(out, j)
-    return json.loads(path.read_text()) if path.exists() else None
-
-
-def _prepare_out(out: Path, settings: dict, resume: bool) -> None:
-    from sweeps.atomic import write_json
-
-    path = out / "settings.json"
-    if path.exists():
-        stored = json.loads(path.read_text())
+def _prepare_out(folder: OutputFolder, settings: dict, resume: bool) -> None:
+    stored = folder.read_json("settings.json")
+    if stored is not None:
         if stored != settings:
             diff = sorted(k for k in set(stored) | set(settings) if stored.get(k) != settings.get(k))
-            raise ValueError(f"{path} was written with other settings ({', '.join(diff)} differ); "
-                             "use another out_dir or remove it")
-        if not resume and any((out / "datasets").glob("*.json")):
-            raise FileExistsError(f"{out} holds SBC results; pass resume=True to continue, or remove it")
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(path, settings)
-
-
-def _save_record(out: Path, record: dict) -> None:
-    from sweeps.atomic import write_json
-
-    write_json(dataset_path(out, record["dataset"]), _plain(record))
+            raise ValueError(f"{folder.path('settings.json')} was written with other settings ({', '.join(diff)} "
+                             "differ); use another out_dir or remove it")
+        if not resume and any(folder.path("datasets").glob("*.json")):
+            raise FileExistsError(f"{folder.root} holds SBC results; pass resume=True to continue, or remove it")
+    folder.write_json("settings.json", settings)
 
 
 # -------------------------------------------------------------------------------------------- running
 
-_WORKER: dict = {}
-
-
-def _worker_init(source, steps, walkers, threads) -> None:
-    """Worker process: build the problem once (simulators are not picklable) and limit numba threads."""
-    try:
-        import numba
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    except Exception:  # noqa: BLE001 - only a performance setting
-        pass
-    _WORKER["problem"] = _as_problem(source, steps, walkers)
-
-
-def _worker_dataset(j: int, draws: int) -> dict:
-    return sbc_dataset(_WORKER["problem"], j, draws)
-
-
 def _bar(total: int, done: int, name: str, enabled: bool):
     if not enabled:
         return None
-    from tqdm import tqdm
-
     return tqdm(total=total, initial=done, desc=f"SBC {name}", unit="dataset", smoothing=0.1)
 
 
@@ -293,38 +258,15 @@ def _tick(bar, record: dict) -> None:
                         s=f"{record['wall_s']:.0f}", refresh=False)
 
 
-def _run_missing(source, problem: SBCProblem, todo: list[int], draws: int, out: Path, workers: int,
-                 bar, steps, walkers) -> None:
-    if workers <= 1:
-        for j in todo:
-            record = sbc_dataset(problem, j, draws)
-            _save_record(out, record)
-            _tick(bar, record)
-        return
-    import multiprocessing
-    import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init,
-                               initargs=(source, steps, walkers, threads))
-    try:
-        futures = [pool.submit(_worker_dataset, j, draws) for j in todo]
-        for future in as_completed(futures):
-            record = future.result()
-            _save_record(out, record)
-            _tick(bar, record)
-    except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)   # finished datasets are saved; stop the rest
-        raise
-    pool.shutdown()
-
-
-def default_bins(draws: int, datasets: int) -> int:
-    """The largest divisor of S + 1 that is at most 20 and keeps >= 5 expected ranks per bin."""
-    cap = max(1, min(20, datasets // MIN_EXPECTED_PER_BIN))
-    return max(b for b in range(1, cap + 1) if (draws + 1) % b == 0)
+def _run_missing(problem: SBCProblem, todo: list[int], draws: int, folder: OutputFolder, workers: int, bar) -> None:
+    """Fit the datasets ``todo``, saving each record as soon as it is done (in finishing order)."""
+    task = functools.partial(sbc_dataset, problem, draws=draws)
+    with Executor("local" if workers > 1 else "serial", workers) as pool:
+        for outcome in pool.as_completed(task, todo):
+            if outcome.error is not None:
+                raise outcome.error   # finished datasets are saved; the executor stops the rest
+            folder.write_json(str(dataset_path(folder.root, outcome.item).relative_to(folder.root)), outcome.value)
+            _tick(bar, outcome.value)
 
 
 def run_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress: bool = True, *,
@@ -333,211 +275,32 @@ def run_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress:
             alpha: float = 0.05) -> dict:
     """Simulation-based calibration of the config's BSL posterior; see the module docstring."""
     problem = _as_problem(config, steps, walkers)
-    datasets, draws, workers = _count(datasets, "datasets", 1), _count(draws, "draws", 1), _count(workers,
-                                                                                                  "workers", 1)
+    datasets, draws = integer(datasets, "datasets", 1), integer(draws, "draws", 1)
+    workers = integer(workers, "workers", 1)
     if out_dir is None:
         if isinstance(config, SBCProblem):
             raise ValueError("out_dir is required when config is an SBCProblem")
         out_dir = Path("results") / "calibration" / config.name / "sbc"
-    out = Path(out_dir)
-    _prepare_out(out, settings_record(problem, draws), resume)
+    folder = OutputFolder(out_dir)
     order = list(range(datasets)) if order is None else [int(j) for j in order]
     if sorted(order) != list(range(datasets)):
         raise ValueError(f"order must be a permutation of 0..{datasets - 1}")
-    todo = [j for j in order if not dataset_path(out, j).exists()]
-    started = time.time()
-    bar = _bar(datasets, datasets - len(todo), problem.meta.get("name", "problem"), progress)
-    try:
-        _run_missing(config, problem, todo, draws, out, workers, bar, steps, walkers)
-    finally:
-        if bar is not None:
-            bar.close()
-    result = write_report(out, problem.names, datasets, draws, bins=bins, alpha=alpha, seed=problem.seed,
-                          columns=problem.columns)
+    with folder.lock():
+        _prepare_out(folder, settings_record(problem, draws), resume)
+        todo = [j for j in order if not dataset_path(folder.root, j).exists()]
+        started = time.time()
+        bar = _bar(datasets, datasets - len(todo), problem.meta.get("name", "problem"), progress)
+        try:
+            _run_missing(problem, todo, draws, folder, workers, bar)
+        finally:
+            if bar is not None:
+                bar.close()
+        result = write_report(folder.root, problem.names, datasets, draws, bins=bins, alpha=alpha,
+                              seed=problem.seed, columns=problem.columns)
     result["wall_s"] = time.time() - started
     return result
 
 
-# -------------------------------------------------------------------------------------------- reports
-
-def collect(out: Path, datasets: int) -> list[dict]:
-    """The records of datasets 0..datasets-1 (FileNotFoundError naming the missing ones)."""
-    records = [load_record(out, j) for j in range(datasets)]
-    missing = [j for j, r in enumerate(records) if r is None]
-    if missing:
-        raise FileNotFoundError(f"{len(missing)} SBC datasets not done yet in {out}: {missing[:10]}...")
-    return records
-
-
-def ranks_frame(records: list[dict], names: Sequence[str], columns: Sequence[str] | None = None) -> pd.DataFrame:
-    """One row per dataset: theta, rank, posterior mean and sd per parameter, the observed summaries
-    (``y_<column>``, or ``y<i>_<column>`` for several observed rows), tau, thinning, acceptance."""
-    rows = []
-    for r in records:
-        row = {"dataset": r["dataset"]}
-        for i, name in enumerate(names):
-            row.update({f"theta_{name}": r["theta"][i], f"rank_{name}": r["ranks"][i],
-                        f"post_mean_{name}": r["post_mean"][i], f"post_sd_{name}": r["post_sd"][i]})
-        observed = np.asarray(r["observed"], dtype=float)
-        labels = columns or [str(c) for c in range(observed.shape[1])]
-        for i, values in enumerate(observed):
-            prefix = "y" if len(observed) == 1 else f"y{i}"
-            row.update({f"{prefix}_{label}": value for label, value in zip(labels, values)})
-        row.update({k: r[k] for k in ("tau_max", "thin", "short", "acceptance", "steps", "walkers", "wall_s")})
-        rows.append(row)
-    return pd.DataFrame(rows).set_index("dataset")
-
-
-def ecdf_points(S: int) -> np.ndarray:
-    """Fractional ranks z_m = (m + 1) / (S + 1), m = 0..S-1, where the rank ECDF is evaluated."""
-    return np.arange(1, S + 1) / (S + 1)
-
-
-def _ecdf_counts(ranks: np.ndarray, S: int) -> np.ndarray:
-    """(..., S) counts of ranks <= m for m = 0..S-1; ``ranks`` (..., L)."""
-    below = ranks[..., None] <= np.arange(S)
-    return below.sum(axis=-2)
-
-
-def _min_tail(counts: np.ndarray, L: int, z: np.ndarray) -> np.ndarray:
-    """Smallest point-wise two-sided binomial tail probability over the evaluation points."""
-    from scipy import stats
-
-    low = stats.binom.cdf(counts, L, z)
-    high = stats.binom.sf(counts - 1, L, z)
-    return np.minimum(1.0, 2.0 * np.minimum(low, high)).min(axis=-1)
-
-
-def ecdf_band(L: int, S: int, alpha: float, rng: np.random.Generator, trials: int = BAND_TRIALS):
-    """Simultaneous (1 - alpha) band for the rank ECDF of L uniform ranks on 0..S (Saeilynoja et al.
-    2022, simulation method). Returns z (S,), lower (S,), upper (S,) (ECDF values) and the simulated
-    minimum tail probabilities (trials,) used by :func:`ecdf_test`."""
-    from scipy import stats
-
-    z = ecdf_points(S)
-    sims = rng.integers(0, S + 1, size=(trials, L))
-    gammas = _min_tail(_ecdf_counts(sims, S), L, z)
-    gamma = float(np.quantile(gammas, alpha))
-    lower = stats.binom.ppf(gamma / 2, L, z) / L
-    upper = stats.binom.ppf(1 - gamma / 2, L, z) / L
-    return z, lower, upper, gammas
-
-
-def ecdf_test(ranks, S: int, gammas: np.ndarray) -> np.ndarray:
-    """p-value per parameter: share of uniform rank sets whose ECDF is at least as extreme."""
-    ranks = np.asarray(ranks)
-    L = ranks.shape[0]
-    observed = _min_tail(_ecdf_counts(ranks.T, S), L, ecdf_points(S))
-    return np.array([(1 + np.sum(gammas <= g)) / (1 + gammas.size) for g in np.atleast_1d(observed)])
-
-
-def ecdf_figure(ranks, S: int, names: Sequence[str], band, path, level: float = 0.95) -> Path:
-    """ECDF of the fractional ranks minus the uniform CDF, one panel per parameter, with the ``level``
-    simultaneous band ``band`` from :func:`ecdf_band`."""
-    from .plots import _grid, _hide_unused, _pyplot, _save
-
-    ranks = np.asarray(ranks)
-    L, d = ranks.shape
-    z, lower, upper, _ = band
-    counts = _ecdf_counts(ranks.T, S) / L
-    plt = _pyplot()
-    nrows, ncols = _grid(d)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 2.8 * nrows), squeeze=False)
-    flat = axes.ravel()
-    for j, name in enumerate(names):
-        ax = flat[j]
-        ax.fill_between(z, lower - z, upper - z, step="post", color="0.85", label=f"{level:.0%} simultaneous band")
-        ax.step(z, counts[j] - z, where="post", color="tab:blue", lw=1.5, label="ECDF - uniform")
-        ax.axhline(0.0, color="k", lw=0.8)
-        ax.set_xlim(0, 1)
-        ax.set_title(name, fontsize="medium")
-        ax.set_xlabel(f"fractional rank (L = {L}, S = {S})")
-    flat[0].legend(fontsize="small", loc="lower left")
-    _hide_unused(flat, d)
-    return _save(fig, path)
-
-
-def _markdown(table: pd.DataFrame) -> str:
-    cols = ["chi2", "dof", "p", "ecdf_p", "n", "bins"]
-    lines = ["| parameter | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
-    for name, row in table.iterrows():
-        cells = [f"{row['chi2']:.2f}", f"{int(row['dof'])}", f"{row['p']:.3f}", f"{row['ecdf_p']:.3f}",
-                 f"{int(row['n'])}", f"{int(row['bins'])}"]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def verdict(table: pd.DataFrame, alpha: float) -> tuple[bool, str]:
-    """Calibrated unless a chi-square or ECDF p-value is below alpha / (2 d) (Bonferroni over both tests
-    and the d parameters, so the chance of a false alarm is at most alpha); not judged (False) when
-    there are too few datasets for two histogram bins."""
-    level = alpha / (2 * len(table))
-    if not table["p"].notna().all():
-        return False, (f"cannot judge: {int(table['n'].iloc[0])} datasets leave a single histogram bin; "
-                       f"run at least {2 * MIN_EXPECTED_PER_BIN} datasets")
-    bad = [name for name, row in table.iterrows() if not (row["p"] >= level and row["ecdf_p"] >= level)]
-    pvals = "; ".join(f"{n}: chi-square p = {r['p']:.3f}, ECDF p = {r['ecdf_p']:.3f}" for n, r in table.iterrows())
-    where = f"level {level:.3g} = {alpha} / (2 tests x {len(table)} parameters)"
-    if bad:
-        return False, f"significant miscalibration for {', '.join(bad)} at {where}; {pvals}"
-    return True, f"no significant miscalibration at {where}; {pvals}"
-
-
-def write_report(out, names: Sequence[str], datasets: int, draws: int, bins: int | None = None,
-                 alpha: float = 0.05, seed: int = 0, columns: Sequence[str] | None = None) -> dict:
-    """Ranks table, uniformity tests, figures and summary.json from the stored datasets 0..datasets-1."""
-    from sweeps.atomic import atomic_path, write_json, write_text
-
-    from .plots import sbc_figure
-
-    out = Path(out)
-    records = collect(out, datasets)
-    frame = ranks_frame(records, names, columns)
-    ranks = np.array([r["ranks"] for r in records], dtype=int)
-    bins = default_bins(draws, datasets) if bins is None else int(bins)
-    band = ecdf_band(datasets, draws, alpha, np.random.default_rng([int(seed), SBC_TAG, 0xECDF]))
-    table = sbc_uniformity(ranks, draws, bins, names)
-    table["ecdf_p"] = ecdf_test(ranks, draws, band[3])
-    calibrated, sentence = verdict(table, alpha)
-    paths = {"ranks": out / "ranks.csv", "uniformity": out / "uniformity.csv",
-             "uniformity_md": out / "uniformity.md", "histogram": out / "rank_histogram.png",
-             "ecdf": out / "ecdf_diff.png", "summary": out / "summary.json"}
-    with atomic_path(paths["ranks"]) as tmp:
-        frame.to_csv(tmp)
-    with atomic_path(paths["uniformity"]) as tmp:
-        table.to_csv(tmp)
-    write_text(paths["uniformity_md"], _markdown(table))
-    sbc_figure(ranks, draws, bins, names, paths["histogram"])
-    ecdf_figure(ranks, draws, names, band, paths["ecdf"], level=1 - alpha)
-    summary = {"datasets": datasets, "draws": draws, "bins": bins, "alpha": alpha, "calibrated": calibrated,
-               "verdict": sentence, "table": table.reset_index().to_dict(orient="records"),
-               "short_datasets": int(frame["short"].sum()), "tau_max_median": float(frame["tau_max"].median()),
-               "tau_max_max": float(frame["tau_max"].max()), "acceptance_median":
-               float(frame["acceptance"].median()), "dataset_wall_s_median": float(frame["wall_s"].median()),
-               "dataset_wall_s_total": float(frame["wall_s"].sum())}
-    write_json(paths["summary"], _plain(summary))
-    return {"out": out, "table": table, "ranks": frame, "calibrated": calibrated, "verdict": sentence,
-            "paths": paths}
-
-
-# -------------------------------------------------------------------------------------------- helpers
-
-def _count(value, name: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name}: got {value!r}; must be an integer >= {minimum}")
-    return int(value)
-
-
 def _digest(data) -> str:
     """sha256 of a JSON-ready structure (sorted keys): detects a changed model preset on resume."""
-    import hashlib
-
-    return hashlib.sha256(json.dumps(_plain(data), sort_keys=True).encode()).hexdigest()
-
-
-def _plain(value):
-    """JSON-ready copy (numpy scalars and arrays to Python, paths to strings, nan to None)."""
-    def default(o):
-        return o.tolist() if hasattr(o, "tolist") else str(o)
-    text = json.dumps(value, default=default)
-    return json.loads(text, parse_constant=lambda c: None)
+    return hashlib.sha256(json.dumps(json_ready(data), sort_keys=True).encode()).hexdigest()

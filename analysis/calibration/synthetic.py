@@ -18,8 +18,10 @@ import numpy as np
 
 from simcore.schema import ConfigError
 
+from sweeps.seeds import common_seeds
+
 from .config import CalibrationConfig
-from .simulator import SummarySimulator, common_seeds
+from .run import summary_simulator
 
 
 def truth_vector(config: CalibrationConfig, truth) -> np.ndarray:
@@ -44,8 +46,7 @@ def truth_vector(config: CalibrationConfig, truth) -> np.ndarray:
 def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicates: int = 1) -> np.ndarray:
     """(replicates, k) target statistics of runs at ``truth``; see the module docstring."""
     theta = truth_vector(config, truth)
-    sim = SummarySimulator(config.preset_data, config.keys, config.targets.columns, replicates, config.warmup)
-    return sim.simulate(theta, common_seeds(seed, replicates))
+    return summary_simulator(config, n_sim=replicates).simulate(theta, common_seeds(seed, replicates))
 
 
 def targets_block(config: CalibrationConfig, rows: np.ndarray, sd) -> str:

@@ -1,4 +1,4 @@
-"""Loading a sweep's results directory into pandas, for reports and for users.
+"""Loading a sweep's results directory into pandas, for reports, calibration and users.
 
 ``load_results(path, timeseries=False) -> Results`` with
 
@@ -15,20 +15,16 @@
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from sweeps.store import ResultsStore
+from analysis.observables.summary import summary_columns
+from simcore.params import canonical_key
 
-ID_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s", "part")
-SUMMARY_SUFFIXES = ("_mean", "_final")
-RUN_METRICS = ("time_to_fragmentation", "fragmented", "trigger_rate", "leader_time_fraction", "leaders_mean",
-               "follow_corr_lag0", "follow_corr_max", "follow_lag_max", "follow_corr_before",
-               "heading_change_deg", "escape_gain")
+from .store import ResultsStore
 
 
 @dataclass
@@ -65,17 +61,18 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
     columns = []
     for axis in sweep.get("axes", []):
         keys = [axis["key"]] if "key" in axis else list(axis.get("keys", []))
-        keys = ["init.n" if k == "n" else k for k in keys]
+        keys = [canonical_key(k) for k in keys]
         name = axis.get("name", keys[0] if len(keys) == 1 else "+".join(keys))
         columns.append(name if name in design.columns else keys[0])
     for key in sweep.get("sample", {}).get("bounds", {}):
-        columns.append("init.n" if key == "n" else key)
+        columns.append(canonical_key(key))
     return [c for c in columns if c in design.columns and design[c].nunique() > 1]
 
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
-    return [c for c in runs.columns
-            if c not in ID_COLUMNS and (c.endswith(SUMMARY_SUFFIXES) or c in RUN_METRICS)]
+    """The summary columns (analysis.observables.summary.summary_columns) the runs table holds."""
+    known = set(summary_columns(leadership=True))
+    return [c for c in runs.columns if c in known]
 
 
 def load_results(path, timeseries: bool = False) -> Results:
@@ -87,8 +84,7 @@ def load_results(path, timeseries: bool = False) -> Results:
     runs = store.runs()
     if "index" in runs:
         runs = runs.sort_values("index", kind="stable").reset_index(drop=True)
-    effective = path / "sweep.effective.json"
-    sweep = json.loads(effective.read_text()) if effective.exists() else {}
+    sweep = store.read_json("sweep.effective.json", {})
     factors = swept_columns(design, sweep)
     return Results(path=path, runs=runs, factors=factors, metrics=metric_columns(runs),
                    manifest=store.manifest(), design=design, sweep=sweep,

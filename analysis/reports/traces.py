@@ -3,7 +3,8 @@
 ``plot_traces(pos, path, pattern=None, color_by="auto", wrap_jump=None, title="")`` draws the
 positions ``pos`` float64 (R, N, 3) as one polyline per boid and saves a PNG (or SVG, by extension);
 ``draw_traces(ax, pos, pattern=None, color_by="auto", wrap_jump=None, title="")`` draws the same into an
-existing 3-D axes (e.g. one thumbnail of a grid) and returns the axes.
+existing 3-D axes (e.g. one thumbnail of a grid) and returns the axes. ``wrap_distance(model)`` is the
+jump that marks a boundary wrap in a model's world (None in an open world).
 Colours: one per boid (``"boid"``), or one per pattern value (``"pattern"``; Holland's Table 1 body
 colours for its four patterns); ``"auto"`` picks pattern when more than one pattern is present. Jumps
 longer than ``wrap_jump`` (boundary wraps) break the line instead of drawing across the world.
@@ -14,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .plotting import pyplot, save
+
 TABLE_1_COLOURS = {0b00000000: "gold", 0b00111010: "green", 0b11000101: "blue", 0b11111111: "red"}
 
 
@@ -23,6 +26,16 @@ def _segments(track: np.ndarray, wrap_jump: float | None):
         return [track]
     jumps = np.nonzero(np.linalg.norm(np.diff(track, axis=0), axis=1) > wrap_jump)[0]
     return np.split(track, jumps + 1)
+
+
+def wrap_distance(model) -> float | None:
+    """Steps longer than this are boundary wraps: the sphere radius or half the box; None when open."""
+    world = model.world
+    if world.boundary == "sphere_wrap":
+        return world.sphere_radius
+    if world.boundary == "periodic_box":
+        return world.box_size / 2
+    return None
 
 
 def boid_colours(n: int, pattern: np.ndarray | None, color_by: str):
@@ -44,7 +57,7 @@ def draw_traces(ax, pos: np.ndarray, pattern: np.ndarray | None = None, color_by
     """Draw the traces of ``pos`` (R, N, 3) into the existing 3-D axes ``ax``; returns ``ax``.
 
     The world's y axis (up) is drawn as the plot's vertical axis. Used by ``plot_traces`` (one figure)
-    and by ``analysis.figures.thumbnails_figure`` (a grid of thumbnails)."""
+    and by ``figures.thumbnails_figure`` (a grid of thumbnails)."""
     n = pos.shape[1]
     colours, legend = boid_colours(n, pattern, color_by)
     for i in range(n):
@@ -64,17 +77,7 @@ def draw_traces(ax, pos: np.ndarray, pattern: np.ndarray | None = None, color_by
 
 def plot_traces(pos: np.ndarray, path, pattern: np.ndarray | None = None, color_by: str = "auto",
                 wrap_jump: float | None = None, title: str = "") -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(7, 6), dpi=110)
+    fig = pyplot().figure(figsize=(7, 6), dpi=110)
     ax = fig.add_subplot(projection="3d")
     draw_traces(ax, pos, pattern, color_by, wrap_jump, title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save(fig, path)

@@ -7,7 +7,8 @@ Contract, shared by every function here:
   missing parent directories are created;
 * it draws with matplotlib's Agg backend (selected inside the function), lays the figure out tightly
   (constrained layout for figures with a colorbar or a figure legend, otherwise tight layout and a tight
-  bounding box), saves it, closes it and returns the ``Path`` written;
+  bounding box), saves it atomically, closes it and returns the ``Path`` written
+  (:mod:`analysis.reports.plotting`);
 * importing this module draws nothing and does not import matplotlib.
 
 Functions:
@@ -29,7 +30,7 @@ Functions:
     min-max where fewer; one colour per cell; one legend for the figure.
 ``thumbnails_figure(items, path, ncols=3)``
     ``items``: (title, pos (R, N, 3), pattern (N,) or None); a grid of 3-D trace thumbnails drawn with
-    ``analysis.traces.draw_traces``, with one figure legend for the pattern colours.
+    ``analysis.reports.traces.draw_traces``, with one figure legend for the pattern colours.
 ``effect_sizes_figure(tests, path)``
     ``tests``: columns ``metric, factor, epsilon2`` (and ``p_holm``); heatmap of epsilon^2, metrics as
     rows and factors as columns, annotated, significant cells (``p_holm < 0.05``) marked with ``*`` and
@@ -47,44 +48,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-PNG_DPI = 150
-MAX_PIXELS = 3600          # longest side of a PNG; large grids get a lower dpi
+from .plotting import pyplot, save
+from .traces import boid_colours, draw_traces
+
 ANNOTATE_TOTAL_MAX = 300  # value labels over all panels of one heatmap figure
 ANNOTATE_MAX = 8           # annotate heatmaps up to this many rows and columns
 NAN_COLOUR = "#c8c8c8"
 
 
 # -- helpers ------------------------------------------------------------------------------------------
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path, tight: bool = True) -> Path:
-    """Lay out (tight, unless ``tight`` is False or the figure has a layout engine), save by extension,
-    close."""
-    plt = _pyplot()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        constrained = fig.get_layout_engine() is not None
-        if tight and not constrained:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)   # 3-D axes: "not compatible with tight_layout"
-                fig.tight_layout()
-        width, height = fig.get_size_inches()
-        dpi = min(PNG_DPI, MAX_PIXELS / max(width, height))
-        # constrained layout already fits the canvas; a tight bbox would cost a second full draw
-        fig.savefig(path, dpi=dpi, bbox_inches=None if constrained else "tight", pad_inches=0.05)
-    finally:
-        plt.close(fig)
-    return path
-
 
 def _is_number(value) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
@@ -157,7 +129,7 @@ def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5
     _require(effects, ["factor", "level", "mean", "ci_low", "ci_high"], "main_effects_figure")
     if effects.empty:
         raise ValueError("main_effects_figure: no effects to draw")
-    plt = _pyplot()
+    plt = pyplot()
     factors = list(pd.unique(effects["factor"]))
     nrows, ncols = _grid_shape(len(factors), ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(2.7 * ncols, 2.5 * nrows + 0.3), sharey=sharey,
@@ -199,7 +171,7 @@ def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5
         ax.set_visible(False)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # -- 2. heatmaps --------------------------------------------------------------------------------------
@@ -213,7 +185,7 @@ def heatmap_figure(cells: pd.DataFrame, metric: str, x: str, y: str, path, panel
     if len(set(keys)) != len(keys):
         raise ValueError(f"heatmap_figure: x, y, panel and rows must be distinct, got {keys}")
     _require(cells, keys + ["mean"], "heatmap_figure")
-    plt = _pyplot()
+    plt = pyplot()
     import matplotlib
 
     data = cells[keys + ["mean"]].copy()
@@ -301,7 +273,7 @@ def heatmap_figure(cells: pd.DataFrame, metric: str, x: str, y: str, path, panel
     bar.ax.tick_params(labelsize=7)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # -- 3. time series -----------------------------------------------------------------------------------
@@ -313,7 +285,7 @@ def timeseries_figure(ts: pd.DataFrame, cells: dict[str, list[str]], metrics: li
     if not metrics:
         raise ValueError("timeseries_figure: no metrics")
     _require(ts, ["run_id", "t"] + metrics, "timeseries_figure")
-    plt = _pyplot()
+    plt = pyplot()
     nrows, ncols = _grid_shape(len(metrics), ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 2.6 * nrows + 0.6), sharex=True,
                              squeeze=False, layout="constrained")
@@ -356,7 +328,7 @@ def timeseries_figure(ts: pd.DataFrame, cells: dict[str, list[str]], metrics: li
                title="band: ±1 sd (min–max where < 3 runs)", title_fontsize=7, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 # -- 4. trace thumbnails ------------------------------------------------------------------------------
@@ -364,8 +336,6 @@ def timeseries_figure(ts: pd.DataFrame, cells: dict[str, list[str]], metrics: li
 def thumbnails_figure(items: list[tuple[str, np.ndarray, np.ndarray | None]], path, ncols: int = 3,
                       color_by: str = "auto", wrap_jump: float | None = None, title: str = "") -> Path:
     """A grid of 3-D trace thumbnails; ``items`` are (title, pos (R, N, 3), pattern (N,) or None)."""
-    from analysis.traces import boid_colours, draw_traces
-
     checked = []
     for name, pos, pattern in items:
         pos = np.asarray(pos, dtype=float)
@@ -379,7 +349,7 @@ def thumbnails_figure(items: list[tuple[str, np.ndarray, np.ndarray | None]], pa
         checked.append((name, pos, pattern))
     if not checked:
         raise ValueError("thumbnails_figure: no items")
-    plt = _pyplot()
+    plt = pyplot()
     nrows, ncols = _grid_shape(len(checked), ncols)
     fig = plt.figure(figsize=(3.3 * ncols, 3.1 * nrows + 0.3))
     legend = {}
@@ -403,7 +373,7 @@ def thumbnails_figure(items: list[tuple[str, np.ndarray, np.ndarray | None]], pa
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         fig.tight_layout(rect=(0, 0.05 if legend else 0, 1, 1))
-    return _save(fig, path, tight=False)
+    return save(fig, path, tight=False)
 
 
 # -- 5. effect sizes ----------------------------------------------------------------------------------
@@ -414,7 +384,7 @@ def effect_sizes_figure(tests: pd.DataFrame, path, alpha: float = 0.05, cmap: st
     _require(tests, ["metric", "factor", "epsilon2"], "effect_sizes_figure")
     if tests.empty:
         raise ValueError("effect_sizes_figure: no tests to draw")
-    plt = _pyplot()
+    plt = pyplot()
     import matplotlib
 
     metrics = list(pd.unique(tests["metric"]))
@@ -461,4 +431,4 @@ def effect_sizes_figure(tests: pd.DataFrame, path, alpha: float = 0.05, cmap: st
     bar = fig.colorbar(image, ax=ax, shrink=min(1.0, max(0.4, 6 / max(nm, 1))))
     bar.set_label("ε²", fontsize=8)
     bar.ax.tick_params(labelsize=7)
-    return _save(fig, path)
+    return save(fig, path)

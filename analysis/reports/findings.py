@@ -48,6 +48,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from .stats import holm
+
 FIELD = "perception.field_deg"
 DIRECTION = "perception.direction_deg"
 MODE_COLUMNS = ("mode", "patterns.enabled")
@@ -187,8 +189,6 @@ def applicable(runs: pd.DataFrame) -> list:
 
 def _evaluate(built: list, alpha: float) -> list[Finding]:
     """Holm-adjust every test of the built findings as one family, then judge each finding."""
-    from .stats import holm
-
     tests = [t for f, _ in built for t in f.tests]
     adjusted = holm(np.array([t.p for t in tests], dtype=float)) if tests else []
     for t, p in zip(tests, adjusted):

@@ -1,4 +1,4 @@
-"""Compiled per-record kernels behind analysis.groups and analysis.metrics (one frame = one record).
+"""Compiled per-record kernels behind ``groups`` and ``metrics`` (one frame = one record).
 
 Everything compiled lives in this one module on purpose: numba's on-disk cache only notices changes to
 the file that defines a function, so a kernel calling into another module could keep stale code.
@@ -6,18 +6,25 @@ the file that defines a function, so a kernel calling into another module could 
 Conventions: ``box`` <= 0 means an open world, otherwise the side of the periodic box (offsets folded to
 the minimum image ``d - L floor(d/L + 0.5)``). Definitions are in docs/metrics.md; the Python wrappers
 document the public behaviour. No fastmath: results are reproducible to the last bit.
+
+The metric table that :func:`frame_kernel` fills has one column per name of :data:`COLUMNS`, in that
+order; the kernel addresses a column as ``Column.<name>`` (an IntEnum generated from ``COLUMNS``), so
+adding a metric is one name here plus the line of the kernel that computes it.
 """
 from __future__ import annotations
+
+from enum import IntEnum
 
 import numpy as np
 from numba import njit
 
 TINY = 1e-12  # relative size below which an eigenvalue, width or summed heading counts as zero
 
-# column order of the metric table filled by frame_kernel (analysis.metrics.METRIC_NAMES)
+# the one declaration of the per-record metrics: the columns of frame_kernel's table, in order
 COLUMNS = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
            "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
            "visible_mean", "binocular_share", "segregation")
+Column = IntEnum("Column", [(name, index) for index, name in enumerate(COLUMNS)])
 
 
 @njit(cache=True)
@@ -315,7 +322,7 @@ def segregation_frame(degree, same, expected):
 
 @njit(cache=True)
 def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, out):
-    """out (R, len(COLUMNS)): every metric of every record (column order: COLUMNS)."""
+    """out (R, len(COLUMNS)): every metric of every record, column ``Column.<name>``."""
     n_frames, n = pos.shape[0], pos.shape[1]
     nbr = np.empty((n, n), np.int32)
     queue = np.empty(n, np.int32)
@@ -340,24 +347,25 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
             in_largest += largest[i]
             strays += degree[i] == 0
             nn_total += nn[i]
-        out[f, 0] = polarization_frame(vel[f], everyone)
-        out[f, 1] = polarization_frame(vel[f], largest)
-        out[f, 2] = milling_frame(pos[f], vel[f], box)
-        out[f, 3] = count
-        out[f, 4] = in_largest / n
-        out[f, 5] = strays / n
-        out[f, 6] = nn_total / n
-        out[f, 7], out[f, 8], out[f, 9] = shape_frame(unwrapped, vel[f], largest)
-        out[f, 10], out[f, 11] = speed_frame(vel[f])
+        out[f, Column.polarization] = polarization_frame(vel[f], everyone)
+        out[f, Column.polarization_largest] = polarization_frame(vel[f], largest)
+        out[f, Column.milling] = milling_frame(pos[f], vel[f], box)
+        out[f, Column.n_groups] = count
+        out[f, Column.cohesion] = in_largest / n
+        out[f, Column.stray_fraction] = strays / n
+        out[f, Column.nn_distance] = nn_total / n
+        (out[f, Column.gyration_radius], out[f, Column.elongation],
+         out[f, Column.aspect_heading]) = shape_frame(unwrapped, vel[f], largest)
+        out[f, Column.speed_mean], out[f, Column.speed_cv] = speed_frame(vel[f])
         if have_visible:
             seen = 0.0
             both = 0.0
             for i in range(n):
                 seen += visible[f, i]
                 both += binocular[f, i]
-            out[f, 12] = seen / n
-            out[f, 13] = both / seen if seen > 0 else 0.0
+            out[f, Column.visible_mean] = seen / n
+            out[f, Column.binocular_share] = both / seen if seen > 0 else 0.0
         else:
-            out[f, 12] = np.nan
-            out[f, 13] = np.nan
-        out[f, 14] = segregation_frame(degree, same, expected)
+            out[f, Column.visible_mean] = np.nan
+            out[f, Column.binocular_share] = np.nan
+        out[f, Column.segregation] = segregation_frame(degree, same, expected)

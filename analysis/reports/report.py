@@ -29,12 +29,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.observables.metrics import polarization
+from simcore import simulate
+from simcore.params import canonical_key
+from sweeps.design import rebuild
+from sweeps.files import write_text
+from sweeps.results import Results, load_results
+from sweeps.store import ResultsStore
+
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .findings import FIELD, DIRECTION, LEAD, findings_table, holland_findings, leadership_findings
-from .results import Results, load_results
-from .viewer.hooks import report_blocks as viewer_blocks
-from sweeps.atomic import write_text
+from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
+from analysis.viewer.hooks import report_blocks as viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",
@@ -210,7 +216,7 @@ def _showcase_rows(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     for name, where in showcase.items():
         mask = np.ones(len(ctx.runs), dtype=bool)
         for column, value in where.items():
-            column = "init.n" if column == "n" else column
+            column = canonical_key(column)
             if column not in ctx.runs:
                 mask[:] = False
                 break
@@ -240,8 +246,6 @@ def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
 
 
 def _timeseries(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
-    from sweeps.store import ResultsStore
-
     if not cells:
         return
     run_ids = [rid for _, rows in cells for rid in rows["run_id"]]
@@ -256,12 +260,6 @@ def _timeseries(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
 
 
 def _thumbnails(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
-    from simcore import simulate
-
-    from analysis.metrics import polarization
-    from sweeps.design import rebuild
-    from sweeps.store import ResultsStore
-
     record = ResultsStore(ctx.results.path).model()
     if not record or not cells:
         return

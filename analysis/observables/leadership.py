@@ -1,4 +1,4 @@
-"""Leadership metrics of a run with the Hartman-Benes change of leadership (MODEL.md section 5).
+"""Leadership metrics of a run with the Hartman-Benes change of leadership (docs/model.md).
 
 Computed from the recorded observations, never inside the simulator. Inputs (an ``Observations`` or
 the same arrays given explicitly, see :func:`leadership_input`):
@@ -13,7 +13,7 @@ from the state it records at step s, so r0 is exact when s is a multiple of ``re
 v_hat = v/|v| is a unit heading; a stopped boid (|v| = 0) has none and is left out of every term
 below. D is ``escape_duration``; the escape window holds the records r0, r0 + 1, ..., r0 + L with
 L = floor(D / dr) (so it spans [t0, t0 + D]). The group of an event, G_e, is the connected component
-holding b of the graph linking boids closer than ``group_radius`` at record r0 (analysis/groups.py;
+holding b of the graph linking boids closer than ``group_radius`` at record r0 (``groups.py``;
 minimum image in a periodic ``box``); its followers are F_e = G_e without b.
 
 Per-run scalars of :func:`leadership_metrics` (LEADERSHIP_METRIC_NAMES):
@@ -48,9 +48,7 @@ Per-run scalars of :func:`leadership_metrics` (LEADERSHIP_METRIC_NAMES):
   the run and whose leader moves at r0 count; nan when none does.
 
 :func:`follow_curve` gives C(tau) for every lag (a DataFrame: lag, corr, pairs, events) for figures.
-:func:`observation_leadership` ties the metrics to a model: the group radius is the perception range
-(``analysis.metrics.default_group_radius``), the box the periodic world's side and D the model's
-``leadership.duration``.
+:func:`analysis.observables.summary.observation_leadership` ties the metrics to a model.
 
 Cost: the correlation is one compiled pass (numba, ``cache=True``) over events x followers x lags x
 window, O(E N J L); the groups cost one neighbour-graph pass over the distinct trigger records.
@@ -65,7 +63,7 @@ import numpy as np
 import pandas as pd
 
 from .groups import check_radius, kernel_box, neighbour_graph
-from .metrics import default_group_radius, unit_headings, world_box
+from .metrics import unit_headings
 
 LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
                            "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",
@@ -333,10 +331,3 @@ def leadership_metrics(obs_like, group_radius: float, escape_duration: float, bo
     out["follow_corr_before"] = _ratio(before[0], before[1])
     out["heading_change_deg"], out["escape_gain"] = _group_turn_and_gain(inp, ev)
     return {name: out[name] for name in LEADERSHIP_METRIC_NAMES}
-
-
-def observation_leadership(obs, model, group_radius: float | None = None, max_lag: float = 2.0) -> dict[str, float]:
-    """:func:`leadership_metrics` of a simulator ``Observations`` with the model's perception range as the
-    group radius, its periodic box and its ``leadership.duration`` as the escape length."""
-    radius = default_group_radius(model) if group_radius is None else group_radius
-    return leadership_metrics(obs, radius, model.leadership.duration, world_box(model), max_lag)

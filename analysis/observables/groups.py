@@ -26,13 +26,6 @@ import numpy as np
 from .kernels import graph_run
 
 
-def minimum_image(d: np.ndarray, box: float | None) -> np.ndarray:
-    """Offsets ``d`` folded to the nearest periodic image (``box`` None: unchanged)."""
-    if box is None:
-        return d
-    return d - box * np.floor(d / box + 0.5)
-
-
 def check_radius(radius: float) -> float:
     if not (np.isfinite(radius) and radius > 0):
         raise ValueError(f"group radius: got {radius!r}; must be a finite number > 0")

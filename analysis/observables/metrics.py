@@ -12,10 +12,10 @@ Shapes: ``pos``, ``vel`` float64 (..., N, 3); results drop the last two axes, so
 * ``summarize(series, times, warmup=3.0, fragmentation_cohesion=0.5)``: one run's series reduced to
   ``<name>_mean`` (over records at t >= warmup), ``<name>_final``, ``time_to_fragmentation`` and
   ``fragmented``.
-* ``default_group_radius(model)``, ``world_box(model)`` and ``observation_metrics(obs, model)`` tie the
-  metrics to a model: the group radius is the perception range, the box the periodic world's side.
+Tying the metrics to a model (group radius, periodic box) and a run to its summary row is
+:mod:`analysis.observables.summary`'s job.
 
-Groups (analysis/groups.py) are the connected components of the graph linking boids closer than the
+Groups (:mod:`analysis.observables.groups`) are the connected components of the graph linking boids closer than the
 group radius; in a periodic box every distance is a minimum image and a group's centroid and shape are
 taken from its unwrapped layout.
 """
@@ -53,7 +53,7 @@ def mean_speed(vel: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------
-# helpers: one metric each, over any leading shape (the compiled per-record code of analysis/kernels.py)
+# helpers: one metric each, over any leading shape (the compiled per-record code is in kernels.py)
 
 
 def _frames(*arrays):
@@ -224,28 +224,3 @@ def summarize(series: dict, times: np.ndarray, warmup: float = WARMUP_S,
     out["time_to_fragmentation"] = float(times[hit[0]]) if hit.size else float("nan")
     out["fragmented"] = 1.0 if hit.size else 0.0
     return out
-
-
-def default_group_radius(model) -> float:
-    """The model's perception range: ``perception.range`` (binocular), ``perception.radius`` (sphere),
-    or the largest of the separation, alignment and cohesion radii (opensteer)."""
-    p = model.perception
-    if p.kind == "binocular":
-        return float(p.range)
-    if p.kind == "sphere":
-        return float(p.radius)
-    if p.kind == "opensteer":
-        return float(max(p.separation_radius, p.alignment_radius, p.cohesion_radius))
-    raise ValueError(f"perception.kind: no group radius for {p.kind!r}")
-
-
-def world_box(model) -> float | None:
-    """Side of the periodic box for minimum-image metrics, None for other worlds."""
-    world = model.world
-    return float(world.box_size) if world.boundary == "periodic_box" else None
-
-
-def observation_metrics(obs, model, group_radius: float | None = None) -> dict[str, np.ndarray]:
-    """:func:`frame_metrics` of a simulator ``Observations`` with the model's radius and box."""
-    radius = default_group_radius(model) if group_radius is None else group_radius
-    return frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, radius, world_box(model))

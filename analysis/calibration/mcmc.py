@@ -1,0 +1,167 @@
+"""The one emcee driver, used by BSL (:mod:`.bsl`), the emulator (:mod:`.emulated`) and, through BSL, SBC.
+
+Contract
+--------
+``run_chain(log_prob, prior, *, walkers, steps, seed, initial, path=None, resume=False, meta=None,
+meta_defaults=None, needs="the same settings", moves="stretch", progress=None, progress_every=None,
+before_step=None, refresh_every=0, refresh=None) -> ChainResult``
+
+* ``log_prob(coords (n, d)) -> (n,)`` is called vectorised (emcee's ``vectorize=True``: each
+  half-ensemble's proposals arrive at once); ``prior`` gives the dimension ``prior.dim`` and the names.
+* Seeds (:mod:`sweeps.seeds`): the initial walkers are ``initial(generator(seed, Tag.WALKERS), walkers)
+  -> (coords (walkers, d), log_prob (walkers,))`` (the caller draws them from the prior and replaces the
+  unusable ones); emcee's move random state is ``RandomState(MT19937(seed_sequence(seed, Tag.MOVES)))``.
+  Nothing else here is random, so the same arguments give a bit-identical chain.
+* ``moves``: ``"stretch"`` (Goodman & Weare's stretch move, emcee's default) or ``"de"`` (differential
+  evolution 90% with step ``DE_SCALE x 2.38 / sqrt(2 d)``, DE snooker 10%; ter Braak & Vrugt 2008),
+  which mixes faster for a few parameters and a small ensemble; the shortened step keeps the
+  acceptance up under a noisy synthetic likelihood.
+* Storage: with ``path`` the chain goes to ``emcee.backends.HDFBackend(path, name="mcmc")`` (after every
+  step emcee writes the row, the log-probabilities, the acceptance counts and its random state). Without
+  ``resume`` an existing file is FileExistsError. The file records ``meta`` (and the moves); a resume
+  needs every ``meta`` key stored with the same value (strings compared as strings, other values in the
+  type of this run's value; a key missing from an older file takes its ``meta_defaults`` value), else
+  ValueError naming the key and ``needs``.
+* Exact resume: ``resume=True`` continues from the stored iteration up to ``steps`` rows and gives bit
+  for bit the chain of an uninterrupted run (the state is what emcee stores: the last row, the accepted
+  counts, the move random state). A file holding ``>= steps`` rows runs nothing; with no file (or an
+  empty one) the run starts fresh.
+* ``before_step(t)`` is called before row ``t`` (1-based) is computed; ``refresh(coords, t) -> (walkers,)``
+  replaces the walkers' current log-probabilities before row ``t`` for every ``t`` that is a positive
+  multiple of ``refresh_every`` (0: never) - BSL's re-evaluation of the noisy likelihood.
+* ``progress(step, acceptance_fraction_mean, tau_estimate)`` after every ``progress_every`` rows
+  (default ``max(1, steps // 10)``) and after the last; ``tau_estimate`` is :func:`progress_tau` of the
+  second half of the rows so far.
+* :class:`ChainResult`: ``chain`` (steps, walkers, d), ``log_prob`` (steps, walkers),
+  ``acceptance_fraction`` (walkers,), ``names`` (the prior's), ``path`` (or None), ``seed``.
+
+``progress_tau(chain) -> float``: the mean over parameters of the integrated autocorrelation times of
+``chain`` (steps, walkers, d) (:func:`~analysis.calibration.diagnostics.integrated_times`, no length
+check: an estimate for a progress display); nan when it cannot be computed (fewer than 2 rows, a
+constant parameter).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable
+
+import emcee
+import numpy as np
+
+from sweeps.seeds import Tag, generator, seed_sequence
+
+from .checks import integer
+from .diagnostics import integrated_times
+
+GROUP = "mcmc"
+MOVES = ("stretch", "de")
+DE_SCALE = 0.7   # differential-evolution step: this fraction of ter Braak's 2.38 / sqrt(2 d)
+
+
+@dataclasses.dataclass
+class ChainResult:
+    chain: np.ndarray                # (steps, walkers, d)
+    log_prob: np.ndarray             # (steps, walkers)
+    acceptance_fraction: np.ndarray  # (walkers,)
+    names: tuple[str, ...] | None = None
+    path: str | None = None
+    seed: int | None = None
+
+
+def emcee_moves(moves: str, ndim: int = 1):
+    """emcee's proposal for ``moves`` (see the module docstring); None is emcee's default stretch move."""
+    if moves == "stretch":
+        return None
+    if moves == "de":
+        gamma0 = DE_SCALE * 2.38 / math.sqrt(2 * max(1, ndim))
+        return [(emcee.moves.DEMove(gamma0=gamma0), 0.9), (emcee.moves.DESnookerMove(), 0.1)]
+    raise ValueError(f"moves: unknown {moves!r}; allowed: {', '.join(MOVES)}")
+
+
+def open_chain(path, resume: bool, meta: dict, defaults: dict | None = None, needs: str = "the same settings"):
+    """The HDF5 backend at ``path``, checked against ``meta`` when it already holds a chain."""
+    path = os.fspath(path)
+    if os.path.exists(path) and not resume:
+        raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
+    backend = emcee.backends.HDFBackend(path, name=GROUP)
+    if backend.initialized:
+        with backend.open("r") as f:
+            attrs = dict(f[GROUP].attrs)
+        for key, want in meta.items():
+            have = attrs.get(key, (defaults or {}).get(key))
+            have = have.decode() if isinstance(have, bytes) else have
+            if have is None or type(want)(have) != want:
+                raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; "
+                                 f"resume needs {needs}")
+    return backend
+
+
+def progress_tau(chain: np.ndarray) -> float:
+    if chain.shape[0] < 2:
+        return math.nan
+    tau = integrated_times(chain)
+    return float(np.mean(tau)) if np.all(np.isfinite(tau)) else math.nan
+
+
+def _sampler(log_prob, walkers: int, ndim: int, backend, meta: dict, moves: str):
+    sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, backend=backend, vectorize=True,
+                                    moves=emcee_moves(moves, ndim))
+    if backend is not None:
+        with backend.open("a") as f:
+            for key, value in meta.items():
+                f[GROUP].attrs[key] = value
+    return sampler
+
+
+def run_chain(log_prob: Callable, prior, *, walkers: int, steps: int, seed: int, initial: Callable,
+              path=None, resume: bool = False, meta: dict | None = None, meta_defaults: dict | None = None,
+              needs: str = "the same settings", moves: str = "stretch", progress: Callable | None = None,
+              progress_every: int | None = None, before_step: Callable | None = None, refresh_every: int = 0,
+              refresh: Callable | None = None) -> ChainResult:
+    """Run (or resume) an emcee chain; see the module docstring for the full contract."""
+    emcee_moves(moves)   # validates
+    steps = integer(steps, "steps", 1)
+    seed = integer(seed, "seed", 0)
+    refresh_every = integer(refresh_every, "refresh_every", 0)
+    ndim = int(prior.dim)
+    walkers = integer(walkers, "walkers", max(2, 2 * ndim))
+    every = max(1, steps // 10) if progress_every is None else integer(progress_every, "progress_every", 1)
+    if resume and path is None:
+        raise ValueError("resume=True needs a path")
+    meta = dict(meta or {})
+    backend = None
+    if path is not None:
+        path = os.fspath(path)
+        backend = open_chain(path, resume, meta, meta_defaults, needs)
+    sampler = _sampler(log_prob, walkers, ndim, backend, meta, moves)
+    start = int(sampler.backend.iteration)
+    if start == 0:
+        coords, values = initial(generator(seed, Tag.WALKERS), walkers)
+        move_rs = np.random.RandomState(np.random.MT19937(seed_sequence(seed, Tag.MOVES)))
+        state = emcee.State(coords, log_prob=values, random_state=move_rs.get_state())
+    else:
+        state = sampler.backend.get_last_sample()   # coords, log_prob, emcee's random state
+    t = start
+    check_initial = start == 0
+    while t < steps:
+        if refresh_every and t > 0 and t % refresh_every == 0:
+            state = emcee.State(state.coords, log_prob=refresh(state.coords, t), random_state=state.random_state)
+        stop = min(steps, (t // refresh_every + 1) * refresh_every) if refresh_every else steps
+        rows = sampler.sample(state, iterations=stop - t, skip_initial_state_check=not check_initial)
+        check_initial = False
+        for _ in range(stop - t):
+            if before_step is not None:
+                before_step(t + 1)
+            state = next(rows)
+            t += 1
+            if progress is not None and (t % every == 0 or t == steps):
+                acceptance = float(np.mean(sampler.backend.accepted / float(t)))
+                progress(t, acceptance, progress_tau(sampler.backend.get_chain()[t // 2:]))
+        rows.close()
+    stored = sampler.backend
+    names = getattr(prior, "names", None)
+    return ChainResult(chain=np.asarray(stored.get_chain()), log_prob=np.asarray(stored.get_log_prob()),
+                       acceptance_fraction=np.asarray(stored.accepted, dtype=float) / float(stored.iteration),
+                       names=tuple(names) if names is not None else None, path=path, seed=seed)

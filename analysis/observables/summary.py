@@ -1,0 +1,152 @@
+"""One run's observations -> its summary row: the one place sweeps, calibration and users turn a
+simulation into numbers.
+
+:class:`MetricSettings` says how records become a row: the warm-up excluded from window means, the
+group radius linking boids (None: the model's perception range), the cohesion below which the flock
+counts as fragmented, whether the leadership metrics are computed, and the two values a model fixes,
+the periodic box side and the escape duration. :meth:`MetricSettings.resolve` fills those in from a
+model; a configuration file sets only the first four (its ``[run]`` table).
+
+``summarize_run(obs, settings) -> dict`` is the row: for every per-record metric of
+:data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
+``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
+with ``settings.leadership``, the leadership scalars
+(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`); :func:`summary_columns` lists them
+in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
+(plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
+The row is a pure function of the observations and the settings.
+
+``check_finite(obs)`` raises :class:`NonFiniteState` when a position or velocity is not finite;
+``every_nth(obs, k)`` keeps every k-th record (records at the record interval of a run recorded more
+finely, e.g. for stored trajectories). ``default_group_radius(model)``, ``world_box(model)``,
+``observation_metrics(obs, model)`` and ``observation_leadership(obs, model)`` tie single metrics to a
+model for users.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+
+from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_within
+
+from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
+from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
+
+RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
+
+
+class NonFiniteState(RuntimeError):
+    """A run's trajectory holds a non-finite position or velocity."""
+
+
+@dataclasses.dataclass(frozen=True)
+class MetricSettings:
+    """How a run's records become its row (see the module docstring)."""
+
+    warmup: float = WARMUP_S
+    group_radius: float | None = None          # None: the model's perception range
+    fragmentation_cohesion: float = FRAGMENTATION_COHESION
+    leadership: bool = False
+    box: float | None = None                   # periodic box side; None: no periodic box
+    escape_duration: float | None = None       # the model's leadership.duration (set by resolve)
+
+    def __post_init__(self):
+        check_non_negative("warmup", self.warmup)
+        if self.group_radius is not None:
+            _finite("group_radius", self.group_radius)
+            if self.group_radius <= 0:
+                raise ConfigError("group_radius", f"got {self.group_radius!r}; expected \"auto\" or a number > 0")
+        check_within("fragmentation_cohesion", self.fragmentation_cohesion, 0.0, 1.0, lo_open=True)
+
+    def resolve(self, model) -> "MetricSettings":
+        """These settings for ``model``: the group radius (when None), box and escape duration filled in."""
+        radius = default_group_radius(model) if self.group_radius is None else self.group_radius
+        return dataclasses.replace(self, group_radius=radius, box=world_box(model),
+                                   escape_duration=float(model.leadership.duration))
+
+    @property
+    def resolved(self) -> bool:
+        return self.group_radius is not None and self.escape_duration is not None
+
+
+def summary_columns(leadership: bool = True) -> tuple[str, ...]:
+    """The columns of :func:`summarize_run`'s row, in order (with or without the leadership scalars)."""
+    columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
+    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ())
+
+
+class RunMetrics(NamedTuple):
+    series: dict   # name -> (R,) float64 per-record values
+    row: dict      # column -> float, see summary_columns
+
+
+def measure_run(obs, settings: MetricSettings) -> RunMetrics:
+    """The per-record series and the summary row of one run (see the module docstring)."""
+    if not settings.resolved:
+        raise ValueError("metric settings: resolve them for the run's model first (MetricSettings.resolve)")
+    series = frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, settings.group_radius,
+                           settings.box)
+    row = summarize(series, obs.times, settings.warmup, settings.fragmentation_cohesion)
+    if settings.leadership:
+        row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
+        series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    return RunMetrics(series, row)
+
+
+def summarize_run(obs, settings: MetricSettings) -> dict:
+    """The summary row of one run: :func:`measure_run` without the series."""
+    return measure_run(obs, settings).row
+
+
+def check_finite(obs) -> None:
+    """NonFiniteState naming the first record time with a non-finite position or velocity."""
+    bad = ~(np.isfinite(obs.pos).all(axis=(1, 2)) & np.isfinite(obs.vel).all(axis=(1, 2)))
+    if bad.any():
+        raise NonFiniteState(f"non-finite position or velocity at t = {obs.times[np.argmax(bad)]:g} s")
+
+
+def every_nth(obs, k: int):
+    """The observations with every ``k``-th record kept (the record interval grows k times)."""
+    if k == 1:
+        return obs
+    pick = slice(None, None, k)
+    return dataclasses.replace(obs, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
+                               visible=obs.visible[pick], binocular=obs.binocular[pick], leader=obs.leader[pick],
+                               record_every=obs.record_every * k)
+
+
+def default_group_radius(model) -> float:
+    """The model's perception range: ``perception.range`` (binocular), ``perception.radius`` (sphere),
+    or the largest of the separation, alignment and cohesion radii (opensteer)."""
+    p = model.perception
+    if p.kind == "binocular":
+        return float(p.range)
+    if p.kind == "sphere":
+        return float(p.radius)
+    if p.kind == "opensteer":
+        return float(max(p.separation_radius, p.alignment_radius, p.cohesion_radius))
+    raise ValueError(f"perception.kind: no group radius for {p.kind!r}")
+
+
+def world_box(model) -> float | None:
+    """Side of the periodic box for minimum-image metrics, None for other worlds."""
+    world = model.world
+    return float(world.box_size) if world.boundary == "periodic_box" else None
+
+
+def observation_metrics(obs, model, group_radius: float | None = None) -> dict[str, np.ndarray]:
+    """:func:`~analysis.observables.metrics.frame_metrics` of a simulator ``Observations`` with the
+    model's perception range (or ``group_radius``) and periodic box."""
+    s = MetricSettings(group_radius=group_radius).resolve(model)
+    return frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, s.group_radius, s.box)
+
+
+def observation_leadership(obs, model, group_radius: float | None = None, max_lag: float = 2.0) -> dict[str, float]:
+    """:func:`~analysis.observables.leadership.leadership_metrics` of a simulator ``Observations`` with
+    the model's perception range as the group radius, its periodic box and its ``leadership.duration``
+    as the escape length."""
+    s = MetricSettings(group_radius=group_radius).resolve(model)
+    return leadership_metrics(obs, s.group_radius, s.escape_duration, s.box, max_lag)
+

@@ -1,0 +1,105 @@
+"""The one registry of random streams derived from a sweep's or a calibration's seed.
+
+Every generator outside the compiled loop comes from a ``numpy.random.SeedSequence`` whose entropy is
+``[seed, tag, ...]``: the user's seed, then a :class:`Tag` saying what the numbers are for, then the
+position inside that use. A new use takes a new tag, so it never shifts the numbers of an existing one.
+The values are part of every stored result: changing one changes results.
+
+=====================  ===========================  =================================================
+tag                    entropy                      seeds
+=====================  ===========================  =================================================
+``WALKERS`` (0)        [seed, 0]                    emcee's initial walkers (BSL, emulator)
+``MOVES`` (1)          [seed, 1]                    emcee's move random state (MT19937)
+``EVALUATION`` (2)     [seed, 2, phase, step, i]    the simulations of one BSL log-posterior evaluation
+``CONFIRM`` (3)        [seed, 3]                    the emulator's confirmation runs
+``RECHECK`` (7)        [seed, 7]                    the optimum's fresh-seed re-check (optimize)
+``PREDICTIVE``         [seed, 0x5050]; [.., i]      which posterior draws are checked; draw i's run
+``SBC``                [seed, 0x5BC, j, stream]     SBC dataset j (:class:`SBCStream`); [seed, 0x5BC,
+                                                    0xECDF] the ECDF band
+``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
+=====================  ===========================  =================================================
+
+Other seeds: a sweep run's seed is :func:`run_seed` (``[sweep seed, sha256(point) words, replicate]``,
+the top 63 bits); :func:`common_seeds` gives fixed seeds from one integer (``SeedSequence(seed)``) and
+:func:`seeds_for` fresh ones from a generator. Inside the simulator, counter-based draws use the run's
+key and the ``STREAM_*`` numbers of ``simcore.rng``.
+"""
+from __future__ import annotations
+
+import hashlib
+from enum import IntEnum, unique
+
+import numpy as np
+
+SEED_BITS = 63
+
+
+@unique
+class Tag(IntEnum):
+    WALKERS = 0
+    MOVES = 1
+    EVALUATION = 2
+    CONFIRM = 3
+    RECHECK = 7
+    PREDICTIVE = 0x5050
+    SBC = 0x5BC
+    DESIGN_SAMPLE = 0x5A3D1E
+
+
+@unique
+class SBCStream(IntEnum):
+    """The streams of one SBC dataset: [seed, Tag.SBC, j, stream]."""
+
+    THETA = 0       # the parameters drawn from the prior
+    OBSERVED = 1    # the observed data simulated at them
+    BSL = 2         # the integer seed of the dataset's BSL run
+    SELECT = 3      # which thinned posterior draws are kept
+    TIES = 4        # tie-breaking in the ranks
+
+
+ECDF_BAND = 0xECDF  # [seed, Tag.SBC, ECDF_BAND]: the simulated uniform ranks of SBC's ECDF band
+
+
+def seed_sequence(*words) -> np.random.SeedSequence:
+    """``SeedSequence([w0, w1, ...])`` of integer words >= 0 (``[seed, tag, ...]``)."""
+    return np.random.SeedSequence([int(w) for w in words])
+
+
+def generator(*words) -> np.random.Generator:
+    """``Generator(PCG64(seed_sequence(*words)))``."""
+    return np.random.Generator(np.random.PCG64(seed_sequence(*words)))
+
+
+def _count(n, name: str) -> int:
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
+        raise ValueError(f"{name}: got {n!r}; must be an integer >= 0")
+    return int(n)
+
+
+def seeds_for(rng: np.random.Generator, n: int) -> list[int]:
+    """``n`` fresh seeds, ints in [0, 2**63), drawn from ``rng`` (which advances)."""
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    n = _count(n, "n")
+    return [int(s) for s in rng.integers(0, 2 ** SEED_BITS, size=n, dtype=np.int64)]
+
+
+def common_seeds(seed: int, n: int) -> list[int]:
+    """``n`` fixed seeds, ints in [0, 2**63), from ``SeedSequence(seed).generate_state`` (the top 63
+    bits of each 64-bit word): the same list for the same ``seed`` (common random numbers)."""
+    n = _count(n, "n")
+    words = np.random.SeedSequence(seed).generate_state(n, np.uint64)
+    return [int(w >> np.uint64(64 - SEED_BITS)) for w in words]
+
+
+def _words(text: str, count: int = 4) -> list[int]:
+    digest = hashlib.sha256(text.encode()).digest()
+    return [int.from_bytes(digest[4 * k:4 * k + 4], "little") for k in range(count)]
+
+
+def run_seed(sweep_seed: int, point: str | None, replicate: int) -> int:
+    """A sweep run's 63-bit seed from ``SeedSequence([sweep_seed, *sha256(point) words, replicate])``;
+    ``point=None`` (common random numbers) leaves the point out, so replicate r has the same seed at
+    every design point."""
+    entropy = [int(sweep_seed)] + (_words(point) if point is not None else []) + [int(replicate)]
+    return int(np.random.SeedSequence(entropy).generate_state(1, np.uint64)[0] >> np.uint64(1))

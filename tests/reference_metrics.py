@@ -1,0 +1,166 @@
+"""Slow, plain numpy twins of the compiled analysis kernels and of ``simcore.rng.hash4``.
+
+Written from the definitions (docs/metrics.md, the docstrings of ``analysis.observables.metrics``,
+``analysis.observables.leadership`` and ``simcore.rng``), not from the kernels: whole-array numpy where
+it is the obvious formula, Python loops where the definition is a loop, Python integers for the hash.
+Not meant to be fast.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+TINY = 1e-12
+MASK64 = (1 << 64) - 1
+GOLDEN = 0x9E3779B97F4A7C15
+M1 = 0xBF58476D1CE4E5B9
+M2 = 0x94D049BB133111EB
+
+
+# -------------------------------------------------------------------------------------------- geometry
+
+def offsets(pos: np.ndarray, box: float | None) -> np.ndarray:
+    """(N, N, 3) offsets p_j - p_i, folded to the minimum image in a periodic box."""
+    d = pos[None, :, :] - pos[:, None, :]
+    return d if box is None else d - box * np.floor(d / box + 0.5)
+
+
+def units(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(v/|v| with zeros where |v| = 0, |v| > 0)."""
+    length = np.linalg.norm(v, axis=-1)
+    moving = length > 0
+    out = np.zeros_like(v)
+    out[moving] = v[moving] / length[moving, None]
+    return out, moving
+
+
+def components(pos: np.ndarray, radius: float, box: float | None) -> np.ndarray:
+    """Group label of each boid: 0 the largest group, ties by the lowest member index (union-find)."""
+    n = len(pos)
+    parent = list(range(n))
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    linked = np.linalg.norm(offsets(pos, box), axis=-1) < radius
+    for i in range(n):
+        for j in range(i + 1, n):
+            if linked[i, j]:
+                parent[find(j)] = find(i)
+    roots = [find(i) for i in range(n)]
+    members = {}
+    for i, root in enumerate(roots):
+        members.setdefault(root, []).append(i)
+    ranked = sorted(members.values(), key=lambda group: (-len(group), min(group)))
+    labels = np.empty(n, np.int64)
+    for rank, group in enumerate(ranked):
+        labels[group] = rank
+    return labels
+
+
+# ---------------------------------------------------------------------------------------------- metrics
+
+def shape(points: np.ndarray, vel: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
+    """(gyration radius, elongation, aspect_heading) of the selected boids of contiguous points."""
+    if not mask.any():
+        return np.nan, np.nan, np.nan
+    x = points[mask] - points[mask].mean(axis=0)
+    gyration = x.T @ x / len(x)
+    radius = float(np.sqrt(max(np.trace(gyration), 0.0)))
+    values = np.linalg.eigvalsh(gyration)
+    l1, l2 = values[2], values[1]
+    elongation = float(np.sqrt(l1 / l2)) if len(x) >= 3 and l2 > 0 and l2 > TINY * l1 else np.nan
+    heading, moving = units(vel[mask])
+    total = heading.sum(axis=0)
+    norm = np.linalg.norm(total)
+    if not moving.any() or norm <= TINY * moving.sum():
+        return radius, elongation, np.nan
+    h = total / norm
+    extent = np.ptp(x @ h)
+    across = np.eye(3) - np.outer(h, h)
+    major = np.linalg.eigh(across @ gyration @ across)[1][:, -1]   # the restricted gyration's major axis
+    width = np.ptp(x @ major)
+    aspect = float(extent / width) if width > 0 and width > TINY * extent else np.nan
+    return radius, elongation, aspect
+
+
+def milling(pos: np.ndarray, vel: np.ndarray, box: float | None = None) -> float:
+    """|mean r_hat x v_hat| about the centroid of the flock unwrapped around boid 0."""
+    unwrapped = pos[0] + offsets(pos, box)[0]
+    r_hat, at_centroid_not = units(unwrapped - unwrapped.mean(axis=0))
+    v_hat, moving = units(vel)
+    keep = at_centroid_not & moving
+    if not keep.any():
+        return np.nan
+    return float(np.linalg.norm(np.cross(r_hat[keep], v_hat[keep]).mean(axis=0)))
+
+
+def segregation(pos: np.ndarray, pattern: np.ndarray, radius: float, box: float | None = None) -> float:
+    """Mean over linked boids of (same-pattern share of their links - (n_p - 1)/(N - 1))."""
+    n = len(pos)
+    linked = np.linalg.norm(offsets(pos, box), axis=-1) < radius
+    np.fill_diagonal(linked, False)
+    degree = linked.sum(axis=1)
+    same = (linked & (pattern[:, None] == pattern[None, :])).sum(axis=1)
+    expected = np.array([(np.sum(pattern == p) - 1) / max(n - 1, 1) for p in pattern])
+    has = degree > 0
+    if not has.any():
+        return np.nan
+    return float(np.mean(same[has] / degree[has] - expected[has]))
+
+
+def follow(times, vel, pos, triggers, dt, record_every, radius, escape, box=None, max_lag=2.0):
+    """(C(tau) for tau = 0, dr, ..., max_lag; the lag-0 correlation over the window before the trigger),
+    from the definition in analysis.observables.leadership's docstring."""
+    interval = dt * record_every
+    n_rec = len(times)
+    window = int(np.floor(escape / interval + 1e-9))
+    n_lags = int(np.floor(max_lag / interval + 1e-9)) + 1
+    head, moving = units(vel)
+
+    def pair(b, f, lead, foll, terms):
+        values = [head[lead + s, b] @ head[foll + s, f] for s in range(terms)
+                  if 0 <= lead + s < n_rec and 0 <= foll + s < n_rec and moving[lead + s, b] and moving[foll + s, f]]
+        return np.mean(values) if values else None
+
+    sums, pairs, before = np.zeros(n_lags), np.zeros(n_lags), []
+    for step, b in triggers:
+        r0 = int(np.clip(np.floor((step * dt - times[0]) / interval + 0.5), 0, n_rec - 1))
+        labels = components(pos[r0], radius, box)
+        for f in np.flatnonzero(labels == labels[b]):
+            if f == b:
+                continue
+            for j in range(min(n_lags, window + 1)):
+                c = pair(b, f, r0, r0 + j, window - j + 1)
+                if c is not None:
+                    sums[j] += c
+                    pairs[j] += 1
+            c = pair(b, f, r0 - window, r0 - window, window + 1)
+            if c is not None:
+                before.append(c)
+    curve = np.full(n_lags, np.nan)
+    curve[pairs > 0] = np.clip(sums[pairs > 0] / pairs[pairs > 0], -1, 1)
+    return curve, (float(np.clip(np.mean(before), -1, 1)) if before else np.nan)
+
+
+# ------------------------------------------------------------------------------------------------- rng
+
+def mix(z: int) -> int:
+    """SplitMix64's finaliser on a 64-bit integer."""
+    z = ((z ^ (z >> 30)) * M1) & MASK64
+    z = ((z ^ (z >> 27)) * M2) & MASK64
+    return z ^ (z >> 31)
+
+
+def hash4(key: int, stream: int, step: int, index: int) -> int:
+    """The keyed chain of simcore.rng: mix(key + g), then mix(h ^ (x + g)) for stream, step, index."""
+    h = mix((key + GOLDEN) & MASK64)
+    for word in (stream, step, index):
+        h = mix(h ^ ((word + GOLDEN) & MASK64))
+    return h
+
+
+def uniform01(key: int, stream: int, step: int, index: int) -> float:
+    return (hash4(key, stream, step, index) >> 11) / 2.0 ** 53
