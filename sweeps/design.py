@@ -122,6 +122,20 @@ def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
     return preset, metrics.resolve(preset.model)
 
 
+def stored_spec(model_record: dict, row: dict) -> RunSpec:
+    """The :class:`RunSpec` of a stored run (its ``model.json`` record and its design/runs row), with its
+    run id recomputed from the rebuilt spec. A caller that re-simulates a stored run compares that id
+    with the stored one: a difference means this code resolves the spec differently from the code that
+    ran the sweep."""
+    preset, metrics = rebuild(model_record, row)
+    analysis = model_record["analysis"]
+    storage = Storage(keep=analysis.get("keep", "metrics"), trajectory_every=int(analysis.get("trajectory_every", 6)))
+    seed = int(row["seed"])
+    return RunSpec(run_id=run_id(preset.to_dict(), metrics, storage, seed), index=int(row.get("index", 0)),
+                   point_index=int(row.get("point_index", 0)), replicate=int(row["replicate"]), seed=seed,
+                   columns=(), preset=preset, metrics=metrics, storage=storage)
+
+
 def expand(config: SweepConfig) -> list[RunSpec]:
     """All runs of the sweep, validated, in design order."""
     base = base_preset(config)

@@ -1,4 +1,4 @@
-"""Tests of analysis/stats.py on synthetic run tables with a known structure.
+"""Tests of analysis/reports/stats.py on synthetic run tables with a known structure.
 
 Every random table is drawn from a fixed seed; tolerances are stated next to each assertion.
 """
@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from analysis import stats as S
+from analysis.reports import stats as S
 
 
 def level_table(rng, n_per_level, shifts, levels=None, sd=1.0):

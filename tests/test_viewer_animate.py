@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from analysis.viewer import animate
-from analysis.viewer.animate import (AnimationUnavailable, check_options, frame_count, poster, source_frames,
+from analysis.viewer.animation import (AnimationUnavailable, check_options, frame_count, poster, source_frames,
                                      write_animation)
 from viewer_data import milling_track
 

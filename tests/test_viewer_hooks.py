@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from analysis.calibration.config import load_calibration
-from analysis.report import build_report
+from analysis.reports.report import build_report
 from analysis.viewer.encode import decode_stream
-from analysis.viewer.hooks import MEDIAN_PAGE, posterior_median_page
+from analysis.calibration.viewer_page import MEDIAN_PAGE, posterior_median_page
 from sweeps.config import sweep_from_dict
 from sweeps.runner import run_sweep
 

@@ -13,9 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.observables.summary import every_nth
 from analysis.viewer.encode import decode_stream
 from analysis.viewer.resimulate import (NotReproduced, RunNotFound, parse_where, record_step_for, reproduce,
-                                        select_run, thin_observations)
+                                        select_run)
 from sweeps.cli import main
 from sweeps.config import sweep_from_dict
 from sweeps.runner import run_sweep
@@ -126,7 +127,7 @@ def test_a_changed_spec_is_refused(sweep, tmp_path):
 def test_thinning_keeps_every_kth_record(sweep):
     row = select_run(sweep, showcase="wide")
     obs = reproduce(sweep, row, record_step=1).obs
-    thin = thin_observations(obs, 6)
+    thin = every_nth(obs, 6)
     np.testing.assert_array_equal(thin.pos, obs.pos[::6])
     assert thin.record_every == 6 and len(thin.times) == 21
     assert record_step_for(1800, 100) == 1 and record_step_for(18000, 1000, max_bytes=400e6) == 3

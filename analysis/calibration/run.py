@@ -61,7 +61,7 @@ from .plots import corner_figure, predictive_figure, trace_figure
 from .simulator import SummarySimulator
 from .surrogates import build_surrogate, prior_outside_box
 from .training import training_set
-from analysis.viewer.hooks import posterior_median_page
+from .viewer_page import posterior_median_page
 
 
 def summary_simulator(config: CalibrationConfig, n_sim: int | None = None) -> SummarySimulator:

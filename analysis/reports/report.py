@@ -40,7 +40,7 @@ from sweeps.store import ResultsStore
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
 from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
-from analysis.viewer.hooks import report_blocks as viewer_blocks
+from .viewer_pages import viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",

@@ -10,11 +10,11 @@ Public API (importing this package loads nothing heavy)::
 * :func:`view` writes one self-contained HTML page (``analysis/viewer/page.py``; three.js inlined,
   nothing fetched) and returns a :class:`~analysis.viewer.page.ViewerPage`.
 * :func:`animate` writes a GIF (Pillow) or MP4 (the ffmpeg of the ``imageio-ffmpeg`` wheel) with
-  matplotlib (``analysis/viewer/animate.py``) and returns an :class:`~analysis.viewer.animate.Animation`.
+  matplotlib (``analysis/viewer/animation.py``) and returns an :class:`~analysis.viewer.animation.Animation`.
 * ``analysis.viewer.resimulate`` re-simulates a sweep's run from its stored spec and seed and checks it
   against the stored summary bit for bit; ``analysis.viewer.command`` is ``flocksweep view``;
-  ``analysis.viewer.hooks`` writes the pages of a report's showcase runs and of a calibration's posterior
-  median.
+  ``analysis.viewer.hooks`` writes the page of a stored run or of a preset for other commands (the
+  report's showcase runs, a calibration's posterior median).
 
 The page's data format (for adding obstacles, prey and predators) is documented in
 ``analysis/viewer/encode.py``; the choice of three.js in ``docs/viewer.md``.
@@ -61,8 +61,8 @@ def animate(source, path, *, preset=None, color_by: str = "auto", fps: float = 2
             rotate: bool = False, trail_s: float = 1.0, size=(640, 480), dpi: int = 100,
             title: str | None = None, progress: bool = False):
     """Write a GIF or MP4 (by the extension of ``path``) of ``source`` (as for :func:`view`) and return
-    an :class:`~analysis.viewer.animate.Animation`; see ``analysis/viewer/animate.py``."""
-    from .animate import write_animation
+    an :class:`~analysis.viewer.animation.Animation`; see ``analysis/viewer/animation.py``."""
+    from .animation import write_animation
     from .track import as_track
 
     track = as_track(source, preset)

@@ -18,6 +18,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from simcore import ConfigError, load_preset, simulate_preset
+from simcore.params import read_toml
+
 from .encode import COLOR_MODES
 
 DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
@@ -58,8 +61,6 @@ def add_arguments(p) -> None:
 
 
 def _kind(source: Path) -> str:
-    from simcore import ConfigError
-    from simcore.params import read_toml
 
     if source.is_dir():
         return "sweep"
@@ -78,7 +79,6 @@ def _kind(source: Path) -> str:
 
 
 def _check_flags(args, kind: str) -> None:
-    from simcore import ConfigError
 
     sweep_flags = {"--run": args.run, "--where": args.where, "--showcase": args.showcase,
                    "--replicate": args.replicate or None}
@@ -96,7 +96,6 @@ def _check_flags(args, kind: str) -> None:
 
 
 def _size(text: str) -> tuple[int, int]:
-    from simcore import ConfigError
 
     width, sep, height = text.lower().partition("x")
     if not (sep and width.isdigit() and height.isdigit()):
@@ -105,7 +104,6 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _model_track(args):
-    from simcore import ConfigError, load_preset, simulate_preset
 
     from .resimulate import record_step_for
     from .track import from_observations
@@ -146,9 +144,8 @@ def _sweep_track(args):
 
 
 def run(args) -> int:
-    from simcore import ConfigError
 
-    from .animate import AnimationUnavailable, check_options, ffmpeg_exe, write_animation
+    from .animation import AnimationUnavailable, check_options, ffmpeg_exe, write_animation
     from .page import MB, build_page
     from .resimulate import NotReproduced, RunNotFound
     from .track import from_npz

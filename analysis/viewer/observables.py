@@ -4,7 +4,7 @@
 
 * ``metrics``: {name: float64 (F,)} for :data:`PANEL_METRICS` (polarization, number of groups, mean
   nearest-neighbour distance, cohesion = largest group's share), with the definitions of
-  docs/metrics.md, from one pass of ``analysis.groups.neighbour_graph`` (the graph the sweep's metrics
+  docs/metrics.md, from one pass of ``analysis.observables.groups.neighbour_graph`` (the graph the sweep's metrics
   use) with the track's group radius and periodic box: a sweep's time series at the same record agree
   to rounding (summation order);
 * ``labels``: int32 (F, N), each boid's group rank at that frame (0 = the largest group, 1 the next);
@@ -14,15 +14,14 @@
 ``metric_settings(model)`` gives a model's (group radius, periodic box); ``group_labels(track)`` the
 labels alone; ``record_metrics(obs, every, group_radius, model)`` the metric series of a sweep's record
 frames (for the re-simulation check of :mod:`analysis.viewer.resimulate`).
-
-When analysis/metrics.py moves, only the imports below change.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from analysis.groups import neighbour_graph
-from analysis.metrics import default_group_radius, frame_metrics, polarization, world_box
+from analysis.observables.groups import neighbour_graph
+from analysis.observables.metrics import frame_metrics, polarization
+from analysis.observables.summary import default_group_radius, world_box
 
 from .track import DEFAULT_GROUP_RADIUS, Track
 

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sweeps.files import write_text
+
 from .encode import (check_agents, heading_stream, label_stream, page_data, position_stream,
                      speed_stream, stream)
 from .observables import frame_observables, group_labels
@@ -162,7 +164,6 @@ class ViewerPage:
         return len(self.html.encode())
 
     def save(self, path) -> Path:
-        from sweeps.atomic import write_text
 
         self.path = Path(path)
         write_text(self.path, self.html)

@@ -20,7 +20,6 @@ Any difference raises :class:`NotReproduced` naming the columns with the stored 
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -29,11 +28,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.observables.summary import every_nth
+from simcore import simulate
+from simcore.params import canonical_key
 from simcore.schema import parse_value
+from sweeps.design import stored_spec
+from sweeps.store import ResultsStore
+from sweeps.worker import execute_run
 
 from .observables import record_metrics
 
-ALIASES = {"n": "init.n"}
 NOT_METRICS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s", "part")
 
 
@@ -62,7 +66,7 @@ def parse_where(text: str) -> dict:
         if not sep or not key.strip() or not value.strip():
             raise RunNotFound(f"--where: got {item!r}; expected key=value items separated by commas, "
                               "e.g. \"perception.field_deg=60, init.n=100\"")
-        key = ALIASES.get(key.strip(), key.strip())
+        key = canonical_key(key.strip())
         out[key] = parse_value(value.strip())
     if not out:
         raise RunNotFound("--where: no key=value given")
@@ -88,14 +92,12 @@ def _showcase(root: Path, name: str) -> dict:
     if name not in showcase:
         known = ", ".join(showcase) or "none"
         raise RunNotFound(f"--showcase: {name!r} is not a [report.showcase] entry of this sweep (entries: {known})")
-    return {ALIASES.get(k, k): v for k, v in showcase[name].items()}
+    return {canonical_key(k): v for k, v in showcase[name].items()}
 
 
 def select_run(results_dir, run_id: str | None = None, where: dict | None = None, replicate: int = 0,
                showcase: str | None = None) -> dict:
     """One finished run's row (see the module docstring)."""
-    from sweeps.store import ResultsStore
-
     root = Path(results_dir)
     store = ResultsStore(root)
     if not (root / "model.json").exists():
@@ -147,32 +149,16 @@ def _same(a, b) -> bool:
 
 
 def _spec(root: Path, row: dict):
-    from sweeps.config import Analysis
-    from sweeps.design import RunSpec, rebuild
-    from sweeps.identity import run_id
-    from sweeps.store import ResultsStore
-
-    record = ResultsStore(root).model()
-    preset, radius = rebuild(record, row)
-    known = {f.name for f in dataclasses.fields(Analysis)}
-    analysis = Analysis(**{k: v for k, v in record["analysis"].items() if k in known})
-    seed = int(row["seed"])
-    rebuilt = run_id(preset.to_dict(), analysis, radius, seed)
-    if rebuilt != row["run_id"]:
-        raise NotReproduced(f"run {row['run_id']}: its spec rebuilt from model.json hashes to {rebuilt}, so this "
-                            "code (model version or preset resolution) is not the one that ran the sweep; "
+    spec = stored_spec(ResultsStore(root).model(), row)
+    if spec.run_id != row["run_id"]:
+        raise NotReproduced(f"run {row['run_id']}: its spec rebuilt from model.json hashes to {spec.run_id}, so "
+                            "this code (model version or preset resolution) is not the one that ran the sweep; "
                             "re-run the sweep to view its runs")
-    spec = RunSpec(run_id=rebuilt, index=int(row.get("index", 0)), point_index=int(row.get("point_index", 0)),
-                   replicate=int(row["replicate"]), seed=seed, columns=(), preset=preset, analysis=analysis,
-                   group_radius=float(radius))
     return spec
 
 
 def reproduce(results_dir, row: dict, record_step: int = 1) -> Reproduction:
     """Re-simulate a stored run and check it (see the module docstring)."""
-    from simcore import simulate
-    from sweeps.worker import execute_run
-
     root = Path(results_dir)
     spec = _spec(root, row)
     fresh, series = execute_run(spec)
@@ -185,7 +171,7 @@ def reproduce(results_dir, row: dict, record_step: int = 1) -> Reproduction:
     every = run.record_every
     step = math.gcd(int(record_step), every)
     obs = simulate(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, step)
-    viewed = record_metrics(obs, every // step, spec.group_radius, spec.preset.model)
+    viewed = record_metrics(obs, every // step, spec.metrics.group_radius, spec.preset.model)
     trajectory = [{"column": f"series:{name}", "stored": float("nan"), "resimulated": float("nan"),
                    "identical": bool(np.array_equal(viewed[name], series[name].to_numpy(), equal_nan=True))}
                   for name in viewed if name in series]
@@ -195,18 +181,8 @@ def reproduce(results_dir, row: dict, record_step: int = 1) -> Reproduction:
         listed = "; ".join(f"{r.column}: stored {r.stored!r}, re-simulated {r.resimulated!r}" for r in bad.itertuples())
         raise NotReproduced(f"run {row['run_id']} does not reproduce its stored results bit for bit "
                             f"({listed or 'no metric columns to compare'}); refusing to show a different run")
-    return Reproduction(obs=thin_observations(obs, int(record_step) // step), preset=spec.preset, row=row,
-                        group_radius=spec.group_radius, checks=checks)
-
-
-def thin_observations(obs, k: int):
-    """Every ``k``-th record of simulator observations (the same run, recorded k times less often)."""
-    if k == 1:
-        return obs
-    pick = slice(None, None, k)
-    return dataclasses.replace(obs, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
-                               visible=obs.visible[pick], binocular=obs.binocular[pick], leader=obs.leader[pick],
-                               record_every=obs.record_every * k)
+    return Reproduction(obs=every_nth(obs, int(record_step) // step), preset=spec.preset, row=row,
+                        group_radius=float(spec.metrics.group_radius), checks=checks)
 
 
 def record_step_for(n_steps: int, n: int, max_bytes: float = 400e6) -> int:

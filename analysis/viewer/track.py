@@ -28,6 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from simcore import Observations, preset_from_dict
+from sweeps.design import rebuild
+from sweeps.store import ResultsStore
+
 DEFAULT_GROUP_RADIUS = 20.0  # used, and said so in the page, when nothing tells the run's radius
 
 
@@ -136,7 +140,7 @@ def agents_of(obs) -> tuple:
 
 
 def _preset_meta(preset) -> dict:
-    from .observables import metric_settings  # the viewer's one door to analysis.metrics
+    from .observables import metric_settings  # the viewer's one door to the observables layer
 
     model = preset.model
     radius, box = metric_settings(model)
@@ -172,18 +176,15 @@ def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Trac
 
 def _sweep_meta(path: Path, run_id: str) -> dict:
     """Parameters of a sweep trajectory ``<results>/trajectories/<run_id>.npz`` from its results store."""
-    from sweeps.design import rebuild
-    from sweeps.store import ResultsStore
-
     store = ResultsStore(path.parent.parent)
     record = store.model()
     design = store.design()
     if not record or design is None or run_id not in set(design["run_id"]):
         return {}
     row = design[design["run_id"] == run_id].iloc[0].to_dict()
-    preset, radius = rebuild(record, row)
+    preset, metrics = rebuild(record, row)
     meta = _preset_meta(preset)
-    meta["group_radius"] = float(radius)
+    meta["group_radius"] = float(metrics.group_radius)
     meta["info"] = {"run id": run_id, "replicate": int(row["replicate"]), "seed": int(row["seed"])}
     meta["title"] = f"{path.parent.parent.name}: run {run_id}"
     return meta
@@ -191,8 +192,6 @@ def _sweep_meta(path: Path, run_id: str) -> dict:
 
 def from_npz(path) -> Track:
     """A Track of a saved trajectory (see the module docstring)."""
-    from simcore import preset_from_dict
-
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such trajectory file")
@@ -222,8 +221,6 @@ def from_npz(path) -> Track:
 
 def as_track(source, preset=None, **options) -> Track:
     """A Track of a Track, an ``Observations``, a path to a ``.npz`` or a mapping of arrays."""
-    from simcore import Observations
-
     if isinstance(source, Track):
         return replace(source, **options) if options else source
     if isinstance(source, Observations):

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sweeps.files import atomic_path
+
 from .encode import COLOR_MODES, TABLE_1_HEX, default_color_by
 from .observables import frame_observables
 from .track import Track
@@ -219,7 +221,6 @@ def write_animation(track: Track, path, color_by: str = "auto", fps: float = 20.
     from matplotlib import animation
     from tqdm import tqdm
 
-    from sweeps.atomic import atomic_path
 
     path = Path(path)
     kind = check_options(path, fps, speed, size, dpi, color_by)
@@ -245,7 +246,6 @@ def write_animation(track: Track, path, color_by: str = "auto", fps: float = 20.
 def poster(track: Track, path, color_by: str = "auto", frame: int = -1, trail_s: float = 3.0,
            size=(480, 400), dpi: int = 100, title: str | None = None) -> Path:
     """A still PNG of one recorded frame (default the last), drawn as the animation draws it."""
-    from sweeps.atomic import atomic_path
 
     path = Path(path)
     f = range(track.frames)[frame]
