@@ -8,8 +8,8 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("simcore", "sweeps", "analysis")
 CLI = "sweeps.cli"
 

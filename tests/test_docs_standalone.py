@@ -23,8 +23,8 @@ import pytest
 
 from simcore import params
 from simcore.params import InitParams, ModelParams, RunSettings
+from paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 MODEL_DOC = ROOT / "docs" / "model.md"
 THIS_FILE = Path(__file__).resolve()
 

@@ -1,0 +1,179 @@
+"""`flocksweep calibrate` end to end on a tiny configuration: targets made by the simulator at a known
+perception range, a short emcee chain, every output written; refusals for an existing chain and for
+methods this version does not run."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.calibration.config import calibration_from_dict
+from analysis.calibration.run import calibrate, summary_simulator
+from simcore import ConfigError
+from sweeps.cli import main
+from sweeps.seeds import common_seeds
+from paths import ROOT
+
+HOLLAND = str(ROOT / "configs/models/holland.toml")
+STATS = ["cohesion", "polarization"]
+
+
+def tiny(targets: dict, **method) -> dict:
+    return {"name": "tiny", "seed": 4, "model": {"preset": HOLLAND},
+            "run": {"n": 10, "duration": 2.0, "record_interval": 0.5, "warmup": 0.5},
+            "parameters": {"range": {"key": "perception.range",
+                                     "prior": {"dist": "uniform", "low": 5, "high": 40}}},
+            "targets": targets,
+            "method": {"kind": "emcee", "n_sim": 8, "walkers": 4, "steps": 30, **method}}
+
+
+@pytest.fixture(scope="module")
+def truth_targets():
+    """Mean and sd of the target statistics over 24 replicates at range 20."""
+    config = calibration_from_dict(tiny({"stats": STATS, "mean": [0.5, 0.5], "sd": [0.1, 0.1]}, n_sim=24), ROOT)
+    sims = summary_simulator(config).simulate(np.array([20.0]), common_seeds(99, 24))
+    return {"stats": STATS, "mean": sims.mean(axis=0).tolist(), "sd": (sims.std(axis=0, ddof=1) + 1e-3).tolist()}
+
+
+@pytest.mark.slow
+def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_path):
+    config = calibration_from_dict(tiny(truth_targets), ROOT)
+    result = calibrate(config, tmp_path / "cal", progress=False, predictive_draws=10)
+    out = tmp_path / "cal"
+    posterior = pd.read_csv(out / "posterior.csv", index_col=0)
+    assert list(posterior.index) == ["range"]
+    assert {"mean", "sd", "median", "q2.5", "q97.5", "tau", "ess", "acceptance"} <= set(posterior.columns)
+    assert 5 <= posterior.loc["range", "q2.5"] <= posterior.loc["range", "q97.5"] <= 40
+    check = pd.read_csv(out / "predictive.csv", index_col=0)
+    assert list(check.index) == ["cohesion_mean", "polarization_mean"]
+    assert check["p"].between(0, 1).all()
+    for name in ("trace.png", "corner.png", "predictive.png", "chain.h5"):
+        assert (out / name).stat().st_size > 1000, name
+    report = json.loads((out / "convergence.json").read_text())
+    assert report["steps"] == 30 and report["walkers"] == 4 and report["convergence"]["messages"]
+    assert result["summary"].loc["range", "acceptance"] > 0
+
+
+@pytest.mark.slow
+def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_path):
+    config = calibration_from_dict(tiny(truth_targets, steps=10), ROOT)
+    calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)
+    with pytest.raises(ConfigError) as info:
+        calibrate(config, tmp_path / "c", progress=False)
+    assert info.value.key == "--resume"
+    longer = calibration_from_dict(tiny(truth_targets, steps=16), ROOT)
+    calibrate(longer, tmp_path / "c", resume=True, progress=False, predictive_draws=4)
+    assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16
+
+
+def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "optimize", "n_sim": 8, "maxiter": 5, "popsize": 4, "recheck": 16}
+    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    optimum = json.loads((tmp_path / "o" / "optimum.json").read_text())
+    assert 5 <= optimum["theta"]["range"] <= 40
+    assert np.isfinite(optimum["objective_common_seeds"]) and np.isfinite(optimum["objective_recheck"])
+    assert result["predictive"]["p"].between(0, 1).all()
+    assert not (tmp_path / "o" / "chain.h5").exists()
+
+
+def test_optimize_distance_objective_with_nelder_mead(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "optimize", "n_sim": 8, "algorithm": "nelder_mead", "objective": "distance",
+                      "maxiter": 15, "recheck": 16}
+    calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    optimum = json.loads((tmp_path / "o" / "optimum.json").read_text())
+    assert optimum["settings"]["objective"] == "distance" and 5 <= optimum["theta"]["range"] <= 40
+    assert 0 <= optimum["objective_common_seeds"] < 20      # a sum of 2 squared z-scores near the fit
+
+
+EMULATOR_SWEEP = """
+name = "emu_sweep"
+seed = 5
+replicates = 3
+[model]
+preset = "{preset}"
+[run]
+n = 10
+duration = 2.0
+record_interval = 0.5
+warmup = 0.5
+[[axes]]
+key = "perception.range"
+values = [5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 40.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def emulator_sweep(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("emu")
+    path = folder / "sweep.toml"
+    path.write_text(EMULATOR_SWEEP.format(preset=HOLLAND))
+    assert main(["run", str(path), "--out", str(folder / "results"), "--executor", "serial",
+                 "--no-progress"]) == 0
+    return folder / "results"
+
+
+@pytest.mark.slow
+def test_emulator_method_end_to_end(truth_targets, emulator_sweep, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "emulator", "results": str(emulator_sweep), "walkers": 8, "steps": 400,
+                      "confirm": 24}
+    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "emu", progress=False, predictive_draws=12)
+    out = tmp_path / "emu"
+    posterior = pd.read_csv(out / "posterior.csv", index_col=0)
+    assert posterior.loc["range", "q5"] <= 20.0 <= posterior.loc["range", "q95"], posterior.loc["range"].to_dict()
+    assert posterior.loc["range", "sd"] < 0.6 * 35 / np.sqrt(12)          # narrower than the U(5, 40) prior
+    comparison = pd.read_csv(out / "confirm.csv", index_col=0)
+    assert list(comparison.index) == ["cohesion_mean", "polarization_mean"]
+    assert (comparison["n_real"] == 24).all() and np.isfinite(comparison["z"]).all()
+    report = json.loads((out / "convergence.json").read_text())
+    assert report["method"] == "emulator" and report["emulator"]["training_points"] == 7
+    assert report["emulator"]["training_runs"] == 21 and report["confirm"]["messages"]
+    assert not any("beyond the swept range" in w for w in report["warnings"])   # box = prior support [5, 40]
+    for name in ("trace.png", "corner.png", "predictive.png", "chain.h5"):
+        assert (out / name).stat().st_size > 1000, name
+    assert result["confirm"]["theta"]["range"] == pytest.approx(posterior.loc["range", "median"], rel=0.05)
+
+
+def test_emulator_refuses_a_missing_results_folder(truth_targets, tmp_path):
+    data = tiny(truth_targets)
+    data["method"] = {"kind": "emulator", "n_sim": 8, "results": str(tmp_path / "nowhere")}
+    with pytest.raises(ConfigError, match="method.results"):
+        calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    assert not (tmp_path / "o" / "chain.h5").exists()
+
+
+@pytest.mark.slow
+def test_calibrate_cli(truth_targets, tmp_path, capsys):
+    path = tmp_path / "cal.toml"
+    lines = ['name = "cli"', "seed = 4", "[model]", f'preset = "{HOLLAND}"',
+             "[run]", "n = 10", "duration = 2.0", "record_interval = 0.5", "warmup = 0.5",
+             "[parameters.range]", 'key = "perception.range"', 'prior = { dist = "uniform", low = 5, high = 40 }',
+             "[targets]", f"stats = {json.dumps(STATS)}", f"mean = {truth_targets['mean']}",
+             f"sd = {truth_targets['sd']}", "[method]", 'kind = "emcee"', "n_sim = 8", "walkers = 4",
+             "steps = 8"]
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    assert "range" in capsys.readouterr().out
+    assert main(["calibrate", str(path), "--set", "method.walkers=3", "--out", str(tmp_path / "p")]) == 2
+    assert "method.walkers" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_local_workers_give_the_serial_chain_and_outputs(truth_targets, tmp_path):
+    import h5py
+
+    config = calibration_from_dict(tiny(truth_targets, steps=6), ROOT)
+    serial = calibrate(config, tmp_path / "serial", progress=False, predictive_draws=6)
+    pooled = calibrate(config, tmp_path / "pooled", progress=False, predictive_draws=6, executor="local", workers=2)
+    chains = []
+    for name in ("serial", "pooled"):
+        with h5py.File(tmp_path / name / "chain.h5", "r") as f:
+            chains.append(np.array(f["mcmc/chain"]))
+    np.testing.assert_array_equal(chains[0], chains[1])
+    pd.testing.assert_frame_equal(serial["predictive"], pooled["predictive"])
+    assert "2 processes" in pooled["report"]["executor"]

@@ -1,0 +1,152 @@
+"""The viewer page in a real headless Chromium (Debian's package, driven by Playwright): it opens from a
+file:// URL with the network blocked and logs no error, draws a non-blank picture, advances when played,
+changes when a control (colour by) is used, steps and seeks, and draws scene objects and extra agents.
+Screenshots are kept in tests/artifacts/ (git-ignored)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.viewer import view
+from browser import Browser
+from viewer_data import milling_track
+from paths import TESTS
+
+ARTIFACTS = TESTS / "artifacts"
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with Browser() as b:
+        yield b
+
+
+@pytest.fixture(scope="module")
+def scene_page(tmp_path_factory):
+    path = tmp_path_factory.mktemp("viewer") / "scene.html"
+    view(milling_track(with_scene=True), path, color_by="boid", max_mb=None)
+    return path
+
+
+@pytest.fixture(scope="module")
+def opened(browser, scene_page):
+    page = browser.open(scene_page)
+    yield page
+    page.page.close()
+
+
+def _differs(a: np.ndarray, b: np.ndarray) -> float:
+    """Share of pixels that changed by more than a few levels."""
+    return float((np.abs(a - b).max(axis=-1) > 8).mean())
+
+
+@pytest.mark.slow
+def test_page_loads_offline_without_errors(opened):
+    assert opened.errors == []
+    assert opened.blocked == []
+    assert opened.state("frames") == 91
+    assert opened.state("n") == 30
+
+
+@pytest.mark.slow
+def test_canvas_is_not_blank(opened):
+    ARTIFACTS.mkdir(exist_ok=True)
+    pixels = opened.screenshot(ARTIFACTS / "viewer_first_frame.png")
+    assert pixels.shape[0] > 300 and pixels.shape[1] > 500
+    assert pixels.reshape(-1, 3).std(axis=0).mean() > 10  # a flat background has ~0 variance
+    distinct = len(np.unique(pixels.reshape(-1, 3) // 16, axis=0))
+    assert distinct > 30
+
+
+@pytest.mark.slow
+def test_scene_objects_and_agents_are_drawn(opened):
+    names = opened.state("sceneNames()")
+    for name in ("scene:sphere", "scene:plane", "scene:box", "scene:cylinder", "agent:predator", "agent:prey"):
+        assert name in names
+    assert names.count("scene:cylinder") == 2
+    pixels = opened.screenshot()
+    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    magenta = (r > 120) & (b > 120) & (g < 90)  # the opaque magenta sphere at the centre, shaded
+    assert magenta.mean() > 0.002
+    legend = opened.page.inner_text("#legend")
+    assert "hawk (1)" in legend and "prey (2)" in legend
+
+
+@pytest.mark.slow
+def test_playing_advances_the_frames(opened):
+    page = opened.page
+    page.evaluate("window.flockViewer.seek(0)")
+    page.wait_for_timeout(200)
+    before = opened.screenshot(ARTIFACTS / "viewer_before_play.png")
+    page.click("#play")
+    page.wait_for_timeout(1200)
+    page.click("#play")
+    page.wait_for_timeout(200)
+    after = opened.screenshot(ARTIFACTS / "viewer_after_play.png")
+    assert opened.state("frame") > 5
+    assert not opened.state("playing")
+    assert _differs(before, after) > 0.002
+    assert opened.errors == []
+
+
+@pytest.mark.slow
+def test_colour_by_changes_the_picture(opened):
+    page = opened.page
+    page.evaluate("window.flockViewer.seek(40)")
+    page.select_option("#colorby", "boid")
+    page.wait_for_timeout(200)
+    by_boid = opened.screenshot(ARTIFACTS / "viewer_colour_boid.png")
+    page.select_option("#colorby", "pattern")
+    page.wait_for_timeout(200)
+    by_pattern = opened.screenshot(ARTIFACTS / "viewer_colour_pattern.png")
+    assert opened.state("colorBy") == "pattern"
+    assert _differs(by_boid, by_pattern) > 0.001
+    assert "pattern 11000101" in page.inner_text("#legend")
+    page.select_option("#colorby", "leader")  # boid 0 leads at frame 40: legend says so
+    assert "leader" in page.inner_text("#legend")
+
+
+@pytest.mark.slow
+def test_step_slider_and_panel_follow_the_frame(opened):
+    page = opened.page
+    page.evaluate("window.flockViewer.seek(10)")
+    page.wait_for_timeout(100)
+    page.click("#step")
+    page.wait_for_timeout(100)
+    assert opened.state("frame") == 11
+    page.fill("#slider", "60")
+    page.dispatch_event("#slider", "input")
+    page.wait_for_timeout(100)
+    assert opened.state("frame") == 60
+    metrics = page.inner_text("#metrics")
+    assert "2.00 s" in metrics and "polarization" in metrics and "leaders" in metrics
+    assert "omega" in page.text_content("#params")  # inside the collapsed "Parameters" section
+
+
+def test_a_boid_points_along_its_heading(opened):
+    """The cone's +z axis (column 2 of its instance matrix) is the boid's unit heading."""
+    page = opened.page
+    page.evaluate("window.flockViewer.seek(30)")
+    page.wait_for_timeout(100)
+    matrix = np.array(opened.state("boidMatrix(3)")).reshape(4, 4).T  # three.js stores column-major
+    data = page.evaluate("(() => { const d = window.flockViewer.data; return [d.times[30]]; })()")
+    assert data[0] == pytest.approx(1.0)
+    track = milling_track(with_scene=False)
+    heading = track.vel[30, 3] / np.linalg.norm(track.vel[30, 3])
+    axis = matrix[:3, 2] / np.linalg.norm(matrix[:3, 2])
+    assert axis @ heading > 0.99
+    np.testing.assert_allclose(matrix[:3, 3], track.pos[30, 3], atol=0.01)
+
+
+@pytest.mark.slow
+def test_a_single_frame_run_opens(browser, tmp_path):
+    track = milling_track(with_scene=False, frames=1)
+    path = view(track, tmp_path / "one.html").path
+    page = browser.open(path)
+    assert page.errors == [] and page.blocked == []
+    assert page.state("frames") == 1
+    page.page.close()
