@@ -20,6 +20,7 @@ from simcore import InitParams, initial_state, simulate, simulate_batch
 from simcore.params import HOLLAND_TABLE_1, PatternEntry, Patterns
 from simcore.rng import run_streams
 from simcore.state import pattern_counts
+from paths import TESTS
 
 DT = 1 / 60
 INIT = InitParams(n=25, radius=6.0)
@@ -95,9 +96,8 @@ def fixed_run():
 # Runs fixed_run() in a fresh interpreter and prints the digest of its observations.
 CHILD_SCRIPT = """
 import json, sys
-sys.path[:0] = [{package_root!r}, {tests_dir!r}]  # the same simcore and helpers as this process
+sys.path[:0] = [{package_root!r}, {tests_dir!r}, {here_dir!r}]  # the same simcore and helpers as this process
 from test_determinism import digest, fixed_run
-from paths import TESTS
 print(json.dumps(digest(fixed_run())))
 """
 
@@ -107,7 +107,8 @@ def test_bit_identical_across_processes(tmp_path):
     tests_dir = str(TESTS)
     package_root = str(Path(simcore.__file__).resolve().parents[1])
     script = tmp_path / "child.py"
-    script.write_text(CHILD_SCRIPT.format(package_root=package_root, tests_dir=tests_dir))
+    script.write_text(CHILD_SCRIPT.format(package_root=package_root, tests_dir=tests_dir,
+                                         here_dir=str(Path(__file__).resolve().parent)))
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300,
                           cwd=tmp_path)
     assert done.returncode == 0, done.stderr
