@@ -17,7 +17,8 @@ from pathlib import Path
 
 from .schema import ConfigError, apply_overrides, build, suggest, to_dict
 
-PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
+PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
+SEARCHES = ("auto", "grid", "all_pairs")
 DYNAMICS = ("opensteer", "hartman_benes")
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
@@ -55,6 +56,7 @@ PERCEPTION_KIND_KEYS = {
                   "alignment_cos", "cohesion_radius", "cohesion_cos"),
     "binocular": ("direction_deg", "eye_position_deg", "field_deg", "range", "head_radius",
                   "occlusion", "body_radius"),
+    "topological": ("neighbours", "max_distance", "blind_deg"),
 }
 
 
@@ -81,9 +83,22 @@ class Perception:
     head_radius: float = 0.5
     occlusion: bool = True
     body_radius: float = 0.5
+    # topological (Ballerini et al. 2008): the k nearest, optionally within max_distance, none in the blind cone
+    neighbours: int = 7
+    max_distance: float | None = None  # None: no distance limit
+    blind_deg: float = 0.0             # full angle of the blind cone behind the boid; 0: none
+    # how neighbours are found; every choice gives bit-identical results, so it is not part of a run's identity
+    search: str = "auto"
 
     def __post_init__(self):
         _choice("perception.kind", self.kind, PERCEPTION_KINDS)
+        _choice("perception.search", self.search, SEARCHES)
+        if self.neighbours < 1:
+            raise ConfigError("perception.neighbours", f"got {self.neighbours!r}; must be an integer >= 1")
+        if self.max_distance is not None:
+            _positive("perception.max_distance", self.max_distance)
+        if not (math.isfinite(self.blind_deg) and 0.0 <= self.blind_deg < 360.0):
+            raise ConfigError("perception.blind_deg", f"got {self.blind_deg!r}; allowed range [0, 360)")
         _positive("perception.radius", self.radius)
         _non_negative("perception.near_radius", self.near_radius)
         for rule in ("separation", "alignment", "cohesion"):
@@ -103,7 +118,8 @@ class Perception:
         return self.direction_deg if self.eye_position_deg is None else self.eye_position_deg
 
     def resolved(self) -> dict:
-        """The keys that matter for this kind, with defaults resolved (canonical form)."""
+        """The keys that matter for this kind, with defaults resolved (canonical form; ``search`` is left
+        out because every search gives the same results)."""
         keys = ("kind",) + PERCEPTION_KIND_KEYS[self.kind]
         out = {key: getattr(self, key) for key in keys}
         if self.kind == "binocular":
@@ -268,6 +284,9 @@ class ModelParams:
         if self.dynamics == "hartman_benes" and self.perception.kind != "sphere":
             raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics 'hartman_benes' "
                                                  "uses the visibility sphere: set perception.kind = 'sphere'")
+        if self.leadership.enabled and not math.isfinite(self.perception_range):
+            raise ConfigError("perception.max_distance", "the change of leadership measures eccentricity against "
+                                                         "the perception range: set perception.max_distance")
 
     @property
     def slow_speed(self) -> float:
@@ -276,8 +295,11 @@ class ModelParams:
 
     @property
     def perception_range(self) -> float:
-        """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius)."""
+        """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius,
+        topological max_distance; infinite for a topological perception without one)."""
         per = self.perception
+        if per.kind == "topological":
+            return math.inf if per.max_distance is None else per.max_distance
         return {"sphere": per.radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
 
 
