@@ -31,7 +31,8 @@ CELL_FACTOR = 1.2    # cell side over the expected distance of the k-th neighbou
 @kernel
 def cell_side(pos, fp, ip, periodic, box):
     """Grid cell side for k-nearest searches: about 1.2 times the expected k-th neighbour distance at the
-    flock's mean density (bounding box, or the periodic box), and no more than max_distance."""
+    flock's mean density (bounding box, or the periodic box; at most a third of the box), and no more
+    than max_distance."""
     n = pos.shape[0]
     k = ip[I.NEIGHBOURS]
     if periodic:
@@ -47,6 +48,8 @@ def cell_side(pos, fp, ip, periodic, box):
         floor = max(extent[0], extent[1], extent[2]) / max(1.0, n ** (1.0 / 3.0))
         volume = max(extent[0], floor) * max(extent[1], floor) * max(extent[2], floor)
     side = CELL_FACTOR * (3.0 * k * volume / (4.0 * math.pi * max(n, 1))) ** (1.0 / 3.0)
+    if periodic:
+        side = min(side, box / (3.0 * (1.0 + 1e-5)))  # at least 3 cells across the box
     return min(side, fp[F.TOPO_RADIUS])
 
 

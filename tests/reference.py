@@ -1,4 +1,5 @@
-"""Slow, plain reference implementation of MODEL.md sections 0-3 (opensteer dynamics).
+"""Slow, plain reference implementation of MODEL.md sections 0-3 (opensteer dynamics), and of the
+topological perception (docs/model.md).
 
 Written independently of ``simcore``'s kernel (only the parameter dataclasses are shared) so the
 fast kernel can be checked against it step by step. Everything is float64, explicit Python loops
@@ -97,6 +98,20 @@ def perceive(i, pos, fwd, side, model, box=None) -> dict:
                     members.append(j)
             sets[rule] = members
         return _result(sets, {}, [])
+
+    if per.kind == "topological":  # the k nearest eligible, ties by index (Ballerini et al. 2008)
+        limit2 = math.inf if per.max_distance is None else per.max_distance * per.max_distance
+        cos_half_blind = cos_deg(per.blind_deg / 2.0)
+        ranked = []
+        for j, d in offsets.items():
+            d2 = dot3(d, d)
+            if not d2 < limit2:
+                continue
+            if per.blind_deg > 0 and dot3(fwd[i], d) < -cos_half_blind * math.sqrt(d2):
+                continue  # in the blind cone behind
+            ranked.append((d2, j))
+        chosen = [j for _, j in sorted(ranked)[:per.neighbours]]
+        return _result({rule: chosen for rule in RULES}, {}, [])
 
     if per.kind != "binocular":
         raise ValueError(f"unknown perception kind {per.kind!r}")
