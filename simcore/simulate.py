@@ -15,11 +15,18 @@
 
 ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
 result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
+
+Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step of one synchronous run
+over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
+use numba's thread count and smaller ones one thread, and sequential runs are always serial (boid i
+waits for boid i - 1). Every boid is computed by the same code either way: results are bit-identical
+for any thread count.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from . import kernel
@@ -29,6 +36,7 @@ from .rng import run_streams
 from .state import FIELDS, State, initial_state
 
 MODEL_VERSION = "1"  # bump whenever a change alters any trajectory for an unchanged spec
+THREADED_MIN_N = 2000  # synchronous runs with this many boids use all of numba's threads by default
 
 
 @dataclass(frozen=True)
@@ -88,34 +96,56 @@ def _check_record_every(record_every) -> int:
     return int(record_every)
 
 
+def _thread_count(model: ModelParams, n: int, threads) -> int:
+    """Threads for one run: the request, or the default of the module docstring; 1 for sequential order."""
+    if threads is None:
+        threads = numba.get_num_threads() if n >= THREADED_MIN_N else 1
+    if isinstance(threads, bool) or int(threads) != threads or threads < 1:
+        raise ValueError(f"threads: got {threads!r}; must be an integer >= 1 (or None: automatic)")
+    return 1 if model.world.update_order == "sequential" else int(threads)
+
+
 def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
-            key: int = 0) -> Observations:
+            key: int = 0, threads: int | None = None) -> Observations:
     """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched. ``key`` is the run's
-    key for in-loop draws (leadership)."""
+    key for in-loop draws (leadership); ``threads`` as in the module docstring."""
     record_every = _check_record_every(record_every)
+    threads = _thread_count(model, state.n, threads)
     s = state.copy()
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
-    kernel.run_model(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip,
-                     np.uint64(key), n_steps, record_every, *rec)
+    args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
+            n_steps, record_every, *rec)
+    if threads == 1:
+        kernel.run_model(*args)
+    else:
+        from .threaded import run_threaded
+
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        try:
+            run_threaded(*args, threads)
+        finally:
+            numba.set_num_threads(previous)
     times = np.arange(n_records) * (record_every * dt)
     return _observations(times, rec, s, dt, record_every)
 
 
 def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
-             record_every: int = 1) -> Observations:
+             record_every: int = 1, threads: int | None = None) -> Observations:
     """Simulate one run from its seed (see module docstring)."""
     n_steps = _n_steps(duration, dt)
     rng, loop_key = run_streams(seed)
-    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key)
+    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key, threads)
 
 
-def simulate_preset(preset: Preset, seed, record_every: int | None = None) -> Observations:
+def simulate_preset(preset: Preset, seed, record_every: int | None = None,
+                    threads: int | None = None) -> Observations:
     """``simulate`` with the model, initial conditions and run settings of a preset."""
     run = preset.run
     every = run.record_every if record_every is None else record_every
-    return simulate(preset.model, preset.init, seed, run.duration, run.dt, every)
+    return simulate(preset.model, preset.init, seed, run.duration, run.dt, every, threads)
 
 
 def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
