@@ -193,23 +193,33 @@ def rebin(grid, i, pos):
 
 
 @inline
-def _wrap(c, nc):
-    return c % nc if nc > 0 else c
+def _fold(c, a):
+    """c mod a (a > 0), without a division when c is already within one period."""
+    if c >= a:
+        c -= a
+    elif c < 0:
+        c += a
+    return c
 
 
 @inline
 def gather(grid, i, pos, cand):
-    """Boids in the 27 cells around boid i, except i, into ``cand``; returns their count."""
+    """Boids in the 27 cells around boid i, except i, into ``cand``; returns their count.
+
+    The neighbour cells are folded like their centre: with ``A`` dividing the periodic cell count, the
+    bucket coordinate of cell c +- 1 is (c mod A) +- 1 mod A in either world, so no division is needed."""
     side, nc = grid.side[0], grid.shape[N_CELLS]
     ax, ay, az = grid.shape[A_X], grid.shape[A_Y], grid.shape[A_Z]
-    cx, cy, cz = cell_coord(pos[i, 0], side, nc), cell_coord(pos[i, 1], side, nc), cell_coord(pos[i, 2], side, nc)
+    bx = cell_coord(pos[i, 0], side, nc) % ax
+    by = cell_coord(pos[i, 1], side, nc) % ay
+    bz = cell_coord(pos[i, 2], side, nc) % az
     count = 0
     for dz in range(-1, 2):
-        z = _wrap(cz + dz, nc)
+        z = _fold(bz + dz, az)
         for dy in range(-1, 2):
-            y = _wrap(cy + dy, nc)
+            row = ax * (_fold(by + dy, ay) + ay * z)
             for dx in range(-1, 2):
-                j = grid.head[bucket_of(_wrap(cx + dx, nc), y, z, ax, ay, az)]
+                j = grid.head[row + _fold(bx + dx, ax)]
                 while j >= 0:
                     if j != i:
                         cand[count] = j

@@ -3,7 +3,8 @@
 ``new_neighbours(n)`` returns a :data:`Neighbours` for a flock of n boids: the output slots ``idx``
 int64 (n,), ``off`` float64 (n, 3), ``mask`` int64 (n,) (rule bits ``RULE_*``) and ``label`` int64 (n,)
 (eye labels ``EYE_*``), and scratch: ``cand`` int64 (n,) candidate indices, ``occ_f`` float64 (n, 4) and
-``occ_i`` int64 (2n + 66, 4) for the perspective phase and the nearest-neighbour lists.
+``occ_i`` int64 (2n + 66, 4) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
+uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting.
 ``sort_by_index(m, nbrs)`` puts the first m slots in ascending index order.
 """
 from __future__ import annotations
@@ -22,16 +23,25 @@ RULE_ALL = 7
 EYE_LEFT = 1
 EYE_RIGHT = 2
 EYE_BOTH = 3
-INSERTION_SORT_MAX = 32  # neighbour lists up to this long are insertion-sorted, longer ones heapsorted
+INSERTION_SORT_MAX = 16  # neighbour lists up to this long are insertion-sorted, longer ones heapsorted...
 
-Neighbours = namedtuple("Neighbours", "idx off mask label cand occ_f occ_i")
+BITMAP_SPAN = 4         # ... or, when the flock needs at most this many 64-bit words per neighbour, a bitmap
+
+Neighbours = namedtuple("Neighbours", "idx off mask label cand occ_f occ_i bits slot")
+
+# 64-bit de Bruijn sequence and table: the index of the lowest set bit of a word in one multiply
+_DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
+_DEBRUIJN_INDEX = np.zeros(64, np.int64)
+for _b in range(64):
+    _DEBRUIJN_INDEX[((1 << _b) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = _b
 
 
 @kernel
 def new_neighbours(n):
     """Neighbour buffers and scratch for a flock of n boids."""
     return Neighbours(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),
-                      np.empty(n, np.int64), np.empty((n, 4)), np.empty((2 * n + 66, 4), np.int64))
+                      np.empty(n, np.int64), np.empty((n, 4)), np.empty((2 * n + 66, 4), np.int64),
+                      np.zeros((n + 63) // 64 + 1, np.uint64), np.empty(n, np.int64))
 
 
 @inline
@@ -85,9 +95,35 @@ def _sift_down(nbrs, root, end):
 
 
 @inline
+def _sort_through_bitmap(m, nbrs):
+    """Ascending order of m slots with distinct indices: stage them, mark their indices in a bitmap, read the
+    bitmap back in order (the bitmap is left all zero)."""
+    bits, slot, tmp_f, tmp_i = nbrs.bits, nbrs.slot, nbrs.occ_f, nbrs.occ_i
+    lo, hi = nbrs.idx[0], nbrs.idx[0]
+    for a in range(m):
+        j = nbrs.idx[a]
+        lo, hi = min(lo, j), max(hi, j)
+        slot[j] = a
+        bits[j >> 6] |= np.uint64(1) << np.uint64(j & 63)
+        tmp_i[a, 0], tmp_i[a, 1], tmp_i[a, 2] = j, nbrs.mask[a], nbrs.label[a]
+        tmp_f[a, 0], tmp_f[a, 1], tmp_f[a, 2] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
+    k = 0
+    for w in range(lo >> 6, (hi >> 6) + 1):
+        word = bits[w]
+        while word != np.uint64(0):
+            lowest = word & (~word + np.uint64(1))
+            a = slot[(w << 6) + _DEBRUIJN_INDEX[(lowest * _DEBRUIJN) >> np.uint64(58)]]
+            store(nbrs, k, tmp_i[a, 0], tmp_f[a, 0], tmp_f[a, 1], tmp_f[a, 2], tmp_i[a, 1], tmp_i[a, 2])
+            k += 1
+            word &= word - np.uint64(1)
+        bits[w] = np.uint64(0)
+
+
+@inline
 def sort_by_index(m, nbrs):
-    """Put the first m neighbour slots in ascending index order (indices are distinct): insertion sort
-    for short lists, heapsort for long ones (no allocation)."""
+    """Put the first m neighbour slots in ascending index order (indices are distinct, no allocation):
+    insertion sort for short lists, a bitmap of the indices when the flock is small enough for it to be
+    cheap (``BITMAP_SPAN`` words per neighbour), heapsort otherwise."""
     if m <= INSERTION_SORT_MAX:
         for a in range(1, m):
             j = nbrs.idx[a]
@@ -99,6 +135,8 @@ def sort_by_index(m, nbrs):
                       nbrs.label[b])
                 b -= 1
             store(nbrs, b + 1, j, dx, dy, dz, mask, label)
+    elif nbrs.bits.shape[0] <= BITMAP_SPAN * m:
+        _sort_through_bitmap(m, nbrs)
     else:
         for root in range(m // 2 - 1, -1, -1):
             _sift_down(nbrs, root, m)

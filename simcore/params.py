@@ -306,22 +306,53 @@ class ModelParams:
 @dataclass(frozen=True)
 class InitParams:
     """Initial conditions (MODEL.md section 0): N boids uniform in a ball, headings uniform on the
-    sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``."""
+    sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``. Or the state
+    in ``from_file`` (:mod:`simcore.initfile`): then ``n`` must be the file's boid count (a preset may
+    leave it out) and ``from_file_sha256`` is the file's digest (filled in; checked when given)."""
 
     n: int = 100
     radius: float = 20.0
     speed: float = 2.7
     scale_with_n: bool = False
+    from_file: str | None = None
+    from_file_sha256: str | None = None
 
     def __post_init__(self):
         if self.n < 1:
             raise ConfigError("init.n", f"got {self.n!r}; must be an integer >= 1")
         _positive("init.radius", self.radius)
         _non_negative("init.speed", self.speed)
+        if self.from_file is None:
+            if self.from_file_sha256 is not None:
+                raise ConfigError("init.from_file_sha256", "applies only with init.from_file")
+            return
+        from .initfile import boid_count, file_digest
+
+        count, digest = boid_count(self.from_file), file_digest(self.from_file)
+        if self.n != count:
+            raise ConfigError("init.n", f"got {self.n!r}, but init.from_file {self.from_file!r} holds {count} boids: "
+                                        f"set init.n = {count} or leave it out")
+        if self.from_file_sha256 is None:
+            object.__setattr__(self, "from_file_sha256", digest)
+        elif self.from_file_sha256 != digest:
+            raise ConfigError("init.from_file", f"{self.from_file!r} changed since this spec was made (its SHA-256 is "
+                                                f"{digest}, the spec says {self.from_file_sha256})")
 
     @property
     def ball_radius(self) -> float:
         return self.radius * (self.n / 100.0) ** (1.0 / 3.0) if self.scale_with_n else self.radius
+
+
+def init_dict(init: InitParams) -> dict:
+    """Canonical resolved dict of the initial conditions: the file keys only when a file is used, and then
+    without the keys of the random draw it replaces (so adding the option changed no existing run id)."""
+    out = to_dict(init)
+    if init.from_file is None:
+        del out["from_file"], out["from_file_sha256"]
+    else:
+        for key in ("radius", "speed", "scale_with_n"):
+            del out[key]
+    return out
 
 
 @dataclass(frozen=True)
@@ -371,7 +402,7 @@ class Preset:
     def to_dict(self) -> dict:
         """Canonical resolved form: every key that matters, defaults filled in, keys of other
         perception kinds left out. ``preset_from_dict(p.to_dict()) == p`` up to that resolution."""
-        return {**model_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
+        return {**model_dict(self.model), "init": init_dict(self.init), "run": to_dict(self.run)}
 
 
 def model_dict(model: ModelParams) -> dict:
@@ -420,6 +451,10 @@ def preset_from_dict(data: dict) -> Preset:
     for name, table in (("init", init), ("run", run)):
         if not isinstance(table, dict):
             raise ConfigError(name, f"expected a table, got {table!r}")
+    if isinstance(init.get("from_file"), str) and "n" not in init:
+        from .initfile import boid_count
+
+        init = {**init, "n": boid_count(init["from_file"])}
     return Preset(model=build(ModelParams, data), init=build(InitParams, init, "init"),
                   run=build(RunSettings, run, "run"))
 

@@ -23,10 +23,10 @@ from .neighbours import Neighbours
 
 @kernel
 def sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
-                fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, head, nxt, prv, bucket, shape, lo, hi,
+                fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket, shape, lo, hi,
                 cell_side, use_grid):
     """Chunk c of the perception phase (plain arrays in and out: parallel loops take no named tuples)."""
-    nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], occ_f[c], occ_i[c])
+    nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], occ_f[c], occ_i[c], bits[c], slot[c])
     grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side)
     n = pos.shape[0]
     sense_range(c * chunk, min(n, (c + 1) * chunk), step, pos, vel, fwd, side, pattern, clock, escape, steer,
@@ -46,6 +46,8 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
     cand = np.empty((n_chunks, n), np.int64)
     occ_f = np.empty((n_chunks, n, 4))
     occ_i = np.empty((n_chunks, 2 * n + 66, 4), np.int64)
+    bits = np.zeros((n_chunks, (n + 63) // 64 + 1), np.uint64)
+    slot = np.empty((n_chunks, n), np.int64)
     grid = cells.new_grid(n)
     head, nxt, prv, bucket, shape, lo, hi, cell_side = grid.head, grid.nxt, grid.prv, grid.bucket, grid.shape, \
         grid.lo, grid.hi, grid.side
@@ -61,13 +63,13 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
             record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
         if step == n_steps:
             if record:
-                nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], occ_f[0], occ_i[0])
+                nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], occ_f[0], occ_i[0], bits[0], slot[0])
                 record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
             break
         use_grid = prepare_search(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
             sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
-                        triggered, fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, head, nxt, prv, bucket,
+                        triggered, fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket,
                         shape, lo, hi, cell_side, use_grid)
         if leadership:
             record_triggers(step, triggered, trig_step, trig_boid, n_trig)

@@ -20,7 +20,7 @@ import math
 
 
 from .jit import inline, kernel
-from .grid import A_X, A_Y, A_Z, N_CELLS, bucket_of, cell_coord
+from .grid import A_X, A_Y, A_Z, N_CELLS, cell_coord
 from .layout import F, I
 from .neighbours import RULE_ALL, offset, sort_by_index, store
 
@@ -121,21 +121,24 @@ def _shells(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, grid, best
             searching = False
         else:
             for z in range(z0, z1 + 1):
-                wz = z % nc if nc > 0 else z
+                fz = z % az
                 for y in range(y0, y1 + 1):
-                    wy = y % nc if nc > 0 else y
+                    row = ax * (y % ay + ay * fz)  # cells fold modulo A (which divides a periodic count)
                     face = abs(z - cz) == s or abs(y - cy) == s
                     x = x0
+                    fx = x0 % ax
                     while x <= x1:
                         if face or abs(x - cx) == s:
-                            j = grid.head[bucket_of(x % nc if nc > 0 else x, wy, wz, ax, ay, az)]
+                            j = grid.head[row + fx]
                             while j >= 0:
                                 if j != i:
                                     count = _consider(i, j, count, k, pos, fwd, r2, blind, cos_half_blind,
                                                       periodic, box, best)
                                 j = grid.nxt[j]
                             x += 1
+                            fx = fx + 1 if fx + 1 < ax else 0
                         else:  # inside the cube: visited in an earlier shell, jump to its far face
+                            fx = (fx + (cx + s - x)) % ax
                             x = cx + s
             if nc > 0:
                 covered = 2 * s + 1 >= nc

@@ -22,9 +22,7 @@ import os
 import sys
 from pathlib import Path
 
-from simcore import ConfigError, load_preset
-
-from .store import StoreLocked
+from simcore.schema import ConfigError
 
 
 def _add_simulate(sub) -> None:
@@ -44,12 +42,24 @@ def _add_simulate(sub) -> None:
                    help="save a PNG of the 3-D traces (into --out, default results/simulate/NAME-seedS/)")
     p.add_argument("--color-by", choices=("auto", "boid", "pattern"), default="auto",
                    help="trace colours: one per boid, or per pattern (auto: pattern in pattern mode)")
+    p.add_argument("--init-state", type=Path, metavar="FILE",
+                   help="start from the state in FILE (.npz with pos, vel or fwd + speed, optional up, acc, "
+                        "pattern; or a trajectory.npz, whose last record is used); sets init.from_file and init.n")
 
 
 def cmd_simulate(args) -> int:
+    import json
+
+    from simcore import load_preset
     from sweeps.single import run_single
 
     overrides = list(args.overrides)
+    if args.init_state is not None:
+        from simcore.initfile import boid_count
+
+        overrides.append(f"init.from_file={json.dumps(str(args.init_state))}")
+        if args.n is None:
+            overrides.append(f"init.n={boid_count(args.init_state)}")
     for flag, key in ((args.n, "init.n"), (args.duration, "run.duration"), (args.dt, "run.dt")):
         if flag is not None:
             overrides.append(f"{key}={flag!r}")
@@ -375,9 +385,12 @@ def main(argv=None) -> int:
     except ConfigError as err:
         print(f"flocksweep: config error: {err}", file=sys.stderr)
         return 2
-    except StoreLocked as err:
-        print(f"flocksweep: {err}", file=sys.stderr)
-        return 3
+    except Exception as err:
+        store = sys.modules.get("sweeps.store")  # imported only by the commands that lock a results directory
+        if store is not None and isinstance(err, store.StoreLocked):
+            print(f"flocksweep: {err}", file=sys.stderr)
+            return 3
+        raise
 
 
 if __name__ == "__main__":
