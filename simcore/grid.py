@@ -110,9 +110,10 @@ def _fold_sizes(extent_x, extent_y, extent_z, budget):
 
 
 @kernel
-def build(grid, pos, radius, periodic, box, min_cells):
+def build(grid, pos, radius, periodic, box, min_saving):
     """Bin every boid in cells of side >= radius (1 + CELL_MARGIN); False when all pairs must be searched
-    (see module docstring), or when the flock spans fewer than ``min_cells`` cells."""
+    (see module docstring), or when the grid would save fewer than ``min_saving`` candidates per boid
+    (N (1 - 27 / cells spanned), as if the boids filled the cells evenly)."""
     n = pos.shape[0]
     side = radius * (1.0 + CELL_MARGIN)
     if not (side > 0.0 and math.isfinite(side)):
@@ -120,7 +121,7 @@ def build(grid, pos, radius, periodic, box, min_cells):
     budget = grid.head.shape[0]
     if periodic:
         nc = np.int64(math.floor(box / side))
-        if nc < 3 or nc * nc * nc < min_cells:
+        if nc < 3 or n * (1.0 - 27.0 / (nc * nc * nc)) < min_saving:
             return False
         a = 3
         while (a + 1) * (a + 1) * (a + 1) <= budget and a + 1 <= nc:
@@ -159,7 +160,7 @@ def build(grid, pos, radius, periodic, box, min_cells):
             grid.lo[c] = np.int64(math.floor(lo[c] / side))
             grid.hi[c] = np.int64(math.floor(hi[c] / side))
         span = (grid.hi[0] - grid.lo[0] + 1) * (grid.hi[1] - grid.lo[1] + 1) * (grid.hi[2] - grid.lo[2] + 1)
-        if span < min_cells:
+        if n * (1.0 - 27.0 / span) < min_saving:
             return False
         ax, ay, az = _fold_sizes(grid.hi[0] - grid.lo[0] + 1, grid.hi[1] - grid.lo[1] + 1,
                                  grid.hi[2] - grid.lo[2] + 1, budget)

@@ -22,9 +22,10 @@ it perceives, a triggered boid escapes from that same step on, and all clocks ad
 of the step. With x = 0 none of this code runs, so trajectories are exactly those without leadership.
 
 Neighbour search (``perception.search``): each step the grid of :mod:`simcore.grid` is built from the
-positions (``auto``: when the flock spans at least ``AUTO_MIN_CELLS`` cells and has ``AUTO_MIN_N``
-boids), and in sequential order a boid that moves is re-binned at once. Perception returns the same
-neighbours in the same order either way, so the search never changes a trajectory.
+positions (``auto``: when it spares at least ``AUTO_MIN_SAVING`` candidates per boid, N (1 - 27 / cells
+spanned): all pairs are cheaper for small or compact flocks), and in sequential order a boid that moves
+is re-binned at once. Perception returns the same neighbours in the same order either way, so the search
+never changes a trajectory.
 
 ``run_batch`` runs B independent runs (leading axis B on every per-run array, keys (B,)) in parallel
 threads; each run is computed by the same code as alone, so results are bit-identical either way.
@@ -46,8 +47,7 @@ from .perception import perceive, query_radius
 from .rules import cohesion_offset, hartman_benes_forces, opensteer_force
 from .topological import cell_side
 
-AUTO_MIN_N = 128      # perception.search = "auto": the grid for flocks of at least this many boids
-AUTO_MIN_CELLS = 216  # ... spanning at least this many grid cells (else all pairs are as cheap)
+AUTO_MIN_SAVING = 250  # search = "auto": the grid when it spares this many candidates per boid
 
 
 @kernel
@@ -70,11 +70,7 @@ def prepare_search(grid, pos, fp, ip):
         radius = cell_side(pos, fp, ip, periodic, box)
     else:
         radius = query_radius(fp, ip)
-    if search == SEARCH_AUTO:
-        if n < AUTO_MIN_N:
-            return False
-        return cells.build(grid, pos, radius, periodic, box, AUTO_MIN_CELLS)
-    return cells.build(grid, pos, radius, periodic, box, 0)
+    return cells.build(grid, pos, radius, periodic, box, AUTO_MIN_SAVING if search == SEARCH_AUTO else -np.inf)
 
 
 @leaf

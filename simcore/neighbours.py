@@ -2,8 +2,8 @@
 
 ``new_neighbours(n)`` returns a :data:`Neighbours` for a flock of n boids: the output slots ``idx``
 int64 (n,), ``off`` float64 (n, 3), ``mask`` int64 (n,) (rule bits ``RULE_*``) and ``label`` int64 (n,)
-(eye labels ``EYE_*``), and scratch: ``cand`` int64 (n,) candidate indices, ``occ_f`` float64 (n, 4) and
-``occ_i`` int64 (2n + 66, 4) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
+(eye labels ``EYE_*``), and scratch: ``cand`` int64 (n,) candidate indices, ``occ_f`` float64 (4, n) and
+``occ_i`` int64 (4, 2n + 66) (rows) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
 uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting.
 ``sort_by_index(m, nbrs)`` puts the first m slots in ascending index order.
 """
@@ -40,7 +40,7 @@ for _b in range(64):
 def new_neighbours(n):
     """Neighbour buffers and scratch for a flock of n boids."""
     return Neighbours(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),
-                      np.empty(n, np.int64), np.empty((n, 4)), np.empty((2 * n + 66, 4), np.int64),
+                      np.empty(n, np.int64), np.empty((4, n)), np.empty((4, 2 * n + 66), np.int64),
                       np.zeros((n + 63) // 64 + 1, np.uint64), np.empty(n, np.int64))
 
 
@@ -105,15 +105,15 @@ def _sort_through_bitmap(m, nbrs):
         lo, hi = min(lo, j), max(hi, j)
         slot[j] = a
         bits[j >> 6] |= np.uint64(1) << np.uint64(j & 63)
-        tmp_i[a, 0], tmp_i[a, 1], tmp_i[a, 2] = j, nbrs.mask[a], nbrs.label[a]
-        tmp_f[a, 0], tmp_f[a, 1], tmp_f[a, 2] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
+        tmp_i[0, a], tmp_i[1, a], tmp_i[2, a] = j, nbrs.mask[a], nbrs.label[a]
+        tmp_f[0, a], tmp_f[1, a], tmp_f[2, a] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
     k = 0
     for w in range(lo >> 6, (hi >> 6) + 1):
         word = bits[w]
         while word != np.uint64(0):
             lowest = word & (~word + np.uint64(1))
             a = slot[(w << 6) + _DEBRUIJN_INDEX[(lowest * _DEBRUIJN) >> np.uint64(58)]]
-            store(nbrs, k, tmp_i[a, 0], tmp_f[a, 0], tmp_f[a, 1], tmp_f[a, 2], tmp_i[a, 1], tmp_i[a, 2])
+            store(nbrs, k, tmp_i[0, a], tmp_f[0, a], tmp_f[1, a], tmp_f[2, a], tmp_i[1, a], tmp_i[2, a])
             k += 1
             word &= word - np.uint64(1)
         bits[w] = np.uint64(0)

@@ -1,6 +1,6 @@
 """Holland & Semwal's perspective phase: drop the completely occluded neighbours. Compiled with numba.
 
-``occlude(m, fp, nbrs)`` takes the m in-view neighbours in the buffers ``nbrs`` (:mod:`simcore.perception`),
+``occlude(m, fp, nbrs)`` takes the m in-view neighbours in the buffers ``nbrs`` (:mod:`simcore.neighbours`),
 removes the hidden ones in place (keeping the order of the rest) and returns how many remain.
 
 Seen from boid i, neighbour a is a disc of angular radius rho_a = body_radius / |d_a| about the unit
@@ -23,13 +23,12 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
-
 from .jit import inline
 from .layout import F
 
-# scratch columns (nbrs.occ_f float64 (N, 4), nbrs.occ_i int64 (2N + 66, 4))
+# scratch rows: nbrs.occ_f float64 (4, N): the discs; nbrs.occ_i int64 (4, 2N + 66): the bins
 DISC = IntEnum("DISC", "RHO UX UY UZ", start=0)
-BINS = IntEnum("BINS", "FLAG SLOT START CURSOR", start=0)
+BINS = IntEnum("BINS", "FLAG SLOT START KEY", start=0)
 
 GRID_3D_MIN = 256     # from this many in-view neighbours on, a 3-D grid of directions
 ROBUST = 1e-7         # margin of a "robust" containment, relative to 1 + rho_j
@@ -44,7 +43,7 @@ def _bin(x, n_bins):
 
 @inline
 def _discs(m, fp, nbrs):
-    """Projected radius and centre of each slot; returns the axis of widest spread (1, 2 or 3)."""
+    """Projected radius and centre of each slot; returns the row of the axis of widest spread."""
     body = fp[F.BODY_R]
     disc = nbrs.occ_f
     sum_x = sum_y = sum_z = 0.0
@@ -54,17 +53,17 @@ def _discs(m, fp, nbrs):
         if dist > 0.0:
             inv = 1.0 / dist
             x, y, z = nbrs.off[a, 0] * inv, nbrs.off[a, 1] * inv, nbrs.off[a, 2] * inv
-            disc[a, DISC.RHO] = body * inv
-            disc[a, DISC.UX], disc[a, DISC.UY], disc[a, DISC.UZ] = x, y, z
-            sum_x += x
-            sum_y += y
-            sum_z += z
-            sq_x += x * x
-            sq_y += y * y
-            sq_z += z * z
+            disc[DISC.RHO, a] = body * inv
         else:
-            disc[a, DISC.RHO] = -1.0
-            disc[a, DISC.UX] = disc[a, DISC.UY] = disc[a, DISC.UZ] = 0.0
+            x = y = z = 0.0
+            disc[DISC.RHO, a] = -1.0
+        disc[DISC.UX, a], disc[DISC.UY, a], disc[DISC.UZ, a] = x, y, z
+        sum_x += x
+        sum_y += y
+        sum_z += z
+        sq_x += x * x
+        sq_y += y * y
+        sq_z += z * z
     spread_x = sq_x - sum_x * sum_x / m
     spread_y = sq_y - sum_y * sum_y / m
     spread_z = sq_z - sum_z * sum_z / m
@@ -77,65 +76,61 @@ def _discs(m, fp, nbrs):
 
 
 @inline
-def _bin_of(disc, a, nx, ny, nz, axis):
-    """Bin of slot a: nx slices along ``axis`` (ny = nz = 1), or an nx ny nz grid over x, y, z."""
-    if ny == 1 and nz == 1:
-        b = _bin(disc[a, axis], nx)
-    else:
-        b = _bin(disc[a, DISC.UX], nx) + nx * (_bin(disc[a, DISC.UY], ny) + ny * _bin(disc[a, DISC.UZ], nz))
-    return b
-
-
-@inline
 def _sort_into_bins(m, disc, bins, nx, ny, nz, axis):
-    """Counting sort of the slots by bin: bins[b, START] .. bins[b + 1, START] index bins[:, SLOT]."""
+    """Counting sort of the slots by bin: bins[START, b] .. bins[START, b + 1] index bins[SLOT, :]; every
+    flag cleared. (m slices along ``axis`` when ny = nz = 1, else an nx ny nz grid over x, y, z.)"""
     n_bins = nx * ny * nz
     for b in range(n_bins + 1):
-        bins[b, BINS.START] = 0
+        bins[BINS.START, b] = 0
     for a in range(m):
-        bins[a, BINS.FLAG] = NOT_HIDDEN
-        bins[_bin_of(disc, a, nx, ny, nz, axis) + 1, BINS.START] += 1
+        if ny == 1 and nz == 1:
+            key = _bin(disc[axis, a], nx)
+        else:
+            key = _bin(disc[DISC.UX, a], nx) + nx * (_bin(disc[DISC.UY, a], ny) + ny * _bin(disc[DISC.UZ, a], nz))
+        bins[BINS.KEY, a] = key
+        bins[BINS.START, key + 1] += 1
+        bins[BINS.FLAG, a] = NOT_HIDDEN
     for b in range(n_bins):
-        bins[b + 1, BINS.START] += bins[b, BINS.START]
-    for b in range(n_bins):
-        bins[b, BINS.CURSOR] = bins[b, BINS.START]
-    for a in range(m):
-        b = _bin_of(disc, a, nx, ny, nz, axis)
-        bins[bins[b, BINS.CURSOR], BINS.SLOT] = a
-        bins[b, BINS.CURSOR] += 1
-
-
-@inline
-def _cover(j, k, disc, bins):
-    """Mark k hidden when j's disc contains it (robustly hidden when it does with the margin)."""
-    rho_k = disc[k, DISC.RHO]
-    gap = disc[j, DISC.RHO] - rho_k
-    if bins[k, BINS.FLAG] != ROBUSTLY_HIDDEN and gap > 0.0 and rho_k >= 0.0:
-        ux = disc[j, DISC.UX] - disc[k, DISC.UX]
-        uy = disc[j, DISC.UY] - disc[k, DISC.UY]
-        uz = disc[j, DISC.UZ] - disc[k, DISC.UZ]
-        s = ux * ux + uy * uy + uz * uz
-        if s <= gap * gap:
-            robust = gap - ROBUST * (1.0 + disc[j, DISC.RHO])
-            bins[k, BINS.FLAG] = ROBUSTLY_HIDDEN if robust > 0.0 and s <= robust * robust else HIDDEN
+        bins[BINS.START, b + 1] += bins[BINS.START, b]
+    for a in range(m):  # place, advancing each bin's start to its end...
+        key = bins[BINS.KEY, a]
+        bins[BINS.SLOT, bins[BINS.START, key]] = a
+        bins[BINS.START, key] += 1
+    for b in range(n_bins, 0, -1):  # ... then shift the ends back into starts
+        bins[BINS.START, b] = bins[BINS.START, b - 1]
+    bins[BINS.START, 0] = 0
 
 
 @inline
 def _occlude_from(j, disc, bins, nx, ny, nz, axis):
-    """Test occluder j against every slot in the bins within its reach."""
-    reach = disc[j, DISC.RHO] * (1.0 + 1e-9)
+    """Test occluder j against every slot in the bins within its reach (a branch-light inner loop: almost
+    every candidate fails, and only a hit branches)."""
+    rho_j = disc[DISC.RHO, j]
+    reach = rho_j * (1.0 + 1e-9)
     if ny == 1 and nz == 1:  # slices along one axis
-        x0, x1 = _bin(disc[j, axis] - reach, nx), _bin(disc[j, axis] + reach, nx)
+        x0, x1 = _bin(disc[axis, j] - reach, nx), _bin(disc[axis, j] + reach, nx)
         y0 = y1 = z0 = z1 = 0
     else:
-        x0, x1 = _bin(disc[j, DISC.UX] - reach, nx), _bin(disc[j, DISC.UX] + reach, nx)
-        y0, y1 = _bin(disc[j, DISC.UY] - reach, ny), _bin(disc[j, DISC.UY] + reach, ny)
-        z0, z1 = _bin(disc[j, DISC.UZ] - reach, nz), _bin(disc[j, DISC.UZ] + reach, nz)
+        x0, x1 = _bin(disc[DISC.UX, j] - reach, nx), _bin(disc[DISC.UX, j] + reach, nx)
+        y0, y1 = _bin(disc[DISC.UY, j] - reach, ny), _bin(disc[DISC.UY, j] + reach, ny)
+        z0, z1 = _bin(disc[DISC.UZ, j] - reach, nz), _bin(disc[DISC.UZ, j] + reach, nz)
+    xj, yj, zj = disc[DISC.UX, j], disc[DISC.UY, j], disc[DISC.UZ, j]
+    margin = ROBUST * (1.0 + rho_j)
     for bz in range(z0, z1 + 1):
         for by in range(y0, y1 + 1):
             row = nx * (by + ny * bz)
-            for s in range(bins[row + x0, BINS.START], bins[row + x1 + 1, BINS.START]):
-                _cover(j, bins[s, BINS.SLOT], disc, bins)
+            for s in range(bins[BINS.START, row + x0], bins[BINS.START, row + x1 + 1]):
+                k = bins[BINS.SLOT, s]
+                rho_k = disc[DISC.RHO, k]
+                gap = rho_j - rho_k
+                ux = xj - disc[DISC.UX, k]
+                uy = yj - disc[DISC.UY, k]
+                uz = zj - disc[DISC.UZ, k]
+                dist2 = ux * ux + uy * uy + uz * uz
+                if (gap > 0.0) & (rho_k >= 0.0) & (dist2 <= gap * gap):
+                    robust = gap - margin
+                    flag = ROBUSTLY_HIDDEN if robust > 0.0 and dist2 <= robust * robust else HIDDEN
+                    bins[BINS.FLAG, k] = max(bins[BINS.FLAG, k], flag)
 
 
 @inline
@@ -149,11 +144,11 @@ def occlude(m, fp, nbrs):
         nx = ny = nz = int(math.floor((2.0 * m) ** (1.0 / 3.0)))
     _sort_into_bins(m, disc, bins, nx, ny, nz, axis)
     for j in range(m):
-        if disc[j, DISC.RHO] > 0.0 and bins[j, BINS.FLAG] != ROBUSTLY_HIDDEN:
+        if disc[DISC.RHO, j] > 0.0 and bins[BINS.FLAG, j] != ROBUSTLY_HIDDEN:
             _occlude_from(j, disc, bins, nx, ny, nz, axis)
     kept = 0
     for a in range(m):
-        if bins[a, BINS.FLAG] == NOT_HIDDEN:
+        if bins[BINS.FLAG, a] == NOT_HIDDEN:
             if kept != a:
                 nbrs.idx[kept] = nbrs.idx[a]
                 nbrs.off[kept, 0], nbrs.off[kept, 1], nbrs.off[kept, 2] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]

@@ -57,17 +57,17 @@ def cell_side(pos, fp, ip, periodic, box):
 def _offer(dd, j, count, k, best):
     """Insert (dd, j) into the ascending (dd, j) list best[:count] capped at k; returns the new count."""
     full = count == k
-    worse = full and (dd > best[k - 1, 0] or (dd == best[k - 1, 0] and j > best[k - 1, 1]))
+    worse = full and (dd > best[0, k - 1] or (dd == best[0, k - 1] and j > best[1, k - 1]))
     if not worse:
         if full:
             slot = k - 1
         else:
             slot = count
             count += 1
-        while slot > 0 and (best[slot - 1, 0] > dd or (best[slot - 1, 0] == dd and best[slot - 1, 1] > j)):
-            best[slot, 0], best[slot, 1] = best[slot - 1, 0], best[slot - 1, 1]
+        while slot > 0 and (best[0, slot - 1] > dd or (best[0, slot - 1] == dd and best[1, slot - 1] > j)):
+            best[0, slot], best[1, slot] = best[0, slot - 1], best[1, slot - 1]
             slot -= 1
-        best[slot, 0], best[slot, 1] = dd, j
+        best[0, slot], best[1, slot] = dd, j
     return count
 
 
@@ -147,7 +147,7 @@ def _shells(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, grid, best
                            and z0 == grid.lo[2] and z1 == grid.hi[2])
             reach = (s - SHELL_MARGIN) * h * (1.0 - 1e-9)  # every unvisited boid is farther than this
             reach2 = reach * reach if reach > 0.0 else 0.0
-            done = reach > 0.0 and (reach2 >= r2 or (count == k and best[k - 1, 0] < reach2))
+            done = reach > 0.0 and (reach2 >= r2 or (count == k and best[0, k - 1] < reach2))
             searching = not (covered or done)
             s += 1
     return count
@@ -161,7 +161,7 @@ def nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid):
     r2 = r * r
     blind = ip[I.BLIND] != 0
     cos_half_blind = fp[F.COS_HALF_BLIND]
-    best = nbrs.occ_f  # columns 0, 1: squared distance and index of the best so far
+    best = nbrs.occ_f  # rows 0, 1: squared distance and index of the best so far
     count = 0
     if k > 0:
         count = -1
@@ -170,7 +170,7 @@ def nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid):
         if count < 0:
             count = _all_pairs(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, best)
         for a in range(count):
-            j = int(best[a, 1])
+            j = int(best[1, a])
             dx, dy, dz = offset(pos, i, j, periodic, box)
             store(nbrs, a, j, dx, dy, dz, RULE_ALL, 0)
         sort_by_index(count, nbrs)

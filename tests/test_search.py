@@ -14,7 +14,7 @@ import pytest
 
 from conftest import flock_state, make_model, state_from, unit_vectors
 from simcore import advance, load_preset, simulate
-from simcore.kernel import AUTO_MIN_CELLS, AUTO_MIN_N
+from simcore.kernel import AUTO_MIN_SAVING
 from simcore.occlusion import GRID_3D_MIN
 from simcore.params import InitParams, Leadership, ModelParams, Perception, World
 from simcore.probe import perceived
@@ -144,7 +144,7 @@ def test_auto_uses_the_grid_for_big_spread_flocks_only():
     spread = flock_state(1, 400, ball_radius=30.0)
     small = flock_state(1, 40, ball_radius=3.0)
     model = make_model("sphere", radius=2.0)
-    assert 400 >= AUTO_MIN_N and (60 / 2.0) ** 3 > AUTO_MIN_CELLS
+    assert 400 * (1 - 27 / (60 / 2.0) ** 3) > AUTO_MIN_SAVING > 40
     assert perceived(model, spread, 0)["grid"]
     assert not perceived(model, small, 0)["grid"]
 
