@@ -26,7 +26,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .jit import inline, kernel, leaf
+from .jit import inline, leaf
 
 CELL_MARGIN = 1e-6   # cells are this much wider than the query radius
 MAX_CELL_COORD = 1e9  # beyond this many cells from the origin, rounding could misplace a boid
@@ -37,7 +37,7 @@ Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side")
 A_X, A_Y, A_Z, N_CELLS = 0, 1, 2, 3
 
 
-@kernel
+@inline
 def new_grid(n):
     """An empty grid for n boids (at most max(2n, 27) buckets)."""
     t = max(2 * n, 27)
@@ -109,7 +109,7 @@ def _fold_sizes(extent_x, extent_y, extent_z, budget):
     return ax, ay, az
 
 
-@kernel
+@inline
 def build(grid, pos, radius, periodic, box, min_saving):
     """Bin every boid in cells of side >= radius (1 + CELL_MARGIN); False when all pairs must be searched
     (see module docstring), or when the grid would save fewer than ``min_saving`` candidates per boid

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .jit import kernel, leaf
+from .jit import inline, kernel, leaf
 from . import grid as cells
 from .dynamics import apply_steering, hartman_benes_step
 from .layout import (DYNAMICS_HARTMAN_BENES, F, HB, I, ORDER_SEQUENTIAL, OS, PERCEPTION_TOPOLOGICAL,
@@ -57,7 +57,7 @@ def max_triggers(n, n_steps, duration, dt):
     return n * per_boid
 
 
-@kernel
+@inline
 def prepare_search(grid, pos, fp, ip):
     """Build the grid for this state when the search uses it; returns whether it does."""
     search = ip[I.SEARCH]
@@ -107,7 +107,7 @@ def sense(i, step, m, nbrs, vel, fwd, pattern, clock, escape, steer, fp, ip, key
     return trigger
 
 
-@kernel
+@inline
 def record_trigger(step, i, trig_step, trig_boid, n_trig):
     e = n_trig[0]
     if e < trig_step.shape[0]:
@@ -132,7 +132,7 @@ def move(i, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape):
                        dvx, dvy, dvz, cap)
 
 
-@kernel
+@inline
 def sense_range(lo, hi, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
                 fp, ip, key, nbrs, grid, use_grid):
     """Synchronous order, boids lo..hi-1: perceive the state, store their steers and counts, mark triggers."""
@@ -143,14 +143,14 @@ def sense_range(lo, hi, step, pos, vel, fwd, side, pattern, clock, escape, steer
         triggered[i] = sense(i, step, m, nbrs, vel, fwd, pattern, clock, escape, steer, fp, ip, key)
 
 
-@kernel
+@inline
 def move_range(lo, hi, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape):
     """Synchronous order, boids lo..hi-1: move with the stored steers."""
     for i in range(lo, hi):
         move(i, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
 
 
-@kernel
+@inline
 def record_triggers(step, triggered, trig_step, trig_boid, n_trig):
     """Append this step's triggers in boid order."""
     for i in range(triggered.shape[0]):
@@ -158,7 +158,7 @@ def record_triggers(step, triggered, trig_step, trig_boid, n_trig):
             record_trigger(step, i, trig_step, trig_boid, n_trig)
 
 
-@kernel
+@inline
 def step_sequential(step, pos, vel, fwd, up, side, acc, pattern, clock, escape, steer, visible, binocular, fp, ip,
                     key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig):
     """Sequential order: boid i perceives, decides and moves before boid i + 1 perceives; a boid that moves
@@ -174,7 +174,7 @@ def step_sequential(step, pos, vel, fwd, up, side, acc, pattern, clock, escape, 
             use_grid = cells.rebin(grid, i, pos)
 
 
-@kernel
+@inline
 def record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
     for i in range(pos.shape[0]):
         for c in range(3):
@@ -183,17 +183,16 @@ def record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
         rec_leader[r, i] = is_leader(clock[i], fp)
 
 
-@kernel
-def record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular):
+@inline
+def record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular):
     """What every boid perceives in the final state (the last record, which does not move)."""
-    use_grid = prepare_search(grid, pos, fp, ip)
     for i in range(pos.shape[0]):
         m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
         rec_visible[r, i] = m
         rec_binocular[r, i] = count_both_eyes(m, nbrs)
 
 
-@kernel
+@inline
 def tick(clock, dt):
     for i in range(clock.shape[0]):
         clock[i] += dt
@@ -216,11 +215,11 @@ def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key,
         record = step % record_every == 0
         if record:
             record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
+        use_grid = prepare_search(grid, pos, fp, ip)
         if step == n_steps:
             if record:
-                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
+                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular)
             break
-        use_grid = prepare_search(grid, pos, fp, ip)
         if sequential:
             step_sequential(step, pos, vel, fwd, up, side, acc, pattern, clock, escape, steer, visible, binocular,
                             fp, ip, key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from enum import IntEnum
 
-from .jit import inline
+from .jit import inline, leaf
 from .layout import F
 
 # scratch rows: nbrs.occ_f float64 (4, N): the discs; nbrs.occ_i int64 (4, 2N + 66): the bins
@@ -133,7 +133,7 @@ def _occlude_from(j, disc, bins, nx, ny, nz, axis):
                     bins[BINS.FLAG, k] = max(bins[BINS.FLAG, k], flag)
 
 
-@inline
+@leaf
 def occlude(m, fp, nbrs):
     """Perspective phase on the m in-view neighbours of ``nbrs``; returns the number left (module docstring)."""
     disc, bins = nbrs.occ_f, nbrs.occ_i

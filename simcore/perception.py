@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 
-from .jit import inline, kernel, leaf
+from .jit import inline, leaf
 from .grid import gather
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
@@ -36,7 +36,7 @@ from .occlusion import occlude
 from .topological import nearest
 
 
-@kernel
+@inline
 def query_radius(fp, ip):
     """Distance from a boid's centre beyond which its perception never reaches (grid cell size)."""
     kind = ip[I.PERCEPTION]

@@ -64,7 +64,8 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
         if step == n_steps:
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], occ_f[0], occ_i[0], bits[0], slot[0])
-                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
+                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_search(grid, pos, fp, ip),
+                                  rec_visible, rec_binocular)
             break
         use_grid = prepare_search(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 
-from .jit import inline, kernel
+from .jit import inline, leaf
 from .grid import A_X, A_Y, A_Z, N_CELLS, cell_coord
 from .layout import F, I
 from .neighbours import RULE_ALL, offset, sort_by_index, store
@@ -28,7 +28,7 @@ SHELL_MARGIN = 1e-6  # cells: rounding of cell coordinates is far below this (co
 CELL_FACTOR = 1.2    # cell side over the expected distance of the k-th neighbour
 
 
-@kernel
+@inline
 def cell_side(pos, fp, ip, periodic, box):
     """Grid cell side for k-nearest searches: about 1.2 times the expected k-th neighbour distance at the
     flock's mean density (bounding box, or the periodic box; at most a third of the box), and no more
@@ -153,7 +153,7 @@ def _shells(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, grid, best
     return count
 
 
-@inline
+@leaf
 def nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid):
     """The k nearest eligible neighbours of boid i into ``nbrs`` (module docstring); returns their count."""
     k = min(ip[I.NEIGHBOURS], pos.shape[0] - 1)
