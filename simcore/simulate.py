@@ -24,7 +24,9 @@ for any thread count.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -56,6 +58,26 @@ class Observations:
     @property
     def n(self) -> int:
         return self.pos.shape[1]
+
+
+_NOTICE_SHOWN = False
+
+
+def _notice_compile(dispatcher) -> None:
+    """Tell the user, once per process, when a kernel is about to be compiled rather than loaded from
+    numba's on-disk cache (the first run after installing or editing simcore)."""
+    global _NOTICE_SHOWN
+    if _NOTICE_SHOWN or dispatcher.signatures:
+        return
+    _NOTICE_SHOWN = True
+    try:
+        name = f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.py_func.__qualname__}-*.nbi"
+        cached = any(Path(dispatcher._cache.cache_path).glob(name))
+    except (AttributeError, OSError):
+        return
+    if not cached:
+        print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
+              "this takes a minute or so) ...", file=sys.stderr, flush=True)
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -118,10 +140,12 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
     args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
             n_steps, record_every, *rec)
     if threads == 1:
+        _notice_compile(kernel.run_model)
         kernel.run_model(*args)
     else:
         from .threaded import run_threaded
 
+        _notice_compile(run_threaded)
         previous = numba.get_num_threads()
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         try:
@@ -160,6 +184,7 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
+    _notice_compile(kernel.run_batch)
     kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
