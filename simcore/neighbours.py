@@ -23,9 +23,10 @@ RULE_ALL = 7
 EYE_LEFT = 1
 EYE_RIGHT = 2
 EYE_BOTH = 3
-INSERTION_SORT_MAX = 16  # neighbour lists up to this long are insertion-sorted, longer ones heapsorted...
+INSERTION_SORT_MAX = 16  # neighbour lists up to this long are insertion-sorted in place...
 
-BITMAP_SPAN = 4         # ... or, when the flock needs at most this many 64-bit words per neighbour, a bitmap
+BITMAP_SPAN = 4         # ... through a bitmap when the flock needs at most this many 64-bit words per
+                        # neighbour, else through a Shell sort of keys
 
 Neighbours = namedtuple("Neighbours", "idx off mask label cand occ_f occ_i bits slot")
 
@@ -75,45 +76,63 @@ def store(nbrs, m, j, dx, dy, dz, mask, label):
 
 
 @inline
-def _swap(nbrs, a, b):
-    j, dx, dy, dz, mask, label = nbrs.idx[a], nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2], nbrs.mask[a], nbrs.label[a]
-    store(nbrs, a, nbrs.idx[b], nbrs.off[b, 0], nbrs.off[b, 1], nbrs.off[b, 2], nbrs.mask[b], nbrs.label[b])
-    store(nbrs, b, j, dx, dy, dz, mask, label)
+def _stage(m, nbrs):
+    """Copy the first m slots to the scratch rows (columns of occ_i: idx, mask, label; of occ_f: offset)."""
+    tmp_f, tmp_i = nbrs.occ_f, nbrs.occ_i
+    for a in range(m):
+        tmp_i[0, a], tmp_i[1, a], tmp_i[2, a] = nbrs.idx[a], nbrs.mask[a], nbrs.label[a]
+        tmp_f[0, a], tmp_f[1, a], tmp_f[2, a] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
 
 
 @inline
-def _sift_down(nbrs, root, end):
-    while 2 * root + 1 < end:
-        child = 2 * root + 1
-        if child + 1 < end and nbrs.idx[child + 1] > nbrs.idx[child]:
-            child += 1
-        if nbrs.idx[root] >= nbrs.idx[child]:
-            root = end  # in place: stop
-        else:
-            _swap(nbrs, root, child)
-            root = child
+def _unstage(k, a, nbrs):
+    """Write staged slot a back into slot k."""
+    tmp_f, tmp_i = nbrs.occ_f, nbrs.occ_i
+    store(nbrs, k, tmp_i[0, a], tmp_f[0, a], tmp_f[1, a], tmp_f[2, a], tmp_i[1, a], tmp_i[2, a])
+
+
+@inline
+def _sort_through_keys(m, nbrs):
+    """Ascending order of m slots with distinct indices: Shell sort of (index, slot) keys, then the staged
+    records written back in that order (O(m^1.3), whatever the flock size)."""
+    _stage(m, nbrs)
+    keys = nbrs.slot  # (index << 24) | slot: distinct indices make distinct keys, ordered by index
+    for a in range(m):
+        keys[a] = (nbrs.idx[a] << 24) | a
+    gap = 1
+    while gap < m // 3:
+        gap = 3 * gap + 1
+    while gap > 0:
+        for a in range(gap, m):
+            key = keys[a]
+            b = a
+            while b >= gap and keys[b - gap] > key:
+                keys[b] = keys[b - gap]
+                b -= gap
+            keys[b] = key
+        gap //= 3
+    for k in range(m):
+        _unstage(k, keys[k] & 0xFFFFFF, nbrs)
 
 
 @inline
 def _sort_through_bitmap(m, nbrs):
     """Ascending order of m slots with distinct indices: stage them, mark their indices in a bitmap, read the
     bitmap back in order (the bitmap is left all zero)."""
-    bits, slot, tmp_f, tmp_i = nbrs.bits, nbrs.slot, nbrs.occ_f, nbrs.occ_i
+    bits, slot = nbrs.bits, nbrs.slot
+    _stage(m, nbrs)
     lo, hi = nbrs.idx[0], nbrs.idx[0]
     for a in range(m):
         j = nbrs.idx[a]
         lo, hi = min(lo, j), max(hi, j)
         slot[j] = a
         bits[j >> 6] |= np.uint64(1) << np.uint64(j & 63)
-        tmp_i[0, a], tmp_i[1, a], tmp_i[2, a] = j, nbrs.mask[a], nbrs.label[a]
-        tmp_f[0, a], tmp_f[1, a], tmp_f[2, a] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
     k = 0
     for w in range(lo >> 6, (hi >> 6) + 1):
         word = bits[w]
         while word != np.uint64(0):
             lowest = word & (~word + np.uint64(1))
-            a = slot[(w << 6) + _DEBRUIJN_INDEX[(lowest * _DEBRUIJN) >> np.uint64(58)]]
-            store(nbrs, k, tmp_i[0, a], tmp_f[0, a], tmp_f[1, a], tmp_f[2, a], tmp_i[1, a], tmp_i[2, a])
+            _unstage(k, slot[(w << 6) + _DEBRUIJN_INDEX[(lowest * _DEBRUIJN) >> np.uint64(58)]], nbrs)
             k += 1
             word &= word - np.uint64(1)
         bits[w] = np.uint64(0)
@@ -123,7 +142,7 @@ def _sort_through_bitmap(m, nbrs):
 def sort_by_index(m, nbrs):
     """Put the first m neighbour slots in ascending index order (indices are distinct, no allocation):
     insertion sort for short lists, a bitmap of the indices when the flock is small enough for it to be
-    cheap (``BITMAP_SPAN`` words per neighbour), heapsort otherwise."""
+    cheap (``BITMAP_SPAN`` words per neighbour), a Shell sort of keys otherwise."""
     if m <= INSERTION_SORT_MAX:
         for a in range(1, m):
             j = nbrs.idx[a]
@@ -135,11 +154,7 @@ def sort_by_index(m, nbrs):
                       nbrs.label[b])
                 b -= 1
             store(nbrs, b + 1, j, dx, dy, dz, mask, label)
-    elif nbrs.bits.shape[0] <= BITMAP_SPAN * m:
+    elif nbrs.bits.shape[0] <= BITMAP_SPAN * m or m >= 1 << 24:
         _sort_through_bitmap(m, nbrs)
     else:
-        for root in range(m // 2 - 1, -1, -1):
-            _sift_down(nbrs, root, m)
-        for end in range(m - 1, 0, -1):
-            _swap(nbrs, 0, end)
-            _sift_down(nbrs, 0, end)
+        _sort_through_keys(m, nbrs)

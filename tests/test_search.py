@@ -176,3 +176,22 @@ def test_leadership_triggers_are_recorded_in_boid_order_when_threaded():
     threaded = advance(model, state, 20, 1 / 30, key=5, threads=2)
     assert_same_run(serial, threaded)
     assert np.array_equal(serial.triggers, threaded.triggers) and len(serial.triggers) > 0
+
+
+@pytest.mark.parametrize("n, radius", [(150, 3.5), (20000, 3.5)])
+def test_every_sorting_path_gives_all_pairs_order(n, radius):
+    """Neighbour lists longer than the insertion-sort limit are ordered through a bitmap (small flocks) or a
+    Shell sort of keys (big ones): both give the all-pairs lists, bit for bit."""
+    from simcore.neighbours import BITMAP_SPAN, INSERTION_SORT_MAX
+    state = flock_state(3, n, ball_radius=7.0 * (n / 160) ** (1 / 3))
+    lists = [perceived(make_model("sphere", radius=radius, search=s), state, i) for s in ("grid", "all_pairs")
+             for i in range(0, n, n // 20)]
+    half = len(lists) // 2
+    for a, b in zip(lists[:half], lists[half:]):
+        assert a["grid"] and not b["grid"]
+        assert a["idx"].tolist() == b["idx"].tolist()
+        assert np.array_equal(a["offset"], b["offset"])
+    longest = max(len(x["idx"]) for x in lists)
+    assert longest > INSERTION_SORT_MAX
+    words = (n + 63) // 64 + 1
+    assert (words <= BITMAP_SPAN * longest) == (n == 150), "the case exercises the path it names"
