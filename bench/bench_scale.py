@@ -78,18 +78,27 @@ print(json.dumps({{"seconds_per_step": statistics.median(times) / {steps}, "visi
 
 
 def scaling(sizes, steps: int, repeats: int) -> list[dict]:
+    """Sizes interleaved (small, large, small, large, ...), each in a fresh process; medians per size and of
+    the per-repeat ratios."""
     rows = []
     for model, (path, overrides) in SCALING.items():
-        costs = {}
+        costs = {n: [] for n in sizes}
+        visible = {}
+        for _ in range(repeats):
+            for n in sizes:
+                r = _python(_PER_STEP.format(path=str(path), overrides=overrides, n=n, steps=steps, repeats=1,
+                                             threads=1), threads=1)
+                costs[n].append(r["seconds_per_step"] / n)
+                visible[n] = r["visible"]
         for n in sizes:
-            r = _python(_PER_STEP.format(path=str(path), overrides=overrides, n=n, steps=steps, repeats=repeats,
-                                         threads=1), threads=1)
-            costs[n] = r["seconds_per_step"] / n
-            rows.append({"model": model, "n": n, "us_per_boid_step": costs[n] * 1e6, "visible": r["visible"]})
-            print(f"  {model:12s} N={n:6d}: {costs[n] * 1e6:7.3f} us per boid-step (visible {r['visible']:.1f})",
-                  flush=True)
-        rows.append({"model": model, "ratio": costs[max(sizes)] / costs[min(sizes)]})
-        print(f"  {model:12s} cost ratio N={max(sizes)} / N={min(sizes)}: {rows[-1]['ratio']:.2f}", flush=True)
+            cost = statistics.median(costs[n])
+            rows.append({"model": model, "n": n, "us_per_boid_step": cost * 1e6, "visible": visible[n]})
+            print(f"  {model:12s} N={n:6d}: {cost * 1e6:7.3f} us per boid-step (visible {visible[n]:.1f})", flush=True)
+        ratios = [big / small for big, small in zip(costs[max(sizes)], costs[min(sizes)])]
+        rows.append({"model": model, "ratio": statistics.median(ratios), "ratio_min": min(ratios),
+                     "ratio_max": max(ratios)})
+        print(f"  {model:12s} cost ratio N={max(sizes)} / N={min(sizes)}: {rows[-1]['ratio']:.2f} "
+              f"({min(ratios):.2f}-{max(ratios):.2f})", flush=True)
     return rows
 
 
