@@ -16,21 +16,61 @@ import numpy as np
 from . import grid as cells
 from .grid import Grid
 from .jit import kernel
-from .kernel import move_range, prepare_search, record_perception, record_state, record_triggers, sense_range, tick
+from .kernel import (move_range, prepare_search, record_perception, record_state, record_triggers, sense_range,
+                     tick)
 from .layout import F, I, STEER_WIDTH
 from .neighbours import Neighbours
 
 
+# The serial parts of a step run in these compiled functions, called from the parallel one: inlined
+# into a parallel function, numba's parallel transforms rewrite their loops (the grid build became
+# quadratic in N).
+@kernel
+def prepare_chunks(grid, pos, fp, ip):
+    return prepare_search(grid, pos, fp, ip)
+
+
+@kernel
+def record_state_serial(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
+    record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
+
+
+@kernel
+def record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular):
+    record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_search(grid, pos, fp, ip), rec_visible,
+                      rec_binocular)
+
+
+@kernel
+def finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_boid, n_trig, clock, dt, visible,
+                       binocular, rec_visible, rec_binocular):
+    """Triggers in boid order, clocks, and this step's counts into the records."""
+    if leadership:
+        record_triggers(step, triggered, trig_step, trig_boid, n_trig)
+        tick(clock, dt)
+    if record:
+        for i in range(visible.shape[0]):
+            rec_visible[r, i] = visible[i]
+            rec_binocular[r, i] = binocular[i]
+
+
 @kernel
 def sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
-                fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket, shape, lo, hi,
-                cell_side, use_grid):
+                fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket, shape,
+                lo, hi, cell_side, use_grid):
     """Chunk c of the perception phase (plain arrays in and out: parallel loops take no named tuples)."""
     nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], occ_f[c], occ_i[c], bits[c], slot[c])
     grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side)
     n = pos.shape[0]
     sense_range(c * chunk, min(n, (c + 1) * chunk), step, pos, vel, fwd, side, pattern, clock, escape, steer,
                 visible, binocular, triggered, fp, ip, key, nbrs, grid, use_grid)
+
+
+@kernel
+def move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape):
+    """Chunk c of the move phase."""
+    move_range(c * chunk, min(pos.shape[0], (c + 1) * chunk), steer, pos, vel, fwd, up, side, acc, fp, ip, clock,
+               escape)
 
 
 @nb.njit(cache=True, error_model="numpy", parallel=True)
@@ -60,27 +100,20 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
     for step in range(n_steps + 1):
         record = step % record_every == 0
         if record:
-            record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
+            record_state_serial(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
         if step == n_steps:
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], occ_f[0], occ_i[0], bits[0], slot[0])
-                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_search(grid, pos, fp, ip),
-                                  rec_visible, rec_binocular)
+                record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
             break
-        use_grid = prepare_search(grid, pos, fp, ip)
+        use_grid = prepare_chunks(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
             sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
-                        triggered, fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket,
-                        shape, lo, hi, cell_side, use_grid)
-        if leadership:
-            record_triggers(step, triggered, trig_step, trig_boid, n_trig)
+                        triggered, fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv,
+                        bucket, shape, lo, hi, cell_side, use_grid)
         for c in nb.prange(n_chunks):
-            move_range(c * chunk, min(n, (c + 1) * chunk), steer, pos, vel, fwd, up, side, acc, fp, ip, clock,
-                       escape)
-        if leadership:
-            tick(clock, fp[F.DT])
+            move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
+        finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_boid, n_trig, clock, fp[F.DT],
+                           visible, binocular, rec_visible, rec_binocular)
         if record:
-            for i in range(n):
-                rec_visible[r, i] = visible[i]
-                rec_binocular[r, i] = binocular[i]
             r += 1
