@@ -112,7 +112,8 @@ p = load_preset({path!r}, ["init.n=1000", "init.scale_with_n=true", "perception.
 simulate_preset(p, 0)
 rates = []
 for seed in range(1, {repeats} + 1):
-    t = time.perf_counter(); obs = simulate_preset(p, seed); rates.append(1000 * p.run.n_steps / (time.perf_counter() - t))
+    t = time.perf_counter(); obs = simulate_preset(p, seed)
+    rates.append(1000 * p.run.n_steps / (time.perf_counter() - t))
 print(json.dumps({{"boid_steps_per_s": statistics.median(rates), "min": min(rates), "max": max(rates),
                   "visible": float(obs.visible[1:].mean())}}))
 """.format(path=str(MODELS / "holland.toml"), repeats=repeats)
@@ -135,7 +136,8 @@ state = initial_state(p.init, p.model.patterns, rng)
 advance(p.model, state, 1, p.run.dt, 1, key)
 times = []
 for _ in range({steps}):
-    t = time.perf_counter(); state = advance(p.model, state, 1, p.run.dt, 1, key).final; times.append(time.perf_counter() - t)
+    t = time.perf_counter(); state = advance(p.model, state, 1, p.run.dt, 1, key).final
+    times.append(time.perf_counter() - t)
 print(json.dumps({{"seconds_per_step": statistics.median(times), "threads": numba.get_num_threads(),
                   "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}}))
 """.format(path=str(MODELS / "opensteer.toml"), n=n, steps=steps)

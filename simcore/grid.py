@@ -9,11 +9,14 @@ folding each coordinate modulo ``A`` (``A >= 3``, and ``nc`` a multiple of ``A``
 any cell fall in 27 different buckets, far-apart cells may share one (their boids are extra candidates,
 which the exact test rejects). Memory is O(N) whatever the spread of the flock.
 
-Each bucket is a doubly linked list of boids (``head``, ``nxt``, ``prv``), so a boid that moves is
-re-binned in O(1) (``rebin``), as OpenSteer's lq database does: sequential update order stays exact.
+In sequential update order each bucket is a doubly linked list of boids (``head``, ``nxt``, ``prv``), so
+a boid that moves is re-binned in O(1) (``rebin``), as OpenSteer's lq database does: sequential order
+stays exact. In synchronous order nobody moves while the flock perceives, so the grid is a sorted
+snapshot instead: boids ordered by bucket with a copy of their positions, read as contiguous runs.
 
-Contract: ``gather(grid, i, pos, cand)`` writes into ``cand`` every boid j != i whose true distance from
-boid i can be at most the query radius (and others), each once, in no particular order. ``build``
+Contract: ``gather(grid, i, pos, cand, cpos)`` writes into ``cand`` (and their positions, bit for bit,
+into ``cpos``) every boid whose true distance from boid i can be at most the query radius (and others,
+boid i included), each once, in no particular order. ``build``
 returns False, and the caller must search all pairs for this step, when the grid cannot give that
 guarantee: a non-finite position, coordinates beyond 1e9 cells (rounding), or a periodic box under 3
 query radii. Topological searches (:mod:`simcore.topological`) walk cubic shells of cells with
@@ -31,10 +34,13 @@ from .jit import inline, leaf
 CELL_MARGIN = 1e-6   # cells are this much wider than the query radius
 MAX_CELL_COORD = 1e9  # beyond this many cells from the origin, rounding could misplace a boid
 
-# head int64 (T,), nxt/prv/bucket int64 (N,): the lists; shape int64 (8,): A_x, A_y, A_z, nc (0 when open),
-# then the occupied cell range lo_x, lo_y, lo_z in lo (3,) and hi (3,); side float64 (1,): the cell side
-Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side")
-A_X, A_Y, A_Z, N_CELLS = 0, 1, 2, 3
+# head int64 (T,), nxt/prv/bucket int64 (N,): the lists; shape int64 (5,): A_x, A_y, A_z, nc (0 when open),
+# layout (LISTS or SORTED); the occupied cell range lo (3,), hi (3,); side float64 (1,): the cell side;
+# the sorted layout: start int64 (T + 1,), order int64 (N,) (boids by bucket), spos float64 (N, 3) (their
+# positions in that order)
+Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side start order spos")
+A_X, A_Y, A_Z, N_CELLS, LAYOUT = 0, 1, 2, 3, 4
+LISTS, SORTED = 0, 1
 
 
 @inline
@@ -42,8 +48,8 @@ def new_grid(n):
     """An empty grid for n boids (at most max(2n, 27) buckets)."""
     t = max(2 * n, 27)
     return Grid(np.full(t, -1, np.int64), np.empty(n, np.int64), np.empty(n, np.int64),
-                np.full(n, -1, np.int64), np.zeros(4, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64),
-                np.zeros(1, np.float64))
+                np.full(n, -1, np.int64), np.zeros(5, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64),
+                np.zeros(1, np.float64), np.zeros(t + 1, np.int64), np.empty(n, np.int64), np.empty((n, 3)))
 
 
 @inline
@@ -110,10 +116,12 @@ def _fold_sizes(extent_x, extent_y, extent_z, budget):
 
 
 @inline
-def build(grid, pos, radius, periodic, box, min_saving):
+def build(grid, pos, radius, periodic, box, min_saving, lists):
     """Bin every boid in cells of side >= radius (1 + CELL_MARGIN); False when all pairs must be searched
     (see module docstring), or when the grid would save fewer than ``min_saving`` candidates per boid
-    (N (1 - 27 / cells spanned), as if the boids filled the cells evenly)."""
+    (N (1 - 27 / cells spanned), as if the boids filled the cells evenly). ``lists``: linked lists (boids
+    will move and be re-binned); else the sorted layout (a snapshot: boids by bucket, with a copy of their
+    positions in that order, so a bucket's candidates are read from contiguous memory)."""
     n = pos.shape[0]
     side = radius * (1.0 + CELL_MARGIN)
     if not (side > 0.0 and math.isfinite(side)):
@@ -165,10 +173,33 @@ def build(grid, pos, radius, periodic, box, min_saving):
         ax, ay, az = _fold_sizes(grid.hi[0] - grid.lo[0] + 1, grid.hi[1] - grid.lo[1] + 1,
                                  grid.hi[2] - grid.lo[2] + 1, budget)
         grid.shape[A_X], grid.shape[A_Y], grid.shape[A_Z] = ax, ay, az
-    for b in range(grid.shape[A_X] * grid.shape[A_Y] * grid.shape[A_Z]):
-        grid.head[b] = -1
-    for i in range(n - 1, -1, -1):  # lists in ascending index order
-        _link(grid, i, boid_bucket(grid, pos[i, 0], pos[i, 1], pos[i, 2]))
+    n_buckets = grid.shape[A_X] * grid.shape[A_Y] * grid.shape[A_Z]
+    if lists:
+        grid.shape[LAYOUT] = LISTS
+        for b in range(n_buckets):
+            grid.head[b] = -1
+        for i in range(n - 1, -1, -1):  # lists in ascending index order
+            _link(grid, i, boid_bucket(grid, pos[i, 0], pos[i, 1], pos[i, 2]))
+    else:
+        grid.shape[LAYOUT] = SORTED
+        start = grid.start
+        for b in range(n_buckets + 1):
+            start[b] = 0
+        for i in range(n):
+            b = boid_bucket(grid, pos[i, 0], pos[i, 1], pos[i, 2])
+            grid.bucket[i] = b
+            start[b + 1] += 1
+        for b in range(n_buckets):
+            start[b + 1] += start[b]
+        for i in range(n):  # counting sort: ascending index within a bucket; start[b] ends at bucket b's end
+            b = grid.bucket[i]
+            k = start[b]
+            grid.order[k] = i
+            grid.spos[k, 0], grid.spos[k, 1], grid.spos[k, 2] = pos[i, 0], pos[i, 1], pos[i, 2]
+            start[b] = k + 1
+        for b in range(n_buckets, 0, -1):
+            start[b] = start[b - 1]
+        start[0] = 0
     return True
 
 
@@ -204,8 +235,9 @@ def _fold(c, a):
 
 
 @inline
-def gather(grid, i, pos, cand):
-    """Boids in the 27 cells around boid i, except i, into ``cand``; returns their count.
+def gather(grid, i, pos, cand, cpos):
+    """Boids in the 27 cells around boid i (i included) into ``cand``, their positions into ``cpos``;
+    returns their count.
 
     The neighbour cells are folded like their centre: with ``A`` dividing the periodic cell count, the
     bucket coordinate of cell c +- 1 is (c mod A) +- 1 mod A in either world, so no division is needed."""
@@ -220,10 +252,18 @@ def gather(grid, i, pos, cand):
         for dy in range(-1, 2):
             row = ax * (_fold(by + dy, ay) + ay * z)
             for dx in range(-1, 2):
-                j = grid.head[row + _fold(bx + dx, ax)]
-                while j >= 0:
-                    if j != i:
-                        cand[count] = j
+                b = row + _fold(bx + dx, ax)
+                if grid.shape[LAYOUT] == SORTED:
+                    for k in range(grid.start[b], grid.start[b + 1]):
+                        cand[count] = grid.order[k]
+                        cpos[count, 0], cpos[count, 1], cpos[count, 2] = grid.spos[k, 0], grid.spos[k, 1], \
+                            grid.spos[k, 2]
                         count += 1
-                    j = grid.nxt[j]
+                else:
+                    j = grid.head[b]
+                    while j >= 0:
+                        cand[count] = j
+                        cpos[count, 0], cpos[count, 1], cpos[count, 2] = pos[j, 0], pos[j, 1], pos[j, 2]
+                        count += 1
+                        j = grid.nxt[j]
     return count

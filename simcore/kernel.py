@@ -70,7 +70,8 @@ def prepare_search(grid, pos, fp, ip):
         radius = cell_side(pos, fp, ip, periodic, box)
     else:
         radius = query_radius(fp, ip)
-    return cells.build(grid, pos, radius, periodic, box, AUTO_MIN_SAVING if search == SEARCH_AUTO else -np.inf)
+    return cells.build(grid, pos, radius, periodic, box, AUTO_MIN_SAVING if search == SEARCH_AUTO else -np.inf,
+                       ip[I.ORDER] == ORDER_SEQUENTIAL)
 
 
 @leaf

@@ -31,7 +31,7 @@ from .grid import gather
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
 from .neighbours import (EYE_BOTH, EYE_LEFT, EYE_RIGHT, RULE_ALIGNMENT, RULE_ALL, RULE_COHESION,  # noqa: F401
-                         RULE_SEPARATION, offset, sort_by_index, store)
+                         RULE_SEPARATION, offset_from, sort_by_index, store)
 from .occlusion import occlude
 from .topological import nearest
 
@@ -51,33 +51,29 @@ def query_radius(fp, ip):
 
 @inline
 def _candidates(i, pos, nbrs, grid, use_grid):
-    """Candidate neighbours of boid i into nbrs.cand: the grid's, or every j != i in ascending order."""
+    """(count, indices, positions) of the candidate neighbours of boid i (boid i among them): the grid's,
+    or every boid in ascending order (then the positions are ``pos`` itself)."""
     if use_grid:
-        count = gather(grid, i, pos, nbrs.cand)
-    else:
-        count = 0
-        for j in range(pos.shape[0]):
-            if j != i:
-                nbrs.cand[count] = j
-                count += 1
-    return count
+        count = gather(grid, i, pos, nbrs.cand, nbrs.cpos)
+        return count, nbrs.cand, nbrs.cpos
+    return pos.shape[0], nbrs.everyone, pos
 
 
 @inline
-def _sphere(i, count, pos, fp, periodic, box, nbrs):
+def _sphere(i, count, cand, cpos, pos, fp, periodic, box, nbrs):
     r2 = fp[F.SPHERE_RADIUS] * fp[F.SPHERE_RADIUS]
     m = 0
     for c in range(count):
-        j = nbrs.cand[c]
-        dx, dy, dz = offset(pos, i, j, periodic, box)
-        if dx * dx + dy * dy + dz * dz < r2:
+        j = cand[c]
+        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
+        if dx * dx + dy * dy + dz * dz < r2 and j != i:
             store(nbrs, m, j, dx, dy, dz, RULE_ALL, 0)
             m += 1
     return m
 
 
 @inline
-def _opensteer(i, count, pos, fwd, fp, periodic, box, nbrs):
+def _opensteer(i, count, cand, cpos, pos, fwd, fp, periodic, box, nbrs):
     near2 = fp[F.NEAR_R] * fp[F.NEAR_R]
     sep_r2 = fp[F.SEP_R] * fp[F.SEP_R]
     ali_r2 = fp[F.ALI_R] * fp[F.ALI_R]
@@ -87,8 +83,10 @@ def _opensteer(i, count, pos, fwd, fp, periodic, box, nbrs):
     fx, fy, fz = fwd[i, 0], fwd[i, 1], fwd[i, 2]
     m = 0
     for c in range(count):
-        j = nbrs.cand[c]
-        dx, dy, dz = offset(pos, i, j, periodic, box)
+        j = cand[c]
+        if j == i:
+            continue
+        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
         dd = dx * dx + dy * dy + dz * dz
         if dd < near2:
             mask = RULE_ALL
@@ -126,7 +124,7 @@ def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
 
 
 @inline
-def _view_phase(i, count, pos, fwd, side, fp, ip, periodic, box, nbrs):
+def _view_phase(i, count, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
     s0, s1, s2 = side[i, 0], side[i, 1], side[i, 2]
@@ -144,9 +142,9 @@ def _view_phase(i, count, pos, fwd, side, fp, ip, periodic, box, nbrs):
     see_all = ip[I.SEE_ALL] != 0
     m = 0
     for c in range(count):
-        j = nbrs.cand[c]
-        dx, dy, dz = offset(pos, i, j, periodic, box)
-        if dx * dx + dy * dy + dz * dz > reach2:
+        j = cand[c]
+        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
+        if dx * dx + dy * dy + dz * dz > reach2 or j == i:
             continue
         label = 0
         if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, see_all):
@@ -168,15 +166,15 @@ def perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     if kind == PERCEPTION_TOPOLOGICAL:
         m = nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid)
     else:
-        count = _candidates(i, pos, nbrs, grid, use_grid)
+        count, cand, cpos = _candidates(i, pos, nbrs, grid, use_grid)
         if kind == PERCEPTION_BINOCULAR:
-            m = _view_phase(i, count, pos, fwd, side, fp, ip, periodic, box, nbrs)
+            m = _view_phase(i, count, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
             if ip[I.OCCLUSION] != 0 and m > 1:
                 m = occlude(m, fp, nbrs)
         elif kind == PERCEPTION_OPENSTEER:
-            m = _opensteer(i, count, pos, fwd, fp, periodic, box, nbrs)
+            m = _opensteer(i, count, cand, cpos, pos, fwd, fp, periodic, box, nbrs)
         else:
-            m = _sphere(i, count, pos, fp, periodic, box, nbrs)
+            m = _sphere(i, count, cand, cpos, pos, fp, periodic, box, nbrs)
         if use_grid:
             sort_by_index(m, nbrs)
     return m

@@ -56,11 +56,12 @@ def finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_b
 
 @kernel
 def sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
-                fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv, bucket, shape,
-                lo, hi, cell_side, use_grid):
+                fp, ip, key, idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot, head, nxt, prv,
+                bucket, shape, lo, hi, cell_side, start, order, spos, use_grid):
     """Chunk c of the perception phase (plain arrays in and out: parallel loops take no named tuples)."""
-    nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], occ_f[c], occ_i[c], bits[c], slot[c])
-    grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side)
+    nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], cpos[c], everyone, occ_f[c], occ_i[c], bits[c],
+                      slot[c])
+    grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos)
     n = pos.shape[0]
     sense_range(c * chunk, min(n, (c + 1) * chunk), step, pos, vel, fwd, side, pattern, clock, escape, steer,
                 visible, binocular, triggered, fp, ip, key, nbrs, grid, use_grid)
@@ -84,6 +85,8 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
     mask = np.empty((n_chunks, n), np.int64)
     label = np.empty((n_chunks, n), np.int64)
     cand = np.empty((n_chunks, n), np.int64)
+    cpos = np.empty((n_chunks, n, 3))
+    everyone = np.arange(n)
     occ_f = np.empty((n_chunks, 4, n))
     occ_i = np.empty((n_chunks, 4, 2 * n + 66), np.int64)
     bits = np.zeros((n_chunks, (n + 63) // 64 + 1), np.uint64)
@@ -91,6 +94,7 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
     grid = cells.new_grid(n)
     head, nxt, prv, bucket, shape, lo, hi, cell_side = grid.head, grid.nxt, grid.prv, grid.bucket, grid.shape, \
         grid.lo, grid.hi, grid.side
+    start, order, spos = grid.start, grid.order, grid.spos
     steer = np.zeros((n, STEER_WIDTH), np.float64)
     visible = np.zeros(n, np.int32)
     binocular = np.zeros(n, np.int32)
@@ -103,14 +107,15 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
             record_state_serial(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader)
         if step == n_steps:
             if record:
-                nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], occ_f[0], occ_i[0], bits[0], slot[0])
+                nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], cpos[0], everyone, occ_f[0], occ_i[0],
+                                  bits[0], slot[0])
                 record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
             break
         use_grid = prepare_chunks(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
             sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
-                        triggered, fp, ip, key, idx, off, mask, label, cand, occ_f, occ_i, bits, slot, head, nxt, prv,
-                        bucket, shape, lo, hi, cell_side, use_grid)
+                        triggered, fp, ip, key, idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot,
+                        head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, use_grid)
         for c in nb.prange(n_chunks):
             move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
         finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_boid, n_trig, clock, fp[F.DT],

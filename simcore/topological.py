@@ -20,9 +20,9 @@ import math
 
 
 from .jit import inline, leaf
-from .grid import A_X, A_Y, A_Z, N_CELLS, cell_coord
+from .grid import A_X, A_Y, A_Z, LAYOUT, N_CELLS, SORTED, cell_coord
 from .layout import F, I
-from .neighbours import RULE_ALL, offset, sort_by_index, store
+from .neighbours import RULE_ALL, offset, offset_from, sort_by_index, store
 
 SHELL_MARGIN = 1e-6  # cells: rounding of cell coordinates is far below this (coordinates < 1e9 cells)
 CELL_FACTOR = 1.2    # cell side over the expected distance of the k-th neighbour
@@ -72,9 +72,9 @@ def _offer(dd, j, count, k, best):
 
 
 @inline
-def _consider(i, j, count, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, best):
-    """Offer boid j to boid i's list when it is eligible."""
-    dx, dy, dz = offset(pos, i, j, periodic, box)
+def _consider(i, j, x, y, z, count, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, best):
+    """Offer boid j (at x, y, z) to boid i's list when it is eligible."""
+    dx, dy, dz = offset_from(x, y, z, pos, i, periodic, box)
     dd = dx * dx + dy * dy + dz * dz
     eligible = dd < r2
     if eligible and blind:
@@ -89,7 +89,8 @@ def _all_pairs(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, best):
     count = 0
     for j in range(pos.shape[0]):
         if j != i:
-            count = _consider(i, j, count, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, best)
+            count = _consider(i, j, pos[j, 0], pos[j, 1], pos[j, 2], count, k, pos, fwd, r2, blind, cos_half_blind,
+                              periodic, box, best)
     return count
 
 
@@ -129,12 +130,21 @@ def _shells(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, grid, best
                     fx = x0 % ax
                     while x <= x1:
                         if face or abs(x - cx) == s:
-                            j = grid.head[row + fx]
-                            while j >= 0:
-                                if j != i:
-                                    count = _consider(i, j, count, k, pos, fwd, r2, blind, cos_half_blind,
-                                                      periodic, box, best)
-                                j = grid.nxt[j]
+                            b = row + fx
+                            if grid.shape[LAYOUT] == SORTED:
+                                for q in range(grid.start[b], grid.start[b + 1]):
+                                    j = grid.order[q]
+                                    if j != i:
+                                        count = _consider(i, j, grid.spos[q, 0], grid.spos[q, 1], grid.spos[q, 2],
+                                                          count, k, pos, fwd, r2, blind, cos_half_blind, periodic,
+                                                          box, best)
+                            else:
+                                j = grid.head[b]
+                                while j >= 0:
+                                    if j != i:
+                                        count = _consider(i, j, pos[j, 0], pos[j, 1], pos[j, 2], count, k, pos, fwd,
+                                                          r2, blind, cos_half_blind, periodic, box, best)
+                                    j = grid.nxt[j]
                             x += 1
                             fx = fx + 1 if fx + 1 < ax else 0
                         else:  # inside the cube: visited in an earlier shell, jump to its far face
