@@ -27,6 +27,11 @@ spanned): all pairs are cheaper for small or compact flocks), and in sequential 
 is re-binned at once. Perception returns the same neighbours in the same order either way, so the search
 never changes a trajectory.
 
+Structure: one compiled loop (``run_model``) calls, per boid, compiled leaves without reference counting
+(:mod:`simcore.jit`): ``perceive`` (:mod:`simcore.perception`), ``sense`` (rules and the leadership
+decision into the ``steer`` buffer, whose columns ``OS``/``HB`` are declared in :mod:`simcore.layout`),
+``move`` (dynamics) and, in sequential order, ``grid.rebin``.
+
 ``run_batch`` runs B independent runs (leading axis B on every per-run array, keys (B,)) in parallel
 threads; each run is computed by the same code as alone, so results are bit-identical either way.
 :mod:`simcore.threaded` runs one big synchronous run on several threads.
@@ -36,9 +41,9 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .jit import inline, kernel, leaf
 from . import grid as cells
 from .dynamics import apply_steering, hartman_benes_step
+from .jit import inline, kernel, leaf
 from .layout import (DYNAMICS_HARTMAN_BENES, F, HB, I, ORDER_SEQUENTIAL, OS, PERCEPTION_TOPOLOGICAL,
                      SEARCH_ALL_PAIRS, SEARCH_AUTO, STEER_WIDTH, BOUNDARY_PERIODIC)
 from .leadership import decide, escape_step, is_leader, start
