@@ -1,4 +1,4 @@
-"""simcore: a deterministic, compiled 3-D flocking simulator (see docs/model.md and MODEL.md).
+"""simcore: a deterministic, compiled 3-D flocking simulator (specified in docs/model.md).
 
 Public API::
 

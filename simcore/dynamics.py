@@ -1,4 +1,4 @@
-"""OpenSteer vehicle physics, banking frame and world boundary (MODEL.md sections 1, 0 and 3).
+"""OpenSteer vehicle physics, banking frame and world boundary (docs/model.md sections 1, 0 and 3).
 Compiled with numba.
 
 ``apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip)`` advances boid i by one step of
@@ -21,10 +21,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 
-from .layout import (BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F_BOX, F_DT, F_GAIN_K, F_GAIN_M, F_GAIN_S, F_MASS,
-                     F_MAX_FORCE, F_MAX_SPEED, F_WORLD_RADIUS, I_BOUNDARY)
+from .jit import inline
+from .layout import BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F, I
 from .rules import normalized
 
 SMOOTH_MIN, SMOOTH_MAX = 0.15, 0.4
@@ -32,7 +31,7 @@ GLOBAL_UP_Y = 0.2
 BANK_ACCEL = 0.05
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def truncated(x, y, z, limit):
     """(x, y, z) scaled down to length ``limit`` when longer."""
     n2 = x * x + y * y + z * z
@@ -42,12 +41,12 @@ def truncated(x, y, z, limit):
     return x, y, z
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
     """Force turned into the cone of axis u (unit) and the given cosine, keeping its length."""
     length = math.sqrt(fx * fx + fy * fy + fz * fz)
@@ -62,7 +61,7 @@ def cone_clamp(fx, fy, fz, ux, uy, uz, cosine):
             (cosine * uz + perp * pz) * length)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     """Banking frame update of boid i after its move (module docstring, step 6)."""
     rate = min(max(3.0 * dt, 0.0), 1.0)
@@ -88,11 +87,11 @@ def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
     up[i, 0], up[i, 1], up[i, 2] = cross(sx, sy, sz, f0, f1, f2)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def apply_boundary(i, pos, fp, ip):
-    kind = ip[I_BOUNDARY]
+    kind = ip[I.BOUNDARY]
     if kind == BOUNDARY_SPHERE_WRAP:
-        radius = fp[F_WORLD_RADIUS]
+        radius = fp[F.WORLD_RADIUS]
         r = math.sqrt(pos[i, 0] ** 2 + pos[i, 1] ** 2 + pos[i, 2] ** 2)
         if r > radius:
             k = 2.0 * radius / r
@@ -100,24 +99,24 @@ def apply_boundary(i, pos, fp, ip):
             pos[i, 1] -= k * pos[i, 1]
             pos[i, 2] -= k * pos[i, 2]
     elif kind == BOUNDARY_PERIODIC:
-        box = fp[F_BOX]
+        box = fp[F.BOX]
         for c in range(3):
             pos[i, c] -= box * math.floor((pos[i, c] + 0.5 * box) / box)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0, dvy=0.0, dvz=0.0, cap=-1.0):
     """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz). A leader's escape
     adds (dvx, dvy, dvz) to the new velocity before truncation to ``cap`` (default: max_speed)."""
-    dt = fp[F_DT]
-    max_speed = fp[F_MAX_SPEED]
+    dt = fp[F.DT]
+    max_speed = fp[F.MAX_SPEED]
     speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
     slow = 0.2 * max_speed
     if speed <= slow and (fx != 0.0 or fy != 0.0 or fz != 0.0):
         cosine = 1.0 - 2.0 * (speed / slow) ** 20
         fx, fy, fz = cone_clamp(fx, fy, fz, fwd[i, 0], fwd[i, 1], fwd[i, 2], cosine)
-    fx, fy, fz = truncated(fx, fy, fz, fp[F_MAX_FORCE])
-    mass = fp[F_MASS]
+    fx, fy, fz = truncated(fx, fy, fz, fp[F.MAX_FORCE])
+    mass = fp[F.MASS]
     rate = min(max(9.0 * dt, SMOOTH_MIN), SMOOTH_MAX)
     acc[i, 0] += rate * (fx / mass - acc[i, 0])
     acc[i, 1] += rate * (fy / mass - acc[i, 1])
@@ -137,18 +136,18 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0,
     apply_boundary(i, pos, fp, ip)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up, side, acc, fp, ip,
                        dvx, dvy, dvz, cap):
-    """One Hartman-Benes frame of boid i (MODEL.md section 5): p' = p + dt v (the old velocity), then
+    """One Hartman-Benes frame of boid i (docs/model.md section 5): p' = p + dt v (the old velocity), then
     v' = v + (S s + K k) / dt + M m (+ a leader's escape), clamped to ``cap``. ``acc`` holds the
     realised acceleration (v' - v) / dt, which drives the banking frame as in OpenSteer."""
-    dt = fp[F_DT]
+    dt = fp[F.DT]
     vx0, vy0, vz0 = vel[i, 0], vel[i, 1], vel[i, 2]
     pos[i, 0] += vx0 * dt
     pos[i, 1] += vy0 * dt
     pos[i, 2] += vz0 * dt
-    gs, gk, gm = fp[F_GAIN_S], fp[F_GAIN_K], fp[F_GAIN_M]
+    gs, gk, gm = fp[F.GAIN_S], fp[F.GAIN_K], fp[F.GAIN_M]
     vx = vx0 + (gs * sx + gk * kx) / dt + gm * mx
     vy = vy0 + (gs * sy + gk * ky) / dt + gm * my
     vz = vz0 + (gs * sz + gk * kz) / dt + gm * mz

@@ -1,45 +1,29 @@
-"""Packing of validated parameters into the flat arrays the compiled kernel reads.
+"""Named slots: the flat arrays the compiled kernel reads, each declared once.
 
-The kernel takes two arrays, ``fp`` (float64[F_COUNT]) and ``ip`` (int64[I_COUNT]); the module-level
-integer constants below name their slots (numba folds them as compile-time constants). Angles are
-turned into cosines/sines here, once, with exact values at multiples of 90 degrees so that geometric
-boundary cases (a field of exactly 180 degrees sees exactly sideways) hold bit for bit.
+Packed parameters. The kernel takes ``fp`` (float64[len(F)]) and ``ip`` (int64[len(I)]). Every slot is
+declared ONCE, in ``FLOAT_SLOTS`` or ``INT_SLOTS`` below, as ``NAME: its value from (model, dt)``; the
+IntEnums ``F`` and ``I`` are generated from those declarations and :func:`pack` fills every slot from
+them, so adding a parameter is a one-line change that cannot get out of step. Kernels read
+``fp[F.MAX_SPEED]``; numba folds an IntEnum member to a compile-time constant index.
+
+Per-boid buffers. The kernel's ``steer`` buffer (N, STEER_WIDTH) holds what perceiving leaves for the
+move, and its meaning depends on the dynamics: columns ``OS.*`` (opensteer: the raw steering force) or
+``HB.*`` (hartman_benes: the separation, cohesion and alignment steers). Each is one declaration.
+
+Enumerations (``PERCEPTION_*``, ``BOUNDARY_*``, ...) are the positions of the choices in the tuples of
+:mod:`simcore.params`. Angles become cosines/sines here, once, with exact values at multiples of 90
+degrees so that geometric boundary cases (a field of exactly 180 degrees sees exactly sideways) hold bit
+for bit.
 """
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 import numpy as np
 
-from .params import (BOUNDARIES, DYNAMICS, FRONT_GATES, PERCEPTION_KINDS, SEPARATION_WEIGHTS, UPDATE_ORDERS,
-                     ModelParams)
-
-# float slots
-(F_SEP_W, F_ALI_W, F_COH_W, F_MAX_SPEED, F_MAX_FORCE, F_MASS, F_DT,
- F_SPHERE_RADIUS, F_NEAR_R, F_SEP_R, F_SEP_COS, F_ALI_R, F_ALI_COS, F_COH_R, F_COH_COS,
- F_COS_EYE, F_SIN_EYE, F_COS_GAZE, F_SIN_GAZE, F_COS_HALF_FIELD, F_RANGE, F_HEAD_R, F_BODY_R,
- F_WORLD_RADIUS, F_BOX, F_GAIN_S, F_GAIN_K, F_GAIN_M, F_SEP_FALLOFF, F_LEAD_X, F_LEAD_SIGMA,
- F_LEAD_DURATION, F_LEAD_GAIN, F_LEAD_BOOST, F_LEAD_REFRACTORY, F_SLOW_SPEED, F_PERCEPTION_RANGE,
- F_COUNT) = range(38)
-
-# int slots
-(I_PERCEPTION, I_OCCLUSION, I_SEE_ALL, I_BOUNDARY, I_ORDER, I_PATTERNS, I_SEP_WEIGHT, I_NBITS,
- I_DYNAMICS, I_LEADERSHIP, I_FRONT_GATE, I_COUNT) = range(12)
-
-# enumerations, in the order of the params tuples
-PERCEPTION_SPHERE, PERCEPTION_OPENSTEER, PERCEPTION_BINOCULAR = range(3)
-BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
-ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
-SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
-DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES = range(2)
-GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
-
-assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular")
-assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
-assert UPDATE_ORDERS == ("synchronous", "sequential")
-assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
-assert DYNAMICS == ("opensteer", "hartman_benes")
-assert FRONT_GATES == ("positive", "weighted", "none")
+from .params import (BOUNDARIES, DYNAMICS, FRONT_GATES, PERCEPTION_KINDS, SEARCHES, SEPARATION_WEIGHTS,
+                     UPDATE_ORDERS, ModelParams)
 
 
 def cos_deg(angle_deg: float) -> float:
@@ -58,47 +42,95 @@ def sin_deg(angle_deg: float) -> float:
     return math.sin(math.radians(angle_deg))
 
 
+# float parameters: slot name -> its value from the validated model and the step dt
+FLOAT_SLOTS = {
+    "SEP_W": lambda m, dt: m.steering.separation_weight,
+    "ALI_W": lambda m, dt: m.steering.alignment_weight,
+    "COH_W": lambda m, dt: m.steering.cohesion_weight,
+    "MAX_SPEED": lambda m, dt: m.vehicle.max_speed,
+    "MAX_FORCE": lambda m, dt: m.vehicle.max_force,
+    "MASS": lambda m, dt: m.vehicle.mass,
+    "DT": lambda m, dt: dt,
+    "SPHERE_RADIUS": lambda m, dt: m.perception.radius,
+    "NEAR_R": lambda m, dt: m.perception.near_radius,
+    "SEP_R": lambda m, dt: m.perception.separation_radius,
+    "SEP_COS": lambda m, dt: m.perception.separation_cos,
+    "ALI_R": lambda m, dt: m.perception.alignment_radius,
+    "ALI_COS": lambda m, dt: m.perception.alignment_cos,
+    "COH_R": lambda m, dt: m.perception.cohesion_radius,
+    "COH_COS": lambda m, dt: m.perception.cohesion_cos,
+    "COS_EYE": lambda m, dt: cos_deg(m.perception.eye_deg),
+    "SIN_EYE": lambda m, dt: sin_deg(m.perception.eye_deg),
+    "COS_GAZE": lambda m, dt: cos_deg(m.perception.direction_deg),
+    "SIN_GAZE": lambda m, dt: sin_deg(m.perception.direction_deg),
+    "COS_HALF_FIELD": lambda m, dt: cos_deg(m.perception.field_deg / 2.0),
+    "RANGE": lambda m, dt: m.perception.range,
+    "HEAD_R": lambda m, dt: m.perception.head_radius,
+    "BODY_R": lambda m, dt: m.perception.body_radius,
+    "TOPO_RADIUS": lambda m, dt: math.inf if m.perception.max_distance is None else m.perception.max_distance,
+    "COS_HALF_BLIND": lambda m, dt: cos_deg(m.perception.blind_deg / 2.0),
+    "WORLD_RADIUS": lambda m, dt: m.world.sphere_radius,
+    "BOX": lambda m, dt: m.world.box_size,
+    "GAIN_S": lambda m, dt: m.gains.separation,
+    "GAIN_K": lambda m, dt: m.gains.cohesion,
+    "GAIN_M": lambda m, dt: m.gains.alignment,
+    "SEP_FALLOFF": lambda m, dt: m.gains.separation_falloff_exponent,
+    "LEAD_X": lambda m, dt: m.leadership.x,
+    "LEAD_SIGMA": lambda m, dt: m.leadership.sigma,
+    "LEAD_DURATION": lambda m, dt: m.leadership.duration,
+    "LEAD_GAIN": lambda m, dt: m.leadership.gain,
+    "LEAD_BOOST": lambda m, dt: m.leadership.boost,
+    "LEAD_REFRACTORY": lambda m, dt: m.leadership.refractory,
+    "SLOW_SPEED": lambda m, dt: m.slow_speed,
+    "PERCEPTION_RANGE": lambda m, dt: m.perception_range,
+}
+
+# integer parameters (choices as their position in the params tuples, flags as 0/1)
+INT_SLOTS = {
+    "PERCEPTION": lambda m, dt: PERCEPTION_KINDS.index(m.perception.kind),
+    "SEARCH": lambda m, dt: SEARCHES.index(m.perception.search),
+    "OCCLUSION": lambda m, dt: int(m.perception.occlusion),
+    "SEE_ALL": lambda m, dt: int(m.perception.field_deg >= 360.0),
+    "NEIGHBOURS": lambda m, dt: m.perception.neighbours,
+    "BLIND": lambda m, dt: int(m.perception.blind_deg > 0.0),
+    "BOUNDARY": lambda m, dt: BOUNDARIES.index(m.world.boundary),
+    "ORDER": lambda m, dt: UPDATE_ORDERS.index(m.world.update_order),
+    "PATTERNS": lambda m, dt: int(m.patterns.enabled),
+    "SEP_WEIGHT": lambda m, dt: SEPARATION_WEIGHTS.index(m.patterns.separation_weight),
+    "NBITS": lambda m, dt: m.patterns.n_bits,
+    "DYNAMICS": lambda m, dt: DYNAMICS.index(m.dynamics),
+    "LEADERSHIP": lambda m, dt: int(m.leadership.enabled),
+    "FRONT_GATE": lambda m, dt: FRONT_GATES.index(m.leadership.front_gate),
+}
+
+F = IntEnum("F", list(FLOAT_SLOTS), start=0)
+I = IntEnum("I", list(INT_SLOTS), start=0)  # noqa: E741 (the int twin of F)
+
+# columns of the per-boid steer buffer, per dynamics
+OS = IntEnum("OS", "FX FY FZ", start=0)
+HB = IntEnum("HB", "SX SY SZ KX KY KZ MX MY MZ", start=0)
+STEER_WIDTH = max(len(OS), len(HB))
+
+# enumerations, in the order of the params tuples
+PERCEPTION_SPHERE, PERCEPTION_OPENSTEER, PERCEPTION_BINOCULAR, PERCEPTION_TOPOLOGICAL = range(4)
+SEARCH_AUTO, SEARCH_GRID, SEARCH_ALL_PAIRS = range(3)
+BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
+ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
+SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
+DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES = range(2)
+GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
+
+assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular", "topological")
+assert SEARCHES == ("auto", "grid", "all_pairs")
+assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
+assert UPDATE_ORDERS == ("synchronous", "sequential")
+assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
+assert DYNAMICS == ("opensteer", "hartman_benes")
+assert FRONT_GATES == ("positive", "weighted", "none")
+
+
 def pack(model: ModelParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(fp, ip) arrays for the kernel from validated parameters and the step ``dt``."""
-    per, veh, world = model.perception, model.vehicle, model.world
-    fp = np.zeros(F_COUNT, dtype=np.float64)
-    ip = np.zeros(I_COUNT, dtype=np.int64)
-    fp[F_SEP_W] = model.steering.separation_weight
-    fp[F_ALI_W] = model.steering.alignment_weight
-    fp[F_COH_W] = model.steering.cohesion_weight
-    fp[F_MAX_SPEED] = veh.max_speed
-    fp[F_MAX_FORCE] = veh.max_force
-    fp[F_MASS] = veh.mass
-    fp[F_DT] = dt
-    fp[F_SPHERE_RADIUS] = per.radius
-    fp[F_NEAR_R] = per.near_radius
-    fp[F_SEP_R], fp[F_SEP_COS] = per.separation_radius, per.separation_cos
-    fp[F_ALI_R], fp[F_ALI_COS] = per.alignment_radius, per.alignment_cos
-    fp[F_COH_R], fp[F_COH_COS] = per.cohesion_radius, per.cohesion_cos
-    fp[F_COS_EYE], fp[F_SIN_EYE] = cos_deg(per.eye_deg), sin_deg(per.eye_deg)
-    fp[F_COS_GAZE], fp[F_SIN_GAZE] = cos_deg(per.direction_deg), sin_deg(per.direction_deg)
-    fp[F_COS_HALF_FIELD] = cos_deg(per.field_deg / 2.0)
-    fp[F_RANGE] = per.range
-    fp[F_HEAD_R] = per.head_radius
-    fp[F_BODY_R] = per.body_radius
-    fp[F_WORLD_RADIUS] = world.sphere_radius
-    fp[F_BOX] = world.box_size
-    ip[I_PERCEPTION] = PERCEPTION_KINDS.index(per.kind)
-    ip[I_OCCLUSION] = int(per.occlusion)
-    ip[I_SEE_ALL] = int(per.field_deg >= 360.0)
-    ip[I_BOUNDARY] = BOUNDARIES.index(world.boundary)
-    ip[I_ORDER] = UPDATE_ORDERS.index(world.update_order)
-    ip[I_PATTERNS] = int(model.patterns.enabled)
-    ip[I_SEP_WEIGHT] = SEPARATION_WEIGHTS.index(model.patterns.separation_weight)
-    ip[I_NBITS] = model.patterns.n_bits
-    gains, lead = model.gains, model.leadership
-    fp[F_GAIN_S], fp[F_GAIN_K], fp[F_GAIN_M] = gains.separation, gains.cohesion, gains.alignment
-    fp[F_SEP_FALLOFF] = gains.separation_falloff_exponent
-    fp[F_LEAD_X], fp[F_LEAD_SIGMA], fp[F_LEAD_DURATION] = lead.x, lead.sigma, lead.duration
-    fp[F_LEAD_GAIN], fp[F_LEAD_BOOST], fp[F_LEAD_REFRACTORY] = lead.gain, lead.boost, lead.refractory
-    fp[F_SLOW_SPEED] = model.slow_speed
-    fp[F_PERCEPTION_RANGE] = model.perception_range
-    ip[I_DYNAMICS] = DYNAMICS.index(model.dynamics)
-    ip[I_LEADERSHIP] = int(lead.enabled)
-    ip[I_FRONT_GATE] = FRONT_GATES.index(lead.front_gate)
+    fp = np.array([value(model, dt) for value in FLOAT_SLOTS.values()], dtype=np.float64)
+    ip = np.array([value(model, dt) for value in INT_SLOTS.values()], dtype=np.int64)
     return fp, ip

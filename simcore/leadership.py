@@ -1,4 +1,4 @@
-"""Hartman-Benes change of leadership (MODEL.md section 5), for every dynamics. Compiled with numba.
+"""Hartman-Benes change of leadership (docs/model.md section 5), for every dynamics. Compiled with numba.
 
 Per boid the state holds ``clock`` (seconds since its last trigger; +inf when it never triggered) and
 ``escape`` (unit escape direction fixed at the trigger for a slow boid, zeros otherwise). A boid is a
@@ -26,11 +26,10 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
-from .layout import (F_DT, F_LEAD_BOOST, F_LEAD_DURATION, F_LEAD_GAIN, F_LEAD_REFRACTORY, F_LEAD_SIGMA, F_LEAD_X,
-                     F_MAX_SPEED, F_PERCEPTION_RANGE, F_SLOW_SPEED, GATE_POSITIVE, GATE_WEIGHTED, I_FRONT_GATE)
+from .jit import inline
+from .layout import F, GATE_POSITIVE, GATE_WEIGHTED, I
 from .rng import STREAM_LEADERSHIP, normal
 
 ESCAPE_PROFILE = np.array([
@@ -38,7 +37,7 @@ ESCAPE_PROFILE = np.array([
     0.51, 0.36, 0.25, 0.18, 0.14, 0.12, 0.10, 0.08, 0.07, 0.06, 0.05, 0.04, 0.03, 0.02, 0.00])
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def profile(u):
     """Escape profile b(u) for u = tau / T."""
     if u < 0.0 or u >= 1.0:
@@ -49,43 +48,45 @@ def profile(u):
     return ESCAPE_PROFILE[k] + frac * (ESCAPE_PROFILE[k + 1] - ESCAPE_PROFILE[k])
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def gauss_rand01(key, step, i, sigma):
     """GaussRand01: a normal draw of mean 1/2 and sd sigma, clipped to [0, 1]."""
     return min(max(0.5 + sigma * normal(key, STREAM_LEADERSHIP, step, i), 0.0), 1.0)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def is_leader(clock_i, fp):
     """Leader while the clock is below the duration; half a step of tolerance makes an escape last
     exactly round(duration / dt) steps whatever the rounding of the summed clock."""
-    return clock_i < fp[F_LEAD_DURATION] - 0.5 * fp[F_DT]
+    return clock_i < fp[F.LEAD_DURATION] - 0.5 * fp[F.DT]
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def decide(i, step, kx, ky, kz, m, vx, vy, vz, clock, fp, ip, key):
     """(trigger?, slow?) for boid i at ``step`` (see module docstring)."""
-    if m < 1 or clock[i] < fp[F_LEAD_DURATION] + fp[F_LEAD_REFRACTORY] - 0.5 * fp[F_DT]:
-        return False, False
-    k_len = math.sqrt(kx * kx + ky * ky + kz * kz)
-    if k_len == 0.0:
-        return False, False
-    eccentricity = k_len / fp[F_PERCEPTION_RANGE]
-    speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-    slow = speed < fp[F_SLOW_SPEED]
-    score = eccentricity
-    if not slow:
-        front = -(kx * vx + ky * vy + kz * vz) / (k_len * speed)
-        gate = ip[I_FRONT_GATE]
-        if gate == GATE_POSITIVE and not front > 0.0:
-            return False, False
-        if gate == GATE_WEIGHTED:
-            score = eccentricity * max(front, 0.0)
-    g = gauss_rand01(key, step, i, fp[F_LEAD_SIGMA])
-    return fp[F_LEAD_X] * score > g, slow
+    trigger = slow = False
+    if m >= 1 and not clock[i] < fp[F.LEAD_DURATION] + fp[F.LEAD_REFRACTORY] - 0.5 * fp[F.DT]:
+        k_len = math.sqrt(kx * kx + ky * ky + kz * kz)
+        if k_len != 0.0:
+            eccentricity = k_len / fp[F.PERCEPTION_RANGE]
+            speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+            is_slow = speed < fp[F.SLOW_SPEED]
+            score = eccentricity
+            gate_open = True
+            if not is_slow:
+                front = -(kx * vx + ky * vy + kz * vz) / (k_len * speed)
+                gate = ip[I.FRONT_GATE]
+                if gate == GATE_POSITIVE and not front > 0.0:
+                    gate_open = False
+                if gate == GATE_WEIGHTED:
+                    score = eccentricity * max(front, 0.0)
+            if gate_open:
+                g = gauss_rand01(key, step, i, fp[F.LEAD_SIGMA])
+                trigger, slow = fp[F.LEAD_X] * score > g, is_slow
+    return trigger, slow
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def start(i, slow, kx, ky, kz, clock, escape):
     """Make boid i a leader now; a slow boid's escape direction is fixed to -k/|k|."""
     clock[i] = 0.0
@@ -95,21 +96,26 @@ def start(i, slow, kx, ky, kz, clock, escape):
         escape[i, 0], escape[i, 1], escape[i, 2] = -kx / k_len, -ky / k_len, -kz / k_len
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def escape_step(i, vx, vy, vz, clock, escape, fp):
     """(dvx, dvy, dvz, speed cap) of boid i for this step; (0, 0, 0, max_speed) when not a leader."""
-    max_speed = fp[F_MAX_SPEED]
-    if not is_leader(clock[i], fp):
-        return 0.0, 0.0, 0.0, max_speed
-    b = profile(clock[i] / fp[F_LEAD_DURATION])
-    if b == 0.0:
-        return 0.0, 0.0, 0.0, max_speed
-    speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-    if escape[i, 0] != 0.0 or escape[i, 1] != 0.0 or escape[i, 2] != 0.0:
-        dx, dy, dz = escape[i, 0], escape[i, 1], escape[i, 2]
-    elif speed > 0.0:
-        dx, dy, dz = vx / speed, vy / speed, vz / speed
-    else:
-        return 0.0, 0.0, 0.0, max_speed * (1.0 + fp[F_LEAD_BOOST] * b)
-    size = fp[F_LEAD_GAIN] * b * max(speed, fp[F_SLOW_SPEED])
-    return size * dx, size * dy, size * dz, max_speed * (1.0 + fp[F_LEAD_BOOST] * b)
+    max_speed = fp[F.MAX_SPEED]
+    dvx = dvy = dvz = 0.0
+    cap = max_speed
+    if is_leader(clock[i], fp):
+        b = profile(clock[i] / fp[F.LEAD_DURATION])
+        if b != 0.0:
+            cap = max_speed * (1.0 + fp[F.LEAD_BOOST] * b)
+            speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+            moving = True
+            if escape[i, 0] != 0.0 or escape[i, 1] != 0.0 or escape[i, 2] != 0.0:
+                dx, dy, dz = escape[i, 0], escape[i, 1], escape[i, 2]
+            elif speed > 0.0:
+                dx, dy, dz = vx / speed, vy / speed, vz / speed
+            else:
+                dx = dy = dz = 0.0
+                moving = False
+            if moving:
+                size = fp[F.LEAD_GAIN] * b * max(speed, fp[F.SLOW_SPEED])
+                dvx, dvy, dvz = size * dx, size * dy, size * dz
+    return dvx, dvy, dvz, cap

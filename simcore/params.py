@@ -22,7 +22,8 @@ from .schema import (ConfigError, apply_overrides, build, check_choice as _choic
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
 
-PERCEPTION_KINDS = ("sphere", "opensteer", "binocular")
+PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
+SEARCHES = ("auto", "grid", "all_pairs")
 DYNAMICS = ("opensteer", "hartman_benes")
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
@@ -46,6 +47,7 @@ PERCEPTION_KIND_KEYS = {
                   "alignment_cos", "cohesion_radius", "cohesion_cos"),
     "binocular": ("direction_deg", "eye_position_deg", "field_deg", "range", "head_radius",
                   "occlusion", "body_radius"),
+    "topological": ("neighbours", "max_distance", "blind_deg"),
 }
 
 
@@ -72,9 +74,22 @@ class Perception:
     head_radius: float = 0.5
     occlusion: bool = True
     body_radius: float = 0.5
+    # topological (Ballerini et al. 2008): the k nearest, optionally within max_distance, none in the blind cone
+    neighbours: int = 7
+    max_distance: float | None = None  # None: no distance limit
+    blind_deg: float = 0.0             # full angle of the blind cone behind the boid; 0: none
+    # how neighbours are found; every choice gives bit-identical results, so it is not part of a run's identity
+    search: str = "auto"
 
     def __post_init__(self):
         _choice("perception.kind", self.kind, PERCEPTION_KINDS)
+        _choice("perception.search", self.search, SEARCHES)
+        if self.neighbours < 1:
+            raise ConfigError("perception.neighbours", f"got {self.neighbours!r}; must be an integer >= 1")
+        if self.max_distance is not None:
+            _positive("perception.max_distance", self.max_distance)
+        if not (math.isfinite(self.blind_deg) and 0.0 <= self.blind_deg < 360.0):
+            raise ConfigError("perception.blind_deg", f"got {self.blind_deg!r}; allowed range [0, 360)")
         _positive("perception.radius", self.radius)
         _non_negative("perception.near_radius", self.near_radius)
         for rule in ("separation", "alignment", "cohesion"):
@@ -94,7 +109,8 @@ class Perception:
         return self.direction_deg if self.eye_position_deg is None else self.eye_position_deg
 
     def resolved(self) -> dict:
-        """The keys that matter for this kind, with defaults resolved (canonical form)."""
+        """The keys that matter for this kind, with defaults resolved (canonical form; ``search`` is left
+        out because every search gives the same results)."""
         keys = ("kind",) + PERCEPTION_KIND_KEYS[self.kind]
         out = {key: getattr(self, key) for key in keys}
         if self.kind == "binocular":
@@ -259,6 +275,9 @@ class ModelParams:
         if self.dynamics == "hartman_benes" and self.perception.kind != "sphere":
             raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics 'hartman_benes' "
                                                  "uses the visibility sphere: set perception.kind = 'sphere'")
+        if self.leadership.enabled and not math.isfinite(self.perception_range):
+            raise ConfigError("perception.max_distance", "the change of leadership measures eccentricity against "
+                                                         "the perception range: set perception.max_distance")
 
     @property
     def slow_speed(self) -> float:
@@ -267,30 +286,64 @@ class ModelParams:
 
     @property
     def perception_range(self) -> float:
-        """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius)."""
+        """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius,
+        topological max_distance; infinite for a topological perception without one)."""
         per = self.perception
+        if per.kind == "topological":
+            return math.inf if per.max_distance is None else per.max_distance
         return {"sphere": per.radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
 
 
 @dataclass(frozen=True)
 class InitParams:
-    """Initial conditions (docs/model.md, initial conditions): N boids uniform in a ball, headings uniform on the
-    sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``."""
+    """Initial conditions (docs/model.md section 0.5): N boids uniform in a ball, headings uniform on the
+    sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``. Or the state
+    in ``from_file`` (:mod:`simcore.initfile`): then ``n`` must be the file's boid count (a preset may
+    leave it out) and ``from_file_sha256`` is the file's digest (filled in; checked when given)."""
 
     n: int = 100
     radius: float = 20.0
     speed: float = 2.7
     scale_with_n: bool = False
+    from_file: str | None = None
+    from_file_sha256: str | None = None
 
     def __post_init__(self):
         if self.n < 1:
             raise ConfigError("init.n", f"got {self.n!r}; must be an integer >= 1")
         _positive("init.radius", self.radius)
         _non_negative("init.speed", self.speed)
+        if self.from_file is None:
+            if self.from_file_sha256 is not None:
+                raise ConfigError("init.from_file_sha256", "applies only with init.from_file")
+            return
+        from .initfile import boid_count, file_digest
+
+        count, digest = boid_count(self.from_file), file_digest(self.from_file)
+        if self.n != count:
+            raise ConfigError("init.n", f"got {self.n!r}, but init.from_file {self.from_file!r} holds {count} boids: "
+                                        f"set init.n = {count} or leave it out")
+        if self.from_file_sha256 is None:
+            object.__setattr__(self, "from_file_sha256", digest)
+        elif self.from_file_sha256 != digest:
+            raise ConfigError("init.from_file", f"{self.from_file!r} changed since this spec was made (its SHA-256 is "
+                                                f"{digest}, the spec says {self.from_file_sha256})")
 
     @property
     def ball_radius(self) -> float:
         return self.radius * (self.n / 100.0) ** (1.0 / 3.0) if self.scale_with_n else self.radius
+
+
+def init_dict(init: InitParams) -> dict:
+    """Canonical resolved dict of the initial conditions: the file keys only when a file is used, and then
+    without the keys of the random draw it replaces (so adding the option changed no existing run id)."""
+    out = to_dict(init)
+    if init.from_file is None:
+        del out["from_file"], out["from_file_sha256"]
+    else:
+        for key in ("radius", "speed", "scale_with_n"):
+            del out[key]
+    return out
 
 
 @dataclass(frozen=True)
@@ -340,7 +393,7 @@ class Preset:
     def to_dict(self) -> dict:
         """Canonical resolved form: every key that matters, defaults filled in, keys of other
         perception kinds left out. ``preset_from_dict(p.to_dict()) == p`` up to that resolution."""
-        return {**model_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
+        return {**model_dict(self.model), "init": init_dict(self.init), "run": to_dict(self.run)}
 
     def replace(self, changes: dict | None = None, /, **values) -> "Preset":
         """A copy with dotted keys set: ``p.replace({"perception.field_deg": 90, "n": 50})`` or
@@ -426,6 +479,10 @@ def preset_from_dict(data: dict) -> Preset:
     for name, table in (("init", init), ("run", run)):
         if not isinstance(table, dict):
             raise ConfigError(name, f"expected a table, got {table!r}")
+    if isinstance(init.get("from_file"), str) and "n" not in init:
+        from .initfile import boid_count
+
+        init = {**init, "n": boid_count(init["from_file"])}
     return Preset(model=build(ModelParams, data), init=build(InitParams, init, "init"),
                   run=build(RunSettings, run, "run"))
 

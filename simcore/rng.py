@@ -1,6 +1,6 @@
 """Randomness: SeedSequence-based initial-condition generators and counter-based in-loop draws.
 
-MODEL.md section 7. A run's seed (an int >= 0 or a tuple of ints) becomes a ``numpy.random.SeedSequence``;
+docs/model.md section 7. A run's seed (an int >= 0 or a tuple of ints) becomes a ``numpy.random.SeedSequence``;
 its first child seeds the ``Generator(PCG64)`` for initial conditions, its second child gives a 64-bit
 ``loop_key`` for draws made inside the compiled loop.
 
@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+
+from .jit import inline
 
 STREAM_LEADERSHIP = 1
 STREAM_RANDOM_FORCE = 2
@@ -48,14 +49,14 @@ def run_streams(seed) -> tuple[np.random.Generator, np.uint64]:
     return np.random.Generator(np.random.PCG64(init_ss)), loop_ss.generate_state(1, np.uint64)[0]
 
 
-@nb.njit(cache=True, inline="always")
+@inline
 def _mix(z):
     z = (z ^ (z >> np.uint64(30))) * _M1
     z = (z ^ (z >> np.uint64(27))) * _M2
     return z ^ (z >> np.uint64(31))
 
 
-@nb.njit(cache=True)
+@inline
 def hash4(key, stream, step, index):
     """64-bit hash of (key, stream, step, index); all arguments are converted to uint64."""
     h = _mix(np.uint64(key) + _GOLDEN)
@@ -64,13 +65,13 @@ def hash4(key, stream, step, index):
     return _mix(h ^ (np.uint64(index) + _GOLDEN))
 
 
-@nb.njit(cache=True)
+@inline
 def uniform01(key, stream, step, index):
     """Uniform double in [0, 1) from the top 53 bits of ``hash4``."""
     return np.float64(hash4(key, stream, step, index) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@nb.njit(cache=True)
+@inline
 def normal(key, stream, step, index):
     """Standard normal draw (Box-Muller) for (key, stream, step, index)."""
     u1 = uniform01(key, stream, step, np.uint64(2) * np.uint64(index))

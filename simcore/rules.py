@@ -1,4 +1,4 @@
-"""OpenSteer steering rules and Holland's pattern weighting (MODEL.md section 3). Compiled with numba.
+"""OpenSteer steering rules and Holland's pattern weighting (docs/model.md section 3). Compiled with numba.
 
 ``opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask)`` returns the combined steering
 force (fx, fy, fz) of boid i from its ``m`` perceived neighbours (buffers as in :mod:`simcore.perception`):
@@ -17,15 +17,14 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
-from .layout import (F_ALI_W, F_COH_W, F_SEP_FALLOFF, F_SEP_W, I_NBITS, I_PATTERNS, I_SEP_WEIGHT, SEPW_DISSIMILARITY,
-                     SEPW_SIMILARITY)
-from .perception import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
+from .jit import inline
+from .layout import F, I, SEPW_DISSIMILARITY, SEPW_SIMILARITY
+from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def popcount32(x):
     """Number of set bits of a 32-bit pattern."""
     x = np.uint32(x)
@@ -35,13 +34,13 @@ def popcount32(x):
     return np.int64((x * np.uint32(0x01010101)) >> np.uint32(24))
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def similarity(a, b, n_bits):
     """Holland's pattern match in [0, 1]: share of equal bits of two n-bit patterns."""
     return (n_bits - popcount32(np.uint32(a) ^ np.uint32(b))) / n_bits
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def normalized(x, y, z):
     """(x, y, z) / |(x, y, z)|, or zeros for the zero vector."""
     n = math.sqrt(x * x + y * y + z * z)
@@ -50,12 +49,12 @@ def normalized(x, y, z):
     return 0.0, 0.0, 0.0
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
     """Combined steering force of boid i (see module docstring)."""
-    use_patterns = ip[I_PATTERNS] != 0
-    n_bits = ip[I_NBITS]
-    sep_mode = ip[I_SEP_WEIGHT]
+    use_patterns = ip[I.PATTERNS] != 0
+    n_bits = ip[I.NBITS]
+    sep_mode = ip[I.SEP_WEIGHT]
     sx = sy = sz = 0.0
     ax = ay = az = 0.0
     cx = cy = cz = 0.0
@@ -93,21 +92,21 @@ def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
         ax, ay, az = normalized(ax / w_ali - fwd[i, 0], ay / w_ali - fwd[i, 1], az / w_ali - fwd[i, 2])
     if w_coh > 0.0:
         cx, cy, cz = normalized(cx / w_coh, cy / w_coh, cz / w_coh)
-    ws_, wa_, wc_ = fp[F_SEP_W], fp[F_ALI_W], fp[F_COH_W]
+    ws_, wa_, wc_ = fp[F.SEP_W], fp[F.ALI_W], fp[F.COH_W]
     return (ws_ * sx + wa_ * ax + wc_ * cx,
             ws_ * sy + wa_ * ay + wc_ * cy,
             ws_ * sz + wa_ * az + wc_ * cz)
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def hartman_benes_forces(i, m, vel, fp, nb_idx, nb_off):
-    """Hartman-Benes steers of boid i from its m visible boids (MODEL.md section 5):
+    """Hartman-Benes steers of boid i from its m visible boids (docs/model.md section 5):
     s = sum_j (p_i - p_j) / |p_i - p_j|^f (f = gains.separation_falloff_exponent; 0 = the paper's literal
     sum), k = mean_j d_j (= c_i - p_i), mv = mean_j v_j; all zero when m = 0. Returns 9 floats."""
     sx = sy = sz = 0.0
     kx = ky = kz = 0.0
     mx = my = mz = 0.0
-    falloff = fp[F_SEP_FALLOFF]
+    falloff = fp[F.SEP_FALLOFF]
     for n in range(m):
         j = nb_idx[n]
         dx, dy, dz = nb_off[n, 0], nb_off[n, 1], nb_off[n, 2]
@@ -136,7 +135,7 @@ def hartman_benes_forces(i, m, vel, fp, nb_idx, nb_off):
     return sx, sy, sz, kx, ky, kz, mx, my, mz
 
 
-@nb.njit(cache=True, error_model="numpy", inline="always")
+@inline
 def cohesion_offset(m, nb_off, nb_mask):
     """(k_x, k_y, k_z, count): mean offset to the neighbours in the cohesion set (leadership's k_i)."""
     kx = ky = kz = 0.0
@@ -148,5 +147,5 @@ def cohesion_offset(m, nb_off, nb_mask):
             kz += nb_off[n, 2]
             count += 1
     if count > 0:
-        return kx / count, ky / count, kz / count, count
-    return 0.0, 0.0, 0.0, 0
+        kx, ky, kz = kx / count, ky / count, kz / count
+    return kx, ky, kz, count

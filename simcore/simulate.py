@@ -1,8 +1,8 @@
 """The public entry point: simulate one run (or a batch of replicates) and return its observations.
 
 ``simulate(model, init, seed, duration, dt, record_every)`` draws the initial state from the seed
-(MODEL.md section 7), runs ``round(duration / dt)`` steps in one compiled call and returns
-:class:`Observations` (MODEL.md section 8), recorded at steps 0, k, 2k, ... with k = ``record_every``:
+(docs/model.md section 7), runs ``round(duration / dt)`` steps in one compiled call and returns
+:class:`Observations` (docs/model.md section 8), recorded at steps 0, k, 2k, ... with k = ``record_every``:
 
 * ``times``      float64 (R,)       seconds
 * ``pos``, ``vel`` float64 (R, N, 3)
@@ -15,11 +15,20 @@
 
 ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
 result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
+
+Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step of one synchronous run
+over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
+use numba's thread count and smaller ones one thread, and sequential runs are always serial (boid i
+waits for boid i - 1). Every boid is computed by the same code either way: results are bit-identical
+for any thread count.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 
+import numba
 import numpy as np
 
 from . import kernel
@@ -29,6 +38,7 @@ from .rng import run_streams
 from .state import FIELDS, State, initial_state
 
 MODEL_VERSION = "1"  # bump whenever a change alters any trajectory for an unchanged spec
+THREADED_MIN_N = 2000  # synchronous runs with this many boids use all of numba's threads by default
 
 
 @dataclass(frozen=True)
@@ -48,6 +58,26 @@ class Observations:
     @property
     def n(self) -> int:
         return self.pos.shape[1]
+
+
+_NOTICE_SHOWN = False
+
+
+def _notice_compile(dispatcher) -> None:
+    """Tell the user, once per process, when a kernel is about to be compiled rather than loaded from
+    numba's on-disk cache (the first run after installing or editing simcore)."""
+    global _NOTICE_SHOWN
+    if _NOTICE_SHOWN or dispatcher.signatures:
+        return
+    _NOTICE_SHOWN = True
+    try:
+        name = f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.py_func.__qualname__}-*.nbi"
+        cached = any(Path(dispatcher._cache.cache_path).glob(name))
+    except (AttributeError, OSError):
+        return
+    if not cached:
+        print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
+              "this takes a minute or so) ...", file=sys.stderr, flush=True)
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -88,34 +118,58 @@ def _check_record_every(record_every) -> int:
     return int(record_every)
 
 
+def _thread_count(model: ModelParams, n: int, threads) -> int:
+    """Threads for one run: the request, or the default of the module docstring; 1 for sequential order."""
+    if threads is None:
+        threads = numba.get_num_threads() if n >= THREADED_MIN_N else 1
+    if isinstance(threads, bool) or int(threads) != threads or threads < 1:
+        raise ValueError(f"threads: got {threads!r}; must be an integer >= 1 (or None: automatic)")
+    return 1 if model.world.update_order == "sequential" else int(threads)
+
+
 def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
-            key: int = 0) -> Observations:
+            key: int = 0, threads: int | None = None) -> Observations:
     """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched. ``key`` is the run's
-    key for in-loop draws (leadership)."""
+    key for in-loop draws (leadership); ``threads`` as in the module docstring."""
     record_every = _check_record_every(record_every)
+    threads = _thread_count(model, state.n, threads)
     s = state.copy()
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
-    kernel.run_model(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip,
-                     np.uint64(key), n_steps, record_every, *rec)
+    args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
+            n_steps, record_every, *rec)
+    if threads == 1:
+        _notice_compile(kernel.run_model)
+        kernel.run_model(*args)
+    else:
+        from .threaded import run_threaded
+
+        _notice_compile(run_threaded)
+        previous = numba.get_num_threads()
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+        try:
+            run_threaded(*args, threads)
+        finally:
+            numba.set_num_threads(previous)
     times = np.arange(n_records) * (record_every * dt)
     return _observations(times, rec, s, dt, record_every)
 
 
 def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
-             record_every: int = 1) -> Observations:
+             record_every: int = 1, threads: int | None = None) -> Observations:
     """Simulate one run from its seed (see module docstring)."""
     n_steps = _n_steps(duration, dt)
     rng, loop_key = run_streams(seed)
-    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key)
+    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key, threads)
 
 
-def simulate_preset(preset: Preset, seed, record_every: int | None = None) -> Observations:
+def simulate_preset(preset: Preset, seed, record_every: int | None = None,
+                    threads: int | None = None) -> Observations:
     """``simulate`` with the model, initial conditions and run settings of a preset."""
     run = preset.run
     every = run.record_every if record_every is None else record_every
-    return simulate(preset.model, preset.init, seed, run.duration, run.dt, every)
+    return simulate(preset.model, preset.init, seed, run.duration, run.dt, every, threads)
 
 
 def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
@@ -130,6 +184,7 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
+    _notice_compile(kernel.run_batch)
     kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,

@@ -1,4 +1,4 @@
-"""Simulation state as arrays (MODEL.md section 1) and its initial conditions (section 0).
+"""Simulation state as arrays (docs/model.md section 1) and its initial conditions (section 0).
 
 :class:`State` holds, for N boids: ``pos``, ``vel``, ``fwd``, ``up``, ``side``, ``acc`` (float64 (N, 3);
 ``side`` = normalize(fwd x up), kept with the frame), ``pattern`` (uint32 (N,)) and the leadership
@@ -73,8 +73,43 @@ def frame_from_forward(fwd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return up, side
 
 
+def _pattern_draw(patterns: Patterns, n: int, rng: np.random.Generator) -> np.ndarray:
+    values = np.array([p.value for p in patterns.set], dtype=np.uint32)
+    return np.repeat(values, pattern_counts(patterns, n))[rng.permutation(n)]
+
+
+def state_from_file(init: InitParams, patterns: Patterns, rng: np.random.Generator) -> State:
+    """The state in ``init.from_file`` (:mod:`simcore.initfile`); patterns from the file in pattern mode,
+    else drawn from ``rng`` as for a random start."""
+    from .initfile import file_digest, read_state_file
+    from .schema import ConfigError
+
+    if file_digest(init.from_file) != init.from_file_sha256:
+        raise ConfigError("init.from_file", f"{init.from_file!r} changed since this run's spec was made")
+    data = read_state_file(init.from_file)
+    n = len(data["pos"])
+    fwd = data["fwd"]
+    if data["up"] is None:
+        up, side = frame_from_forward(fwd)
+    else:
+        up = data["up"]
+        side = np.cross(fwd, up)
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+    pattern = np.zeros(n, dtype=np.uint32)
+    if patterns.enabled:
+        pattern = _pattern_draw(patterns, n, rng) if data["pattern"] is None else data["pattern"]
+        if (pattern >> np.uint32(patterns.n_bits)).any() and patterns.n_bits < 32:
+            raise ConfigError("init.from_file", f"{init.from_file!r}: patterns do not fit in {patterns.n_bits} bits")
+    acc = np.zeros((n, 3)) if data["acc"] is None else data["acc"]
+    return State(pos=data["pos"].copy(), vel=data["vel"].copy(), fwd=fwd.copy(), up=up.copy(),
+                  side=side, acc=acc.copy(), pattern=np.ascontiguousarray(pattern, dtype=np.uint32))
+
+
 def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator) -> State:
-    """Initial state of ``init.n`` boids drawn from ``rng`` (see module docstring)."""
+    """Initial state of ``init.n`` boids drawn from ``rng`` (see module docstring), or read from
+    ``init.from_file``."""
+    if init.from_file is not None:
+        return state_from_file(init, patterns, rng)
     n = init.n
     direction = rng.standard_normal((n, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
@@ -83,8 +118,7 @@ def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator
     fwd = rng.standard_normal((n, 3))
     fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
     up, side = frame_from_forward(fwd)
-    values = np.array([p.value for p in patterns.set], dtype=np.uint32)
-    pattern = np.repeat(values, pattern_counts(patterns, n))[rng.permutation(n)]
+    pattern = _pattern_draw(patterns, n, rng)
     if not patterns.enabled:
         pattern = np.zeros(n, dtype=np.uint32)
     return State(pos=pos, vel=fwd * init.speed, fwd=fwd, up=up, side=side, acc=np.zeros((n, 3)),

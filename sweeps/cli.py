@@ -27,11 +27,7 @@ import os
 import sys
 from pathlib import Path
 
-from analysis.observables.summary import summary_columns
-from simcore import ConfigError, load_preset
-from simcore.params import RUN_SHORTHANDS
-
-from .store import StoreLocked
+from simcore.schema import ConfigError
 
 
 def _add_simulate(sub) -> None:
@@ -51,13 +47,25 @@ def _add_simulate(sub) -> None:
                    help="save a PNG of the 3-D traces (into --out, default results/simulate/NAME-seedS/)")
     p.add_argument("--color-by", choices=("auto", "boid", "pattern"), default="auto",
                    help="trace colours: one per boid, or per pattern (auto: pattern in pattern mode)")
+    p.add_argument("--init-state", type=Path, metavar="FILE",
+                   help="start from the state in FILE (.npz with pos, vel or fwd + speed, optional up, acc, "
+                        "pattern; or a trajectory.npz, whose last record is used); sets init.from_file and init.n")
 
 
 def cmd_simulate(args) -> int:
-    from analysis.reports.traces import plot_traces, wrap_distance
+    import json
+
+    from simcore import load_preset
+    from simcore.params import RUN_SHORTHANDS
     from sweeps.single import run_single
 
     overrides = list(args.overrides)
+    if args.init_state is not None:
+        from simcore.initfile import boid_count
+
+        overrides.append(f"init.from_file={json.dumps(str(args.init_state))}")
+        if args.n is None:
+            overrides.append(f"init.n={boid_count(args.init_state)}")
     for short in ("n", "duration", "dt"):  # the [run] shorthands of sweep files
         if getattr(args, short) is not None:
             overrides.append(f"{RUN_SHORTHANDS[short]}={getattr(args, short)!r}")
@@ -71,6 +79,8 @@ def cmd_simulate(args) -> int:
         out = Path("results") / "simulate" / f"{preset.model.name}-seed{args.seed}"
     summary, written, obs = run_single(preset, args.seed, out, args.record_every)
     if args.plot:
+        from analysis.reports.traces import plot_traces, wrap_distance
+
         title = (f"{preset.model.name}: N={obs.n}, {obs.times[-1]:g} s, seed {args.seed}, "
                  f"final polarization {summary['final_polarization']:.2f}")
         written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
@@ -146,6 +156,8 @@ def cmd_run(args) -> int:
 
 
 def _parse_until_ci(text: str) -> tuple[str, float]:
+    from analysis.observables.summary import summary_columns
+
     metric, _, value = text.partition("=")
     try:
         target = float(value)
@@ -402,9 +414,12 @@ def main(argv=None) -> int:
     except ConfigError as err:
         print(f"flocksweep: config error: {err}", file=sys.stderr)
         return 2
-    except StoreLocked as err:
-        print(f"flocksweep: {err}", file=sys.stderr)
-        return 3
+    except Exception as err:
+        store = sys.modules.get("sweeps.store")  # imported only by the commands that lock a results directory
+        if store is not None and isinstance(err, store.StoreLocked):
+            print(f"flocksweep: {err}", file=sys.stderr)
+            return 3
+        raise
 
 
 if __name__ == "__main__":

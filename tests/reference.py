@@ -1,10 +1,11 @@
-"""Slow, plain reference implementation of MODEL.md sections 0-3 (opensteer dynamics).
+"""Slow, plain reference implementation of docs/model.md sections 0-3 (opensteer dynamics), and of the
+topological perception (docs/model.md).
 
 Written independently of ``simcore``'s kernel (only the parameter dataclasses are shared) so the
 fast kernel can be checked against it step by step. Everything is float64, explicit Python loops
 over boids, neighbours summed in ascending index order. Not meant to be fast.
 
-Project decisions beyond MODEL.md's text ("decision n" below) follow the kernel's: e.g. side
+Project decisions beyond the spec's text ("decision n" below) follow the kernel's: e.g. side
 s = normalize(f x u), exact trig at multiples of 90 degrees, minimum-image offsets in a periodic box.
 """
 from __future__ import annotations
@@ -27,7 +28,7 @@ def norm3(v) -> float:
 
 
 def normalize(v) -> np.ndarray:
-    """MODEL.md sec 3: normalize(0) = 0."""
+    """docs/model.md section 3: normalize(0) = 0."""
     n = norm3(v)
     return v / n if n > 0 else np.zeros(3)
 
@@ -53,7 +54,7 @@ def sin_deg(x: float) -> float:
 
 
 def offset(p_i, p_j, box=None) -> np.ndarray:
-    """d = p_j - p_i; minimum image in a periodic box of side ``box`` (MODEL.md sec 0, decision 4)."""
+    """d = p_j - p_i; minimum image in a periodic box of side ``box`` (docs/model.md section 0.4, decision 16)."""
     d = np.asarray(p_j, dtype=np.float64) - np.asarray(p_i, dtype=np.float64)
     if box is not None:
         d = d - box * np.floor(d / box + 0.5)
@@ -61,11 +62,11 @@ def offset(p_i, p_j, box=None) -> np.ndarray:
 
 
 def similarity(b_i, b_j, n_bits: int) -> float:
-    """Pattern similarity w_ij = (n - popcount(b_i xor b_j)) / n (MODEL.md sec 3)."""
+    """Pattern similarity w_ij = (n - popcount(b_i xor b_j)) / n (docs/model.md section 3)."""
     return (n_bits - bin(int(b_i) ^ int(b_j)).count("1")) / n_bits
 
 
-# perception (MODEL.md sec 2)
+# perception (docs/model.md section 2)
 def _result(sets: dict, labels: dict, hidden: list) -> dict:
     union = sorted(set(sets["separation"]) | set(sets["alignment"]) | set(sets["cohesion"]))
     out = {rule: sorted(sets[rule]) for rule in RULES}
@@ -74,7 +75,7 @@ def _result(sets: dict, labels: dict, hidden: list) -> dict:
 
 
 def perceive(i, pos, fwd, side, model, box=None) -> dict:
-    """Neighbour sets of boid i (MODEL.md sec 2; decisions 1-5). See module docstring for the keys."""
+    """Neighbour sets of boid i (docs/model.md section 2 and its decisions in section 10). See module docstring for the keys."""
     per = model.perception
     offsets = {j: offset(pos[i], pos[j], box) for j in range(len(pos)) if j != i}
 
@@ -97,6 +98,20 @@ def perceive(i, pos, fwd, side, model, box=None) -> dict:
                     members.append(j)
             sets[rule] = members
         return _result(sets, {}, [])
+
+    if per.kind == "topological":  # the k nearest eligible, ties by index (Ballerini et al. 2008)
+        limit2 = math.inf if per.max_distance is None else per.max_distance * per.max_distance
+        cos_half_blind = cos_deg(per.blind_deg / 2.0)
+        ranked = []
+        for j, d in offsets.items():
+            d2 = dot3(d, d)
+            if not d2 < limit2:
+                continue
+            if per.blind_deg > 0 and dot3(fwd[i], d) < -cos_half_blind * math.sqrt(d2):
+                continue  # in the blind cone behind
+            ranked.append((d2, j))
+        chosen = [j for _, j in sorted(ranked)[:per.neighbours]]
+        return _result({rule: chosen for rule in RULES}, {}, [])
 
     if per.kind != "binocular":
         raise ValueError(f"unknown perception kind {per.kind!r}")
@@ -138,9 +153,9 @@ def perceive(i, pos, fwd, side, model, box=None) -> dict:
     return _result({rule: visible for rule in RULES}, labels, hidden)
 
 
-# steering (MODEL.md sec 3, decision 6)
+# steering (docs/model.md section 3, decisions 7-9)
 def steering_force(i, sets, pos, fwd, pattern, model, box=None) -> np.ndarray:
-    """w_s S + w_a A + w_c C for boid i from its neighbour sets (MODEL.md sec 3).
+    """w_s S + w_a A + w_c C for boid i from its neighbour sets (docs/model.md section 3).
 
     Without patterns every weight is 1, so the weighted sums below are the plain sums and means.
     A rule with an empty set, or (pattern mode) whose weights sum to 0, contributes 0."""
@@ -186,9 +201,9 @@ def steering_force(i, sets, pos, fwd, pattern, model, box=None) -> np.ndarray:
             + st.cohesion_weight * cohesion)
 
 
-# vehicle physics, frame, boundary (MODEL.md sec 3 steps 1-6, sec 1, sec 0; decisions 7-8)
+# vehicle physics, frame, boundary (docs/model.md section 3 steps 1-6, sec 1, sec 0; decisions 10-11)
 def apply_boundary(p, world) -> np.ndarray:
-    """MODEL.md sec 0: sphere_wrap reflects through the centre; periodic_box wraps into [-L/2, L/2)."""
+    """docs/model.md section 0: sphere_wrap reflects through the centre; periodic_box wraps into [-L/2, L/2)."""
     if world.boundary == "sphere_wrap":
         r = norm3(p)
         if r > world.sphere_radius:
@@ -242,7 +257,7 @@ def move(i, force, state, model, dt) -> None:
 
 
 def step(pos, vel, fwd, up, side, acc, pattern, model, dt) -> dict:
-    """One time step on copies of the inputs (MODEL.md sec 0 update order, decisions 9-10)."""
+    """One time step on copies of the inputs (docs/model.md section 0.3 update order, decisions 12 and 28)."""
     names = ("pos", "vel", "fwd", "up", "side", "acc")
     inputs = {k: np.array(a, dtype=np.float64, copy=True) for k, a in zip(names, (pos, vel, fwd, up, side, acc))}
     state = {k: a.copy() for k, a in inputs.items()}

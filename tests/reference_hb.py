@@ -1,19 +1,19 @@
-"""Slow, plain reference of MODEL.md section 5: Hartman-Benes dynamics and the change of leadership.
+"""Slow, plain reference of docs/model.md section 5: Hartman-Benes dynamics and the change of leadership.
 
-Written from MODEL.md (sections 0, 1, 5, 7) and the project decisions stated in the docstrings of
+Written from docs/model.md (sections 0, 1, 5, 7) and the project decisions stated in the docstrings of
 ``simcore.rules``, ``simcore.dynamics`` and ``simcore.leadership``; it shares no code with the kernel
 except the counter-based normal draw ``simcore.rng.normal`` (the draws are part of the specification:
 a pure function of (run key, stream, step, boid)). Everything is float64, explicit Python loops over
 boids, neighbours summed in ascending index order. Not meant to be fast.
 
-Decisions followed (beyond MODEL.md's text):
+Decisions followed (beyond the spec's text):
 
 * D1 separation s = sum_j (p_i - p_j) / |p_i - p_j|^f, f = ``gains.separation_falloff_exponent``;
   a neighbour at distance 0 adds nothing. k = mean_j (p_j - p_i), mv = mean_j v_j over the sphere
   neighbours (|d| < radius, compared squared); all zero when there are none.
 * D2 p' = p + dt v (old velocity); v' = v + (S s + K k)/dt + M mv (+ escape dv), truncated to the cap
   (max_speed, or a leader's raised cap); acc = (v' - v)/dt drives the banking frame.
-* D3 the frame is rebuilt as in MODEL.md section 1 even for a stopped boid (forward kept); when f is
+* D3 the frame is rebuilt as in docs/model.md section 1 even for a stopped boid (forward kept); when f is
   parallel to the new up, side falls back to the old side made orthogonal to f. Then the boundary.
 * D4 leadership trigger (only when ``leadership.x > 0``), per boid, in this order: not a leader and
   not refractory (clock >= duration + refractory - dt/2); m >= 1; |k| > 0; eccentricity x = |k| / e;
@@ -36,7 +36,7 @@ import numpy as np
 
 from simcore.rng import STREAM_LEADERSHIP, normal
 
-# The escape profile of MODEL.md section 5 (Figure 5 of the paper, 30 samples equally spaced on [0, 1]).
+# The escape profile of docs/model.md section 5 (Figure 5 of the paper, 30 samples equally spaced on [0, 1]).
 PROFILE_SAMPLES = (0.01, 0.05, 0.10, 0.16, 0.27, 0.40, 0.55, 0.72, 0.85, 0.96,
                    1.00, 0.98, 0.90, 0.80, 0.65, 0.51, 0.36, 0.25, 0.18, 0.14,
                    0.12, 0.10, 0.08, 0.07, 0.06, 0.05, 0.04, 0.03, 0.02, 0.00)
@@ -66,7 +66,7 @@ def clamp_length(v, limit: float) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------
-# world (MODEL.md section 0)
+# world (docs/model.md section 0)
 def box_of(model):
     """Side of the periodic box, or None for the other boundaries."""
     return model.world.box_size if model.world.boundary == "periodic_box" else None
@@ -92,7 +92,7 @@ def boundary(p, world) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------------
-# perception and the Hartman-Benes terms (MODEL.md sections 2 and 5, decision D1)
+# perception and the Hartman-Benes terms (docs/model.md sections 2 and 5, decision D1)
 def neighbours(i, pos, radius, box=None) -> list:
     """Ascending j != i with |p_j - p_i| < radius."""
     out = []
@@ -126,7 +126,7 @@ def hb_terms(i, nbrs, pos, vel, falloff, box=None):
 
 
 # ---------------------------------------------------------------------------------------------------
-# change of leadership (MODEL.md section 5, decisions D4-D5)
+# change of leadership (docs/model.md section 5, decisions D4-D5)
 def profile(u: float) -> float:
     """Escape profile b(u): the samples linearly interpolated on [0, 1), 0 elsewhere."""
     if not (0.0 <= u < 1.0):
@@ -203,7 +203,7 @@ def escape(v, clock_i, direction, model, dt):
 
 
 # ---------------------------------------------------------------------------------------------------
-# motion (MODEL.md sections 5 and 1, decisions D2-D3)
+# motion (docs/model.md sections 5 and 1, decisions D2-D3)
 def move(i, s, k, mv, dv, cap, state, model, dt) -> None:
     """One Hartman-Benes frame of boid i, in place in ``state``."""
     g = model.gains

@@ -72,8 +72,6 @@ def test_docs_and_configs_point_nowhere_outside_the_repository():
     assert not hits, "references to files outside the repository:\n" + "\n".join(hits)
 
 
-@pytest.mark.xfail(strict=True, reason="code docstrings still cite the external MODEL.md; they are to cite "
-                                       "docs/model.md sections instead (remove this marker once they do)")
 def test_code_points_nowhere_outside_the_repository():
     paths = tracked_files(".py")
     assert any(path.relative_to(ROOT).as_posix() == "simcore/params.py" for path in paths)
@@ -126,7 +124,7 @@ def documented_rows() -> dict[str, list[str]]:
         cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
         if not line.startswith("|") or len(cells) != 4:
             continue
-        match = re.fullmatch(r"`([a-z_]+(?:\[k\])?(?:\.[a-z_]+(?:\[k\])?)*)`", cells[0])
+        match = re.fullmatch(r"`([a-z_][a-z0-9_]*(?:\[k\])?(?:\.[a-z_][a-z0-9_]*(?:\[k\])?)*)`", cells[0])
         if match is None:
             continue
         assert match.group(1) not in rows, f"key {match.group(1)} documented twice"

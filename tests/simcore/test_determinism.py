@@ -1,4 +1,4 @@
-"""Determinism and reproducibility (MODEL.md section 7) and the initial pattern draw (section 3).
+"""Determinism and reproducibility (docs/model.md section 7) and the initial pattern draw (section 3).
 
 Same spec => bit-identical trajectories: twice in a row, batched or alone, and in a fresh Python process.
 Different seeds give different runs. Pattern counts follow the largest-remainder rule.

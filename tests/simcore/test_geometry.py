@@ -1,4 +1,4 @@
-"""Perception geometry checked against cases worked out by hand (MODEL.md section 2).
+"""Perception geometry checked against cases worked out by hand (docs/model.md section 2).
 
 Every case puts the observer, boid 0, at the origin heading +x, so its frame is
 fwd f = (1, 0, 0), up = (0, 1, 0), side s = f x up = (0, 0, 1): +z is the observer's right, -z its left.

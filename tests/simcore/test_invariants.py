@@ -1,4 +1,4 @@
-"""Invariants of the OpenSteer dynamics that must hold at every step (MODEL.md sections 0-3).
+"""Invariants of the OpenSteer dynamics that must hold at every step (docs/model.md sections 0-3).
 
 Speed cap, force truncation, an orthonormal right-handed body frame, the two world boundaries (sphere wrap
 and periodic box with minimum-image neighbours), a stopped boid keeping its heading, and sane

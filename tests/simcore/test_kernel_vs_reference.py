@@ -58,6 +58,19 @@ CASES = [
     ("binocular-noocc-200-box-seq-uniform", dict(kind="binocular", occlusion=False, direction_deg=45.0,
                                                  field_deg=200.0, range=4.0, boundary="periodic_box",
                                                  order="sequential", patterns="uniform"), 1 / 60),
+    ("topological-open-sync", dict(kind="topological"), 1 / 60),
+    ("topological-blind-radius-seq-similarity", dict(kind="topological", neighbours=5, max_distance=3.0,
+                                                     blind_deg=90.0, order="sequential", patterns="similarity"),
+     1 / 60),
+    ("topological-box-sync-grid", dict(kind="topological", neighbours=4, boundary="periodic_box",
+                                       search="grid"), 1 / 60),
+    ("topological-wrap-seq-grid", dict(kind="topological", neighbours=9, blind_deg=120.0, boundary="sphere_wrap",
+                                       order="sequential", search="grid"), 1 / 30),
+    ("sphere-box-seq-grid", dict(kind="sphere", radius=2.0, boundary="periodic_box", order="sequential",
+                                 search="grid"), 1 / 60),
+    ("opensteer-open-sync-grid", dict(kind="opensteer", search="grid"), 1 / 60),
+    ("binocular-occl-360-wrap-seq-grid", dict(kind="binocular", direction_deg=0.0, field_deg=360.0, range=2.5,
+                                              boundary="sphere_wrap", order="sequential", search="grid"), 1 / 60),
 ]
 
 
@@ -154,6 +167,8 @@ def test_kernel_matches_reference_step_by_step(seed, kwargs, dt):
     assert neighbours / (N_STEPS * N_BOIDS) >= 3.0, "too few neighbours for a meaningful comparison"
     if model.perception.kind == "binocular" and model.perception.occlusion:
         assert hidden > 0, "occlusion never hid a boid"
+    if model.perception.search == "grid":
+        assert perceived(model, build_state(model, seed), 0)["grid"], "the grid was not used"
     if model.world.update_order == "synchronous":
         assert clamped > 0, "the low-speed cone clamp never acted"
     if model.world.boundary != "open":

@@ -1,4 +1,4 @@
-"""Hartman-Benes dynamics and the change of leadership (MODEL.md sections 5 and 7).
+"""Hartman-Benes dynamics and the change of leadership (docs/model.md sections 5 and 7).
 
 * the compiled Hartman-Benes step agrees with the slow reference (tests/reference_hb.py) step by step,
   with and without leadership (the reference uses the same counter-based draws);

@@ -1,5 +1,5 @@
 """simcore.rng: run seeds become reproducible generators and keys; in-loop draws are pure functions of
-(key, stream, step, index) with the right distributions (MODEL.md section 7).
+(key, stream, step, index) with the right distributions (docs/model.md section 7).
 
 Statistical tolerances are 5 standard errors from the central limit theorem for n = 100 000 draws:
 uniform mean sd(U)/sqrt(n) = sqrt(1/12/n) = 0.00091, uniform variance sqrt((1/80 - 1/144)/n) = 0.00024,

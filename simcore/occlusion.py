@@ -1,0 +1,158 @@
+"""Holland & Semwal's perspective phase: drop the completely occluded neighbours. Compiled with numba.
+
+``occlude(m, fp, nbrs)`` takes the m in-view neighbours in the buffers ``nbrs`` (:mod:`simcore.neighbours`),
+removes the hidden ones in place (keeping the order of the rest) and returns how many remain.
+
+Seen from boid i, neighbour a is a disc of angular radius rho_a = body_radius / |d_a| about the unit
+direction u_a = d_a / |d_a|. A farther k is hidden when some in-view j has rho_j > rho_k and
+|u_j - u_k| <= rho_j - rho_k (its disc contains k's); every in-view boid occludes, hidden or not, so the
+hidden set does not depend on the order of the checks. A neighbour exactly at the observer's centre
+(possible when the eyes sit off-centre) has no direction: it neither hides nor is hidden.
+
+Cost. Candidate pairs come from bins of the directions u: an occluder j can only hide a k within
+rho_j of it along every axis. With few neighbours the bins are m slices along the axis of widest spread;
+with many (``GRID_3D_MIN``) they are a 3-D grid over the directions, so an occluder meets only the
+boids whose directions lie within its own disc's reach, and the work grows with the number of such
+pairs (about (3/4) (body_radius / range)^2 m^2 in a uniform flock), not with m^2. An occluder already
+hidden "robustly" (with a margin of 1e-7 (1 + rho), far above rounding) is skipped: containment is
+transitive, so whatever it would hide, the disc hiding it hides too. Every candidate pair gets the exact
+containment test, so the hidden set is exactly that of testing every pair.
+"""
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+
+from .jit import inline, leaf
+from .layout import F
+
+# scratch rows: nbrs.occ_f float64 (4, N): the discs; nbrs.occ_i int64 (4, 2N + 66): the bins
+DISC = IntEnum("DISC", "RHO UX UY UZ", start=0)
+BINS = IntEnum("BINS", "FLAG SLOT START KEY", start=0)
+
+GRID_3D_MIN = 256     # from this many in-view neighbours on, a 3-D grid of directions
+ROBUST = 1e-7         # margin of a "robust" containment, relative to 1 + rho_j
+NOT_HIDDEN, HIDDEN, ROBUSTLY_HIDDEN = 0, 1, 2
+
+
+@inline
+def _bin(x, n_bins):
+    b = int((x + 1.0) * (0.5 * n_bins))
+    return min(max(b, 0), n_bins - 1)
+
+
+@inline
+def _discs(m, fp, nbrs):
+    """Projected radius and centre of each slot; returns the row of the axis of widest spread."""
+    body = fp[F.BODY_R]
+    disc = nbrs.occ_f
+    sum_x = sum_y = sum_z = 0.0
+    sq_x = sq_y = sq_z = 0.0
+    for a in range(m):
+        dist = math.sqrt(nbrs.off[a, 0] ** 2 + nbrs.off[a, 1] ** 2 + nbrs.off[a, 2] ** 2)
+        if dist > 0.0:
+            inv = 1.0 / dist
+            x, y, z = nbrs.off[a, 0] * inv, nbrs.off[a, 1] * inv, nbrs.off[a, 2] * inv
+            disc[DISC.RHO, a] = body * inv
+        else:
+            x = y = z = 0.0
+            disc[DISC.RHO, a] = -1.0
+        disc[DISC.UX, a], disc[DISC.UY, a], disc[DISC.UZ, a] = x, y, z
+        sum_x += x
+        sum_y += y
+        sum_z += z
+        sq_x += x * x
+        sq_y += y * y
+        sq_z += z * z
+    spread_x = sq_x - sum_x * sum_x / m
+    spread_y = sq_y - sum_y * sum_y / m
+    spread_z = sq_z - sum_z * sum_z / m
+    axis = DISC.UZ
+    if spread_x >= spread_y and spread_x >= spread_z:
+        axis = DISC.UX
+    elif spread_y >= spread_z:
+        axis = DISC.UY
+    return axis
+
+
+@inline
+def _sort_into_bins(m, disc, bins, nx, ny, nz, axis):
+    """Counting sort of the slots by bin: bins[START, b] .. bins[START, b + 1] index bins[SLOT, :]; every
+    flag cleared. (m slices along ``axis`` when ny = nz = 1, else an nx ny nz grid over x, y, z.)"""
+    n_bins = nx * ny * nz
+    for b in range(n_bins + 1):
+        bins[BINS.START, b] = 0
+    for a in range(m):
+        if ny == 1 and nz == 1:
+            key = _bin(disc[axis, a], nx)
+        else:
+            key = _bin(disc[DISC.UX, a], nx) + nx * (_bin(disc[DISC.UY, a], ny) + ny * _bin(disc[DISC.UZ, a], nz))
+        bins[BINS.KEY, a] = key
+        bins[BINS.START, key + 1] += 1
+        bins[BINS.FLAG, a] = NOT_HIDDEN
+    for b in range(n_bins):
+        bins[BINS.START, b + 1] += bins[BINS.START, b]
+    for a in range(m):  # place, advancing each bin's start to its end...
+        key = bins[BINS.KEY, a]
+        bins[BINS.SLOT, bins[BINS.START, key]] = a
+        bins[BINS.START, key] += 1
+    for b in range(n_bins, 0, -1):  # ... then shift the ends back into starts
+        bins[BINS.START, b] = bins[BINS.START, b - 1]
+    bins[BINS.START, 0] = 0
+
+
+@inline
+def _occlude_from(j, disc, bins, nx, ny, nz, axis):
+    """Test occluder j against every slot in the bins within its reach (a branch-light inner loop: almost
+    every candidate fails, and only a hit branches)."""
+    rho_j = disc[DISC.RHO, j]
+    reach = rho_j * (1.0 + 1e-9)
+    if ny == 1 and nz == 1:  # slices along one axis
+        x0, x1 = _bin(disc[axis, j] - reach, nx), _bin(disc[axis, j] + reach, nx)
+        y0 = y1 = z0 = z1 = 0
+    else:
+        x0, x1 = _bin(disc[DISC.UX, j] - reach, nx), _bin(disc[DISC.UX, j] + reach, nx)
+        y0, y1 = _bin(disc[DISC.UY, j] - reach, ny), _bin(disc[DISC.UY, j] + reach, ny)
+        z0, z1 = _bin(disc[DISC.UZ, j] - reach, nz), _bin(disc[DISC.UZ, j] + reach, nz)
+    xj, yj, zj = disc[DISC.UX, j], disc[DISC.UY, j], disc[DISC.UZ, j]
+    margin = ROBUST * (1.0 + rho_j)
+    for bz in range(z0, z1 + 1):
+        for by in range(y0, y1 + 1):
+            row = nx * (by + ny * bz)
+            for s in range(bins[BINS.START, row + x0], bins[BINS.START, row + x1 + 1]):
+                k = bins[BINS.SLOT, s]
+                rho_k = disc[DISC.RHO, k]
+                gap = rho_j - rho_k
+                ux = xj - disc[DISC.UX, k]
+                uy = yj - disc[DISC.UY, k]
+                uz = zj - disc[DISC.UZ, k]
+                dist2 = ux * ux + uy * uy + uz * uz
+                if (gap > 0.0) & (rho_k >= 0.0) & (dist2 <= gap * gap):
+                    robust = gap - margin
+                    flag = ROBUSTLY_HIDDEN if robust > 0.0 and dist2 <= robust * robust else HIDDEN
+                    bins[BINS.FLAG, k] = max(bins[BINS.FLAG, k], flag)
+
+
+@leaf
+def occlude(m, fp, nbrs):
+    """Perspective phase on the m in-view neighbours of ``nbrs``; returns the number left (module docstring)."""
+    disc, bins = nbrs.occ_f, nbrs.occ_i
+    axis = _discs(m, fp, nbrs)
+    if m < GRID_3D_MIN:
+        nx, ny, nz = m, 1, 1
+    else:
+        nx = ny = nz = int(math.floor((2.0 * m) ** (1.0 / 3.0)))
+    _sort_into_bins(m, disc, bins, nx, ny, nz, axis)
+    for j in range(m):
+        if disc[DISC.RHO, j] > 0.0 and bins[BINS.FLAG, j] != ROBUSTLY_HIDDEN:
+            _occlude_from(j, disc, bins, nx, ny, nz, axis)
+    kept = 0
+    for a in range(m):
+        if bins[BINS.FLAG, a] == NOT_HIDDEN:
+            if kept != a:
+                nbrs.idx[kept] = nbrs.idx[a]
+                nbrs.off[kept, 0], nbrs.off[kept, 1], nbrs.off[kept, 2] = nbrs.off[a, 0], nbrs.off[a, 1], nbrs.off[a, 2]
+                nbrs.mask[kept] = nbrs.mask[a]
+                nbrs.label[kept] = nbrs.label[a]
+            kept += 1
+    return kept
