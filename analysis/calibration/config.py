@@ -62,7 +62,14 @@ preset the same way. ``[method]`` becomes typed settings per kind (:mod:`analysi
 
 Parameter keys are checked by setting each parameter to its prior mean (integer keys rounded) with
 :meth:`simcore.Preset.replace` on the fixed preset (model.set and run settings applied), which is
-built once. Errors are :class:`ConfigError` whose ``key`` is the dotted key in this file.
+built once; then the whole support the chain may explore (the prior's, cut to ``bounds``) is checked
+against the key's allowed range at both ends (integer keys rounded as the simulator rounds them; an
+end that is itself excluded but whose inside is allowed, like ``field_deg`` at 0, is fine), so a prior
+reaching outside the model's range is refused before anything is written, naming
+``parameters.<name>.prior`` (or ``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a
+record to summarise (:func:`sweeps.config.check_window`), and ``n_sim`` runs of the largest flock the
+parameters allow must fit in memory (:func:`sweeps.budget.check_runs`). Errors are
+:class:`ConfigError` whose ``key`` is the dotted key in this file.
 """
 from __future__ import annotations
 
@@ -81,7 +88,8 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
                             suggest)
-from sweeps.config import ModelTable, RunTable, check_name, model_data
+from sweeps.budget import check_runs
+from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data, model_overrides
 
 from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
@@ -217,10 +225,7 @@ def _model_and_run(table: CalibrationFile, base: Path) -> tuple[Path, dict, Pres
         preset = preset_from_dict(preset_data)
     except ConfigError as err:
         raise ConfigError(origin.get(err.key, err.key), err.detail) from None
-    warmup = table.run.warmup
-    if warmup >= preset.run.duration:
-        raise ConfigError("run.warmup", f"got {warmup}; expected a number >= 0 and below the run duration "
-                                        f"{preset.run.duration}")
+    check_window(table.run.warmup, preset.run)
     return preset_path, preset_data, preset
 
 
@@ -272,6 +277,8 @@ def _parameters(table: CalibrationFile, preset: Preset) -> tuple[tuple[Parameter
     base_values = preset.full_dict()
     for name, key, marginal in zip(names, keys, joint.marginals):
         _check_parameter_key(name, key, marginal.moments[0], preset, base_values)
+        where = f"parameters.{name}." + ("bounds" if table.parameters[name].bounds is not None else "prior")
+        _check_support(where, key, marginal.bounds, preset, isinstance(get_dotted(base_values, key), int))
     params = tuple(Parameter(name=n, key=k, prior=p, bounds=bounds[n])
                    for n, k, p in zip(names, keys, joint.marginals))
     return params, joint
@@ -290,6 +297,27 @@ def _check_parameter_key(name: str, key: str, value: float, preset: Preset, base
     except ConfigError as err:
         raise ConfigError(where, f"{key!r} is not a valid preset key for this model "
                                  f"(setting it to {value!r}: {err})") from None
+
+
+def _check_support(where: str, key: str, support: tuple[float, float], preset: Preset, integer: bool) -> None:
+    """Both ends of the support the chain explores must be allowed values of ``key`` (see the module
+    docstring); the message names ``where`` and the offending end."""
+    low, high = support
+    for end, inward in ((low, high), (high, low)):
+        candidates = [end, float(np.nextafter(end, inward))]
+        if integer:
+            candidates = [int(round(v)) for v in candidates]
+        errors = []
+        for value in candidates:
+            try:
+                preset.replace({key: value})
+                break
+            except ConfigError as err:
+                errors.append(err)
+        else:
+            raise ConfigError(where, f"the prior's support [{low:g}, {high:g}] reaches {candidates[0]!r}, where "
+                                     f"{errors[0]}; keep it inside the allowed range (e.g. with bounds = "
+                                     "[low, high])") from None
 
 
 def _stats(targets: TargetsTable) -> tuple[str, ...]:
@@ -406,13 +434,26 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     parameters, joint = _parameters(table, preset)
     targets = _targets(table.targets, base)
     method = _method(table.method, base, len(parameters), targets.k)
+    _check_memory(preset, parameters, method.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=table.run.metrics(leadership=False), parameters=parameters, prior=joint,
                              targets=targets, method=method, source=data)
 
 
+def _check_memory(preset: Preset, parameters, n_sim: int) -> None:
+    """``n_sim`` runs at once (one batched evaluation) of the largest flock the parameters allow must fit."""
+    n, key = preset.init.n, "run.n"
+    for parameter in parameters:
+        if parameter.key == "init.n" and parameter.bounds[1] > n:
+            n, key = parameter.bounds[1], f"parameters.{parameter.name}.prior"
+    check_runs(key, n, preset.run.n_steps, preset.run.record_every, copies=n_sim,
+               what=f"a run of {n:,.0f} boids ({key})")
+
+
 def load_calibration(path, overrides=()) -> CalibrationConfig:
-    """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys), validate."""
+    """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys; ``model.<preset
+    key>`` is short for ``model.set.<preset key>``), validate."""
     path = Path(path)
-    return calibration_from_dict(read_config(path, "calibration file", overrides), path.resolve().parent)
+    return calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
+                                 path.resolve().parent)
