@@ -105,7 +105,9 @@ class Worst:
 
 
 def _numbers(values) -> list[float]:
-    return [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)]
+    """The finite positive numbers among ``values`` (other values are the validation's to refuse)."""
+    return [float(v) for v in values
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0]
 
 
 def worst_run(config) -> Worst:

@@ -46,6 +46,7 @@ import signal
 import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
@@ -101,8 +102,23 @@ def _watch_parent() -> None:
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
+@contextmanager
+def _sigint_blocked():
+    """Block SIGINT in this thread while worker processes are started: they inherit the blocked mask, so
+    a Ctrl-C during their start-up waits until ``_init_worker`` ignores it (here it is delivered on exit)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
 def _init_worker(threads: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole process group: the parent handles it
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _watch_parent()
     import numba
 
@@ -119,6 +135,27 @@ def _call_pickled(payload):
 def _is_lost_worker(error: BaseException) -> bool:
     """A dask error that means the task's worker went away (not the task's own exception)."""
     return type(error).__name__ in ("KilledWorker", "FutureCancelledError") or isinstance(error, BrokenProcessPool)
+
+
+def connect(address: str):
+    """A dask Client at ``address``; :class:`SchedulerUnreachable` when the address is malformed or no
+    scheduler answers within :data:`CONNECT_TIMEOUT` seconds."""
+    from dask.distributed import Client
+
+    try:
+        return Client(address, timeout=CONNECT_TIMEOUT)
+    except (ValueError, TypeError) as err:
+        raise SchedulerUnreachable(f"--scheduler: got {address!r}, not a dask address ({err}); expected "
+                                   "tcp://HOST:PORT") from None
+    except OSError as err:  # TimeoutError and refused connections are OSErrors
+        raise SchedulerUnreachable(f"--scheduler: no dask scheduler answered at {address!r} within "
+                                   f"{CONNECT_TIMEOUT:g} s ({type(err).__name__}: {err}); start one (dask "
+                                   "scheduler) or check the address") from None
+
+
+def check_scheduler(address: str) -> None:
+    """Connect to the scheduler at ``address`` and leave (SchedulerUnreachable as :func:`connect`)."""
+    connect(address).close()
 
 
 class Executor:
@@ -157,15 +194,11 @@ class Executor:
         from dask.distributed import Client, LocalCluster
 
         if self.scheduler:
-            try:
-                self._client = Client(self.scheduler, timeout=CONNECT_TIMEOUT)
-            except (OSError, ValueError, TypeError) as err:  # TimeoutError is an OSError
-                raise SchedulerUnreachable(f"no dask scheduler answered at {self.scheduler!r} within "
-                                           f"{CONNECT_TIMEOUT:g} s ({type(err).__name__}: {err}); start one "
-                                           "(dask scheduler) or give its address as tcp://HOST:PORT") from None
+            self._client = connect(self.scheduler)
         else:
-            self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                         dashboard_address=None, silence_logs=40)
+            with _sigint_blocked():
+                self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
+                                             dashboard_address=None, silence_logs=40)
             self._client = Client(self._cluster)
 
     def __exit__(self, exc_type, *exc) -> None:
@@ -293,7 +326,8 @@ class Executor:
                 break
             index = queue.popleft()
             try:
-                running[self._pool.submit(_call_pickled, (blob, items[index]))] = index
+                with _sigint_blocked():   # a submission may start a worker process
+                    running[self._pool.submit(_call_pickled, (blob, items[index]))] = index
             except BrokenProcessPool:
                 queue.appendleft(index)   # never started: not counted as an attempt
                 return True

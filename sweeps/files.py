@@ -20,7 +20,6 @@ with sorted keys, so a file never fails to write because a statistic is undefine
 from __future__ import annotations
 
 import errno
-import functools
 import json
 import os
 import re
@@ -59,9 +58,8 @@ def _errno_in(text: str) -> int | None:
     return int(found.group(1)) if found else None
 
 
-@functools.lru_cache(maxsize=1)
 def umask() -> int:
-    """This process' umask (read without changing it where /proc allows)."""
+    """This process' umask now (read without changing it where /proc allows)."""
     try:
         for line in Path("/proc/self/status").read_text().splitlines():
             if line.startswith("Umask:"):

@@ -43,8 +43,8 @@ from simcore import simulate
 from . import worker
 from .budget import check_sweep
 from .config import SweepConfig, describe
-from .design import RunSpec, expand
-from .executors import Executor, WorkerLost
+from .design import RunSpec, base_preset, expand
+from .executors import Executor, WorkerLost, check_scheduler
 from .files import WriteFailed
 from .identity import canonical
 from .provenance import stamp
@@ -166,8 +166,9 @@ class PartWriter:
     exit, also after an error or an interrupt, but not after a failed write (nothing more can be
     saved then): few files, bounded memory, finished work saved on time."""
 
-    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float = FLUSH_SECONDS):
-        self.store, self.max_runs, self.max_seconds = store, max_runs, max_seconds
+    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float | None = None):
+        self.store, self.max_runs = store, max_runs
+        self.max_seconds = FLUSH_SECONDS if max_seconds is None else max_seconds
         self.rows: list[dict] = []
         self.frames: list[pd.DataFrame] = []
         self.since = time.monotonic()
@@ -225,9 +226,12 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
     started = time.time()
     workers = workers or os.cpu_count() or 1
     if specs is None:
+        base_preset(config)   # the base model must be valid: ConfigError naming the key
         check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
         specs = expand(config)  # validates every run before anything is written
     store = ResultsStore(out_dir)
+    if executor == "dask" and scheduler and not dry_run:
+        check_scheduler(scheduler)   # before anything is written
     if dry_run:
         plan = make_plan(specs, store, force, retry_failed)
         return SweepResult(Path(out_dir), plan, None, time.time() - started,

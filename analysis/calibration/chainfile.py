@@ -46,25 +46,34 @@ class ChainFile(emcee.backends.HDFBackend):
             with deferred(), self.open("a") as f:
                 g = f[self.name]
                 iteration = int(g.attrs["iteration"])
-                g["chain"][iteration, :, :] = state.coords
-                g["log_prob"][iteration, :] = state.log_prob
-                if state.blobs is not None:
-                    g["blobs"][iteration, :] = state.blobs
-                total = self._accepted(g) + accepted
-                slot = (iteration + 1) % 2
-                name = f"accepted_slot_{slot}"
-                if name not in g:
-                    g.create_dataset(name, data=total)
-                else:
-                    g[name][...] = total
-                for i, value in enumerate(state.random_state):
-                    g.attrs[f"committed_state_{slot}_{i}"] = value
-                g.attrs["iteration"] = iteration + 1          # the commit
-                g["accepted"][...] = total                    # emcee's own fields, for other readers
-                for i, value in enumerate(state.random_state):
-                    g.attrs[f"random_state_{i}"] = value
+                total = self._stage(g, iteration, state, accepted)
+                self._commit(g, iteration, state, total)
         except OSError as err:
             raise write_failed(self.filename, err) from None
+
+    def _stage(self, g, iteration: int, state, accepted) -> np.ndarray:
+        """Write step ``iteration``'s row and its state into the free slot; nothing is committed yet."""
+        g["chain"][iteration, :, :] = state.coords
+        g["log_prob"][iteration, :] = state.log_prob
+        if state.blobs is not None:
+            g["blobs"][iteration, :] = state.blobs
+        total = self._accepted(g) + accepted
+        slot = (iteration + 1) % 2
+        name = f"accepted_slot_{slot}"
+        if name not in g:
+            g.create_dataset(name, data=total)
+        else:
+            g[name][...] = total
+        for i, value in enumerate(state.random_state):
+            g.attrs[f"committed_state_{slot}_{i}"] = value
+        return total
+
+    def _commit(self, g, iteration: int, state, total: np.ndarray) -> None:
+        """Raise the step count (the commit), then update emcee's own fields for other readers."""
+        g.attrs["iteration"] = iteration + 1
+        g["accepted"][...] = total
+        for i, value in enumerate(state.random_state):
+            g.attrs[f"random_state_{i}"] = value
 
     def grow(self, ngrow, blobs):
         try:

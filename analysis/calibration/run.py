@@ -141,7 +141,7 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
     chain_path = folder.path("chain.h5")
     if config.method.kind != "optimize" and chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
-    with folder.lock(), Executor(executor, workers, scheduler) as pool:
+    with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
             return _optimize(config, folder, pool)
         if config.method.kind == "emulator":
