@@ -34,7 +34,9 @@ class WriteFailed(OSError):
     """Writing a results file failed: ``filename`` is the file, ``errno``/``strerror`` say why."""
 
     def __str__(self) -> str:
-        name = errno.errorcode.get(self.errno or 0, "")
+        if self.errno is None:
+            return f"cannot write {self.filename}: {self.strerror}"
+        name = errno.errorcode.get(self.errno, "")
         code = f"{name}, errno {self.errno}" if name else f"errno {self.errno}"
         return f"cannot write {self.filename}: {self.strerror} ({code})"
 

@@ -117,10 +117,10 @@ def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float
             while not ready() and proc.poll() is None and time.monotonic() < deadline:
                 seen |= descendants(proc.pid)
                 time.sleep(0.05)
+            until = time.monotonic() + trial.delay   # the delay counts from ready(), whatever the signal
             if how == "worker":
                 while not workers_of(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
                     time.sleep(0.05)
-            until = time.monotonic() + trial.delay
             while time.monotonic() < until and proc.poll() is None:
                 seen |= descendants(proc.pid)
                 time.sleep(0.02)
@@ -156,6 +156,21 @@ def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float
         time.sleep(0.2)
     trial.orphans = sorted(p for p in seen if alive(p))
     return trial
+
+
+def timed_run(argv, cwd, ready, timeout: float = 600) -> tuple[int, float]:
+    """Run a command to its end: (exit status, seconds from ``ready()`` to the end), the span a kill
+    should land in."""
+    proc = subprocess.Popen(command(argv), cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env=environment(), text=True)
+    deadline = time.monotonic() + timeout
+    while not ready() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    start = time.monotonic()
+    _, err = proc.communicate(timeout=max(1.0, deadline - time.monotonic()))
+    if proc.returncode:
+        raise RuntimeError(f"the uninterrupted run failed: {err[-500:]}")
+    return proc.returncode, time.monotonic() - start
 
 
 def run_command(argv, cwd, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -265,11 +280,19 @@ def calibration_argv(folder: Path) -> list:
             "--resume"]
 
 
+def sweep_ready(folder: Path):
+    return lambda: (folder / "out" / "design.parquet").exists()
+
+
+def calibration_ready(folder: Path):
+    return lambda: (folder / "out" / "chain.h5").exists()
+
+
 def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0, 6.0)) -> tuple[Trial, object, str]:
     """One kill trial of the small sweep in ``folder``, then the same command again; (trial, the rerun,
     '' or how its results differ from ``reference``)."""
     argv = sweep_argv(folder)
-    trial = kill_trial(argv, folder, lambda: (folder / "out" / "design.parquet").exists(), how, seed, window)
+    trial = kill_trial(argv, folder, sweep_ready(folder), how, seed, window)
     rerun = run_command(argv, folder)
     return trial, rerun, same_sweep(reference, folder / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
 
@@ -278,6 +301,6 @@ def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
                       window=(0.0, 8.0)) -> tuple[Trial, object, str]:
     """As :func:`sweep_trial` for the short calibration (rerun with --resume, as the message says)."""
     argv = calibration_argv(folder)
-    trial = kill_trial(argv, folder, lambda: (folder / "out" / "chain.h5").exists(), how, seed, window)
+    trial = kill_trial(argv, folder, calibration_ready(folder), how, seed, window)
     rerun = run_command(argv, folder)
     return trial, rerun, same_chain(reference, folder / "out") if rerun.returncode == 0 else rerun.stderr[-300:]

@@ -132,11 +132,12 @@ def differences(stored: dict, wanted: dict, defaults: dict | None = None) -> lis
 
 
 def stored_attrs(path) -> dict:
-    """The attributes of a chain file's group (ValueError when it cannot be read as one)."""
+    """The attributes of a chain file's group ({} when the file holds no chain yet; ValueError when it
+    cannot be read as an HDF5 file)."""
     try:
         with h5py.File(os.fspath(path), "r") as f:
-            return dict(f[GROUP].attrs)
-    except (OSError, KeyError) as err:
+            return dict(f[GROUP].attrs) if GROUP in f else {}
+    except OSError as err:
         raise ValueError(f"{path} cannot be read as a chain file ({type(err).__name__}: {err})") from None
 
 

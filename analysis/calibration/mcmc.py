@@ -101,8 +101,8 @@ def open_chain(path, resume: bool, meta: dict, defaults: dict | None = None, nee
         raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
     backend = ChainFile(path, name=GROUP)
     try:
-        initialized = backend.initialized
-        attrs = stored_attrs(path) if initialized else {}
+        attrs = stored_attrs(path) if os.path.exists(path) else {}
+        initialized = bool(attrs) and backend.initialized
     except (OSError, ValueError) as err:
         quarantine(Path(path).parent, Path(path), f"cannot be read as a chain file ({type(err).__name__}: "
                                                   f"{str(err).splitlines()[0] if str(err) else ''}); the chain "
@@ -128,6 +128,7 @@ def progress_tau(chain: np.ndarray) -> float:
 def _sampler(log_prob, walkers: int, ndim: int, backend, meta: dict, moves: str):
     sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, backend=backend, vectorize=True,
                                     moves=emcee_moves(moves, ndim))
+    sampler.log_prob_fn = log_prob   # emcee's wrapper prints a traceback for any exception, Ctrl-C included
     if backend is not None:
         try:
             with backend.open("a") as f:
