@@ -36,7 +36,7 @@ from simcore.params import RUN_SHORTHANDS
 from simcore.schema import suggest
 
 from .failures import INCOMPLETE, check_count, check_out, check_workers, explain, parse_numbers, show_warnings
-from .interrupts import signals_as_exceptions
+from .interrupts import ignored, signals_as_exceptions
 
 
 def _add_simulate(sub) -> None:
@@ -454,9 +454,10 @@ def main(argv=None) -> int:
         if known is None:
             raise
         code, message = known
-        print(f"flocksweep: {message}", file=sys.stderr)
-        if isinstance(err, KeyboardInterrupt):
-            _after_interrupt(args)
+        with ignored():   # a second Ctrl-C does not cut the message short
+            print(f"flocksweep: {message}", file=sys.stderr)
+            if isinstance(err, KeyboardInterrupt):
+                _after_interrupt(args)
         return code
 
 

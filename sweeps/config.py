@@ -55,8 +55,7 @@ run's preset before anything runs (see :mod:`sweeps.design`); every run must rec
 summarise (:func:`check_window`: ``record_interval <= duration`` and a record at or after ``warmup``).
 
 Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is short for
-``model.set.<preset key>=value`` (:func:`model_overrides`), and either changes that one key of the
-preset. ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, at most
+``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`). ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, at most
 :data:`NAME_MAX` characters).
 
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
@@ -68,7 +67,6 @@ and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with ca
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,9 +74,11 @@ from typing import Any, Literal
 
 from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from analysis.observables.summary import MetricSettings
-from simcore.params import KEY_ALIASES, RUN_SHORTHANDS, ModelParams, canonical_key, read_toml
+from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
+
+from .model_set import flat_changes, model_overrides
 
 NAME_MAX = 100
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
@@ -226,32 +226,6 @@ def check_name(name: str, what: str) -> None:
     if bad:
         raise ConfigError("name", f"got {name!r}; expected a plain folder name for {what} (1 to {NAME_MAX} "
                                   "characters, no '/', '\\', control characters or leading '.')")
-
-
-def model_overrides(overrides) -> list[str]:
-    """``--set`` items with ``model.<preset key>=v`` spelled ``model.set.<preset key>=v`` (other items as
-    given): both change one key of the preset."""
-    sections = {f.name for f in dataclasses.fields(ModelParams)} | {"init", "run"} | set(KEY_ALIASES)
-    out = []
-    for item in overrides or ():
-        key = item.split("=", 1)[0].strip()
-        parts = key.split(".")
-        if len(parts) >= 2 and parts[0] == "model" and parts[1] in sections and "=" in item:
-            item = "model.set." + ".".join(parts[1:]) + "=" + item.split("=", 1)[1]
-        out.append(item)
-    return out
-
-
-def flat_changes(table: dict, prefix: str = "") -> dict:
-    """``model.set`` as {dotted key: value}: nested tables become dotted keys (so they merge)."""
-    out = {}
-    for key, value in table.items():
-        dotted = f"{prefix}.{key}" if prefix else str(key)
-        if isinstance(value, dict) and value:
-            out.update(flat_changes(value, dotted))
-        else:
-            out[dotted] = value
-    return out
 
 
 def check_window(warmup: float, run, where: str = "") -> None:

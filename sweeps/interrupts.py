@@ -7,6 +7,8 @@
 * ``deferred()``: a context manager whose block is not interrupted by SIGINT or SIGTERM: a signal that
   arrives inside is held and delivered (to the handler in force before the block) when the block ends.
   Used around writes that must be whole (a results part with its time series, a chain step).
+* ``ignored()``: a context manager under which SIGINT and SIGTERM are ignored (a second Ctrl-C while
+  the first one's message is printed).
 * ``exit_status(err)``: the shell's convention for a process stopped by a signal: 130 after SIGINT,
   143 after SIGTERM.
 
@@ -75,3 +77,19 @@ def deferred():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         if held:
             signal.raise_signal(held[0])
+
+
+@contextmanager
+def ignored():
+    """Ignore SIGINT and SIGTERM inside the block (main thread only)."""
+    if not _main_thread():
+        yield
+        return
+    before = {sig: signal.getsignal(sig) for sig in HANDLED}
+    for sig in HANDLED:
+        signal.signal(sig, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)

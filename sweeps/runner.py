@@ -301,6 +301,8 @@ def status(out_dir) -> dict:
 
 def resume_hint(sweep_path, out_dir) -> str:
     """One line on what an interrupted sweep saved and how to resume it."""
+    if not (Path(out_dir) / "design.parquet").exists():
+        return "nothing was saved yet: run the same command again"
     info = status(out_dir)
     return (f"saved: {info['ok']} ok and {info['failed']} failed of {info['runs']} runs in {out_dir}; resume with: "
             f"flocksweep run {sweep_path} --out {out_dir}")

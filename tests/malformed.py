@@ -399,6 +399,10 @@ READERS = [
     cli_case("view: --replicate -1", ("view", HOLLAND, "--replicate", "-1"), "only applies"),
     cli_case("view: bad --size", ("view", HOLLAND, "--size", "big", "--out", "{d}/p.html"), "--size"),
     cli_case("view: --seed -1", ("view", HOLLAND, "--seed", "-1", "--out", "{d}/p.html"), "--seed"),
+    cli_case("view: --trail -2", ("view", HOLLAND, "--trail", "-2", "--out", "{d}/p.html"), "--trail"),
+    cli_case("view: --n 1e12", ("view", HOLLAND, "--n", "1000000000000", "--out", "{d}/p.html"), "memory"),
+    cli_case("sbc: other settings in the folder", SBC, "--out", files={
+        **GOOD_CAL, "out/settings.json": '{"method": "sbc", "seed": 99}'}),
 ]
 
 CASES = SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
@@ -412,6 +416,7 @@ def materialise(case: Case, folder) -> list[str]:
     """Write the case's files into ``folder``; its argv with ``{d}`` and ``{holland}`` filled in."""
     for name, content in case.files.items():
         path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
         if isinstance(content, bytes):
             path.write_bytes(content)
         else:

@@ -63,12 +63,11 @@ preset the same way. ``[method]`` becomes typed settings per kind (:mod:`analysi
 Parameter keys are checked by setting each parameter to its prior mean (integer keys rounded) with
 :meth:`simcore.Preset.replace` on the fixed preset (model.set and run settings applied), which is
 built once; then the whole support the chain may explore (the prior's, cut to ``bounds``) is checked
-against the key's allowed range at both ends (integer keys rounded as the simulator rounds them; an
-end that is itself excluded but whose inside is allowed, like ``field_deg`` at 0, is fine), so a prior
-reaching outside the model's range is refused before anything is written, naming
-``parameters.<name>.prior`` (or ``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a
-record to summarise (:func:`sweeps.config.check_window`), and ``n_sim`` runs of the largest flock the
-parameters allow must fit in memory (:func:`sweeps.budget.check_runs`). Errors are
+against the key's allowed range at both ends, and ``n_sim`` runs of the largest flock the parameters
+allow must fit in memory (:mod:`analysis.calibration.feasibility`), so a prior reaching outside the
+model's range is refused before anything is written, naming ``parameters.<name>.prior`` (or
+``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a record to summarise
+(:func:`sweeps.config.check_window`). Errors are
 :class:`ConfigError` whose ``key`` is the dotted key in this file.
 """
 from __future__ import annotations
@@ -88,9 +87,10 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
                             suggest)
-from sweeps.budget import check_runs
-from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data, model_overrides
+from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
+from sweeps.model_set import model_overrides
 
+from .feasibility import check_memory, check_support
 from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
 from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
@@ -278,7 +278,7 @@ def _parameters(table: CalibrationFile, preset: Preset) -> tuple[tuple[Parameter
     for name, key, marginal in zip(names, keys, joint.marginals):
         _check_parameter_key(name, key, marginal.moments[0], preset, base_values)
         where = f"parameters.{name}." + ("bounds" if table.parameters[name].bounds is not None else "prior")
-        _check_support(where, key, marginal.bounds, preset, isinstance(get_dotted(base_values, key), int))
+        check_support(where, key, marginal.bounds, preset, isinstance(get_dotted(base_values, key), int))
     params = tuple(Parameter(name=n, key=k, prior=p, bounds=bounds[n])
                    for n, k, p in zip(names, keys, joint.marginals))
     return params, joint
@@ -297,27 +297,6 @@ def _check_parameter_key(name: str, key: str, value: float, preset: Preset, base
     except ConfigError as err:
         raise ConfigError(where, f"{key!r} is not a valid preset key for this model "
                                  f"(setting it to {value!r}: {err})") from None
-
-
-def _check_support(where: str, key: str, support: tuple[float, float], preset: Preset, integer: bool) -> None:
-    """Both ends of the support the chain explores must be allowed values of ``key`` (see the module
-    docstring); the message names ``where`` and the offending end."""
-    low, high = support
-    for end, inward in ((low, high), (high, low)):
-        candidates = [end, float(np.nextafter(end, inward))]
-        if integer:
-            candidates = [int(round(v)) for v in candidates]
-        errors = []
-        for value in candidates:
-            try:
-                preset.replace({key: value})
-                break
-            except ConfigError as err:
-                errors.append(err)
-        else:
-            raise ConfigError(where, f"the prior's support [{low:g}, {high:g}] reaches {candidates[0]!r}, where "
-                                     f"{errors[0]}; keep it inside the allowed range (e.g. with bounds = "
-                                     "[low, high])") from None
 
 
 def _stats(targets: TargetsTable) -> tuple[str, ...]:
@@ -434,21 +413,11 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     parameters, joint = _parameters(table, preset)
     targets = _targets(table.targets, base)
     method = _method(table.method, base, len(parameters), targets.k)
-    _check_memory(preset, parameters, method.n_sim)
+    check_memory(preset, parameters, method.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=table.run.metrics(leadership=False), parameters=parameters, prior=joint,
                              targets=targets, method=method, source=data)
-
-
-def _check_memory(preset: Preset, parameters, n_sim: int) -> None:
-    """``n_sim`` runs at once (one batched evaluation) of the largest flock the parameters allow must fit."""
-    n, key = preset.init.n, "run.n"
-    for parameter in parameters:
-        if parameter.key == "init.n" and parameter.bounds[1] > n:
-            n, key = parameter.bounds[1], f"parameters.{parameter.name}.prior"
-    check_runs(key, n, preset.run.n_steps, preset.run.record_every, copies=n_sim,
-               what=f"a run of {n:,.0f} boids ({key})")
 
 
 def load_calibration(path, overrides=()) -> CalibrationConfig:

@@ -213,6 +213,7 @@ def test_a_lock_kept_by_processes_a_dead_runner_left_behind_is_recognised(tmp_pa
         assert f"pid {os.getpid()}" in ResultsStore(folder).holder()
 
 
+@pytest.mark.slow
 def test_a_lock_whose_leftovers_exit_in_the_grace_period_is_taken(tmp_path, monkeypatch):
     monkeypatch.setattr(lock, "SETTLE", 0.1)
     monkeypatch.setattr(lock, "ORPHAN_GRACE", 20.0)
