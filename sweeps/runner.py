@@ -172,7 +172,6 @@ class PartWriter:
         self.rows: list[dict] = []
         self.frames: list[pd.DataFrame] = []
         self.since = time.monotonic()
-        self.saved = 0
 
     def add(self, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
         if not self.rows:
@@ -195,7 +194,6 @@ class PartWriter:
         if self.rows:
             ts = pd.concat(self.frames, ignore_index=True) if self.frames else None
             self.store.write_part(self.store.next_part(), self.rows, ts)
-            self.saved += len(self.rows)
         self.rows, self.frames, self.since = [], [], time.monotonic()
 
     def __enter__(self):

@@ -2,7 +2,7 @@
 
 ``kill_trial(argv, cwd, ready, how, seed, window)`` starts ``python -m sweeps.cli *argv`` in its own
 session, waits until ``ready()`` (the command is computing), then after a delay drawn from ``window``
-(seconds, ``random.Random(seed)``) stops it ``how``:
+(seconds after ``ready()``, ``random.Random(seed)``) stops it ``how``:
 
 * ``"sigint"``: SIGINT to the whole process group, as Ctrl-C in a terminal does;
 * ``"sigterm"``: SIGTERM to the runner (a scheduler or ``kill`` stopping it);
@@ -13,7 +13,9 @@ It returns a :class:`Trial`: the exit status (``EXPECTED_EXIT`` documents the on
 stderr, whether the command was still running when the signal went (``hit``), and the processes it
 started that were still alive 20 s after it ended (``orphans``). The caller then runs the same command
 again (no cleanup in between) and compares the results with an uninterrupted run: ``same_sweep`` and
-``same_chain`` say how they differ ('' when bit for bit the same).
+``same_chain`` say how they differ ('' when bit for bit the same). ``sweep_trial`` and
+``calibration_trial`` do all of it for the small sweep and the short calibration below; a trial whose
+command had already finished when the signal was due is run again with the window halved.
 """
 from __future__ import annotations
 
@@ -288,19 +290,29 @@ def calibration_ready(folder: Path):
     return lambda: (folder / "out" / "chain.h5").exists()
 
 
+def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, window) -> tuple[Trial, object, str]:
+    """Run the trial; when the command had finished before the signal (a busy machine ran it faster than
+    the window assumed), run it again in a fresh folder with the window halved (at most 3 attempts)."""
+    argv_of, ready_of, same = ((sweep_argv, sweep_ready, same_sweep) if kind == "sweep"
+                               else (calibration_argv, calibration_ready, same_chain))
+    for attempt in range(3):
+        where = folder / f"attempt{attempt}"
+        where.mkdir()
+        argv = argv_of(where)
+        trial = kill_trial(argv, where, ready_of(where), how, seed, (window[0] / 2 ** attempt, window[1] / 2 ** attempt))
+        if trial.hit:
+            break
+    rerun = run_command(argv, where)
+    return trial, rerun, same(reference, where / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
+
+
 def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0, 6.0)) -> tuple[Trial, object, str]:
     """One kill trial of the small sweep in ``folder``, then the same command again; (trial, the rerun,
     '' or how its results differ from ``reference``)."""
-    argv = sweep_argv(folder)
-    trial = kill_trial(argv, folder, sweep_ready(folder), how, seed, window)
-    rerun = run_command(argv, folder)
-    return trial, rerun, same_sweep(reference, folder / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
+    return _until_hit("sweep", folder, reference, how, seed, window)
 
 
 def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
                       window=(0.0, 8.0)) -> tuple[Trial, object, str]:
     """As :func:`sweep_trial` for the short calibration (rerun with --resume, as the message says)."""
-    argv = calibration_argv(folder)
-    trial = kill_trial(argv, folder, calibration_ready(folder), how, seed, window)
-    rerun = run_command(argv, folder)
-    return trial, rerun, same_chain(reference, folder / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
+    return _until_hit("calibration", folder, reference, how, seed, window)
