@@ -51,6 +51,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
 
+from .interrupts import deferred
+
 EXECUTORS = ("serial", "local", "dask")
 START_METHOD = "spawn"
 MAX_ATTEMPTS = 3        # runs of a task whose worker died before it is given up as lost
@@ -114,6 +116,23 @@ def _sigint_blocked():
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+@contextmanager
+def _cluster_starting():
+    """While a dask LocalCluster starts: SIGINT ignored (its processes inherit that, so a Ctrl-C to the
+    process group cannot kill them half-started; one pressed in these seconds is lost) and SIGTERM held
+    until the cluster is complete (then raised, so the cluster is closed whole)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with deferred():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def _init_worker(threads: int) -> None:
@@ -196,7 +215,7 @@ class Executor:
         if self.scheduler:
             self._client = connect(self.scheduler)
         else:
-            with _sigint_blocked():
+            with _cluster_starting():
                 self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                              dashboard_address=None, silence_logs=40)
             self._client = Client(self._cluster)
@@ -209,12 +228,18 @@ class Executor:
         instead of waiting for their tasks."""
         if self._pool is not None:
             self._stop_pool(wait)
-        if self._client is not None:
-            self._client.close(timeout=None if wait else 5)
-            self._client = None
-        if self._cluster is not None:
-            self._cluster.close(timeout=None if wait else 5)
-            self._cluster = None
+        for name in ("_client", "_cluster"):
+            part, timeout = getattr(self, name), None if wait else 5
+            setattr(self, name, None)
+            if part is None:
+                continue
+            if wait:
+                part.close(timeout=timeout)
+                continue
+            try:   # after an error or an interrupt: best effort, the original exception is what matters
+                part.close(timeout=timeout)
+            except Exception:  # noqa: BLE001 - dask may complain about workers still starting
+                pass
 
     def _stop_pool(self, wait: bool) -> None:
         pool, self._pool = self._pool, None

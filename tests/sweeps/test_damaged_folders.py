@@ -107,6 +107,10 @@ def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(t
         assert name in captured.err
     assert "Traceback" not in captured.err
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before   # status moves nothing
+    runs = pd.read_parquet(out / "runs.parquet")
+    series_now = ResultsStore(out).timeseries()                 # as the report reads them: part 3 skipped
+    assert set(series_now["run_id"]) == set(runs.loc[runs["part"] != 3, "run_id"])
+    assert "timeseries/part-000003.parquet cannot be read" in capsys.readouterr().err
 
     assert main(["run", str(sweep), "--out", str(out), "--executor", "serial", "--no-progress"]) == 0
     captured = capsys.readouterr()
