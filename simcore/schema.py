@@ -21,13 +21,16 @@ dataclass ``cls``:
 
 ``replace_fields(obj, changes)`` changes dotted fields of a built instance with the same conversions and
 checks. ``to_dict(obj)`` is the inverse of ``build`` (plain, JSON-ready). ``read_config`` reads a TOML file and applies
-``key=value`` overrides (``parse_value``, ``set_dotted``, ``apply_overrides``). ``resolve_path`` finds a
+``key=value`` overrides (``parse_value``, ``set_dotted``, ``apply_overrides``). A file that cannot be read,
+is not UTF-8 or not TOML, or holds a date or time value (ours take numbers, strings, booleans, lists and
+tables; ``check_plain``), and an override giving a date, is a ConfigError naming the file or key. ``resolve_path`` finds a
 file a config names relative to the config, absolutely or relative to the working directory.
 ``suggest`` is the one did-you-mean. Nothing here knows about flocking.
 """
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import difflib
 import functools
 import json
@@ -289,17 +292,44 @@ def get_dotted(data: dict, dotted: str):
     return node
 
 
+def check_plain(value, key: str = "") -> None:
+    """ConfigError at ``key`` for a date or time anywhere in ``value`` (a parsed TOML value)."""
+    if isinstance(value, (datetime.date, datetime.time)):
+        raise ConfigError(key, f"got the date/time {value.isoformat()}; values here are numbers, strings, "
+                               "booleans, lists or tables (quote it to make it a string)")
+    if isinstance(value, dict):
+        for name, item in value.items():
+            check_plain(item, join(key, str(name)))
+    elif isinstance(value, list):
+        for index, item in enumerate(value):
+            check_plain(item, f"{key}[{index}]")
+
+
 def read_toml(path, what: str) -> dict:
-    """A TOML file as a dict; a missing file or bad TOML is a ConfigError naming the file (``what``
-    says which kind of file it is)."""
+    """A TOML file as a dict; a missing, unreadable or non-UTF-8 file, bad TOML or a date value is a
+    ConfigError naming the file or key (``what`` says which kind of file it is)."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("", f"{what} not found: {path}")
     try:
-        with path.open("rb") as handle:
-            return tomllib.load(handle)
+        if not path.is_file():
+            raise ConfigError("", f"{what} not found: {path}")
+        raw = path.read_bytes()
+    except ValueError:   # a NUL character in the path
+        raise ConfigError("", f"{what} not found: {str(path)!r} (a path cannot contain a NUL character)") from None
+    except OSError as err:
+        raise ConfigError("", f"{what} cannot be read: {path}: {err.strerror or err}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ConfigError("", f"{path}: not UTF-8 text (byte 0x{raw[err.start]:02x} at offset {err.start}); "
+                              "save it as UTF-8") from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ConfigError("", f"{path}: not valid TOML: {err}") from None
+    except RecursionError:
+        raise ConfigError("", f"{path}: not valid TOML: nested too deeply") from None
+    check_plain(data)
+    return data
 
 
 def read_config(path, what: str, overrides=()) -> dict:
@@ -314,7 +344,9 @@ def apply_overrides(data: dict, overrides) -> dict:
         if "=" not in item:
             raise ConfigError(item, "an override must look like key=value")
         key, text = item.split("=", 1)
-        set_dotted(out, key.strip(), parse_value(text.strip()))
+        value = parse_value(text.strip())
+        check_plain(value, key.strip())
+        set_dotted(out, key.strip(), value)
     return out
 
 
@@ -324,6 +356,8 @@ def resolve_path(text, base, key: str, what: str, must_exist: bool = True) -> Pa
     listing where it looked, or (``must_exist=False``) the path relative to ``base``."""
     if not isinstance(text, str) or not text:
         raise ConfigError(key, f"got {text!r}; expected a path to the {what}")
+    if "\0" in text:
+        raise ConfigError(key, f"got {text!r}; a path cannot contain a NUL character")
     candidates = [Path(text)] if Path(text).is_absolute() else [Path(base) / text, Path.cwd() / text]
     for path in candidates:
         if path.exists():

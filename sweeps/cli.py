@@ -4,7 +4,7 @@
                         [--record-every STEPS] [--out DIR] [--plot] [--color-by auto|boid|pattern]
     flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
-                   [--retry-failed] [--batch-size B] [--no-progress]
+                   [--retry-failed] [--batch-size B] [--no-progress] [--yes]
     flocksweep status DIR
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
@@ -14,8 +14,11 @@
     flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
                     [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
 
-Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
-3 when another runner holds the results directory.
+Exit status (sweeps/failures.py, docs/errors.md): 0 on success, 2 for bad input (a config error names
+the key, the value and what is allowed; nothing is written), 3 when another runner holds the results
+directory, 4 when a write fails (the file and errno named; what was saved is kept), 5 when runs were
+left missing because their worker processes died, 130 after Ctrl-C and 143 after SIGTERM (finished work
+saved, the way to resume printed). Every one of these is a single message on stderr, never a traceback.
 
 This module is the top of the import graph (docs/architecture.md): it may import every layer. Each
 command imports what it needs when it runs, so ``flocksweep simulate`` does not load the calibration.
@@ -27,7 +30,10 @@ import os
 import sys
 from pathlib import Path
 
-from simcore.schema import ConfigError
+from simcore.schema import ConfigError, suggest
+
+from .failures import INCOMPLETE, check_count, check_out, check_workers, explain, parse_numbers, show_warnings
+from .interrupts import ignored, signals_as_exceptions
 
 
 def _add_simulate(sub) -> None:
@@ -69,11 +75,13 @@ def cmd_simulate(args) -> int:
     for short in ("n", "duration", "dt"):  # the [run] shorthands of sweep files
         if getattr(args, short) is not None:
             overrides.append(f"{RUN_SHORTHANDS[short]}={getattr(args, short)!r}")
+    from sweeps.budget import check_runs
+
     preset = load_preset(args.model, overrides)
-    if args.record_every < 1:
-        raise ConfigError("--record-every", f"got {args.record_every}; must be an integer >= 1")
-    if args.seed < 0:
-        raise ConfigError("--seed", f"got {args.seed}; must be an integer >= 0")
+    check_count("--record-every", args.record_every, 1)
+    check_count("--seed", args.seed, 0, 2 ** 63 - 1)
+    check_out("--out", args.out)
+    check_runs("init.n", preset.init.n, preset.run.n_steps, args.record_every)
     out = args.out
     if out is None and args.plot:
         out = Path("results") / "simulate" / f"{preset.model.name}-seed{args.seed}"
@@ -117,24 +125,35 @@ def _add_run(sub) -> None:
                         "exceeds HALFWIDTH, until all meet it")
     p.add_argument("--max-replicates", type=int, default=30, help="cap for --until-ci (default 30)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--yes", action="store_true", help=f"run a design of more than {100_000:,} runs")
+
+
+def _check_run_args(args) -> None:
+    check_workers(args.workers, args.executor)
+    check_count("--replicates", args.replicates, 1)
+    check_count("--batch-size", args.batch_size, 1)
+    check_count("--max-replicates", args.max_replicates, 1)
+    check_out("--out", args.out)
+    if args.scheduler is not None and args.executor != "dask":
+        raise ConfigError("--scheduler", "only applies with --executor dask")
+    if args.scheduler is not None and not args.scheduler.strip():
+        raise ConfigError("--scheduler", "got an empty address; expected tcp://HOST:PORT")
 
 
 def cmd_run(args) -> int:
     from sweeps.config import load_sweep
-    from sweeps.runner import run_sweep
+    from sweeps.runner import resume_hint, run_sweep
 
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError("--workers", f"got {args.workers}; must be an integer >= 1")
-    if args.replicates is not None and args.replicates < 1:
-        raise ConfigError("--replicates", f"got {args.replicates}; must be an integer >= 1")
-    if args.scheduler and args.executor != "dask":
-        raise ConfigError("--scheduler", "only applies with --executor dask")
+    _check_run_args(args)
+    until = _parse_until_ci(args.until_ci) if args.until_ci else None
     config = load_sweep(args.sweep, args.overrides, args.replicates)
     out = args.out or Path("results") / config.name
-    if args.until_ci:
-        return _run_until_ci(args, config, out)
-    result = run_sweep(config, Path(args.sweep).read_text(), out, args.executor, args.workers, args.scheduler,
-                       args.force, args.retry_failed, args.dry_run, not args.no_progress, args.batch_size)
+    args.on_interrupt = lambda: resume_hint(args.sweep, out)
+    if until:
+        return _run_until_ci(args, config, out, *until)
+    result = run_sweep(config, Path(args.sweep).read_text(encoding="utf-8"), out, args.executor, args.workers,
+                       args.scheduler, args.force, args.retry_failed, args.dry_run, not args.no_progress,
+                       args.batch_size, yes=args.yes)
     plan = result.plan
     if args.dry_run:
         est = result.estimate
@@ -152,27 +171,43 @@ def cmd_run(args) -> int:
     print(f"  table: {out / 'runs.parquet'}")
     if failed:
         print(f"  failures: flocksweep status {out}")
-    return 0
+    return _report_lost(args, result)
+
+
+def _report_lost(args, result) -> int:
+    """Say which runs were left missing because their workers died; exit status 5 if any."""
+    for path in result.quarantined:
+        print(f"  moved aside (unreadable): {path}")
+    if not result.lost:
+        return 0
+    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died (killed, out of "
+          f"memory or crashed) on every attempt; run the same command again to compute them", file=sys.stderr)
+    return INCOMPLETE
 
 
 def _parse_until_ci(text: str) -> tuple[str, float]:
     from analysis.observables.summary import summary_columns
 
     metric, _, value = text.partition("=")
+    metric = metric.strip()
     try:
         target = float(value)
     except ValueError:
         target = float("nan")
-    if not metric or not target > 0:
-        raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with HALFWIDTH > 0, "
+    if not metric or not (0 < target < float("inf")):
+        raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with a finite HALFWIDTH > 0, "
                                         "e.g. cohesion_mean=0.05")
-    return (metric if metric in summary_columns(leadership=True) else f"{metric}_mean"), target
+    columns = summary_columns(leadership=True)
+    column = metric if metric in columns else f"{metric}_mean"
+    if column not in columns:
+        raise ConfigError("--until-ci", f"unknown metric {metric!r}{suggest(metric, columns)}; expected a summary "
+                                        "column such as cohesion_mean or polarization_final")
+    return column, target
 
 
-def _run_until_ci(args, config, out) -> int:
+def _run_until_ci(args, config, out, metric: str, target: float) -> int:
     from sweeps.runner import run_until_ci
 
-    metric, target = _parse_until_ci(args.until_ci)
     if args.max_replicates < config.replicates:
         raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
     if args.dry_run:
@@ -182,11 +217,11 @@ def _run_until_ci(args, config, out) -> int:
     result = run_until_ci(config, Path(args.sweep).read_text(), out, metric, target, args.max_replicates,
                           executor=args.executor, workers=args.workers, scheduler=args.scheduler,
                           force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
-                          batch_size=args.batch_size)
+                          batch_size=args.batch_size, yes=args.yes)
     table = result.table
     print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
           f"({int((table['status'] == 'ok').sum())} ok)")
-    return 0
+    return _report_lost(args, result)
 
 
 def _add_status(sub) -> None:
@@ -205,7 +240,9 @@ def cmd_status(args) -> int:
     manifest = info["manifest"]
     print(f"{manifest.get('sweep', args.dir)}: {info['runs']} runs: {info['ok']} done, {info['failed']} failed, "
           f"{info['missing']} missing")
-    if manifest.get("finished"):
+    if info["running"]:
+        print(f"  a runner is working here now ({info['running']}), started {manifest.get('started')}")
+    elif manifest.get("finished"):
         print(f"  last run finished {manifest['finished']} (git {manifest.get('git_revision')})")
     elif manifest:
         print(f"  last run started {manifest.get('started')} and did not finish (resume with flocksweep run)")
@@ -234,6 +271,8 @@ def cmd_report(args) -> int:
     from analysis.reports.report import ReportError, build_report
 
     formats = ("html", "md") if args.format == "both" else (args.format,)
+    check_out("--out", args.out)
+    check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     try:
         result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed)
     except (ReportError, FileNotFoundError) as err:
@@ -270,13 +309,14 @@ def _add_calibrate(sub) -> None:
 
 def cmd_calibrate(args) -> int:
     from analysis.calibration.config import load_calibration
-    from analysis.calibration.run import calibrate
+    from analysis.calibration.run import calibrate, resume_hint
 
-    config = load_calibration(args.config, args.overrides)
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError("--workers", f"got {args.workers}; expected an integer >= 1")
-    if args.scheduler and args.executor != "dask":
+    check_workers(args.workers, args.executor)
+    check_out("--out", args.out)
+    if args.scheduler is not None and args.executor != "dask":
         raise ConfigError("--scheduler", "only used with --executor dask")
+    config = load_calibration(args.config, args.overrides)
+    args.on_interrupt = lambda: resume_hint(args.config, args.out or Path("results") / "calibration" / config.name)
     result = calibrate(config, args.out, resume=args.resume, progress=not args.no_progress,
                        executor=args.executor, workers=args.workers, scheduler=args.scheduler)
     if "optimum" in result:
@@ -313,17 +353,21 @@ def cmd_targets(args) -> int:
     from analysis.calibration.synthetic import synthetic_observation, targets_block
     from simcore.schema import parse_value
 
+    check_count("--seed", args.seed, 0, 2 ** 63 - 1)
+    check_count("--replicates", args.replicates, 1, 10_000)
     config = load_calibration(args.config)
     truth = {}
     for item in args.truth:
         name, sep, value = item.partition("=")
-        if not sep:
-            raise ConfigError("--truth", f"got {item!r}; expected NAME=VALUE")
-        truth[name.strip()] = parse_value(value.strip())
-    if args.replicates < 1:
-        raise ConfigError("--replicates", f"got {args.replicates}; expected an integer >= 1")
+        name, value = name.strip(), parse_value(value.strip())
+        if not sep or name not in config.names:
+            raise ConfigError("--truth", f"got {item!r}; expected NAME=VALUE with NAME one of {', '.join(config.names)}"
+                                         + (suggest(name, config.names) if sep else ""))
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value or abs(value) == float("inf"):
+            raise ConfigError("--truth", f"got {item!r}; the value of {name} must be a finite number")
+        truth[name] = value
     if args.sd:
-        sd = [float(v) for v in args.sd.split(",")]
+        sd = parse_numbers("--sd", args.sd)
         if len(sd) != config.targets.k:
             raise ConfigError("--sd", f"got {len(sd)} values; expected {config.targets.k}, one per stat")
     elif config.targets.cov is not None:
@@ -361,12 +405,17 @@ def cmd_sbc(args) -> int:
     from analysis.calibration.config import load_calibration
     from analysis.calibration.sbc import run_sbc
 
+    for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--steps", args.steps)):
+        check_count(flag, value, 1)
+    check_workers(args.workers, "local")
+    check_count("--walkers", args.walkers, 2)
+    check_out("--out", args.out)
     config = load_calibration(args.config, args.overrides)
     if config.method.kind != "emcee":
         raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the emcee (BSL) posterior")
-    for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--workers", args.workers)):
-        if value < 1:
-            raise ConfigError(flag, f"got {value}; expected an integer >= 1")
+    out = args.out or Path("results") / "calibration" / config.name / "sbc"
+    args.on_interrupt = lambda: (f"saved: {len(list((out / 'datasets').glob('*.json')))} datasets in {out}; "
+                                 "run the same command again to resume")
     result = run_sbc(config, datasets=args.datasets, draws=args.draws, out_dir=args.out,
                      progress=not args.no_progress, steps=args.steps, walkers=args.walkers, workers=args.workers)
     print(result["table"].round(4).to_string())
@@ -409,17 +458,29 @@ COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "rep
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    show_warnings()
     try:
-        return COMMANDS[args.command](args)
-    except ConfigError as err:
-        print(f"flocksweep: config error: {err}", file=sys.stderr)
-        return 2
-    except Exception as err:
-        store = sys.modules.get("sweeps.store")  # imported only by the commands that lock a results directory
-        if store is not None and isinstance(err, store.StoreLocked):
-            print(f"flocksweep: {err}", file=sys.stderr)
-            return 3
-        raise
+        with signals_as_exceptions():
+            return COMMANDS[args.command](args)
+    except BaseException as err:  # noqa: BLE001 - expected failures become one line; bugs raise
+        known = explain(err)
+        if known is None:
+            raise
+        code, message = known
+        with ignored():   # a second Ctrl-C does not cut the message short
+            print(f"flocksweep: {message}", file=sys.stderr)
+            if isinstance(err, KeyboardInterrupt):
+                _after_interrupt(args)
+        return code
+
+
+def _after_interrupt(args) -> None:
+    """What an interrupted command saved and how to resume it (each command leaves ``args.on_interrupt``)."""
+    hint = getattr(args, "on_interrupt", None)
+    try:
+        print(f"  {hint() if hint else 'nothing to resume: run the command again'}", file=sys.stderr)
+    except Exception as err:  # noqa: BLE001 - the summary is a courtesy; the interrupt is what matters
+        print(f"  (could not read what was saved: {type(err).__name__}: {err})", file=sys.stderr)
 
 
 if __name__ == "__main__":

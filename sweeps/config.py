@@ -11,7 +11,9 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 
     [model]
     preset = "../models/holland.toml"        # relative to this file (or absolute, or to the cwd)
-    set = { "perception.occlusion" = true }  # preset overrides, dotted keys
+    set = { "perception.occlusion" = true }  # preset overrides, dotted keys; a nested table merges
+                                             # into the preset's (set.perception.range = 30 changes
+                                             # only that key), it does not replace it
 
     [run]                           # all optional; defaults from the preset / analysis
     n = 100                         # init.n
@@ -49,7 +51,12 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 
 Axis keys are preset keys (``perception.*``, ``steering.*``, ``vehicle.*``, ``world.*``,
 ``patterns.*``, ``init.*``, ``run.*``) or ``n`` (= ``init.n``). Values are validated by building every
-run's preset before anything runs (see :mod:`sweeps.design`).
+run's preset before anything runs (see :mod:`sweeps.design`); every run must record something to
+summarise (:func:`check_window`: ``record_interval <= duration`` and a record at or after ``warmup``).
+
+Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is short for
+``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`). ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, at most
+:data:`NAME_MAX` characters).
 
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
@@ -71,6 +78,9 @@ from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
 
+from .model_set import flat_changes, model_overrides
+
+NAME_MAX = 100
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
 
@@ -211,8 +221,25 @@ class SweepFile:
 
 
 def check_name(name: str, what: str) -> None:
-    if not name or "/" in name or name.startswith("."):
-        raise ConfigError("name", f"got {name!r}; expected a plain folder name for {what}")
+    bad = not name or "/" in name or "\\" in name or name.startswith(".") or len(name) > NAME_MAX or \
+        any(ord(c) < 32 or ord(c) == 127 for c in name)
+    if bad:
+        raise ConfigError("name", f"got {name!r}; expected a plain folder name for {what} (1 to {NAME_MAX} "
+                                  "characters, no '/', '\\', control characters or leading '.')")
+
+
+def check_window(warmup: float, run, where: str = "") -> None:
+    """A run of ``run`` (a preset's RunSettings) records something to summarise: ``record_interval <=
+    duration`` and a record at or after ``warmup`` (< duration). ``where`` is appended to messages."""
+    if run.record_interval > run.duration:
+        raise ConfigError("run.record_interval", f"got {run.record_interval!r}; must be at most the run duration "
+                                                 f"{run.duration!r} (a run records at 0 s and then every "
+                                                 f"record_interval){where}")
+    last = (run.n_steps // run.record_every) * run.record_every * run.dt
+    if warmup >= run.duration or last < warmup:
+        raise ConfigError("run.warmup", f"got {warmup!r}; must be below the run duration {run.duration!r}, with a "
+                                        f"record at or after it (the last is at {last:g} s), or every window mean "
+                                        f"is undefined{where}")
 
 
 def model_data(model: ModelTable, run: RunTable, base) -> tuple[Path, dict, dict]:
@@ -223,7 +250,7 @@ def model_data(model: ModelTable, run: RunTable, base) -> tuple[Path, dict, dict
         raise ConfigError("model.preset", f"not a file: {preset_path}")
     data = read_toml(preset_path)
     origin = {}
-    for key, value in model.set.items():
+    for key, value in flat_changes(model.set).items():
         set_dotted(data, canonical_key(key), value)
         origin[canonical_key(key)] = f"model.set.{key}"
     for short, (key, value) in run.preset_changes().items():
@@ -394,7 +421,7 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:
     """Read a sweep TOML, apply ``key=value`` overrides (of the sweep file's own keys), validate."""
     path = Path(path)
-    data = read_config(path, "sweep file", overrides)
+    data = read_config(path, "sweep file", model_overrides(overrides))
     if replicates is not None:
         data["replicates"] = replicates
     return sweep_from_dict(data, path.resolve().parent)

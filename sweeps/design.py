@@ -2,7 +2,8 @@
 
 The design is the cartesian product of the axes (a zipped axis is one factor; a ``[sample]`` block is
 one more factor whose levels are its sampled points), times ``replicates``. Every run's preset is built
-and validated here, before anything runs, so a bad value fails with its axis and key named.
+and validated here, before anything runs, so a bad value fails with its axis and key named; so does a
+point whose run would record nothing to summarise (:func:`sweeps.config.check_window`).
 
 Every point's preset is the base preset (the preset file with ``model.set`` and the ``[run]``
 shorthands, which must itself be valid) with the point's values set by :meth:`simcore.Preset.replace`.
@@ -25,7 +26,7 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 
-from .config import Storage, SweepConfig
+from .config import Storage, SweepConfig, check_window
 from .identity import point_key, run_id
 from .seeds import Tag, generator, run_seed
 
@@ -147,6 +148,7 @@ def expand(config: SweepConfig) -> list[RunSpec]:
         overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
         where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
         preset = _point_preset(base, overrides, where)
+        check_window(config.metrics.warmup, preset.run, f" (at design point {where})" if overrides else "")
         resolved = preset.to_dict()
         values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
         point = point_key({k: get_dotted(values, k) for k, _ in overrides})

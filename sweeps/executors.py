@@ -6,9 +6,12 @@ function over items:
 
 * ``map(fn, items) -> list``: ``[fn(item) for item in items]`` in the order of ``items``, whatever order
   the work finishes in; a task's exception is raised here;
-* ``as_completed(fn, items)``: an iterator of :class:`Outcome` (index, item, value, error) in the order
-  tasks finish; a task that raised or whose worker died is an outcome with ``error`` set (and ``value``
-  None), so the caller records it and goes on.
+* ``as_completed(fn, items, idle=None)``: an iterator of :class:`Outcome` (index, item, value, error) in
+  the order tasks finish; a task that raised is an outcome with ``error`` set (and ``value`` None), so the
+  caller records it and goes on. With ``idle`` (seconds) the iterator also yields ``None``, a heartbeat
+  meaning "nothing finished yet, and the executor may keep you waiting": local and dask yield one after
+  every ``idle`` seconds without a finished task, serial one before each task (it computes in the
+  caller's thread). Callers use it to save finished work on time.
 
 Callers make every task a pure function of its item, so results never depend on the kind of executor,
 the number of workers or the finishing order.
@@ -19,23 +22,56 @@ Kinds:
 * ``local``: a pool of ``workers`` processes on this machine (default: all cores), started with
   ``spawn`` (a fresh interpreter: safe after this process has run threaded compiled kernels, where a
   fork is not; each worker loads the kernels from numba's cache). Functions travel with cloudpickle,
-  so closures work. Each worker runs compiled threaded kernels on ``cores // workers`` threads and
-  exits when the process that started it dies (a watchdog thread waits on the parent's sentinel);
-* ``dask``: a ``dask.distributed`` Client at ``scheduler`` (``tcp://host:8786``), or a ``LocalCluster`` of
-  ``workers`` single-threaded processes started here when no address is given.
+  so closures work. Each worker runs compiled threaded kernels on ``cores // workers`` threads, ignores
+  SIGINT (Ctrl-C is the parent's to handle: it stops the pool) and exits when the process that started
+  it dies (a watchdog thread waits on the parent's sentinel). At most ``workers`` tasks are in flight;
+* ``dask``: a ``dask.distributed`` Client at ``scheduler`` (``tcp://host:8786``; a scheduler that does
+  not answer within :data:`CONNECT_TIMEOUT` seconds is :class:`SchedulerUnreachable`), or a
+  ``LocalCluster`` of ``workers`` single-threaded processes started here when no address is given.
+
+Lost workers are an infrastructure fault, never a task's failure. When a local worker dies (killed,
+out of memory, a crash in compiled code), the pool is restarted and the tasks it was running are run
+again, each alone, so a task that kills its worker is singled out; a task whose worker died
+:data:`MAX_ATTEMPTS` times is an outcome whose error is :class:`WorkerLost` (``map`` raises it). Dask
+retries tasks of lost workers itself; its ``KilledWorker`` becomes :class:`WorkerLost` too.
+
+``close(wait=False)`` (also on leaving the ``with`` block by an exception, e.g. Ctrl-C) kills the
+workers at once instead of waiting for their tasks.
 """
 from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import threading
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
 
+from .interrupts import deferred
+
 EXECUTORS = ("serial", "local", "dask")
 START_METHOD = "spawn"
+MAX_ATTEMPTS = 3        # runs of a task whose worker died before it is given up as lost
+CONNECT_TIMEOUT = 10.0  # seconds to reach a dask scheduler
+
+
+class WorkerLost(RuntimeError):
+    """A task's worker process died while running it (``attempts`` times): an infrastructure fault."""
+
+    def __init__(self, message: str, attempts: int = 1):
+        super().__init__(message)
+        self.attempts = attempts
+
+    def __reduce__(self):
+        return type(self), (str(self), self.attempts)
+
+
+class SchedulerUnreachable(ConnectionError):
+    """No dask scheduler answered at the address given."""
 
 
 class Outcome(NamedTuple):
@@ -49,7 +85,7 @@ class Outcome(NamedTuple):
         """One line on why the task failed ('' when it did not)."""
         if self.error is None:
             return ""
-        if isinstance(self.error, BrokenProcessPool):
+        if isinstance(self.error, WorkerLost):
             return f"worker process died: {self.error}"
         return f"task failed: {type(self.error).__name__}: {self.error}"
 
@@ -59,16 +95,49 @@ def _watch_parent() -> None:
     parent = multiprocessing.parent_process()
     if parent is None:
         return
-    from multiprocessing.connection import wait
+    from multiprocessing.connection import wait as wait_for
 
     def watch():
-        wait([parent.sentinel])
+        wait_for([parent.sentinel])
         os._exit(3)
 
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
+@contextmanager
+def _sigint_blocked():
+    """Block SIGINT in this thread while worker processes are started: they inherit the blocked mask, so
+    a Ctrl-C during their start-up waits until ``_init_worker`` ignores it (here it is delivered on exit)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+@contextmanager
+def _cluster_starting():
+    """While a dask LocalCluster starts: SIGINT ignored (its processes inherit that, so a Ctrl-C to the
+    process group cannot kill them half-started; one pressed in these seconds is lost) and SIGTERM held
+    until the cluster is complete (then raised, so the cluster is closed whole)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with deferred():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def _init_worker(threads: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole process group: the parent handles it
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _watch_parent()
     import numba
 
@@ -80,6 +149,32 @@ def _call_pickled(payload):
 
     blob, item = payload
     return cloudpickle.loads(blob)(item)
+
+
+def _is_lost_worker(error: BaseException) -> bool:
+    """A dask error that means the task's worker went away (not the task's own exception)."""
+    return type(error).__name__ in ("KilledWorker", "FutureCancelledError") or isinstance(error, BrokenProcessPool)
+
+
+def connect(address: str):
+    """A dask Client at ``address``; :class:`SchedulerUnreachable` when the address is malformed or no
+    scheduler answers within :data:`CONNECT_TIMEOUT` seconds."""
+    from dask.distributed import Client
+
+    try:
+        return Client(address, timeout=CONNECT_TIMEOUT)
+    except (ValueError, TypeError) as err:
+        raise SchedulerUnreachable(f"--scheduler: got {address!r}, not a dask address ({err}); expected "
+                                   "tcp://HOST:PORT") from None
+    except OSError as err:  # TimeoutError and refused connections are OSErrors
+        raise SchedulerUnreachable(f"--scheduler: no dask scheduler answered at {address!r} within "
+                                   f"{CONNECT_TIMEOUT:g} s ({type(err).__name__}: {err}); start one (dask "
+                                   "scheduler) or check the address") from None
+
+
+def check_scheduler(address: str) -> None:
+    """Connect to the scheduler at ``address`` and leave (SchedulerUnreachable as :func:`connect`)."""
+    connect(address).close()
 
 
 class Executor:
@@ -95,6 +190,7 @@ class Executor:
         self.kind = kind
         self.workers = workers or os.cpu_count() or 1
         self.scheduler = scheduler
+        self.restarts = 0   # local pools restarted after a worker died
         self._pool = None
         self._client = None
         self._cluster = None
@@ -102,35 +198,59 @@ class Executor:
     # -- life cycle ----------------------------------------------------------------------------------
     def __enter__(self) -> "Executor":
         if self.kind == "local" and self.workers > 1:
-            threads = max(1, (os.cpu_count() or 1) // self.workers)
-            self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=multiprocessing.get_context(START_METHOD),
-                                             initializer=_init_worker, initargs=(threads,))
+            self._start_pool()
         elif self.kind == "dask":
-            from dask.distributed import Client, LocalCluster
+            self._start_dask()
+        return self
 
-            if self.scheduler:
-                self._client = Client(self.scheduler)
-            else:
+    def _start_pool(self) -> None:
+        threads = max(1, (os.cpu_count() or 1) // self.workers)
+        self._pool = ProcessPoolExecutor(max_workers=self.workers,
+                                         mp_context=multiprocessing.get_context(START_METHOD),
+                                         initializer=_init_worker, initargs=(threads,))
+
+    def _start_dask(self) -> None:
+        from dask.distributed import Client, LocalCluster
+
+        if self.scheduler:
+            self._client = connect(self.scheduler)
+        else:
+            with _cluster_starting():
                 self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
                                              dashboard_address=None, silence_logs=40)
-                self._client = Client(self._cluster)
-        return self
+            self._client = Client(self._cluster)
 
     def __exit__(self, exc_type, *exc) -> None:
         self.close(wait=exc_type is None)
 
     def close(self, wait: bool = True) -> None:
-        """Stop the pool or cluster; ``wait=False`` (after an error) does not wait for running tasks."""
+        """Stop the pool or cluster; ``wait=False`` (after an error or an interrupt) kills the workers
+        instead of waiting for their tasks."""
         if self._pool is not None:
-            self._pool.shutdown(wait=wait, cancel_futures=True)
-            self._pool = None
-        if self._client is not None:
-            self._client.close()
-            self._client = None
-        if self._cluster is not None:
-            self._cluster.close()
-            self._cluster = None
+            self._stop_pool(wait)
+        for name in ("_client", "_cluster"):
+            part, timeout = getattr(self, name), None if wait else 5
+            setattr(self, name, None)
+            if part is None:
+                continue
+            if wait:
+                part.close(timeout=timeout)
+                continue
+            try:   # after an error or an interrupt: best effort, the original exception is what matters
+                part.close(timeout=timeout)
+            except Exception:  # noqa: BLE001 - dask may complain about workers still starting
+                pass
+
+    def _stop_pool(self, wait: bool) -> None:
+        pool, self._pool = self._pool, None
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        if not wait:
+            for process in processes:
+                if process.is_alive():
+                    process.kill()
+        pool.shutdown(wait=wait, cancel_futures=True)
+        for process in processes:
+            process.join(timeout=10)
 
     @property
     def in_process(self) -> bool:
@@ -157,18 +277,21 @@ class Executor:
             out[outcome.index] = outcome.value
         return out
 
-    def as_completed(self, fn: Callable, items: Iterable) -> Iterator[Outcome]:
-        """:class:`Outcome` of every task as it finishes; failures are outcomes, never raised."""
+    def as_completed(self, fn: Callable, items: Iterable, idle: float | None = None) -> Iterator[Outcome | None]:
+        """:class:`Outcome` of every task as it finishes (and ``None`` heartbeats with ``idle``); failures
+        are outcomes, never raised."""
         items = list(items)
         if self.in_process:
-            yield from self._serial(fn, items)
+            yield from self._serial(fn, items, idle)
         elif self._pool is not None:
-            yield from self._local(fn, items)
+            yield from self._local(fn, items, idle)
         else:
-            yield from self._dask(fn, items)
+            yield from self._dask(fn, items, idle)
 
-    def _serial(self, fn, items):
+    def _serial(self, fn, items, idle):
         for index, item in enumerate(items):
+            if idle is not None:
+                yield None
             try:
                 value = fn(item)
             except Exception as err:  # noqa: BLE001 - reported as the task's outcome
@@ -176,34 +299,95 @@ class Executor:
                 continue
             yield Outcome(index, item, value, None)
 
-    def _local(self, fn, items):
+    def _local(self, fn, items, idle):
+        """At most ``workers`` tasks in flight; a broken pool is restarted and its tasks run again alone."""
         import cloudpickle
 
         blob = cloudpickle.dumps(fn)
-        futures = {self._pool.submit(_call_pickled, (blob, item)): index for index, item in enumerate(items)}
-        try:
-            for future in as_completed(futures):
-                index = futures[future]
+        fresh, suspects = deque(range(len(items))), deque()
+        attempts = [0] * len(items)
+        running: dict = {}
+        while fresh or suspects or running:
+            lost: list[int] = []
+            if not self._submit(blob, items, fresh, suspects, running):
+                done, _ = wait(running, timeout=idle, return_when=FIRST_COMPLETED)
+                if not done:
+                    yield None
+                    continue
+                for future in done:
+                    index = running.pop(future)
+                    error = future.exception()
+                    if isinstance(error, BrokenProcessPool):
+                        lost.append(index)
+                        continue
+                    yield Outcome(index, items[index], None if error else future.result(), error)
+                if not lost:
+                    continue
+            # the pool is broken: every task still running went down with it
+            wait(running)
+            for future, index in list(running.items()):
                 error = future.exception()
-                yield Outcome(index, items[index], None if error else future.result(), error)
-        finally:
-            for future in futures:
-                future.cancel()
+                if isinstance(error, BrokenProcessPool):
+                    lost.append(index)
+                else:
+                    yield Outcome(index, items[index], None if error else future.result(), error)
+            running.clear()
+            self._restart_pool()
+            for index in sorted(lost):
+                attempts[index] += 1
+                if attempts[index] >= MAX_ATTEMPTS:
+                    yield Outcome(index, items[index], None, WorkerLost(
+                        f"the worker running this task died {attempts[index]} times (killed, out of memory "
+                        "or crashed)", attempts[index]))
+                else:
+                    suspects.append(index)
 
-    def _dask(self, fn, items):
-        from dask.distributed import as_completed as dask_completed
+    def _submit(self, blob, items, fresh, suspects, running) -> bool:
+        """Fill the pool: a suspect (a task whose worker died) runs alone, others up to ``workers`` at
+        once. Returns True when the pool turned out to be broken (the task being submitted goes back)."""
+        queue = suspects if suspects else fresh
+        while queue and len(running) < (1 if queue is suspects else self.workers):
+            if queue is suspects and running:
+                break
+            index = queue.popleft()
+            try:
+                with _sigint_blocked():   # a submission may start a worker process
+                    running[self._pool.submit(_call_pickled, (blob, items[index]))] = index
+            except BrokenProcessPool:
+                queue.appendleft(index)   # never started: not counted as an attempt
+                return True
+        return False
+
+    def _restart_pool(self) -> None:
+        self._stop_pool(wait=False)
+        self.restarts += 1
+        self._start_pool()
+
+    def _dask(self, fn, items, idle):
+        from dask.distributed import TimeoutError as DaskTimeout
+        from dask.distributed import wait as dask_wait
 
         futures = self._client.map(fn, items, pure=False)
         position = {future.key: index for index, future in enumerate(futures)}
+        pending = set(futures)
         try:
-            for future in dask_completed(futures):
-                index = position[future.key]
+            while pending:
                 try:
-                    value = future.result()
-                except Exception as err:  # noqa: BLE001 - a lost worker or a scheduler error: an outcome
-                    yield Outcome(index, items[index], None, err)
+                    done, pending = dask_wait(list(pending), timeout=idle, return_when="FIRST_COMPLETED")
+                except DaskTimeout:
+                    yield None
                     continue
-                yield Outcome(index, items[index], value, None)
+                pending = set(pending)
+                for future in done:
+                    index = position[future.key]
+                    try:
+                        value = future.result()
+                    except Exception as err:  # noqa: BLE001 - the task's error, or a lost worker: an outcome
+                        if _is_lost_worker(err):
+                            err = WorkerLost(f"dask lost the workers running this task ({err})")
+                        yield Outcome(index, items[index], None, err)
+                        continue
+                    yield Outcome(index, items[index], value, None)
         finally:
             for future in futures:
                 future.cancel()

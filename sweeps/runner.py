@@ -1,10 +1,26 @@
 """Running a sweep: plan -> (dry run | execute and store) -> consolidated table and manifest.
 
-``run_sweep(config, sweep_text, out_dir, ...)`` expands and validates the design (nothing is written
-before that succeeds), takes the store's lock, skips finished runs (resume; ``force`` recomputes all,
-``retry_failed`` reruns failed ones), computes the rest in batches on the chosen executor with a
-progress bar, writes each batch as it finishes and consolidates ``runs.parquet`` at the end.
-``status(out_dir)`` counts done / failed / missing runs.
+``run_sweep(config, sweep_text, out_dir, ...)`` counts the design's runs and checks their memory
+(:mod:`sweeps.budget`: a design over ``MAX_RUNS`` runs needs ``yes``), expands and validates it (nothing
+is written before that succeeds), takes the store's lock, repairs the folder (temporary files of a
+killed writer removed, damaged parts quarantined: :meth:`ResultsStore.repair`), skips finished runs
+(resume; ``force`` recomputes all, ``retry_failed`` reruns failed ones), computes the rest in batches
+on the chosen executor with a progress bar, writes finished runs in parts and consolidates
+``runs.parquet`` at the end.
+
+Failures, each kept apart (docs/errors.md):
+
+* a run that raises or ends in a non-finite state is a row with ``status = "failed"`` and the reason;
+* a run whose worker process died (:class:`~sweeps.executors.WorkerLost` after the executor's retries)
+  is not recorded: it stays missing, listed in ``SweepResult.lost``, and a rerun computes it;
+* a write that fails (disk full, read-only, permission) stops the sweep at once with
+  :class:`~sweeps.files.WriteFailed` naming the file; the parts written before it are kept;
+* an interrupt (SIGINT, SIGTERM as ``KeyboardInterrupt``) saves the finished runs, stops the workers and
+  releases the folder before it propagates.
+
+Finished runs are saved on time: at most :data:`FLUSH_SECONDS` after they finish (plus a heartbeat),
+whatever the executor is busy with, and all of them at the end or on an interrupt.
+``status(out_dir)`` counts done / failed / missing runs and says whether a runner holds the folder.
 """
 from __future__ import annotations
 
@@ -25,12 +41,17 @@ from tqdm import tqdm
 from simcore import simulate
 
 from . import worker
+from .budget import check_sweep
 from .config import SweepConfig, describe
-from .design import RunSpec, expand
-from .executors import Executor
+from .design import RunSpec, base_preset, expand
+from .executors import Executor, WorkerLost, check_scheduler
+from .files import WriteFailed
 from .identity import canonical
 from .provenance import stamp
 from .store import ResultsStore
+
+FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
+HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
 
 
 @dataclass
@@ -78,7 +99,8 @@ def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = Non
 
 
 def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> dict:
-    """Boid-steps and seconds, timing short pilots of the cheapest, median and dearest runs to do."""
+    """Boid-steps and seconds, timing short pilots of the cheapest, median and dearest runs to do (one
+    step first: a pilot whose one step already takes ``pilot_seconds / 4`` is timed on that step alone)."""
     boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
     if not todo:
         return {"boid_steps": 0, "seconds": 0.0}
@@ -87,15 +109,21 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> d
     rate = []  # seconds per unit of cost
     for spec in pilots:
         run = spec.preset.run
-        duration = min(run.duration, max(pilot_seconds, run.dt))
-        steps = max(1, int(round(duration / run.dt)))
-        start = time.perf_counter()
-        simulate(spec.preset.model, spec.preset.init, spec.seed, steps * run.dt, run.dt, steps)
-        elapsed = time.perf_counter() - start
+        steps, elapsed = 1, _pilot(spec, 1)
+        if elapsed < pilot_seconds / 4:
+            steps = max(1, min(run.n_steps, int(round(pilot_seconds / run.dt))))
+            elapsed = _pilot(spec, steps)
         rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
     per_cost = sorted(rate)[len(rate) // 2]
     seconds = sum(s.cost for s in todo) * per_cost / max(workers, 1)
     return {"boid_steps": boid_steps, "seconds": seconds}
+
+
+def _pilot(spec: RunSpec, steps: int) -> float:
+    run = spec.preset.run
+    start = time.perf_counter()
+    simulate(spec.preset.model, spec.preset.init, spec.seed, steps * run.dt, run.dt, steps)
+    return time.perf_counter() - start
 
 
 def _progress(total: int, name: str, enabled: bool):
@@ -133,21 +161,33 @@ def stamp_hash(config: SweepConfig) -> str:
 
 
 class PartWriter:
-    """Buffers finished batches and writes them as one part when ``max_runs`` rows or ``max_seconds``
-    have accumulated (and on exit, also after an error): few files, bounded memory, and an
-    interruption loses at most ``max_seconds`` of finished work."""
+    """Buffers finished batches and writes them as one part when ``max_runs`` rows have accumulated or
+    the oldest has waited ``max_seconds`` (checked when a batch arrives and on every ``tick``), and on
+    exit, also after an error or an interrupt, but not after a failed write (nothing more can be
+    saved then): few files, bounded memory, finished work saved on time."""
 
-    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float = 5.0):
-        self.store, self.max_runs, self.max_seconds = store, max_runs, max_seconds
+    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float | None = None):
+        self.store, self.max_runs = store, max_runs
+        self.max_seconds = FLUSH_SECONDS if max_seconds is None else max_seconds
         self.rows: list[dict] = []
         self.frames: list[pd.DataFrame] = []
         self.since = time.monotonic()
 
     def add(self, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
+        if not self.rows:
+            self.since = time.monotonic()
         self.rows += rows
         if timeseries is not None:
             self.frames.append(timeseries)
-        if len(self.rows) >= self.max_runs or time.monotonic() - self.since >= self.max_seconds:
+        if len(self.rows) >= self.max_runs:
+            self.flush()
+        else:
+            self.tick()
+
+    def tick(self, expected_wait: float = 0.0) -> None:
+        """Flush when the buffered rows have waited, or would wait after ``expected_wait`` more
+        seconds, ``max_seconds``."""
+        if self.rows and time.monotonic() - self.since + expected_wait >= self.max_seconds:
             self.flush()
 
     def flush(self) -> None:
@@ -159,8 +199,9 @@ class PartWriter:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.flush()
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None or not issubclass(exc_type, WriteFailed):
+            self.flush()
         return False
 
 
@@ -171,53 +212,73 @@ class SweepResult:
     table: pd.DataFrame | None
     wall_s: float
     estimate: dict | None = None
+    lost: list[RunSpec] = field(default_factory=list)   # runs whose worker died: left missing
+    quarantined: list[Path] = field(default_factory=list)  # damaged files moved aside before computing
 
 
 def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "local", workers: int | None = None,
               scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
               dry_run: bool = False, progress: bool = True, batch_size: int | None = None,
-              specs: list[RunSpec] | None = None) -> SweepResult:
+              specs: list[RunSpec] | None = None, yes: bool = False) -> SweepResult:
     """Run the sweep (or the given subset ``specs`` of its design); see the module docstring."""
     started = time.time()
     workers = workers or os.cpu_count() or 1
-    specs = expand(config) if specs is None else specs  # validates every run before anything is written
+    if specs is None:
+        base_preset(config)   # the base model must be valid: ConfigError naming the key
+        check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
+        specs = expand(config)  # validates every run before anything is written
     store = ResultsStore(out_dir)
+    if executor == "dask" and scheduler and not dry_run:
+        check_scheduler(scheduler)   # before anything is written
     if dry_run:
         plan = make_plan(specs, store, force, retry_failed)
         return SweepResult(Path(out_dir), plan, None, time.time() - started,
                            estimate(plan.todo, 1 if executor == "serial" else workers))
     with store.lock():
+        quarantined = store.repair()
         plan = make_plan(specs, store, force, retry_failed)
         effective = {**config.source, "replicates": config.replicates}
         design = design_table(specs)
         store.write_inputs(sweep_text, effective, model_record(config), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
-        if plan.todo:
-            _compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
+        lost = _compute(config, store, plan, executor, workers, scheduler, progress, batch_size) if plan.todo else []
         table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
-    return SweepResult(Path(out_dir), plan, table, time.time() - started)
+    return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, quarantined=quarantined)
 
 
 def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
-             scheduler: str | None, progress: bool, batch_size: int | None) -> None:
-    """Compute the plan's runs in batches on the executor, writing parts as batches finish."""
+             scheduler: str | None, progress: bool, batch_size: int | None) -> list[RunSpec]:
+    """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
+    with their workers (not recorded)."""
     try:
         worker.warm_up(plan.todo[0])
     except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
         pass
     batches = make_batches(plan.todo, workers, batch_size)
     task = functools.partial(worker.execute_batch, out_dir=store.root)
-    failures = 0
+    failures, lost = 0, []
+    last_batch_s, clock = 0.0, time.monotonic()
     with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer, \
             Executor(executor, workers, scheduler) as pool:
-        for outcome in pool.as_completed(task, batches):
+        for outcome in pool.as_completed(task, batches, idle=HEARTBEAT):
+            if outcome is None:   # nothing finished yet: save what waits (serial: before the next batch)
+                writer.tick(last_batch_s if pool.in_process else 0.0)
+                continue
+            last_batch_s, clock = time.monotonic() - clock, time.monotonic()
+            if isinstance(outcome.error, (WriteFailed, WorkerLost)):
+                if isinstance(outcome.error, WriteFailed):
+                    raise outcome.error   # a worker could not write (trajectories): stop, keep what is saved
+                lost += outcome.item
+                bar.update(len(outcome.item))
+                continue
             rows, ts = outcome.value if outcome.error is None else (worker.failed_rows(outcome.item, outcome.reason),
                                                                      None)
             writer.add(rows, ts)
             failures += sum(r["status"] != "ok" for r in rows)
-            bar.set_postfix(failed=failures, refresh=False)
+            bar.set_postfix(failed=failures, lost=len(lost), refresh=False)
             bar.update(len(rows))
+    return lost
 
 
 def status(out_dir) -> dict:
@@ -232,7 +293,17 @@ def status(out_dir) -> dict:
     states = [status_of.get(r, "missing") for r in design["run_id"]]
     failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
     return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
-            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest()}
+            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest(),
+            "running": store.holder()}
+
+
+def resume_hint(sweep_path, out_dir) -> str:
+    """One line on what an interrupted sweep saved and how to resume it."""
+    if not (Path(out_dir) / "design.parquet").exists():
+        return "nothing was saved yet: run the same command again"
+    info = status(out_dir)
+    return (f"saved: {info['ok']} ok and {info['failed']} failed of {info['runs']} runs in {out_dir}; resume with: "
+            f"flocksweep run {sweep_path} --out {out_dir}")
 
 
 def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:
@@ -254,6 +325,9 @@ def run_until_ci(config: SweepConfig, sweep_text: str, out_dir, metric: str, tar
     ``max_replicates``. Each round asks a point for n (h / target)^2 replicates (at least one more)."""
     counts: dict[int, int] = {}
     result = None
+    check_sweep(dataclasses.replace(config, replicates=max(max_replicates, config.replicates)),
+                1 if run_options.get("executor") == "serial" else (run_options.get("workers") or os.cpu_count() or 1),
+                run_options.pop("yes", False))
     for round_number in range(1, 100):
         want = max(counts.values(), default=config.replicates)
         full = expand(dataclasses.replace(config, replicates=max(want, config.replicates)))

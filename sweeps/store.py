@@ -1,9 +1,11 @@
 """Where results live: an output folder (locked, written atomically, stamped) and the sweep's layout.
 
 :class:`OutputFolder` is any result folder (a sweep's, a calibration's, an SBC study's): ``lock()``
-holds an exclusive flock on ``<root>/.lock`` while one process writes there (a second one gets
-:class:`StoreLocked` naming the holder; the lock goes when its process dies), every ``write_*`` is atomic
-(:mod:`sweeps.files`) and ``provenance()`` is the stamp every result carries (:mod:`sweeps.provenance`).
+holds an exclusive flock on ``<root>/.lock`` while one process writes there (:mod:`sweeps.lock`: a
+second one gets :class:`StoreLocked` naming the holder; the lock goes when its process dies, and a
+dead holder is recognised), ``holder()`` says who holds it now, every ``write_*`` is atomic
+(:mod:`sweeps.files`; a failed write is ``WriteFailed`` naming the file and the errno) and
+``provenance()`` is the stamp every result carries (:mod:`sweeps.provenance`).
 
 :class:`ResultsStore` is a sweep's folder, ``results/<sweep name>/``::
 
@@ -22,27 +24,37 @@ A batch's time series part is written before its runs part, so a runs part is th
 crash can leave an unreferenced time series part (ignored) but never a row without its data. Parts are
 never rewritten; a recomputed run (``--force``, ``--retry-failed``) appears in a later part and the
 latest part wins. Nothing here holds more than one batch's time series in memory.
+
+Damaged folders (:mod:`sweeps.quarantine`): a part that cannot be read, or whose schema is not a part's
+(a runs part needs ``run_id``, ``status`` in {ok, failed}, ``error`` and ``part`` equal to its file's
+number; a time series part ``run_id`` and ``t`` and the series of every ok run of its runs part), is
+skipped with a warning by readers and, by ``repair()`` (the runner, holding the lock), moved to
+``quarantine/`` with its partner part, so its runs count as missing and are computed again. A garbage
+``manifest.json`` is moved aside the same way (a new one is written); a garbage ``runs.parquet`` is
+rebuilt from the parts; an unreadable ``design.parquet`` is :class:`~sweeps.files.Unreadable` with how
+to rewrite it. Part numbers are never reused, quarantined ones included.
 """
 from __future__ import annotations
 
-import fcntl
-import os
 import re
-import socket
-import time
 from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
 
-from .files import read_json, write_csv, write_json, write_parquet, write_text
+from .files import Unreadable, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
+from .interrupts import deferred
+from .lock import StoreLocked, hold, holder
 from .provenance import stamp
+from .quarantine import FOLDER as QUARANTINE, quarantine, warn
 
 PART = re.compile(r"part-(\d{6})\.parquet$")
+NUMBERED = re.compile(r"part-(\d{6})\.parquet")          # also quarantined parts (with a time suffix)
+RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has these
+SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
+STATUSES = ("ok", "failed")
 
-
-class StoreLocked(RuntimeError):
-    pass
+__all__ = ["OutputFolder", "ResultsStore", "StoreLocked", "Unreadable"]
 
 
 class OutputFolder:
@@ -54,27 +66,12 @@ class OutputFolder:
     @contextmanager
     def lock(self):
         """Exclusive lock on the folder for one writer (released even if the process is killed)."""
-        self.root.mkdir(parents=True, exist_ok=True)
-        path = self.root / ".lock"
-        handle = open(path, "a+")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            holder = handle.read().strip() or "unknown process"
-            handle.close()
-            raise StoreLocked(f"{self.root} is in use by another flocksweep runner ({holder}); wait for it "
-                              "to finish or stop it, then run again (finished runs are kept)") from None
-        handle.seek(0)
-        handle.truncate()
-        handle.write(f"pid {os.getpid()} on {socket.gethostname()} since {time.strftime('%Y-%m-%d %H:%M:%S')}")
-        handle.flush()
-        try:
+        with hold(self.root):
             yield self
-        finally:
-            handle.truncate(0)
-            fcntl.flock(handle, fcntl.LOCK_UN)
-            handle.close()
+
+    def holder(self) -> str | None:
+        """Who holds the folder's lock now, or None."""
+        return holder(self.root)
 
     def path(self, name: str) -> Path:
         return self.root / name
@@ -102,6 +99,10 @@ class OutputFolder:
 class ResultsStore(OutputFolder):
     """A sweep's results folder (layout in the module docstring)."""
 
+    def __init__(self, root):
+        super().__init__(root)
+        self._reported: set[str] = set()   # damaged files a reader has warned about already
+
     # -- inputs ----------------------------------------------------------------------------------
     def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
         write_text(self.root / "sweep.toml", sweep_text)
@@ -115,7 +116,13 @@ class ResultsStore(OutputFolder):
 
     def design(self) -> pd.DataFrame | None:
         path = self.root / "design.parquet"
-        return pd.read_parquet(path) if path.exists() else None
+        if not path.exists():
+            return None
+        try:
+            return pd.read_parquet(path)
+        except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
+            raise Unreadable(f"{path} cannot be read ({_why(err)}); running the sweep again "
+                             f"(flocksweep run SWEEP.toml --out {self.root}) writes it anew") from None
 
     # -- parts -----------------------------------------------------------------------------------
     def _parts(self, kind: str) -> list[Path]:
@@ -126,28 +133,106 @@ class ResultsStore(OutputFolder):
 
     def next_part(self) -> int:
         numbers = [int(PART.search(p.name).group(1)) for kind in ("runs", "timeseries") for p in self._parts(kind)]
+        aside = self.root / QUARANTINE
+        if aside.is_dir():
+            numbers += [int(NUMBERED.search(p.name).group(1)) for p in aside.rglob("part-*") if NUMBERED.search(p.name)]
         return max(numbers, default=0) + 1
 
     def write_part(self, number: int, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
+        """The batch's time series part, then its runs part (the commit record), not cut by SIGINT/SIGTERM."""
         name = f"part-{number:06d}.parquet"
-        if timeseries is not None and len(timeseries):
-            write_parquet(self.root / "timeseries" / name, timeseries)
         table = pd.DataFrame(rows)
         table["part"] = number
-        write_parquet(self.root / "runs" / name, table)
+        with deferred():
+            if timeseries is not None and len(timeseries):
+                write_parquet(self.root / "timeseries" / name, timeseries)
+            write_parquet(self.root / "runs" / name, table)
 
-    def all_rows(self) -> pd.DataFrame:
-        """Every stored row of every part (latest part last)."""
-        frames = [pd.read_parquet(p) for p in self._parts("runs")]
-        frames = [f for f in frames if len(f)]
+    def _runs_part(self, path: Path) -> pd.DataFrame:
+        """A runs part, its schema checked (Unreadable saying what is wrong)."""
+        try:
+            frame = pd.read_parquet(path)
+        except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
+            raise Unreadable(f"cannot be read ({_why(err)})") from None
+        missing = [c for c in RUNS_COLUMNS if c not in frame.columns]
+        if missing:
+            raise Unreadable(f"is not a part of a sweep (no column {', '.join(map(repr, missing))})")
+        number = int(PART.search(path.name).group(1))
+        if len(frame) and not (pd.to_numeric(frame["part"], errors="coerce") == number).all():
+            raise Unreadable(f"holds rows of another part (its 'part' column is not {number} throughout)")
+        if not frame["status"].isin(STATUSES).all() or not frame["run_id"].map(type).eq(str).all():
+            raise Unreadable("is not a part of a sweep (run_id must be text, status 'ok' or 'failed')")
+        return frame
+
+    def _damaged(self, path: Path, reason: str, repair: bool, partner: Path | None = None) -> None:
+        """Quarantine ``path`` (and ``partner``) when repairing, else warn once that it is skipped."""
+        if repair:
+            quarantine(self.root, path, f"{reason}; its runs will be computed again")
+            if partner is not None and partner.exists():
+                quarantine(self.root, partner, f"its partner {path.parent.name}/{path.name} was damaged")
+            return
+        key = str(path)
+        if key not in self._reported:
+            self._reported.add(key)
+            warn("%s %s; skipped (the next 'flocksweep run' moves it aside and computes its runs again)",
+                 path.relative_to(self.root), reason)
+
+    def all_rows(self, repair: bool = False) -> pd.DataFrame:
+        """Every stored row of every readable part (latest part last); damaged parts are skipped with a
+        warning, or quarantined with ``repair``."""
+        frames = []
+        for path in self._parts("runs"):
+            try:
+                frame = self._runs_part(path)
+            except Unreadable as err:
+                self._damaged(path, str(err), repair, self.root / "timeseries" / path.name)
+                continue
+            if len(frame):
+                frames.append(frame)
         if not frames:
-            return pd.DataFrame(columns=["run_id", "status", "error", "part"])
+            return pd.DataFrame(columns=list(RUNS_COLUMNS))
         return pd.concat(frames, ignore_index=True).sort_values("part", kind="stable")
 
     def latest(self) -> pd.DataFrame:
         """The latest row per run id (indexed by run_id)."""
         rows = self.all_rows()
         return rows.drop_duplicates("run_id", keep="last").set_index("run_id", drop=False)
+
+    def _series_problem(self, path: Path, ok_ids: set) -> str | None:
+        """Why the time series part ``path`` cannot serve the ok runs ``ok_ids`` (None when it can)."""
+        if not path.exists():
+            return f"has no time series part (timeseries/{path.name} is missing)"
+        try:
+            frame = pd.read_parquet(path)
+        except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
+            return f"has an unreadable time series part timeseries/{path.name} ({_why(err)})"
+        if any(c not in frame.columns for c in SERIES_COLUMNS):
+            return f"has a time series part timeseries/{path.name} without run_id and t columns"
+        lacking = ok_ids - set(frame["run_id"])
+        if lacking:
+            return f"has a time series part timeseries/{path.name} lacking {len(lacking)} of its ok runs"
+        return None
+
+    def repair(self) -> list[Path]:
+        """For the runner holding the lock: remove temporary files of killed writers, quarantine damaged
+        parts (a runs part together with its time series part) and a garbage manifest. Returns what
+        was moved aside."""
+        for folder in (self.root, self.root / "runs", self.root / "timeseries", self.root / "trajectories"):
+            remove_stale_temporaries(folder)
+        before = set(self._quarantined())
+        self.all_rows(repair=True)
+        for path in self._parts("runs"):
+            frame = self._runs_part(path)
+            ok_ids = set(frame.loc[frame["status"] == "ok", "run_id"])
+            problem = self._series_problem(self.root / "timeseries" / path.name, ok_ids) if ok_ids else None
+            if problem:
+                self._damaged(path, problem, True, self.root / "timeseries" / path.name)
+        self.manifest(repair=True)
+        return sorted(set(self._quarantined()) - before)
+
+    def _quarantined(self) -> list[Path]:
+        folder = self.root / QUARANTINE
+        return [p for p in folder.rglob("*") if p.is_file()] if folder.is_dir() else []
 
     # -- consolidation ---------------------------------------------------------------------------
     def consolidate(self, design: pd.DataFrame) -> pd.DataFrame:
@@ -166,24 +251,55 @@ class ResultsStore(OutputFolder):
         return table
 
     def runs(self) -> pd.DataFrame:
+        """``runs.parquet``, or the latest rows of the parts when it is missing or cannot be read."""
         path = self.root / "runs.parquet"
-        return pd.read_parquet(path) if path.exists() else self.latest().reset_index(drop=True)
+        if path.exists():
+            try:
+                return pd.read_parquet(path)
+            except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
+                warn("runs.parquet cannot be read (%s); using the rows of runs/ instead (the next "
+                     "'flocksweep run' writes it anew)", _why(err))
+        return self.latest().reset_index(drop=True)
 
     def timeseries(self, run_ids=None) -> pd.DataFrame:
-        """Time series of the given runs (default: all of runs.parquet), read part by part."""
+        """Time series of the given runs (default: all of runs.parquet), read part by part; a part that
+        cannot be read is skipped with a warning."""
         table = self.runs()
         if run_ids is not None:
             table = table[table["run_id"].isin(list(run_ids))]
         frames = []
         for part, group in table[table["status"] == "ok"].groupby("part"):
             path = self.root / "timeseries" / f"part-{int(part):06d}.parquet"
-            frame = pd.read_parquet(path, filters=[("run_id", "in", list(group["run_id"]))])
+            try:
+                frame = pd.read_parquet(path, filters=[("run_id", "in", list(group["run_id"]))])
+            except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
+                self._damaged(path, f"cannot be read ({_why(err)}): the series of its "
+                                    f"{len(group)} runs are left out", repair=False)
+                continue
             frames.append(frame)
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
     # -- manifest --------------------------------------------------------------------------------
-    def manifest(self) -> dict:
-        return self.read_json("manifest.json", {})
+    def manifest(self, repair: bool = False) -> dict:
+        """``manifest.json`` ({} when missing); a garbage one is skipped with a warning, or quarantined."""
+        try:
+            return self.read_json("manifest.json", {})
+        except Unreadable:
+            path = self.root / "manifest.json"
+            if repair:
+                quarantine(self.root, path, "is not valid JSON; a new manifest is written (the provenance "
+                                            "of earlier invocations is in the file moved aside)")
+            elif str(path) not in self._reported:
+                self._reported.add(str(path))
+                warn("manifest.json is not valid JSON; its provenance is ignored (the next 'flocksweep run' "
+                     "moves it aside and writes a new one)")
+            return {}
 
     def write_manifest(self, data: dict) -> None:
         write_json(self.root / "manifest.json", data)
+
+
+def _why(err: BaseException) -> str:
+    """The first line of an exception, with its type."""
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__

@@ -1,7 +1,9 @@
 """Executing runs: one :class:`~sweeps.design.RunSpec` -> one table row and its metric time series.
 
 ``execute_run(spec, out_dir)`` never raises for a failing run: an exception or a non-finite state
-becomes a row with ``status = "failed"`` and the reason in ``error``, and the sweep goes on.
+becomes a row with ``status = "failed"`` and the reason in ``error``, and the sweep goes on. A failed
+write (:class:`~sweeps.files.WriteFailed`: the trajectory file on a full or read-only disk) is not the
+run's failure: it is raised, and the runner stops.
 ``execute_batch(specs, out_dir)`` runs several in a row (a worker's unit of work) and returns
 ``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric).
 
@@ -25,7 +27,7 @@ from analysis.observables.summary import check_finite, every_nth, measure_run
 from simcore import simulate
 
 from .design import RunSpec
-from .files import atomic_path
+from .files import WriteFailed, atomic_path
 
 
 def _simulate(spec: RunSpec):
@@ -81,6 +83,8 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
         row.update(summary)
         row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
         return row, pd.DataFrame({"run_id": spec.run_id, "t": records.times, **series})
+    except WriteFailed:
+        raise   # the disk's fault, not the run's
     except Exception as err:  # a failing run is recorded, never fatal to the sweep
         detail = traceback.format_exception_only(type(err), err)[-1].strip()
         row.update(status="failed", error=detail, sim_s=float("nan"), wall_s=time.perf_counter() - start)

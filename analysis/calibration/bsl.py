@@ -4,7 +4,7 @@ Contract
 --------
 ``run_bsl(simulate_fn, observed, prior, *, walkers, steps, seed, path=None, resume=False,
 likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, executor=None,
-moves="stretch") -> ChainResult``
+moves="stretch", meta=None) -> ChainResult``
 
 * ``simulate_fn(theta, rng) -> (n_sim, k)`` summary table at ``theta`` (shape (d,)), using FRESH seeds
   drawn from the :class:`numpy.random.Generator` ``rng`` it is given (e.g. a
@@ -35,7 +35,8 @@ moves="stretch") -> ChainResult``
   :class:`sweeps.executors.Executor`, or None for this process), one task per point. A task is
   ``(theta, seed key)``, so the chain is bit-identical whatever the executor and workers.
 * Storage and exact resume as in :func:`~analysis.calibration.mcmc.run_chain`; the file records
-  ``bsl_seed``, ``bsl_likelihood``, ``bsl_reevaluate_every`` and ``bsl_moves``, which a resume must
+  ``bsl_seed``, ``bsl_likelihood``, ``bsl_reevaluate_every`` and ``bsl_moves`` (and the caller's ``meta``:
+  what else defines the chain, e.g. the simulator's settings and the targets), which a resume must
   match. The simulation seeds follow from (seed, phase, step, i) and re-evaluations happen at fixed step
   numbers, so a resumed chain recomputes them identically. emcee writes one step per HDF5 open/close;
   an interruption in the middle of that write can leave the file unusable (the step is not journaled).
@@ -162,18 +163,20 @@ class _LogPosterior:
 def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int, seed: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
-            progress_every: int | None = None, executor=None, moves: str = "stretch") -> ChainResult:
+            progress_every: int | None = None, executor=None, moves: str = "stretch",
+            meta: dict | None = None) -> ChainResult:
     """Run BSL-MCMC; see the module docstring for the full contract."""
     if likelihood not in METHODS:
         raise ValueError(f"likelihood: unknown method {likelihood!r}; allowed: {', '.join(METHODS)}")
     seed = integer(seed, "seed", 0)
     reevaluate_every = integer(reevaluate_every, "reevaluate_every", 0)
     logpost = _LogPosterior(simulate_fn, np.asarray(observed, dtype=float), prior, seed, likelihood, executor)
-    meta = {"bsl_seed": seed, "bsl_likelihood": likelihood, "bsl_reevaluate_every": reevaluate_every,
-            "bsl_moves": moves}
+    meta = {**(meta or {}), "bsl_seed": seed, "bsl_likelihood": likelihood,
+            "bsl_reevaluate_every": reevaluate_every, "bsl_moves": moves}
     return run_chain(logpost, prior, walkers=walkers, steps=steps, seed=seed, initial=logpost.initial,
                      path=path, resume=resume, meta=meta, meta_defaults={"bsl_moves": "stretch"},  # files before moves
-                     needs="the same seed, likelihood, reevaluate_every and moves", moves=moves,
+                     needs="the settings the chain was started with",
+                     moves=moves,
                      progress=progress, progress_every=progress_every,
                      before_step=lambda t: logpost.begin(PHASE_PROPOSAL, t), refresh_every=reevaluate_every,
                      refresh=lambda coords, t: logpost.evaluate_all(coords, PHASE_REEVALUATE, t))

@@ -62,7 +62,13 @@ preset the same way. ``[method]`` becomes typed settings per kind (:mod:`analysi
 
 Parameter keys are checked by setting each parameter to its prior mean (integer keys rounded) with
 :meth:`simcore.Preset.replace` on the fixed preset (model.set and run settings applied), which is
-built once. Errors are :class:`ConfigError` whose ``key`` is the dotted key in this file.
+built once; then the whole support the chain may explore (the prior's, cut to ``bounds``) is checked
+against the key's allowed range at both ends, and ``n_sim`` runs of the largest flock the parameters
+allow must fit in memory (:mod:`analysis.calibration.feasibility`), so a prior reaching outside the
+model's range is refused before anything is written, naming ``parameters.<name>.prior`` (or
+``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a record to summarise
+(:func:`sweeps.config.check_window`). Errors are
+:class:`ConfigError` whose ``key`` is the dotted key in this file.
 """
 from __future__ import annotations
 
@@ -81,8 +87,10 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
                             suggest)
-from sweeps.config import ModelTable, RunTable, check_name, model_data
+from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
+from sweeps.model_set import model_overrides
 
+from .feasibility import check_memory, check_support
 from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
 from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
@@ -217,10 +225,7 @@ def _model_and_run(table: CalibrationFile, base: Path) -> tuple[Path, dict, Pres
         preset = preset_from_dict(preset_data)
     except ConfigError as err:
         raise ConfigError(origin.get(err.key, err.key), err.detail) from None
-    warmup = table.run.warmup
-    if warmup >= preset.run.duration:
-        raise ConfigError("run.warmup", f"got {warmup}; expected a number >= 0 and below the run duration "
-                                        f"{preset.run.duration}")
+    check_window(table.run.warmup, preset.run)
     return preset_path, preset_data, preset
 
 
@@ -272,6 +277,8 @@ def _parameters(table: CalibrationFile, preset: Preset) -> tuple[tuple[Parameter
     base_values = preset.full_dict()
     for name, key, marginal in zip(names, keys, joint.marginals):
         _check_parameter_key(name, key, marginal.moments[0], preset, base_values)
+        where = f"parameters.{name}." + ("bounds" if table.parameters[name].bounds is not None else "prior")
+        check_support(where, key, marginal.bounds, preset, isinstance(get_dotted(base_values, key), int))
     params = tuple(Parameter(name=n, key=k, prior=p, bounds=bounds[n])
                    for n, k, p in zip(names, keys, joint.marginals))
     return params, joint
@@ -406,6 +413,7 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     parameters, joint = _parameters(table, preset)
     targets = _targets(table.targets, base)
     method = _method(table.method, base, len(parameters), targets.k)
+    check_memory(preset, parameters, method.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=table.run.metrics(leadership=False), parameters=parameters, prior=joint,
@@ -413,6 +421,8 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
 
 
 def load_calibration(path, overrides=()) -> CalibrationConfig:
-    """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys), validate."""
+    """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys; ``model.<preset
+    key>`` is short for ``model.set.<preset key>``), validate."""
     path = Path(path)
-    return calibration_from_dict(read_config(path, "calibration file", overrides), path.resolve().parent)
+    return calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
+                                 path.resolve().parent)

@@ -16,12 +16,16 @@ before_step=None, refresh_every=0, refresh=None) -> ChainResult``
   evolution 90% with step ``DE_SCALE x 2.38 / sqrt(2 d)``, DE snooker 10%; ter Braak & Vrugt 2008),
   which mixes faster for a few parameters and a small ensemble; the shortened step keeps the
   acceptance up under a noisy synthetic likelihood.
-* Storage: with ``path`` the chain goes to ``emcee.backends.HDFBackend(path, name="mcmc")`` (after every
-  step emcee writes the row, the log-probabilities, the acceptance counts and its random state). Without
-  ``resume`` an existing file is FileExistsError. The file records ``meta`` (and the moves); a resume
-  needs every ``meta`` key stored with the same value (strings compared as strings, other values in the
-  type of this run's value; a key missing from an older file takes its ``meta_defaults`` value), else
-  ValueError naming the key and ``needs``.
+* Storage: with ``path`` the chain goes to :class:`~analysis.calibration.chainfile.ChainFile` (emcee's
+  HDF5 backend, group ``mcmc``; after every step the row, the log-probabilities, the acceptance counts
+  and the random state, committed whole and not cut by SIGINT/SIGTERM; a failed write is
+  ``WriteFailed``). Without ``resume`` an existing file is FileExistsError. The file records ``meta``
+  plus ``walkers`` and ``ndim``; a resume needs every one stored with the same value (strings compared
+  as strings, other values in the type of this run's value; a key missing from an older file takes its
+  ``meta_defaults`` value, else it counts as different), else :class:`ChainMismatch` (a ConfigError
+  at ``--resume``) listing every difference and ``needs``. A file that cannot be read as a chain is
+  moved to ``quarantine/`` beside it with a warning and the chain starts again (the same seed gives the
+  same chain). A run that fails before its first step is stored removes the file it created.
 * Exact resume: ``resume=True`` continues from the stored iteration up to ``steps`` rows and gives bit
   for bit the chain of an uninterrupted run (the state is what emcee stores: the last row, the accepted
   counts, the move random state). A file holding ``>= steps`` rows runs nothing; with no file (or an
@@ -50,14 +54,24 @@ from collections.abc import Callable
 import emcee
 import numpy as np
 
+from pathlib import Path
+
+from simcore.schema import ConfigError
+from sweeps.files import write_failed
+from sweeps.quarantine import quarantine
 from sweeps.seeds import Tag, generator, seed_sequence
 
+from .chainfile import ChainFile, differences, stored_attrs
 from .checks import integer
 from .diagnostics import integrated_times
 
 GROUP = "mcmc"
 MOVES = ("stretch", "de")
 DE_SCALE = 0.7   # differential-evolution step: this fraction of ter Braak's 2.38 / sqrt(2 d)
+
+
+class ChainMismatch(ConfigError):
+    """A stored chain was made with other settings than this resume's."""
 
 
 @dataclasses.dataclass
@@ -81,20 +95,26 @@ def emcee_moves(moves: str, ndim: int = 1):
 
 
 def open_chain(path, resume: bool, meta: dict, defaults: dict | None = None, needs: str = "the same settings"):
-    """The HDF5 backend at ``path``, checked against ``meta`` when it already holds a chain."""
+    """The chain file at ``path``, checked against ``meta`` when it already holds a chain."""
     path = os.fspath(path)
     if os.path.exists(path) and not resume:
         raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
-    backend = emcee.backends.HDFBackend(path, name=GROUP)
-    if backend.initialized:
-        with backend.open("r") as f:
-            attrs = dict(f[GROUP].attrs)
-        for key, want in meta.items():
-            have = attrs.get(key, (defaults or {}).get(key))
-            have = have.decode() if isinstance(have, bytes) else have
-            if have is None or type(want)(have) != want:
-                raise ValueError(f"{path}: stored {key}={have!r} does not match this run's {want!r}; "
-                                 f"resume needs {needs}")
+    backend = ChainFile(path, name=GROUP)
+    try:
+        attrs = stored_attrs(path) if os.path.exists(path) else {}
+        initialized = bool(attrs) and backend.initialized
+    except (OSError, ValueError) as err:
+        quarantine(Path(path).parent, Path(path), f"cannot be read as a chain file ({type(err).__name__}: "
+                                                  f"{str(err).splitlines()[0] if str(err) else ''}); the chain "
+                                                  "starts again from its first step (same seed: same chain)")
+        return ChainFile(path, name=GROUP)
+    if initialized:
+        attrs.setdefault("walkers", attrs.get("nwalkers"))
+        found = differences(attrs, meta, defaults)
+        if found:
+            raise ChainMismatch("--resume", f"{path} holds a chain made with other settings ({'; '.join(found)}); "
+                                            f"resume needs {needs}: restore them, or start a new chain in another "
+                                            "folder (--out) or after removing the file")
     return backend
 
 
@@ -108,10 +128,14 @@ def progress_tau(chain: np.ndarray) -> float:
 def _sampler(log_prob, walkers: int, ndim: int, backend, meta: dict, moves: str):
     sampler = emcee.EnsembleSampler(walkers, ndim, log_prob, backend=backend, vectorize=True,
                                     moves=emcee_moves(moves, ndim))
+    sampler.log_prob_fn = log_prob   # emcee's wrapper prints a traceback for any exception, Ctrl-C included
     if backend is not None:
-        with backend.open("a") as f:
-            for key, value in meta.items():
-                f[GROUP].attrs[key] = value
+        try:
+            with backend.open("a") as f:
+                for key, value in meta.items():
+                    f[GROUP].attrs[key] = value
+        except OSError as err:
+            raise write_failed(backend.filename, err) from None
     return sampler
 
 
@@ -130,11 +154,31 @@ def run_chain(log_prob: Callable, prior, *, walkers: int, steps: int, seed: int,
     every = max(1, steps // 10) if progress_every is None else integer(progress_every, "progress_every", 1)
     if resume and path is None:
         raise ValueError("resume=True needs a path")
-    meta = dict(meta or {})
+    meta = {**(meta or {}), "walkers": walkers, "ndim": ndim}
     backend = None
+    created = False
     if path is not None:
         path = os.fspath(path)
+        created = not os.path.exists(path)
         backend = open_chain(path, resume, meta, meta_defaults, needs)
+    try:
+        return _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, initial, every, progress,
+                    before_step, refresh_every, refresh, path)
+    except BaseException:
+        if created and backend is not None and _empty(path):
+            os.unlink(path)   # nothing of ours is in it yet: a rerun starts cleanly
+        raise
+
+
+def _empty(path) -> bool:
+    try:
+        return os.path.exists(path) and int(stored_attrs(path).get("iteration", 0)) == 0
+    except ValueError:
+        return True
+
+
+def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, initial, every, progress, before_step,
+         refresh_every, refresh, path) -> ChainResult:
     sampler = _sampler(log_prob, walkers, ndim, backend, meta, moves)
     start = int(sampler.backend.iteration)
     if start == 0:

@@ -8,7 +8,11 @@ stamp in ``convergence.json`` / ``optimum.json``. Simulations run on a :class:`s
 (``serial``: this process, each evaluation's replicates in one threaded compiled call; ``local``: a
 process pool evaluating proposals in parallel; ``dask``); the results do not depend on it.
 
-* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly);
+* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly). It records everything
+  that defines the chain (:func:`chain_meta`: seed, walkers, moves, likelihood, re-evaluation, n_sim, the
+  parameters and their priors, the targets, the model and the metric settings); ``resume`` with any of
+  them changed is refused with the list of differences (``ChainMismatch``, a ConfigError at
+  ``--resume``), never silently continued;
 * ``posterior.csv``: mean, sd, median, 95% and 90% intervals, integrated autocorrelation time, effective
   sample size and acceptance per parameter;
 * ``convergence.json``: plain verdicts (chain length >= 50 tau, acceptance in [0.2, 0.5]), the
@@ -40,12 +44,15 @@ posterior median: ``confirm.csv`` (emulated against real mean, z per statistic) 
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import time
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
+from simcore import MODEL_VERSION
 from simcore.schema import ConfigError, to_dict
 from sweeps.executors import Executor
 from sweeps.files import json_ready
@@ -53,6 +60,7 @@ from sweeps.seeds import Tag, generator
 from sweeps.store import OutputFolder
 
 from .bsl import run_bsl, simulate_keyed
+from .chainfile import stored_steps
 from .config import CalibrationConfig
 from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
 from .emulated import confirm, observation_covariance, posterior_median, run_emulator_mcmc
@@ -97,6 +105,34 @@ def seeded_fn(config: CalibrationConfig, simulator: SummarySimulator):
     return fn
 
 
+def _digest(data) -> str:
+    return hashlib.sha256(json.dumps(json_ready(data), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def chain_meta(config: CalibrationConfig) -> dict:
+    """What defines a BSL chain besides the driver's own settings, as HDF5 attributes (compared on resume)."""
+    targets = config.targets
+    m = config.metrics
+    return {"chain_n_sim": int(config.method.n_sim),
+            "chain_parameters": ", ".join(f"{p.name}={p.key}" for p in config.parameters),
+            "chain_prior": repr(config.prior),
+            "chain_metrics": f"warmup={m.warmup!r}, group_radius={m.group_radius!r}, "
+                             f"fragmentation_cohesion={m.fragmentation_cohesion!r}",
+            "chain_targets": _digest({"summary": targets.summary, "columns": list(targets.columns),
+                                      "observed": targets.observed, "cov": targets.cov}),
+            "chain_model": _digest({"preset": config.preset.to_dict(), "version": MODEL_VERSION})}
+
+
+def resume_hint(config_path, out_dir) -> str:
+    """One line on what an interrupted calibration saved and how to resume it."""
+    chain = Path(out_dir) / "chain.h5"
+    steps = stored_steps(chain)
+    if not steps:
+        return "no chain step was saved yet: run the same command again"
+    return (f"saved: {steps} chain steps in {chain}; resume with: flocksweep calibrate {config_path} "
+            f"--out {out_dir} --resume")
+
+
 def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
               predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
               scheduler: str | None = None) -> dict:
@@ -105,7 +141,7 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
     chain_path = folder.path("chain.h5")
     if config.method.kind != "optimize" and chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
-    with folder.lock(), Executor(executor, workers, scheduler) as pool:
+    with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
             return _optimize(config, folder, pool)
         if config.method.kind == "emulator":
@@ -156,7 +192,7 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
                          walkers=settings.walkers, steps=settings.steps, seed=config.seed,
                          path=folder.path("chain.h5"), resume=resume, likelihood=settings.likelihood,
                          reevaluate_every=settings.reevaluate_every, moves=settings.moves, progress=bar.callback,
-                         executor=pool)
+                         executor=pool, meta=chain_meta(config))
     return write_posterior(config, result, folder, pool, predictive_draws, started,
                            extra={"executor": pool.description})
 

@@ -74,6 +74,7 @@ from typing import Callable, Sequence
 import numpy as np
 from tqdm import tqdm
 
+from simcore.schema import ConfigError
 from sweeps.executors import Executor
 from sweeps.files import json_ready
 from sweeps.seeds import SBCStream, Tag, seed_sequence
@@ -231,13 +232,19 @@ def settings_record(problem: SBCProblem, draws: int) -> dict:
                        "thin": "ceil(max tau of the kept half)", "problem": problem.meta})
 
 
-def _prepare_out(folder: OutputFolder, settings: dict, resume: bool) -> None:
+def _check_settings(folder: OutputFolder, settings: dict) -> dict | None:
+    """The stored settings; ConfigError when they differ from ``settings``."""
     stored = folder.read_json("settings.json")
+    if stored is not None and stored != settings:
+        diff = sorted(k for k in set(stored) | set(settings) if stored.get(k) != settings.get(k))
+        raise ConfigError("--out", f"{folder.path('settings.json')} was written with other settings "
+                                   f"({', '.join(diff)} differ); use another folder or remove it")
+    return stored
+
+
+def _prepare_out(folder: OutputFolder, settings: dict, resume: bool) -> None:
+    stored = _check_settings(folder, settings)
     if stored is not None:
-        if stored != settings:
-            diff = sorted(k for k in set(stored) | set(settings) if stored.get(k) != settings.get(k))
-            raise ValueError(f"{folder.path('settings.json')} was written with other settings ({', '.join(diff)} "
-                             "differ); use another out_dir or remove it")
         if not resume and any(folder.path("datasets").glob("*.json")):
             raise FileExistsError(f"{folder.root} holds SBC results; pass resume=True to continue, or remove it")
     folder.write_json("settings.json", settings)
@@ -285,6 +292,7 @@ def run_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress:
     order = list(range(datasets)) if order is None else [int(j) for j in order]
     if sorted(order) != list(range(datasets)):
         raise ValueError(f"order must be a permutation of 0..{datasets - 1}")
+    _check_settings(folder, settings_record(problem, draws))   # before the lock: refused without a write
     with folder.lock():
         _prepare_out(folder, settings_record(problem, draws), resume)
         todo = [j for j in order if not dataset_path(folder.root, j).exists()]

@@ -2,7 +2,10 @@
 sweep's results directory.
 
 ``build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed=0)``
-writes into ``out_dir`` (default ``<results_dir>/report``):
+writes into ``out_dir`` (default ``<results_dir>/report``), a folder it owns (:class:`sweeps.owned.OwnedFolder`,
+record ``.flocksweep-report.json``): a rebuild removes the files of the previous build first, and never
+a file it did not write; a non-empty folder it did not write is refused (ConfigError at ``--out``)
+before anything is written, except the default folder, whose other files are left alone:
 
 * ``report.html``: self-contained (figures embedded); ``report.md`` with ``figures/*.png`` and ``.svg``;
 * ``tables/*.csv``: every table behind the report (tests, main effects, adjacent comparisons, two-way
@@ -34,6 +37,7 @@ from simcore import simulate
 from simcore.params import canonical_key
 from sweeps.design import rebuild
 from sweeps.files import write_text
+from sweeps.owned import OwnedFolder
 from sweeps.results import Results, load_results
 from sweeps.store import ResultsStore
 
@@ -50,6 +54,8 @@ LABELS = {"cohesion_mean": "cohesion (largest group share)", "polarization_mean"
           "elongation_mean": "elongation of the largest group", "speed_mean_mean": "mean speed",
           "segregation_mean": "pattern segregation", "aspect_heading_mean": "length/width along heading"}
 RANGE = "perception.range"
+REPORT_RECORD = ".flocksweep-report.json"   # the files a build wrote (OwnedFolder)
+STALE = ("figures/*.png", "figures/*.svg", "tables/*.csv", "viewer/*.html", "report.md", "report.html")
 
 
 class ReportError(ValueError):
@@ -370,13 +376,16 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     for f in factors:
         if f not in results.runs.columns:
             raise ReportError(f"--by: unknown factor {f!r}; factors of this sweep: {', '.join(results.factors)}")
-    out = Path(out_dir) if out_dir else results.path / "report"
-    ctx = Context(results, results.ok.reset_index(drop=True), resolve_metrics(results, metrics), factors, out,
+    default = results.path / "report"
+    out = Path(out_dir) if out_dir else default
+    metric_columns = resolve_metrics(results, metrics)
+    owned = OwnedFolder(out, REPORT_RECORD, adopt=out.resolve() == default.resolve()).claim()
+    ctx = Context(results, results.ok.reset_index(drop=True), metric_columns, factors, out,
                   out / "figures", out / "tables", seed, [], {})
-    for folder, patterns in ((ctx.fig_dir, ("*.png", "*.svg")), (ctx.table_dir, ("*.csv",))):
+    for stale in owned.stale(STALE):
+        stale.unlink()  # a rebuilt report holds only what this build wrote (never a file it did not write)
+    for folder in (ctx.fig_dir, ctx.table_dir):
         folder.mkdir(parents=True, exist_ok=True)
-        for stale in [p for pattern in patterns for p in folder.glob(pattern)]:
-            stale.unlink()  # a rebuilt report holds only what this build wrote
     _overview(ctx)
     _findings(ctx)
     _leadership(ctx)
@@ -395,4 +404,5 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     if "html" in formats:
         written["html"] = out / "report.html"
         write_text(written["html"], to_html(ctx.blocks, f"flocksweep report: {results.name}"))
+    owned.finish()
     return {"paths": written, "tables": ctx.tables, "seconds": time.perf_counter() - started, "out": out}

@@ -4,8 +4,8 @@
 whose traces it shows ((name, rows) pairs, rows of ``runs.parquet``). For each it takes replicate 0 and
 writes its page and still with :func:`analysis.viewer.hooks.showcase_page` (re-simulated and checked bit
 for bit), and returns the report's blocks: a heading, a sentence and a :class:`~analysis.reports.document.Gallery`
-of the stills, each linked to its page (pages of an earlier build are removed first). A run that does not
-reproduce gets no page; the report says so.
+of the stills, each linked to its page (pages of an earlier build are removed by the report, which
+removes only files it wrote). A run that does not reproduce gets no page; the report says so.
 """
 from __future__ import annotations
 
@@ -20,8 +20,6 @@ from .document import Gallery, Heading, Para
 def viewer_blocks(results_dir, out_dir, cells) -> list:
     """The report's blocks for the showcase runs' pages (see the module docstring)."""
     items, refused = [], []
-    for stale in (Path(out_dir) / "viewer").glob("*.html"):
-        stale.unlink()  # a rebuilt report holds only the pages of this build
     for name, rows in cells:
         row = rows.sort_values("replicate").iloc[0].to_dict()
         try:

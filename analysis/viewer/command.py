@@ -20,6 +20,7 @@ from pathlib import Path
 
 from simcore import ConfigError, load_preset, simulate_preset
 from simcore.params import read_toml
+from sweeps.budget import check_runs
 
 from .encode import COLOR_MODES
 
@@ -89,6 +90,8 @@ def _check_flags(args, kind: str) -> None:
             if value is not None and kind != only:
                 where = "a sweep results directory" if only == "sweep" else "a model preset TOML"
                 raise ConfigError(flag, f"only applies when SOURCE is {where} (got a {kind} source)")
+    if not 0 <= args.trail < float("inf"):
+        raise ConfigError("--trail", f"got {args.trail}; expected a number of seconds >= 0")
     if args.no_page and not args.animate:
         raise ConfigError("--no-page", "only with --animate (otherwise nothing would be written)")
     if args.replicate < 0:
@@ -116,7 +119,9 @@ def _model_track(args):
     seed = 0 if args.seed is None else args.seed
     if seed < 0:
         raise ConfigError("--seed", f"got {seed}; must be an integer >= 0")
-    obs = simulate_preset(preset, seed, record_step_for(preset.run.n_steps, preset.init.n))
+    step = record_step_for(preset.run.n_steps, preset.init.n)
+    check_runs("init.n", preset.init.n, preset.run.n_steps, step)   # before simulating: memory for this flock
+    obs = simulate_preset(preset, seed, step)
     info = {"model": str(args.source), "seed": seed, "overrides": ", ".join(overrides) or "none"}
     track = from_observations(obs, preset, title=f"{preset.model.name}: N = {obs.n}, seed {seed}", info=info)
     return track, Path("results") / "view" / f"{preset.model.name}-seed{seed}.html"

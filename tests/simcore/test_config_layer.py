@@ -131,7 +131,7 @@ def test_resolve_path_looks_next_to_the_file_then_in_the_working_directory(tmp_p
 def test_one_alias_table_for_sweeps_calibrations_and_presets():
     assert KEY_ALIASES == {"n": "init.n"}
     sweep = {"name": "a", "seed": 1, "model": {"preset": str(MODELS / "holland.toml"), "set": {"n": 9}},
-             "run": {"duration": 1.0}, "axes": [{"key": "n", "values": [6, 7]}]}
+             "run": {"duration": 1.0, "warmup": 0.5}, "axes": [{"key": "n", "values": [6, 7]}]}
     specs = expand(sweep_from_dict(sweep, ROOT))
     assert [s.preset.init.n for s in specs] == [6, 7] and all("init.n" in dict(s.columns) for s in specs)
     calibration = {"name": "c", "model": {"preset": str(MODELS / "holland.toml"), "set": {"n": 9}},

@@ -1,5 +1,6 @@
-"""The one executor (sweeps.executors): order, failures as outcomes, a dead worker, and workers that exit
-when the process that started them dies."""
+"""The one executor (sweeps.executors): order, failures as outcomes, heartbeats, a dead worker retried
+alone and given up as lost (never a task failure), workers killed at once on an interrupt, and workers
+that exit when the process that started them dies."""
 from __future__ import annotations
 
 import os
@@ -10,7 +11,7 @@ import time
 
 import pytest
 
-from sweeps.executors import Executor
+from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 
 def square(x):
@@ -48,17 +49,67 @@ def test_map_raises_the_failing_tasks_error():
             pool.map(fail_on_three, range(5))
 
 
-def test_a_dead_worker_is_an_outcome_naming_it():
+@pytest.mark.slow
+def test_a_task_whose_worker_always_dies_is_lost_the_others_finish():
     with Executor("local", 2) as pool:
         outcomes = list(pool.as_completed(die_on_two, range(4)))
+        restarts = pool.restarts
     died = [o for o in outcomes if o.error is not None]
-    assert 2 in [o.item for o in died]
-    assert all(o.reason.startswith("worker process died") for o in died)
+    assert [o.item for o in died] == [2]
+    assert isinstance(died[0].error, WorkerLost) and died[0].error.attempts == MAX_ATTEMPTS
+    assert died[0].reason.startswith("worker process died")
+    assert sorted(o.value for o in outcomes if o.error is None) == [0, 1, 3]   # not failed with it
+    assert restarts == MAX_ATTEMPTS
+
+
+def die_once(marker):
+    def task(x):
+        if x == 1 and not os.path.exists(marker):
+            open(marker, "w").close()
+            os._exit(9)
+        return x
+    return task
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_once_is_replaced_and_its_task_run_again(tmp_path):
+    with Executor("local", 2) as pool:
+        assert pool.map(die_once(str(tmp_path / "died")), range(5)) == [0, 1, 2, 3, 4]
+        assert pool.restarts == 1
+
+
+def nap(x):
+    time.sleep(0.6)
+    return x
+
+
+def long_nap(x):
+    time.sleep(60)
+    return x
+
+
+def test_heartbeats_come_while_nothing_finishes():
+    with Executor("serial") as pool:
+        events = list(pool.as_completed(square, range(3), idle=1.0))
+    assert [e if e is None else e.value for e in events] == [None, 0, None, 1, None, 4]
+
+
+@pytest.mark.slow
+def test_a_pool_heartbeats_while_its_tasks_run_and_stops_at_once_when_told():
+    with Executor("local", 2) as pool:
+        events = list(pool.as_completed(nap, range(2), idle=0.1))
+        assert events.count(None) >= 2 and sorted(e.value for e in events if e is not None) == [0, 1]
+        running = pool.as_completed(long_nap, range(2), idle=0.1)
+        assert next(running) is None                        # both workers are 60 s into their naps
+        workers = list(pool._pool._processes.values())
+        start = time.perf_counter()
+        pool.close(wait=False)                              # as after Ctrl-C
+    assert time.perf_counter() - start < 5 and not any(w.is_alive() for w in workers)
 
 
 PARENT = """
 import os, sys, time
-from sweeps.executors import Executor
+from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 def pid(_):
     time.sleep(0.5)

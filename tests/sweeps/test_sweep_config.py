@@ -32,7 +32,7 @@ RANGE = "perception.range"
 def sweep(**changes) -> dict:
     """A small valid sweep as a dict; keyword arguments replace whole top-level entries."""
     data = {"name": "tiny", "seed": 7, "model": {"preset": str(HOLLAND)},
-            "run": {"n": 8, "duration": 1.0, "record_interval": 0.5}, "axes": []}
+            "run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "warmup": 0.25}, "axes": []}
     data.update(changes)
     return data
 
@@ -54,7 +54,7 @@ def by_point(specs) -> dict:
 def toml_sweep(body: str) -> str:
     """A small sweep file with the given axes (or other trailing tables)."""
     return (f'name = "tiny"\nseed = 7\n\n[model]\npreset = "{HOLLAND}"\n\n'
-            f'[run]\nn = 8\nduration = 1.0\nrecord_interval = 0.5\n\n{body}\n')
+            f'[run]\nn = 8\nduration = 1.0\nrecord_interval = 0.5\nwarmup = 0.25\n\n{body}\n')
 
 
 # -- expansion counts ------------------------------------------------------------------------------
@@ -225,9 +225,10 @@ def test_common_random_numbers_share_the_replicate_seed_across_points():
 
 NON_SWEPT_CHANGES = {
     "model.set steering weight": {"model": {"preset": str(HOLLAND), "set": {"steering.cohesion_weight": 4.0}}},
-    "run duration": {"run": {"n": 8, "duration": 1.5, "record_interval": 0.5}},
+    "run duration": {"run": {"n": 8, "duration": 1.5, "record_interval": 0.5, "warmup": 0.25}},
     "analysis warmup": {"run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "warmup": 0.5}},
-    "keep trajectories": {"run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "keep": "trajectories"}},
+    "keep trajectories": {"run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "warmup": 0.25,
+                                  "keep": "trajectories"}},
 }
 
 

@@ -464,7 +464,7 @@ def test_changed_design_in_the_same_directory_is_consolidated_in_design_order(ch
 
 
 def test_manifest_keeps_every_invocation_that_computed_runs(tmp_path):
-    path = write_sweep(tmp_path, '[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\n', duration=0.5)
+    path = write_sweep(tmp_path, '[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\n', duration=1.0)
     out = tmp_path / "out"
     run(path, out)
     run_sweep(load_sweep(path, replicates=2), path.read_text(), out, executor="serial", progress=False)

@@ -36,8 +36,11 @@ def test_report_links_every_showcase_still_to_its_viewer_page(tmp_path):
                                     "wide view": {"perception.field_deg": 180, "perception.direction_deg": 90}}}}
     results = tmp_path / "results"
     run_sweep(sweep_from_dict(data, ROOT), "# test\n", results, executor="serial", progress=False)
-    (tmp_path / "results" / "report" / "viewer").mkdir(parents=True)
-    (tmp_path / "results" / "report" / "viewer" / "stale.html").write_text("old")
+    report = tmp_path / "results" / "report"
+    (report / "viewer").mkdir(parents=True)
+    (report / "viewer" / "stale.html").write_text("old")   # a page an earlier build wrote (and recorded) ...
+    (report / "viewer" / "notes.html").write_text("mine")  # ... and a file of the user's
+    (report / ".flocksweep-report.json").write_text(json.dumps({"files": ["viewer/stale.html"]}))
     result = build_report(results)
     out = result["out"]
     html, md = result["paths"]["html"].read_text(), result["paths"]["md"].read_text()
@@ -52,6 +55,7 @@ def test_report_links_every_showcase_still_to_its_viewer_page(tmp_path):
         row = runs[runs["run_id"] == info["run id"]].iloc[0]
         assert row["replicate"] == 0 and info["reproduced"].startswith("bit for bit")
     assert not (out / "viewer" / "stale.html").exists()
+    assert (out / "viewer" / "notes.html").read_text() == "mine"   # never delete what we did not write
     assert "Watch the showcase runs in 3-D" in html
 
 

@@ -1,0 +1,123 @@
+"""One clear message and a documented exit status for every failure the command line meets.
+
+The ``flocksweep`` command (:mod:`sweeps.cli`) turns an exception into one line on stderr and an exit
+status with :func:`explain`; the statuses (docs/errors.md):
+
+====  ===========================================================================================
+0     done (failed runs are results: they are counted and listed by ``flocksweep status``)
+2     bad input: a config file or value, a command-line value, a damaged input folder, an
+      unreachable dask scheduler; nothing was written
+3     the results folder is in use by another runner (or by processes a dead runner left behind)
+4     a write failed (disk full, read-only file system, permission): the message names the file
+      and the errno; everything saved before it is kept, and the same command resumes
+5     incomplete: runs whose worker processes died (after retries) were left missing; the same
+      command computes them
+130   interrupted by SIGINT (Ctrl-C); 143: stopped by SIGTERM. Finished work is saved; the message
+      says how to resume
+====  ===========================================================================================
+
+Anything else is a bug in flocksweep and keeps Python's traceback.
+
+Helpers for the command line's own values: ``check_count(flag, value, minimum, maximum=None)``,
+``check_out(flag, path)`` (a folder we may create: not an existing file, no NUL character),
+``check_workers(value, executor)`` (at most :data:`WORKERS_PER_CORE` local processes per core),
+``parse_numbers(flag, text)`` (comma-separated finite numbers > 0), and
+``show_warnings()``, which prints the ``flocksweep`` logger's warnings (damaged files moved aside,
+...) as ``flocksweep: warning: ...`` lines.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from pathlib import Path
+
+from simcore.schema import ConfigError
+
+from .executors import SchedulerUnreachable, WorkerLost
+from .files import Unreadable, WriteFailed
+from .interrupts import exit_status
+from .lock import StoreLocked
+
+OK, BAD_INPUT, LOCKED, WRITE_FAILED, INCOMPLETE = 0, 2, 3, 4, 5
+WORKERS_PER_CORE = 8
+
+
+def explain(err: BaseException) -> tuple[int, str] | None:
+    """(exit status, message) for an expected failure, or None for a bug (let it raise)."""
+    if isinstance(err, KeyboardInterrupt):
+        name = "SIGTERM" if exit_status(err) == 143 else "SIGINT"
+        return exit_status(err), f"interrupted ({name})"
+    if isinstance(err, ConfigError):
+        return BAD_INPUT, f"config error: {err}"
+    if isinstance(err, (Unreadable, SchedulerUnreachable)):
+        return BAD_INPUT, str(err)
+    if isinstance(err, StoreLocked):
+        return LOCKED, str(err)
+    if isinstance(err, WorkerLost):
+        return INCOMPLETE, f"a worker process died: {err}"
+    if isinstance(err, WriteFailed):
+        return WRITE_FAILED, (f"{err}; what was saved before is kept: free space or fix the folder, then run "
+                              "the same command again to resume")
+    if isinstance(err, OSError):
+        where = f" {err.filename}" if getattr(err, "filename", None) else ""
+        return WRITE_FAILED, f"input/output error{where}: {err.strerror or err}"
+    return None
+
+
+def check_count(flag: str, value, minimum: int, maximum: int | None = None) -> None:
+    """A command-line integer within [minimum, maximum] (None: not given, fine)."""
+    if value is None:
+        return
+    if value < minimum or (maximum is not None and value > maximum):
+        allowed = f">= {minimum}" if maximum is None else f"between {minimum} and {maximum:,}"
+        raise ConfigError(flag, f"got {value}; expected an integer {allowed}")
+
+
+def parse_numbers(flag: str, text: str) -> list[float]:
+    """Comma-separated finite numbers > 0 (ConfigError naming the flag otherwise)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(0 < v < float("inf") for v in values):
+        raise ConfigError(flag, f"got {text!r}; expected comma-separated numbers > 0, e.g. 0.05,0.1")
+    return values
+
+
+def check_workers(value, executor: str) -> None:
+    """--workers: >= 1, and on this machine at most WORKERS_PER_CORE processes per core."""
+    cores = os.cpu_count() or 1
+    check_count("--workers", value, 1)
+    if value is not None and executor in ("local", "dask") and value > WORKERS_PER_CORE * cores:
+        raise ConfigError("--workers", f"got {value}; this machine has {cores} cores: at most "
+                                       f"{WORKERS_PER_CORE * cores} local worker processes")
+
+
+def check_out(flag: str, path) -> None:
+    """An output folder: not an existing file, no NUL character."""
+    if path is None:
+        return
+    text = str(path)
+    if "\0" in text:
+        raise ConfigError(flag, f"got {text!r}; a path cannot contain a NUL character")
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(flag, f"{path} is a file; expected a folder (new or one flocksweep wrote)")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(flag, f"{parent} is a file, so {path} cannot be a folder")
+            break
+
+
+class _Line(logging.Handler):
+    def emit(self, record) -> None:
+        print(f"flocksweep: warning: {record.getMessage()}", file=sys.stderr)
+
+
+def show_warnings() -> None:
+    """Print the flocksweep logger's warnings as 'flocksweep: warning: ...' (once per process)."""
+    log = logging.getLogger("flocksweep")
+    if not any(isinstance(h, _Line) for h in log.handlers):
+        log.addHandler(_Line(logging.WARNING))

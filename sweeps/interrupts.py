@@ -1,0 +1,95 @@
+"""Interrupts: SIGINT and SIGTERM as exceptions, and writes they cannot cut in half.
+
+* ``signals_as_exceptions()``: a context manager under which SIGINT raises :class:`KeyboardInterrupt` (as
+  Python does by default) and SIGTERM raises :class:`Terminated` (a ``KeyboardInterrupt``), so one
+  ``except KeyboardInterrupt`` / ``finally`` path saves what is finished, stops the workers and
+  releases the results folder after either. The previous handlers come back on exit.
+* ``deferred()``: a context manager whose block is not interrupted by SIGINT or SIGTERM: a signal that
+  arrives inside is held and delivered (to the handler in force before the block) when the block ends.
+  Used around writes that must be whole (a results part with its time series, a chain step).
+* ``ignored()``: a context manager under which SIGINT and SIGTERM are ignored (a second Ctrl-C while
+  the first one's message is printed).
+* ``exit_status(err)``: the shell's convention for a process stopped by a signal: 130 after SIGINT,
+  143 after SIGTERM.
+
+Signal handlers belong to the main thread: outside it both context managers do nothing. SIGKILL
+cannot be caught; what it leaves behind is made safe by atomic writes and by the results folder's
+lock recognising a dead holder (:mod:`sweeps.lock`).
+"""
+from __future__ import annotations
+
+import signal
+import threading
+from contextlib import contextmanager
+
+HANDLED = (signal.SIGINT, signal.SIGTERM)
+
+
+class Terminated(KeyboardInterrupt):
+    """The process received SIGTERM."""
+
+    signum = signal.SIGTERM
+
+
+def exit_status(err: BaseException) -> int:
+    """130 for an interrupt (SIGINT), 143 for SIGTERM (128 + the signal number)."""
+    return 128 + int(getattr(err, "signum", signal.SIGINT))
+
+
+def _main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+@contextmanager
+def signals_as_exceptions():
+    """SIGINT -> KeyboardInterrupt, SIGTERM -> Terminated inside the block (main thread only)."""
+    if not _main_thread():
+        yield
+        return
+    before = {sig: signal.getsignal(sig) for sig in HANDLED}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+
+@contextmanager
+def deferred():
+    """Hold SIGINT and SIGTERM until the block ends, then deliver them (main thread only)."""
+    if not _main_thread():
+        yield
+        return
+    held: list[int] = []
+    before = {sig: signal.getsignal(sig) for sig in HANDLED}
+    for sig in HANDLED:
+        signal.signal(sig, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        if held:
+            signal.raise_signal(held[0])
+
+
+@contextmanager
+def ignored():
+    """Ignore SIGINT and SIGTERM inside the block (main thread only)."""
+    if not _main_thread():
+        yield
+        return
+    before = {sig: signal.getsignal(sig) for sig in HANDLED}
+    for sig in HANDLED:
+        signal.signal(sig, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)

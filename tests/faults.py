@@ -1,0 +1,318 @@
+"""Kill trials: a ``flocksweep`` command stopped at a random (seeded) moment, then run again.
+
+``kill_trial(argv, cwd, ready, how, seed, window)`` starts ``python -m sweeps.cli *argv`` in its own
+session, waits until ``ready()`` (the command is computing), then after a delay drawn from ``window``
+(seconds after ``ready()``, ``random.Random(seed)``) stops it ``how``:
+
+* ``"sigint"``: SIGINT to the whole process group, as Ctrl-C in a terminal does;
+* ``"sigterm"``: SIGTERM to the runner (a scheduler or ``kill`` stopping it);
+* ``"sigkill"``: SIGKILL to the runner (nothing can be saved then, nor cleaned up);
+* ``"worker"``: SIGKILL to one of its worker processes (the runner goes on).
+
+It returns a :class:`Trial`: the exit status (``EXPECTED_EXIT`` documents the one each way must give),
+stderr, whether the command was still running when the signal went (``hit``), and the processes it
+started that were still alive 20 s after it ended (``orphans``). The caller then runs the same command
+again (no cleanup in between) and compares the results with an uninterrupted run: ``same_sweep`` and
+``same_chain`` say how they differ ('' when bit for bit the same). ``sweep_trial`` and
+``calibration_trial`` do all of it for the small sweep and the short calibration below; a trial whose
+command had already finished when the signal was due is run again with the window halved.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from paths import ROOT
+
+HOW = ("sigint", "sigterm", "sigkill", "worker")
+EXPECTED_EXIT = {"sigint": 130, "sigterm": 143, "sigkill": -signal.SIGKILL, "worker": 0}
+TIMING = ("wall_s", "sim_s", "part")
+
+
+@dataclass
+class Trial:
+    how: str
+    seed: int
+    delay: float
+    hit: bool = False            # the command was still running when the signal was sent
+    exit_code: int | None = None
+    stderr: str = ""
+    orphans: list = field(default_factory=list)
+    elapsed_after_signal: float = 0.0
+
+    @property
+    def traceback(self) -> bool:
+        return "Traceback" in self.stderr
+
+
+def command(argv) -> list[str]:
+    return [sys.executable, "-m", "sweeps.cli", *map(str, argv)]
+
+
+def environment() -> dict:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT)] + [p for p in sys.path if p])}
+
+
+def children(pid: int) -> dict[int, list[int]]:
+    """{parent pid: [child pids]} of every process (from /proc)."""
+    tree: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        tree.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    return tree
+
+
+def descendants(pid: int) -> set[int]:
+    tree, out, todo = children(pid), set(), [pid]
+    while todo:
+        for child in tree.get(todo.pop(), []):
+            if child not in out:
+                out.add(child)
+                todo.append(child)
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def workers_of(pid: int) -> list[int]:
+    """The executor's worker processes among ``pid``'s descendants (spawned interpreters)."""
+    out = []
+    for child in sorted(descendants(pid)):
+        try:
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            continue
+        if "spawn_main" in cmdline:
+            out.append(child)
+    return out
+
+
+def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float], timeout: float = 300) -> Trial:
+    """Run, stop and watch one command (see the module docstring)."""
+    rng = random.Random(seed)
+    trial = Trial(how=how, seed=seed, delay=rng.uniform(*window))
+    err_path = Path(cwd) / f".trial-{how}-{seed}.stderr"
+    seen: set[int] = set()
+    with open(err_path, "w") as err:
+        proc = subprocess.Popen(command(argv), cwd=cwd, stdout=subprocess.DEVNULL, stderr=err, env=environment(),
+                                start_new_session=True)
+        try:
+            deadline = time.monotonic() + timeout
+            while not ready() and proc.poll() is None and time.monotonic() < deadline:
+                seen |= descendants(proc.pid)
+                time.sleep(0.05)
+            until = time.monotonic() + trial.delay   # the delay counts from ready(), whatever the signal
+            if how == "worker":
+                while not workers_of(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+                    time.sleep(0.05)
+            while time.monotonic() < until and proc.poll() is None:
+                seen |= descendants(proc.pid)
+                time.sleep(0.02)
+            seen |= descendants(proc.pid)
+            trial.hit = proc.poll() is None
+            sent = time.monotonic()
+            if trial.hit:
+                if how == "sigint":
+                    os.killpg(proc.pid, signal.SIGINT)
+                elif how == "sigterm":
+                    os.kill(proc.pid, signal.SIGTERM)
+                elif how == "sigkill":
+                    os.kill(proc.pid, signal.SIGKILL)
+                else:
+                    workers = workers_of(proc.pid)
+                    if workers:
+                        os.kill(rng.choice(workers), signal.SIGKILL)
+                    else:
+                        trial.hit = False
+            while proc.poll() is None and time.monotonic() < deadline:
+                seen |= descendants(proc.pid)
+                time.sleep(0.05)
+            trial.elapsed_after_signal = time.monotonic() - sent
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    trial.exit_code = proc.returncode
+    trial.stderr = err_path.read_text()
+    err_path.unlink()
+    grace = time.monotonic() + 20
+    while any(alive(p) for p in seen) and time.monotonic() < grace:
+        time.sleep(0.2)
+    trial.orphans = sorted(p for p in seen if alive(p))
+    return trial
+
+
+def timed_run(argv, cwd, ready, timeout: float = 600) -> tuple[int, float]:
+    """Run a command to its end: (exit status, seconds from ``ready()`` to the end), the span a kill
+    should land in."""
+    proc = subprocess.Popen(command(argv), cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env=environment(), text=True)
+    deadline = time.monotonic() + timeout
+    while not ready() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    start = time.monotonic()
+    _, err = proc.communicate(timeout=max(1.0, deadline - time.monotonic()))
+    if proc.returncode:
+        raise RuntimeError(f"the uninterrupted run failed: {err[-500:]}")
+    return proc.returncode, time.monotonic() - start
+
+
+def run_command(argv, cwd, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run(command(argv), cwd=cwd, capture_output=True, text=True, env=environment(), timeout=timeout)
+
+
+# ------------------------------------------------------------------------------------------- comparing
+
+def _series(folder: Path) -> pd.DataFrame:
+    frames = [pd.read_parquet(p) for p in sorted((folder / "timeseries").glob("part-*.parquet"))]
+    runs = pd.read_parquet(folder / "runs.parquet")
+    table = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id", "t"])
+    table = table[table["run_id"].isin(runs["run_id"])].drop_duplicates(["run_id", "t"], keep="last")
+    return table.sort_values(["run_id", "t"], kind="stable").reset_index(drop=True)
+
+
+def same_sweep(reference: Path, resumed: Path) -> str:
+    """'' when ``resumed`` holds the same runs.parquet (every column but timing, bit for bit) and time
+    series as ``reference``; else what differs."""
+    if not (resumed / "runs.parquet").exists():
+        return "no runs.parquet"
+    a, b = pd.read_parquet(reference / "runs.parquet"), pd.read_parquet(resumed / "runs.parquet")
+    if list(a["run_id"]) != list(b["run_id"]):
+        return f"run ids differ ({len(a)} against {len(b)} runs)"
+    if list(a.columns) != list(b.columns):
+        return f"columns differ: {sorted(set(a.columns) ^ set(b.columns))}"
+    keep = [c for c in a.columns if c not in TIMING]
+    try:
+        pd.testing.assert_frame_equal(a[keep], b[keep], check_exact=True)
+        pd.testing.assert_frame_equal(_series(reference), _series(resumed), check_exact=True)
+    except AssertionError as err:
+        return str(err).splitlines()[0]
+    return ""
+
+
+def same_chain(reference: Path, resumed: Path) -> str:
+    """'' when ``resumed``'s chain.h5 (chain, log-probabilities, acceptance) and posterior.csv equal the
+    reference's bit for bit; else what differs."""
+    import h5py
+
+    for name in ("chain.h5", "posterior.csv"):
+        if not (resumed / name).exists():
+            return f"no {name}"
+    with h5py.File(reference / "chain.h5", "r") as fa, h5py.File(resumed / "chain.h5", "r") as fb:
+        for name in ("chain", "log_prob", "accepted"):
+            x, y = fa["mcmc"][name][()], fb["mcmc"][name][()]
+            if x.shape != y.shape or not np.array_equal(x, y, equal_nan=True):
+                return f"{name} differs"
+    if (reference / "posterior.csv").read_bytes() != (resumed / "posterior.csv").read_bytes():
+        return "posterior.csv differs"
+    return ""
+
+
+# --------------------------------------------------------------------------------------- the battery
+
+SWEEP = """name = "faults"
+seed = 5
+replicates = 4
+[model]
+preset = "{holland}"
+[run]
+n = 20
+duration = 3.0
+record_interval = 0.5
+warmup = 1.0
+[[axes]]
+key = "perception.field_deg"
+values = [60, 120, 180, 240]
+"""
+
+CALIBRATION = """name = "faults"
+seed = 2
+[model]
+preset = "{holland}"
+[run]
+n = 8
+duration = 1.5
+record_interval = 0.5
+warmup = 0.5
+[parameters.field]
+key = "perception.field_deg"
+prior = {{ dist = "uniform", low = 60, high = 300 }}
+[targets]
+stats = ["polarization", "visible_mean"]
+mean = [0.8, 3.0]
+sd = [0.05, 0.2]
+[method]
+kind = "emcee"
+n_sim = 5
+walkers = 6
+steps = 12
+"""
+
+
+def sweep_argv(folder: Path) -> list:
+    path = folder / "faults.toml"
+    if not path.exists():
+        path.write_text(SWEEP.format(holland=ROOT / "configs" / "models" / "holland.toml"))
+    return ["run", path, "--out", folder / "out", "--workers", "2", "--batch-size", "1", "--no-progress"]
+
+
+def calibration_argv(folder: Path) -> list:
+    path = folder / "faults.toml"
+    if not path.exists():
+        path.write_text(CALIBRATION.format(holland=ROOT / "configs" / "models" / "holland.toml"))
+    return ["calibrate", path, "--out", folder / "out", "--executor", "local", "--workers", "2", "--no-progress",
+            "--resume"]
+
+
+def sweep_ready(folder: Path):
+    return lambda: (folder / "out" / "design.parquet").exists()
+
+
+def calibration_ready(folder: Path):
+    return lambda: (folder / "out" / "chain.h5").exists()
+
+
+def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, window) -> tuple[Trial, object, str]:
+    """Run the trial; when the command had finished before the signal (a busy machine ran it faster than
+    the window assumed), run it again in a fresh folder with the window halved (at most 3 attempts)."""
+    argv_of, ready_of, same = ((sweep_argv, sweep_ready, same_sweep) if kind == "sweep"
+                               else (calibration_argv, calibration_ready, same_chain))
+    for attempt in range(3):
+        where = folder / f"attempt{attempt}"
+        where.mkdir()
+        argv = argv_of(where)
+        trial = kill_trial(argv, where, ready_of(where), how, seed, (window[0] / 2 ** attempt, window[1] / 2 ** attempt))
+        if trial.hit:
+            break
+    rerun = run_command(argv, where)
+    return trial, rerun, same(reference, where / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
+
+
+def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0, 6.0)) -> tuple[Trial, object, str]:
+    """One kill trial of the small sweep in ``folder``, then the same command again; (trial, the rerun,
+    '' or how its results differ from ``reference``)."""
+    return _until_hit("sweep", folder, reference, how, seed, window)
+
+
+def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
+                      window=(0.0, 8.0)) -> tuple[Trial, object, str]:
+    """As :func:`sweep_trial` for the short calibration (rerun with --resume, as the message says)."""
+    return _until_hit("calibration", folder, reference, how, seed, window)

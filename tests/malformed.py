@@ -1,0 +1,469 @@
+"""A catalogue of malformed inputs to the ``flocksweep`` command, each with the exit status and the words
+its one-line message must contain (docs/errors.md). Used by tests/sweeps/test_faults.py and by
+bench/fault_battery.py, which runs them all and counts those refused cleanly before any write.
+
+A case is ``Case(name, argv, files, code, expect)``: ``files`` are written into an empty folder
+(``{d}`` in argv and file texts is that folder, ``{holland}`` the shipped Holland preset); ``argv`` runs
+there. A clean refusal: the exit status ``code``, stderr holding ``expect`` (case-insensitive) and no
+traceback, and no file written (the folder holds exactly ``files`` afterwards).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from paths import ROOT
+
+HOLLAND = str(ROOT / "configs" / "models" / "holland.toml")
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    argv: tuple
+    files: dict = field(default_factory=dict)
+    code: int = 2
+    expect: str = ""
+
+
+SWEEP = """name = "tiny"
+seed = 3
+replicates = 1
+{top}
+[model]
+preset = "{holland}"
+{model}
+[run]
+n = 8
+duration = 1.0
+record_interval = 0.5
+warmup = 0.5
+{run}
+{axes}
+"""
+
+
+def sweep_text(top="", model="", run="", axes='[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\n'):
+    return SWEEP.format(top=top, model=model, run=run, axes=axes, holland="{holland}")
+
+
+def run_case(name, expect, code=2, *, top="", model="", run="", axes=None, args=(), text=None) -> Case:
+    body = text if text is not None else sweep_text(top, model, run, axes if axes is not None else
+                                                   '[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\n')
+    return Case(f"run: {name}", ("run", "{d}/s.toml", "--out", "{d}/out", "--executor", "serial", "--no-progress",
+                                 *args), {"s.toml": body}, code, expect)
+
+
+CALIBRATION = """name = "cal"
+seed = 1
+[model]
+preset = "{holland}"
+[run]
+n = 8
+duration = 1.0
+record_interval = 0.5
+warmup = 0.5
+{run}
+[parameters.field]
+key = "{key}"
+prior = {prior}
+{extra_parameter}
+[targets]
+stats = {stats}
+mean = {mean}
+sd = {sd}
+[method]
+kind = "{kind}"
+n_sim = {n_sim}
+walkers = {walkers}
+steps = {steps}
+"""
+
+
+def calibration_text(run="", key="perception.field_deg", prior='{ dist = "uniform", low = 60, high = 300 }',
+                     extra_parameter="", stats='["cohesion", "polarization"]', mean="[0.9, 0.8]",
+                     sd="[0.05, 0.05]", kind="emcee", n_sim=5, walkers=4, steps=3):
+    return CALIBRATION.format(run=run, key=key, prior=prior, extra_parameter=extra_parameter, stats=stats,
+                              mean=mean, sd=sd, kind=kind, n_sim=n_sim, walkers=walkers, steps=steps,
+                              holland="{holland}")
+
+
+def cal_case(name, expect, code=2, args=(), **changes) -> Case:
+    return Case(f"calibrate: {name}", ("calibrate", "{d}/c.toml", "--out", "{d}/out", "--no-progress", *args),
+                {"c.toml": calibration_text(**changes)}, code, expect)
+
+
+def cli_case(name, argv, expect, code=2, files=None) -> Case:
+    return Case(name, tuple(argv), dict(files or {}), code, expect)
+
+
+GOOD_SWEEP = {"s.toml": sweep_text()}
+GOOD_CAL = {"c.toml": calibration_text()}
+RUN = ("run", "{d}/s.toml", "--out", "{d}/out", "--executor", "serial", "--no-progress")
+AXIS = '[[axes]]\nkey = "{key}"\nvalues = {values}\n'
+
+SWEEP_FILES = [
+    Case("run: not UTF-8", RUN, {"s.toml": b'name = "t\xff"\n'}, 2, "not utf-8"),
+    Case("run: latin-1 comment", RUN, {"s.toml": sweep_text().encode() + b"# caf\xe9\n"}, 2, "not utf-8"),
+    Case("run: date value", RUN, {"s.toml": sweep_text(top="when = 1979-05-27")}, 2, "date"),
+    Case("run: datetime value", RUN, {"s.toml": sweep_text(top="description = 1979-05-27T07:32:00Z")}, 2, "date"),
+    Case("run: time in a list", RUN, {"s.toml": sweep_text(axes=AXIS.format(key="perception.field_deg",
+                                                                              values="[07:32:00]"))}, 2, "date"),
+    Case("run: broken TOML", RUN, {"s.toml": 'name = "x"\n[model\n'}, 2, "not valid toml"),
+    Case("run: unterminated string", RUN, {"s.toml": 'name = "x\n'}, 2, "not valid toml"),
+    Case("run: duplicate key", RUN, {"s.toml": 'name = "a"\nname = "b"\n'}, 2, "not valid toml"),
+    Case("run: empty file", RUN, {"s.toml": ""}, 2, "name"),
+    Case("run: missing file", ("run", "{d}/absent.toml", "--out", "{d}/out"), {}, 2, "not found"),
+    Case("run: a folder as sweep file", ("run", "{d}", "--out", "{d}/out"), {}, 2, "not found"),
+    Case("run: deeply nested arrays", RUN, {"s.toml": "a = " + "[" * 5000 + "]" * 5000 + "\n"}, 2, "toml"),
+]
+
+SWEEP_VALUES = [
+    run_case("NUL in name", "name", top="", text=sweep_text().replace('name = "tiny"', 'name = "a\\u0000b"')),
+    run_case("slash in name", "name", text=sweep_text().replace('name = "tiny"', 'name = "a/b"')),
+    run_case("backslash in name", "name", text=sweep_text().replace('name = "tiny"', 'name = "a\\\\b"')),
+    run_case("leading dot name", "name", text=sweep_text().replace('name = "tiny"', 'name = ".hidden"')),
+    run_case("empty name", "name", text=sweep_text().replace('name = "tiny"', 'name = ""')),
+    run_case("newline in name", "name", text=sweep_text().replace('name = "tiny"', 'name = "a\\nb"')),
+    run_case("very long name", "name", text=sweep_text().replace('name = "tiny"', f'name = "{"x" * 300}"')),
+    run_case("name a number", "name", text=sweep_text().replace('name = "tiny"', "name = 5")),
+    run_case("typo top-level key", "did you mean", top='descripton = "x"'),
+    run_case("seed a string", "seed", text=sweep_text().replace("seed = 3", 'seed = "a"')),
+    run_case("seed negative", "seed", text=sweep_text().replace("seed = 3", "seed = -1")),
+    run_case("replicates zero", "replicates", text=sweep_text().replace("replicates = 1", "replicates = 0")),
+    run_case("replicates fractional", "replicates", text=sweep_text().replace("replicates = 1", "replicates = 1.5")),
+    run_case("common_random_numbers a string", "common_random_numbers", top='common_random_numbers = "yes"'),
+    run_case("no model table", "model", text=sweep_text().replace("[model]", "[modle]")),
+    run_case("preset missing", "model.preset", text=sweep_text().replace("{holland}", "{d}/absent.toml")),
+    run_case("preset path with NUL", "nul", text=sweep_text().replace("{holland}", "a\\u0000b.toml")),
+    run_case("preset a folder", "model.preset", text=sweep_text().replace("{holland}", "{d}")),
+    run_case("preset a number", "model.preset", text=sweep_text().replace('"{holland}"', "5")),
+    run_case("model.set unknown key", "perception.fov", model='set = { "perception.fov" = 90 }'),
+    run_case("model.set value out of range", "perception.field_deg", model='set = { "perception.field_deg" = 400 }'),
+    run_case("model.set wrong type", "perception.range", model='set = { "perception.range" = "far" }'),
+    run_case("model.set a list", "model.set", model="set = [1, 2]"),
+    run_case("unknown [run] key", "did you mean", run="durration = 2.0"),
+    run_case("run.n zero", "init.n", text=sweep_text().replace("n = 8", "n = 0")),
+    run_case("run.n negative", "init.n", text=sweep_text().replace("n = 8", "n = -5")),
+    run_case("run.n 9e18", "memory", text=sweep_text().replace("n = 8", "n = 9000000000000000000")),
+    run_case("run.n 1e12", "memory", text=sweep_text().replace("n = 8", "n = 1000000000000")),
+    run_case("run.n fractional", "n", text=sweep_text().replace("n = 8", "n = 8.5")),
+    run_case("run.n a string", "n", text=sweep_text().replace("n = 8", 'n = "eight"')),
+    run_case("duration zero", "run.duration", text=sweep_text().replace("duration = 1.0", "duration = 0.0")),
+    run_case("duration negative", "run.duration", text=sweep_text().replace("duration = 1.0", "duration = -1.0")),
+    run_case("duration nan", "run.duration", text=sweep_text().replace("duration = 1.0", "duration = nan")),
+    run_case("duration inf", "run.duration", text=sweep_text().replace("duration = 1.0", "duration = inf")),
+    run_case("duration not whole steps", "run.duration", text=sweep_text().replace("duration = 1.0", "duration = 1.001")),
+    run_case("dt zero", "run.dt", run="dt = 0.0"),
+    run_case("dt negative", "run.dt", run="dt = -0.01"),
+    run_case("record_interval not a multiple of dt", "run.record_interval",
+             text=sweep_text().replace("record_interval = 0.5", "record_interval = 0.51")),
+    run_case("record_interval beyond duration", "run.record_interval",
+             text=sweep_text().replace("record_interval = 0.5", "record_interval = 2.0")),
+    run_case("warmup equals duration", "run.warmup", text=sweep_text().replace("warmup = 0.5", "warmup = 1.0")),
+    run_case("warmup beyond duration", "run.warmup", text=sweep_text().replace("warmup = 0.5", "warmup = 5.0")),
+    run_case("warmup negative", "warmup", text=sweep_text().replace("warmup = 0.5", "warmup = -1.0")),
+    run_case("group_radius a word", "group_radius", run='group_radius = "wide"'),
+    run_case("group_radius negative", "group_radius", run="group_radius = -2"),
+    run_case("fragmentation_cohesion a string", "fragmentation_cohesion", run='fragmentation_cohesion = "half"'),
+    run_case("keep unknown", "keep", run='keep = "everything"'),
+    run_case("trajectory_every zero", "trajectory_every", run="trajectory_every = 0"),
+    run_case("leadership_metrics unknown", "leadership_metrics", run='leadership_metrics = "sometimes"'),
+    run_case("axis without key", "axes[0]", axes="[[axes]]\nvalues = [1, 2]\n"),
+    run_case("axis key and keys", "axes[0]", axes='[[axes]]\nkey = "n"\nkeys = ["n", "n"]\nvalues = [1]\n'),
+    run_case("axis empty values", "axes[0].values", axes=AXIS.format(key="perception.field_deg", values="[]")),
+    run_case("axis values not a list", "axes[0]", axes=AXIS.format(key="perception.field_deg", values="60")),
+    run_case("axis value out of range", "perception.field_deg", axes=AXIS.format(key="perception.field_deg",
+                                                                                 values="[60, 400]")),
+    run_case("axis value wrong type", "perception.field_deg", axes=AXIS.format(key="perception.field_deg",
+                                                                               values='["wide"]')),
+    run_case("axis values repeat", "repeat", axes=AXIS.format(key="perception.field_deg", values="[60, 60]")),
+    run_case("axis values resolve equal", "same parameters", axes=AXIS.format(key="perception.field_deg",
+                                                                              values="[60, 60.0]")),
+    run_case("axis unknown key", "perception.fov", axes=AXIS.format(key="perception.fov", values="[1, 2]")),
+    run_case("axis key a number", "axes[0].key", axes="[[axes]]\nkey = 5\nvalues = [1, 2]\n"),
+    run_case("axis key of another perception kind", "perception.radius",
+             axes=AXIS.format(key="perception.radius", values="[5, 6]")),
+    run_case("zipped axis with one key", "axes[0].keys",
+             axes='[[axes]]\nkeys = ["perception.field_deg"]\nvalues = [[60]]\n'),
+    run_case("zipped axis wrong arity", "axes[0].values[0]",
+             axes='[[axes]]\nkeys = ["perception.field_deg", "perception.range"]\nvalues = [[60]]\n'),
+    run_case("labels count mismatch", "axes[0].labels",
+             axes='[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\nlabels = ["a"]\n'),
+    run_case("linspace num zero", "num", axes='[[axes]]\nkey = "perception.field_deg"\nlinspace = { start = 60, stop = 180, num = 0 }\n'),
+    run_case("linspace start nan", "start", axes='[[axes]]\nkey = "perception.field_deg"\nlinspace = { start = nan, stop = 180, num = 3 }\n'),
+    run_case("range negative step", "range", axes='[[axes]]\nkey = "perception.field_deg"\nrange = { start = 60, stop = 180, step = -10 }\n'),
+    run_case("values and linspace", "axes[0]", axes='[[axes]]\nkey = "perception.field_deg"\nvalues = [60]\nlinspace = { start = 60, stop = 180, num = 3 }\n'),
+    run_case("reserved axis name", "axes[0].name", axes='[[axes]]\nname = "status"\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("key swept twice", "swept twice", axes=AXIS.format(key="perception.field_deg", values="[60, 180]") * 2),
+    run_case("axis n of 1e12 boids", "memory", axes=AXIS.format(key="init.n", values="[10, 1000000000000]")),
+    run_case("axis n of 1e6 boids", "memory", axes=AXIS.format(key="init.n", values="[10, 1000000]")),
+    run_case("design of 1e9 runs", "split it", axes=AXIS.format(key="perception.field_deg", values=str(list(range(1, 361))))
+             + AXIS.format(key="perception.range", values=str(list(range(1, 1001))))
+             + AXIS.format(key="perception.direction_deg", values=str(list(range(0, 90))))
+             + AXIS.format(key="steering.cohesion_weight", values=str(list(range(1, 31))))),
+    run_case("design of 200000 runs", "--yes", text=sweep_text().replace("replicates = 1", "replicates = 100000")),
+    run_case("axis duration below warmup", "run.warmup", axes=AXIS.format(key="run.duration", values="[0.5, 1.0]")),
+    run_case("sample method unknown", "sample.method", top="", axes='[sample]\nmethod = "grid"\nn = 4\nbounds = { "perception.field_deg" = [30, 360] }\n'),
+    run_case("sample n zero", "sample.n", axes='[sample]\nn = 0\nbounds = { "perception.field_deg" = [30, 360] }\n'),
+    run_case("sample without bounds", "sample.bounds", axes="[sample]\nn = 4\n"),
+    run_case("sample bounds reversed", "sample.bounds", axes='[sample]\nn = 4\nbounds = { "perception.field_deg" = [360, 30] }\n'),
+    run_case("sample bounds not numbers", "sample.bounds", axes='[sample]\nn = 4\nbounds = { "perception.field_deg" = ["a", "b"] }\n'),
+    run_case("sample bounds outside the range", "perception.field_deg", axes='[sample]\nn = 4\nbounds = { "perception.field_deg" = [30, 720] }\n'),
+    run_case("report not a table", "report", top="report = 5"),
+]
+
+RUN_FLAGS = [
+    cli_case("run: --workers 0", RUN + ("--workers", "0"), "--workers", files=GOOD_SWEEP),
+    cli_case("run: --workers -1", RUN + ("--workers", "-1"), "--workers", files=GOOD_SWEEP),
+    cli_case("run: --workers 100000", ("run", "{d}/s.toml", "--out", "{d}/out", "--workers", "100000"), "--workers",
+             files=GOOD_SWEEP),
+    cli_case("run: --replicates 0", RUN + ("--replicates", "0"), "--replicates", files=GOOD_SWEEP),
+    cli_case("run: --replicates -3", RUN + ("--replicates", "-3"), "--replicates", files=GOOD_SWEEP),
+    cli_case("run: --replicates 1e9", RUN + ("--replicates", "1000000000"), "split it", files=GOOD_SWEEP),
+    cli_case("run: --replicates 60000", RUN + ("--replicates", "60000"), "--yes", files=GOOD_SWEEP),
+    cli_case("run: --dry-run --replicates 60000", RUN + ("--replicates", "60000", "--dry-run"), "--yes",
+             files=GOOD_SWEEP),
+    cli_case("run: --batch-size 0", RUN + ("--batch-size", "0"), "--batch-size", files=GOOD_SWEEP),
+    cli_case("run: --batch-size -1", RUN + ("--batch-size", "-1"), "--batch-size", files=GOOD_SWEEP),
+    cli_case("run: --max-replicates 0", RUN + ("--until-ci", "cohesion=0.05", "--max-replicates", "0"),
+             "--max-replicates", files=GOOD_SWEEP),
+    cli_case("run: --max-replicates below replicates", RUN + ("--until-ci", "cohesion=0.05", "--max-replicates", "1",
+                                                             "--replicates", "2"), "--max-replicates", files=GOOD_SWEEP),
+    cli_case("run: --until-ci without =", RUN + ("--until-ci", "cohesion"), "--until-ci", files=GOOD_SWEEP),
+    cli_case("run: --until-ci not a number", RUN + ("--until-ci", "cohesion=abc"), "--until-ci", files=GOOD_SWEEP),
+    cli_case("run: --until-ci negative", RUN + ("--until-ci", "cohesion=-0.1"), "--until-ci", files=GOOD_SWEEP),
+    cli_case("run: --until-ci infinite", RUN + ("--until-ci", "cohesion=inf"), "--until-ci", files=GOOD_SWEEP),
+    cli_case("run: --until-ci misspelt metric", RUN + ("--until-ci", "cohesoin=0.05"), "did you mean",
+             files=GOOD_SWEEP),
+    cli_case("run: --until-ci with --dry-run", RUN + ("--until-ci", "cohesion=0.05", "--dry-run"), "--dry-run",
+             files=GOOD_SWEEP),
+    cli_case("run: --scheduler without dask", RUN + ("--scheduler", "tcp://127.0.0.1:1"), "--scheduler",
+             files=GOOD_SWEEP),
+    cli_case("run: --scheduler empty", ("run", "{d}/s.toml", "--out", "{d}/out", "--executor", "dask", "--scheduler",
+                                        " "), "--scheduler", files=GOOD_SWEEP),
+    cli_case("run: --scheduler not an address", ("run", "{d}/s.toml", "--out", "{d}/out", "--executor", "dask",
+                                                 "--scheduler", "nonsense"), "not a dask address", files=GOOD_SWEEP),
+    cli_case("run: --scheduler where nobody listens", ("run", "{d}/s.toml", "--out", "{d}/out", "--executor", "dask",
+                                                       "--scheduler", "tcp://127.0.0.1:9"), "no dask scheduler answered",
+             files=GOOD_SWEEP),
+    cli_case("run: --set without =", RUN + ("--set", "seed"), "key=value", files=GOOD_SWEEP),
+    cli_case("run: --set unknown key", RUN + ("--set", "sede=3"), "did you mean", files=GOOD_SWEEP),
+    cli_case("run: --set a date", RUN + ("--set", "description=2024-01-01"), "date", files=GOOD_SWEEP),
+    cli_case("run: --set bad value", RUN + ("--set", "run.duration=-1"), "run.duration", files=GOOD_SWEEP),
+    cli_case("run: --set model key out of range", RUN + ("--set", "model.perception.field_deg=999"),
+             "perception.field_deg", files=GOOD_SWEEP),
+    cli_case("run: --set empty key part", RUN + ("--set", "run..duration=2"), "dotted", files=GOOD_SWEEP),
+    cli_case("run: --out an existing file", ("run", "{d}/s.toml", "--out", "{d}/s.toml"), "--out", files=GOOD_SWEEP),
+    cli_case("run: --out below a file", ("run", "{d}/s.toml", "--out", "{d}/s.toml/sub"), "--out", files=GOOD_SWEEP),
+    cli_case("run: --out with NUL", ("run", "{d}/s.toml", "--out", "{d}/a\0b"), "--out", files=GOOD_SWEEP),
+    cli_case("run: --dry-run of 1e12 boids", RUN + ("--dry-run", "--set", "run.n=1000000000000"), "memory",
+             files=GOOD_SWEEP),
+    cli_case("run: --workers beyond memory", ("run", "{d}/s.toml", "--out", "{d}/out", "--workers", "16", "--set",
+                                             "run.n=40000", "--set", "run.duration=0.5", "--set", "run.warmup=0.1"),
+             "memory", files=GOOD_SWEEP),
+]
+
+SIMULATE = ("simulate", HOLLAND, "--out", "{d}/out")
+SIMULATE_FLAGS = [
+    cli_case("simulate: --seed -1", SIMULATE + ("--seed", "-1"), "--seed"),
+    cli_case("simulate: --record-every 0", SIMULATE + ("--record-every", "0"), "--record-every"),
+    cli_case("simulate: --n 0", SIMULATE + ("--n", "0"), "init.n"),
+    cli_case("simulate: --n -3", SIMULATE + ("--n", "-3"), "init.n"),
+    cli_case("simulate: --n 9e18", SIMULATE + ("--n", "9000000000000000000"), "memory"),
+    cli_case("simulate: --duration nan", SIMULATE + ("--duration", "nan"), "run.duration"),
+    cli_case("simulate: --duration 0", SIMULATE + ("--duration", "0"), "run.duration"),
+    cli_case("simulate: --duration -5", SIMULATE + ("--duration", "-5"), "run.duration"),
+    cli_case("simulate: --dt 0", SIMULATE + ("--dt", "0"), "run.dt"),
+    cli_case("simulate: --dt inf", SIMULATE + ("--dt", "inf"), "run.dt"),
+    cli_case("simulate: --set unknown", SIMULATE + ("--set", "perception.fov=3"), "perception.fov"),
+    cli_case("simulate: --set a date", SIMULATE + ("--set", "description=2024-01-01"), "date"),
+    cli_case("simulate: --out an existing file", ("simulate", HOLLAND, "--out", "{d}/f.txt"), "--out",
+             files={"f.txt": "mine"}),
+    cli_case("simulate: model not UTF-8", ("simulate", "{d}/m.toml", "--out", "{d}/out"), "utf-8",
+             files={"m.toml": b'name = "\xfe"\n'}),
+    cli_case("simulate: model with a date", ("simulate", "{d}/m.toml", "--out", "{d}/out"), "date",
+             files={"m.toml": 'name = "m"\ndescription = 2020-02-02\n'}),
+    cli_case("simulate: model missing", ("simulate", "{d}/m.toml", "--out", "{d}/out"), "not found"),
+    cli_case("simulate: model unknown key", ("simulate", "{d}/m.toml", "--out", "{d}/out"), "did you mean",
+             files={"m.toml": 'name = "m"\ndynamic = "opensteer"\n'}),
+    cli_case("simulate: model kind mismatch", ("simulate", "{d}/m.toml", "--out", "{d}/out"), "perception.kind",
+             files={"m.toml": 'dynamics = "hartman_benes"\n[perception]\nkind = "binocular"\n'}),
+    cli_case("simulate: 1e6 boids for 10^4 steps", SIMULATE + ("--n", "1000000", "--duration", "200"), "memory"),
+]
+
+CALIBRATE = [
+    cal_case("prior beyond the range", "parameters.field.prior", prior='{ dist = "uniform", low = 30, high = 400 }'),
+    cal_case("prior below zero", "parameters.field.prior", prior='{ dist = "uniform", low = -10, high = 300 }'),
+    cal_case("bounds beyond the range", "parameters.field.bounds",
+             prior='{ dist = "normal", mean = 100, sd = 50 }\nbounds = [10, 500]'),
+    cal_case("integer prior reaching 0", "parameters.size.prior", key="init.n",
+             prior='{ dist = "uniform", low = 0, high = 30 }'),
+    cal_case("range prior below 0", "parameters.field.prior", key="perception.range",
+             prior='{ dist = "uniform", low = -5, high = 30 }'),
+    cal_case("n prior of 1e12 boids", "memory", key="init.n",
+             prior='{ dist = "uniform", low = 5, high = 1000000000000 }'),
+    cal_case("parameter key unknown", "parameters.field.key", key="perception.fov"),
+    cal_case("parameter key not numeric", "parameters.field.key", key="perception.kind"),
+    cal_case("normal prior without bounds", "parameters.field.bounds", prior='{ dist = "normal", mean = 100, sd = 50 }'),
+    cal_case("prior unknown family", "parameters.field.prior", prior='{ dist = "cauchy", low = 1, high = 2 }'),
+    cal_case("prior low above high", "parameters.field.prior", prior='{ dist = "uniform", low = 300, high = 60 }'),
+    cal_case("unknown stat", "targets.stats", stats='["cohesoin", "polarization"]'),
+    cal_case("stat twice", "targets.stats", stats='["cohesion", "cohesion"]'),
+    cal_case("mean of the wrong length", "targets.mean", mean="[0.9]"),
+    cal_case("negative sd", "targets.sd", sd="[-0.05, 0.05]"),
+    cal_case("sd a string", "targets.sd", sd='"small"'),
+    cal_case("mean with nan", "targets.mean", mean="[nan, 0.8]"),
+    cal_case("method kind unknown", "method.kind", kind="mcmc"),
+    cal_case("n_sim too small", "method.n_sim", n_sim=2),
+    cal_case("walkers odd", "method.walkers", walkers=5),
+    cal_case("walkers too few", "method.walkers", walkers=0),
+    cal_case("steps zero", "steps", steps=0),
+    Case("calibrate: warmup at duration", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace("warmup = 0.5", "warmup = 1.0")}, 2, "run.warmup"),
+    Case("calibrate: record_interval beyond duration", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace("record_interval = 0.5", "record_interval = 2.0")}, 2,
+         "run.record_interval"),
+    cal_case("--workers 0", "--workers", args=("--workers", "0")),
+    cal_case("--workers 10^5", "--workers", args=("--executor", "local", "--workers", "100000")),
+    cal_case("--scheduler without dask", "--scheduler", args=("--scheduler", "tcp://x:1")),
+    cal_case("--set unknown key", "did you mean", args=("--set", "method.stpes=3")),
+    cal_case("--scheduler not an address", "not a dask address", args=("--executor", "dask", "--scheduler", "x:y:z")),
+    cal_case("--set date", "date", args=("--set", "description=1999-01-01")),
+    cal_case("date in the file", "date", run="when = 1999-01-01"),
+]
+CALIBRATE += [
+    Case("calibrate: not UTF-8", ("calibrate", "{d}/c.toml", "--out", "{d}/out"), {"c.toml": b"name = \"\xc3\x28\"\n"},
+         2, "not utf-8"),
+    Case("calibrate: NUL in name", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace('name = "cal"', 'name = "c\\u0000"')}, 2, "name"),
+    Case("calibrate: --out an existing file", ("calibrate", "{d}/c.toml", "--out", "{d}/c.toml"), GOOD_CAL, 2, "--out"),
+    Case("calibrate: samples file missing", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace("mean = [0.9, 0.8]\nsd = [0.05, 0.05]", 'samples = "obs.csv"')},
+         2, "targets.samples"),
+    Case("calibrate: samples not numeric", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace("mean = [0.9, 0.8]\nsd = [0.05, 0.05]", 'samples = "obs.csv"'),
+          "obs.csv": "cohesion,polarization\nhigh,low\n"}, 2, "targets.samples"),
+    Case("calibrate: cov not positive definite", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().replace("sd = [0.05, 0.05]", "cov = [[1, 2], [2, 1]]")}, 2, "targets.cov"),
+    Case("calibrate: same key twice", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text(extra_parameter='[parameters.other]\nkey = "perception.field_deg"\n'
+                                                     'prior = { dist = "uniform", low = 60, high = 300 }')},
+         2, "parameters.other.key"),
+]
+# "integer prior reaching 0" names its parameter "size": rename the table in its file
+_size = [i for i, c in enumerate(CALIBRATE) if c.name == "calibrate: integer prior reaching 0"][0]
+CALIBRATE[_size] = Case(CALIBRATE[_size].name, CALIBRATE[_size].argv,
+                        {"c.toml": CALIBRATE[_size].files["c.toml"].replace("[parameters.field]", "[parameters.size]")},
+                        2, "parameters.size.prior")
+
+TARGETS = ("targets", "{d}/c.toml", "--truth", "field=150")
+TARGETS_FLAGS = [
+    cli_case("targets: --sd not numbers", TARGETS + ("--sd", "a,b"), "--sd", files=GOOD_CAL),
+    cli_case("targets: --sd wrong count", TARGETS + ("--sd", "0.1"), "--sd", files=GOOD_CAL),
+    cli_case("targets: --sd negative", TARGETS + ("--sd", "-1,2"), "--sd", files=GOOD_CAL),
+    cli_case("targets: --sd empty item", TARGETS + ("--sd", "0.1,"), "--sd", files=GOOD_CAL),
+    cli_case("targets: --truth not a number", ("targets", "{d}/c.toml", "--truth", "field=abc"), "--truth",
+             files=GOOD_CAL),
+    cli_case("targets: --truth unknown name", ("targets", "{d}/c.toml", "--truth", "feild=150"), "did you mean",
+             files=GOOD_CAL),
+    cli_case("targets: --truth without =", ("targets", "{d}/c.toml", "--truth", "field"), "--truth", files=GOOD_CAL),
+    cli_case("targets: --truth nan", ("targets", "{d}/c.toml", "--truth", "field=nan"), "--truth", files=GOOD_CAL),
+    cli_case("targets: --truth out of range", ("targets", "{d}/c.toml", "--truth", "field=999"),
+             "--truth", files=GOOD_CAL),
+    cli_case("targets: --replicates 0", TARGETS + ("--replicates", "0"), "--replicates", files=GOOD_CAL),
+    cli_case("targets: --seed -1", TARGETS + ("--seed", "-1"), "--seed", files=GOOD_CAL),
+]
+
+SBC = ("sbc", "{d}/c.toml", "--out", "{d}/out", "--no-progress")
+SBC_FLAGS = [
+    cli_case("sbc: --datasets 0", SBC + ("--datasets", "0"), "--datasets", files=GOOD_CAL),
+    cli_case("sbc: --draws 0", SBC + ("--draws", "0"), "--draws", files=GOOD_CAL),
+    cli_case("sbc: --workers 0", SBC + ("--workers", "0"), "--workers", files=GOOD_CAL),
+    cli_case("sbc: --steps 0", SBC + ("--steps", "0"), "--steps", files=GOOD_CAL),
+    cli_case("sbc: --walkers 1", SBC + ("--walkers", "1"), "--walkers", files=GOOD_CAL),
+    cli_case("sbc: --out a file", ("sbc", "{d}/c.toml", "--out", "{d}/c.toml"), "--out", files=GOOD_CAL),
+    cli_case("sbc: optimize method", SBC, "method.kind",
+             files={"c.toml": calibration_text(kind="optimize").replace("walkers = 4\nsteps = 3\n", "")}),
+]
+
+READERS = [
+    cli_case("status: no such folder", ("status", "{d}/nothing"), "no sweep"),
+    cli_case("status: a folder without a sweep", ("status", "{d}"), "no sweep", files={"x.txt": "x"}),
+    cli_case("status: garbage design", ("status", "{d}"), "design.parquet", files={"design.parquet": b"garbage"}),
+    cli_case("report: no such folder", ("report", "{d}/nothing"), "design.parquet"),
+    cli_case("report: garbage design", ("report", "{d}"), "design.parquet", files={"design.parquet": b"\x00" * 64}),
+    cli_case("report: --seed -1", ("report", "{d}", "--seed", "-1"), "--seed"),
+    cli_case("report: --out a file", ("report", "{d}", "--out", "{d}/x.txt"), "--out", files={"x.txt": "mine"}),
+    cli_case("view: no such source", ("view", "{d}/nothing.toml"), "no such file"),
+    cli_case("view: a sweep file", ("view", "{d}/s.toml"), "sweep file", files=GOOD_SWEEP),
+    cli_case("view: --replicate -1", ("view", HOLLAND, "--replicate", "-1"), "only applies"),
+    cli_case("view: bad --size", ("view", HOLLAND, "--size", "big", "--out", "{d}/p.html"), "--size"),
+    cli_case("view: --seed -1", ("view", HOLLAND, "--seed", "-1", "--out", "{d}/p.html"), "--seed"),
+    cli_case("view: --trail -2", ("view", HOLLAND, "--trail", "-2", "--out", "{d}/p.html"), "--trail"),
+    cli_case("view: --n 1e12", ("view", HOLLAND, "--n", "1000000000000", "--out", "{d}/p.html"), "memory"),
+    cli_case("sbc: other settings in the folder", SBC, "--out", files={
+        **GOOD_CAL, "out/settings.json": '{"method": "sbc", "seed": 99}'}),
+]
+
+CASES = SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
+QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
+         "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
+         "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
+         "simulate: --out an existing file", "status: garbage design", "run: --out an existing file")
+
+
+def materialise(case: Case, folder) -> list[str]:
+    """Write the case's files into ``folder``; its argv with ``{d}`` and ``{holland}`` filled in."""
+    for name, content in case.files.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content.replace("{d}", str(folder)).replace("{holland}", HOLLAND))
+    return [str(a).replace("{d}", str(folder)).replace("{holland}", HOLLAND) for a in case.argv]
+
+
+def snapshot(folder) -> set[str]:
+    """Every path under ``folder`` (files and folders), relative."""
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+@dataclass
+class Refusal:
+    code: int | None
+    stderr: str
+    written: set
+    crash: str = ""   # the exception that escaped main (a traceback for the user)
+
+    def clean(self, case: Case) -> bool:
+        """Refused as the catalogue says: its exit status, its words, one message, nothing written."""
+        return (not self.crash and self.code == case.code and case.expect.lower() in self.stderr.lower()
+                and "Traceback" not in self.stderr and not self.written)
+
+
+def attempt(case: Case, folder) -> Refusal:
+    """Run ``case`` in the empty folder ``folder`` (as the working directory) with ``sweeps.cli.main``."""
+    import contextlib
+    import io
+    import os
+    import traceback
+
+    from sweeps.cli import main
+
+    argv = materialise(case, folder)
+    before = snapshot(folder)
+    err, out = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(folder)
+    code, crash = None, ""
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+            code = main(argv)
+    except SystemExit as exit_:   # argparse's own usage errors
+        code = exit_.code
+    except BaseException as raised:  # noqa: BLE001 - the user would have seen a traceback
+        crash = "".join(traceback.format_exception(raised))[-2000:]
+    finally:
+        os.chdir(cwd)
+    return Refusal(code, err.getvalue(), snapshot(folder) - before, crash)
