@@ -17,6 +17,8 @@ tag                    entropy                      seeds
 ``SBC``                [seed, 0x5BC, j, stream]     SBC dataset j (:class:`SBCStream`); [seed, 0x5BC,
                                                     0xECDF] the ECDF band
 ``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
+``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
+``REFINE``             [seed, 0x2EF1, round]        the emulator's refinement points of one round
 =====================  ===========================  =================================================
 
 Other seeds: a sweep run's seed is :func:`run_seed` (``[sweep seed, sha256(point) words, replicate]``,
@@ -44,6 +46,8 @@ class Tag(IntEnum):
     PREDICTIVE = 0x5050
     SBC = 0x5BC
     DESIGN_SAMPLE = 0x5A3D1E
+    DESIGN_SENSITIVITY = 0x5E45
+    REFINE = 0x2EF1
 
 
 @unique

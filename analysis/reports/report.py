@@ -8,6 +8,12 @@ writes into ``out_dir`` (default ``<results_dir>/report``):
 * ``tables/*.csv``: every table behind the report (tests, main effects, adjacent comparisons, two-way
   tests, cell summaries with CI half-widths, findings, showcase checks).
 
+The analysis follows the design: grid factors (axes) get the analysis below; the continuous factors
+of a ``[design]`` (Saltelli, Morris) or ``[sample]`` block get the sensitivity analysis of
+:mod:`analysis.reports.sensitivity_section` (Sobol' or Morris indices, smoothers, partial dependence,
+rank correlations), per combination of the grid factors' levels when both are present. Explicit
+``[[points]]`` of a sweep (e.g. added by an emulator's refinement) are left out of both.
+
 Sections: overview and provenance; per metric the main effect of every factor (mean and 95% bootstrap
 CI over replicates and the other factors), a Kruskal-Wallis test per factor with epsilon squared and
 Holm correction over the whole family, a rank-based two-way ANOVA for a pair of factors, adjacent-level
@@ -40,15 +46,15 @@ from sweeps.store import ResultsStore
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
 from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
+from .labels import METRICS
+from .sensitivity import continuous_design, design_runs
+from .sensitivity_section import sensitivity_section
 from .viewer_pages import viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",
            "strays": "stray_fraction", "fragmentation": "time_to_fragmentation"}
-LABELS = {"cohesion_mean": "cohesion (largest group share)", "polarization_mean": "alignment (polarization)",
-          "stray_fraction_mean": "stray fraction", "n_groups_mean": "number of groups",
-          "elongation_mean": "elongation of the largest group", "speed_mean_mean": "mean speed",
-          "segregation_mean": "pattern segregation", "aspect_heading_mean": "length/width along heading"}
+LABELS = METRICS
 RANGE = "perception.range"
 
 
@@ -85,6 +91,7 @@ class Context:
     seed: int
     blocks: list
     tables: dict
+    continuous: list = None  # the continuous factors (a [design] or [sample] block's keys)
 
 
 def _save_table(ctx: Context, name: str, df: pd.DataFrame) -> pd.DataFrame:
@@ -118,8 +125,8 @@ def _overview(ctx: Context) -> None:
                         f"**{n_design - ok - failed}** missing. Replicates per cell: "
                         f"{m.get('replicates', '?')}; sweep seed {m.get('seed', '?')}; common random numbers: "
                         f"{m.get('common_random_numbers', False)}.")]
-    levels = pd.DataFrame([{"factor": f, "levels": len(r.levels(f)),
-                            "values": ", ".join(map(_short, r.levels(f)))} for f in r.factors])
+    levels = pd.DataFrame([{"factor": f, "levels": len(r.levels(f)), "values": _levels_text(r.levels(f))}
+                           for f in r.factors])
     ctx.blocks.append(Table(_save_table(ctx, "design", levels), "Factors and levels"))
     pkgs = m.get("packages", {})
     prov = pd.DataFrame([
@@ -134,6 +141,12 @@ def _overview(ctx: Context) -> None:
     if failed:
         fails = runs[runs["status"] == "failed"][["run_id", "error"] + r.factors].head(20)
         ctx.blocks.append(Table(fails, "Failed runs (first 20)"))
+
+
+def _levels_text(levels: list, most: int = 12) -> str:
+    if len(levels) > most and all(isinstance(v, (int, float, np.number)) for v in levels):
+        return f"continuous: {len(levels)} values from {_short(min(levels))} to {_short(max(levels))}"
+    return ", ".join(map(_short, levels))
 
 
 def _short(value) -> str:
@@ -228,9 +241,10 @@ def _showcase_rows(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
 
 def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     metric = "cohesion_mean" if "cohesion_mean" in ctx.runs else ctx.metrics[0]
-    if not ctx.factors:
+    factors = list(ctx.factors) + list(ctx.continuous or [])
+    if not factors:
         return [("all runs", ctx.runs)]
-    means = ctx.runs.groupby(ctx.factors, dropna=False)[metric].mean().dropna().sort_values()
+    means = ctx.runs.groupby(factors, dropna=False)[metric].mean().dropna().sort_values()
     if means.empty:
         return []
     picks = {"lowest " + metric: means.index[0], "median " + metric: means.index[len(means) // 2],
@@ -239,7 +253,7 @@ def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     for name, key in picks.items():
         key = key if isinstance(key, tuple) else (key,)
         mask = np.ones(len(ctx.runs), dtype=bool)
-        for f, v in zip(ctx.factors, key):
+        for f, v in zip(factors, key):
             mask &= (ctx.runs[f] == v).to_numpy()
         out.append((name, ctx.runs[mask]))
     return out
@@ -366,13 +380,15 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     results = load_results(results_dir)
     if results.ok.empty:
         raise ReportError(f"{results_dir}: no finished runs to report on")
-    factors = list(by) if by else results.factors
+    continuous = continuous_design(results)
+    continuous_keys = list(continuous.keys) if continuous else []
+    factors = list(by) if by else [f for f in results.factors if f not in continuous_keys]
     for f in factors:
         if f not in results.runs.columns:
             raise ReportError(f"--by: unknown factor {f!r}; factors of this sweep: {', '.join(results.factors)}")
     out = Path(out_dir) if out_dir else results.path / "report"
-    ctx = Context(results, results.ok.reset_index(drop=True), resolve_metrics(results, metrics), factors, out,
-                  out / "figures", out / "tables", seed, [], {})
+    ctx = Context(results, design_runs(results), resolve_metrics(results, metrics), factors, out,
+                  out / "figures", out / "tables", seed, [], {}, continuous_keys)
     for folder, patterns in ((ctx.fig_dir, ("*.png", "*.svg")), (ctx.table_dir, ("*.csv",))):
         folder.mkdir(parents=True, exist_ok=True)
         for stale in [p for pattern in patterns for p in folder.glob(pattern)]:
@@ -380,9 +396,12 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     _overview(ctx)
     _findings(ctx)
     _leadership(ctx)
-    st = _statistics(ctx)
-    _metric_sections(ctx, st)
-    _heatmaps(ctx)
+    if continuous and continuous.keys:
+        sensitivity_section(ctx, continuous, _figure, _save_table)
+    if ctx.factors or not continuous:
+        st = _statistics(ctx)
+        _metric_sections(ctx, st)
+        _heatmaps(ctx)
     cells = _showcase_rows(ctx) or _default_cells(ctx)
     _timeseries(ctx, cells)
     _thumbnails(ctx, cells)
