@@ -258,26 +258,25 @@ def _add_calibrate(sub) -> None:
 
 def cmd_calibrate(args) -> int:
     from analysis.calibration.config import load_calibration
-    from analysis.calibration.run import calibrate
+    from analysis.calibration.run import run_calibration
 
     config = load_calibration(args.config, args.overrides)
     if args.workers is not None and args.workers < 1:
         raise ConfigError("--workers", f"got {args.workers}; expected an integer >= 1")
     if args.scheduler and args.executor != "dask":
         raise ConfigError("--scheduler", "only used with --executor dask")
-    result = calibrate(config, args.out, resume=args.resume, progress=not args.no_progress,
-                       executor=args.executor, workers=args.workers, scheduler=args.scheduler)
-    if "optimum" in result:
-        opt = result["optimum"]
+    result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
+                             executor=args.executor, workers=args.workers, scheduler=args.scheduler)
+    if result.optimum:
+        opt = result.optimum
         print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
               f"{opt['objective_recheck']:.4g} +- {opt['recheck_se']:.2g} re-checked with fresh seeds")
-        print(f"  wrote {result['out']}")
-        return 0
-    print(result["summary"].round(4).to_string())
-    for message in result["convergence"]["messages"] + result["warnings"]:
+    else:
+        print(result.summary.round(4).to_string())
+    for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")
-    print(f"  wrote {result['out']}")
+    print(f"  wrote {result.out} (report: {result.paths['html']})")
     return 0
 
 
