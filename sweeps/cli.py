@@ -323,7 +323,7 @@ def cmd_targets(args) -> int:
     truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
           f"--replicates {args.replicates}")
-    print(targets_block(config, rows, sd), end="")
+    print(targets_block(config, rows, sd, truth), end="")
     return 0
 
 

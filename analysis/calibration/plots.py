@@ -13,8 +13,8 @@ selected inside the function, saves atomically, closes the figure and returns th
     ``truths`` (the parameters the targets were simulated at) as red lines; ``labels`` for the axes
     (default the names).
 ``rank_figure(idata, path)``
-    ArviZ's rank plot (``arviz.plot_rank``, vertical lines): per parameter the rank histogram of every
-    walker against the uniform expectation; walkers that mix well all look flat.
+    ArviZ's rank plot (``arviz.plot_rank``, bars): per parameter the rank histogram of every walker
+    (stacked) against the uniform expectation; walkers that mix well all look flat.
 ``predictive_figure(check_df, predictive, observed, names, path)``
     one panel per statistic: histogram of the predictive, observed value marked, tail probability ``p``
     in the title (``check_df`` from :func:`analysis.calibration.diagnostics.predictive_check`).
@@ -111,10 +111,11 @@ def rank_figure(idata, path) -> Path:
     fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.4), squeeze=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        arviz().plot_rank(idata, var_names=names, kind="vlines", ax=axes[0])
+        arviz().plot_rank(idata, var_names=names, kind="bars", ax=axes[0])
     for ax in axes[0]:
-        ax.set_xlabel("rank (all walkers pooled)")
-        ax.set_ylabel("walker")
+        ax.set_xlabel("rank among all walkers' draws", fontsize=9)
+        ax.set_ylabel("walker", fontsize=9)
+        ax.title.set_fontsize(10)
     return save(fig, path)
 
 
