@@ -309,7 +309,7 @@ def _add_calibrate(sub) -> None:
 
 def cmd_calibrate(args) -> int:
     from analysis.calibration.config import load_calibration
-    from analysis.calibration.run import calibrate, resume_hint
+    from analysis.calibration.run import resume_hint, run_calibration
 
     check_workers(args.workers, args.executor)
     check_out("--out", args.out)
@@ -317,19 +317,18 @@ def cmd_calibrate(args) -> int:
         raise ConfigError("--scheduler", "only used with --executor dask")
     config = load_calibration(args.config, args.overrides)
     args.on_interrupt = lambda: resume_hint(args.config, args.out or Path("results") / "calibration" / config.name)
-    result = calibrate(config, args.out, resume=args.resume, progress=not args.no_progress,
-                       executor=args.executor, workers=args.workers, scheduler=args.scheduler)
-    if "optimum" in result:
-        opt = result["optimum"]
+    result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
+                             executor=args.executor, workers=args.workers, scheduler=args.scheduler)
+    if result.optimum:
+        opt = result.optimum
         print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
               f"{opt['objective_recheck']:.4g} +- {opt['recheck_se']:.2g} re-checked with fresh seeds")
-        print(f"  wrote {result['out']}")
-        return 0
-    print(result["summary"].round(4).to_string())
-    for message in result["convergence"]["messages"] + result["warnings"]:
+    else:
+        print(result.summary.round(4).to_string())
+    for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")
-    print(f"  wrote {result['out']}")
+    print(f"  wrote {result.out} (report: {result.paths['html']})")
     return 0
 
 
@@ -380,7 +379,7 @@ def cmd_targets(args) -> int:
     truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
           f"--replicates {args.replicates}")
-    print(targets_block(config, rows, sd), end="")
+    print(targets_block(config, rows, sd, truth), end="")
     return 0
 
 

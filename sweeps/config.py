@@ -47,6 +47,14 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     n = 32
     bounds = { "perception.field_deg" = [30, 360], "init.n" = [20, 100] }   # integer keys are rounded
 
+    [design]                        # or a sensitivity-analysis block (sweeps.sensitivity; not with [sample])
+    kind = "saltelli"               # "saltelli" (Sobol' indices: n = base size, a power of 2) or "morris"
+    n = 256                         # (morris: trajectories = 20, levels = 4)
+    bounds = { "perception.field_deg" = [30, 180], "perception.range" = [10, 40] }
+
+    [[points]]                      # explicit design points after the product, every swept key given (a
+    "perception.field_deg" = 135.0  # labelled axis takes one of its values); the emulator adds points here
+
     [report]                        # free-form settings for `flocksweep report`
 
 Axis keys are preset keys (``perception.*``, ``steering.*``, ``vehicle.*``, ``world.*``,
@@ -55,8 +63,8 @@ run's preset before anything runs (see :mod:`sweeps.design`); every run must rec
 summarise (:func:`check_window`: ``record_interval <= duration`` and a record at or after ``warmup``).
 
 Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is short for
-``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`). ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, at most
-:data:`NAME_MAX` characters).
+``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`).
+``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, <= :data:`NAME_MAX` chars).
 
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
@@ -76,9 +84,10 @@ from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from analysis.observables.summary import MetricSettings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
-                            set_dotted)
+                            set_dotted, suggest)
 
 from .model_set import flat_changes, model_overrides
+from .sensitivity import DesignTable, SensitivityDesign
 
 NAME_MAX = 100
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
@@ -212,6 +221,8 @@ class SweepFile:
     run: SweepRunTable = field(default_factory=SweepRunTable)
     axes: tuple[AxisTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[axes]]"})
     sample: SampleTable | None = None
+    design: DesignTable | None = None
+    points: tuple[dict, ...] = field(default=(), metadata={"expected": "an array of tables: [[points]]"})
     report: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -303,18 +314,22 @@ class SweepConfig:
     sample: Sample | None
     report: dict = field(repr=False, compare=False, hash=False)
     source: dict = field(repr=False, compare=False, hash=False)  # the sweep file as given (+ --set)
+    design: SensitivityDesign | None = None
+    points: tuple[dict, ...] = ()   # explicit points {swept key: value}, after the product
+
+    @property
+    def block_keys(self) -> list[str]:
+        """The keys of the sampled block ([sample] or [design]), in bounds order."""
+        block = self.sample or self.design
+        return [key for key, _, _ in block.bounds] if block else []
 
     @property
     def factors(self) -> tuple[str, ...]:
-        names = [a.name for a in self.axes]
-        if self.sample:
-            names += [key for key, _, _ in self.sample.bounds]
-        return tuple(names)
+        return tuple([a.name for a in self.axes] + self.block_keys)
 
     @property
     def swept_keys(self) -> list[str]:
-        keys = [k for axis in self.axes for k in axis.keys]
-        return keys + ([k for k, _, _ in self.sample.bounds] if self.sample else [])
+        return [k for axis in self.axes for k in axis.keys] + self.block_keys
 
     def analysis_record(self) -> dict:
         """The metric and storage settings as stored in ``model.json`` (``analysis``)."""
@@ -373,12 +388,23 @@ def parse_axis(axis: AxisTable, index: int) -> Axis:
 
 
 def parse_sample(sample: SampleTable) -> Sample:
-    bounds = sample.bounds
+    return Sample(method=sample.method, n=sample.n, bounds=parse_bounds(sample.bounds, "sample.bounds"),
+                  scramble=sample.scramble)
+
+
+def parse_design(design: DesignTable) -> SensitivityDesign:
+    return SensitivityDesign(kind=design.kind, bounds=parse_bounds(design.bounds, "design.bounds"), n=design.n,
+                             second_order=design.second_order, scramble=design.scramble,
+                             trajectories=design.trajectories, levels=design.levels)
+
+
+def parse_bounds(bounds, where_table: str) -> tuple[tuple[str, float, float], ...]:
+    """A table of key = [low, high] -> ((canonical key, low, high), ...)."""
     if not isinstance(bounds, dict) or not bounds:
-        raise ConfigError("sample.bounds", "expected a table of key = [low, high]")
+        raise ConfigError(where_table, "expected a table of key = [low, high]")
     out = []
     for key, pair in bounds.items():
-        where = f"sample.bounds.{key}"
+        where = f"{where_table}.{key}"
         numbers = isinstance(pair, list) and len(pair) == 2 and all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pair)
         if not numbers:
@@ -387,7 +413,33 @@ def parse_sample(sample: SampleTable) -> Sample:
         if not low < high:
             raise ConfigError(where, f"got {pair!r}; low must be < high")
         out.append((canonical_axis_key(key, where), low, high))
-    return Sample(method=sample.method, n=sample.n, bounds=tuple(out), scramble=sample.scramble)
+    return tuple(out)
+
+
+def parse_points(points: tuple[dict, ...], axes: tuple[Axis, ...], keys: list[str]) -> tuple[dict, ...]:
+    """``[[points]]``: each a table giving every swept key once (canonical keys); a labelled axis'
+    value must be one of its values (it takes that value's label)."""
+    out = []
+    for i, point in enumerate(points):
+        where = f"points[{i}]"
+        given = {}
+        for key, value in point.items():
+            canonical = canonical_axis_key(key, where)
+            if canonical not in keys:
+                raise ConfigError(f"{where}.{key}", f"not a swept key{suggest(canonical, keys)}; a point gives a "
+                                                    f"value to each swept key: {', '.join(keys)}")
+            given[canonical] = value
+        missing = [k for k in keys if k not in given]
+        if missing:
+            raise ConfigError(where, f"missing swept key(s) {', '.join(missing)}; a point gives a value to each "
+                                     f"swept key: {', '.join(keys)}")
+        for axis in axes:
+            if axis.labels and tuple(given[k] for k in axis.keys) not in axis.points:
+                raise ConfigError(f"{where}.{axis.keys[0]}", f"got {given[axis.keys[0]]!r}; axis {axis.name!r} is "
+                                                             f"labelled, so a point takes one of its values "
+                                                             f"{[p[0] if len(p) == 1 else list(p) for p in axis.points]}")
+        out.append(given)
+    return tuple(out)
 
 
 def _leadership_on(setting, preset_data: dict, swept: list[str]) -> bool:
@@ -404,8 +456,13 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
     preset_path, preset_data, _ = model_data(table.model, table.run, base)
     axes = tuple(parse_axis(a, k) for k, a in enumerate(table.axes))
     sample = parse_sample(table.sample) if table.sample else None
-    names = [a.name for a in axes] + ([k for k, _, _ in sample.bounds] if sample else [])
-    keys = [k for a in axes for k in a.keys] + ([k for k, _, _ in sample.bounds] if sample else [])
+    design = parse_design(table.design) if table.design else None
+    if sample and design:
+        raise ConfigError("design", "a sweep has one sampled block: give [sample] (random, lhs, sobol) or [design] "
+                                    "(saltelli, morris), not both")
+    block = [k for k, _, _ in (sample or design).bounds] if (sample or design) else []
+    names = [a.name for a in axes] + block
+    keys = [k for a in axes for k in a.keys] + block
     for label, items in (("axis name", names), ("key", keys)):
         dupes = sorted({x for x in items if items.count(x) > 1})
         if dupes:
@@ -415,7 +472,8 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
                        replicates=table.replicates, common_random_numbers=table.common_random_numbers,
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
-                       report=table.report, source=data)
+                       report=table.report, source=data, design=design,
+                       points=parse_points(table.points, axes, keys))
 
 
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:
@@ -435,4 +493,8 @@ def describe(config: SweepConfig) -> dict[str, Any]:
     if config.sample:
         out["sample"] = {"method": config.sample.method, "n": config.sample.n,
                          "bounds": {k: [lo, hi] for k, lo, hi in config.sample.bounds}}
+    if config.design:
+        out["design"] = config.design.record()
+    if config.points:
+        out["points"] = len(config.points)
     return out

@@ -1,9 +1,11 @@
 """Design expansion: a :class:`~sweeps.config.SweepConfig` -> validated, frozen :class:`RunSpec` s.
 
-The design is the cartesian product of the axes (a zipped axis is one factor; a ``[sample]`` block is
-one more factor whose levels are its sampled points), times ``replicates``. Every run's preset is built
-and validated here, before anything runs, so a bad value fails with its axis and key named; so does a
-point whose run would record nothing to summarise (:func:`sweeps.config.check_window`).
+The design is the cartesian product of the axes (a zipped axis is one factor; a ``[sample]`` or
+``[design]`` block is one more factor whose levels are its sampled points: :mod:`sweeps.sensitivity`;
+rows of a sensitivity sample that coincide after rounding are one point), then the explicit
+``[[points]]``, times ``replicates``. Every run's preset is built and validated here, before anything
+runs, so a bad value fails with its axis and key named; so does a point whose run would record nothing
+to summarise (:func:`sweeps.config.check_window`).
 
 Every point's preset is the base preset (the preset file with ``model.set`` and the ``[run]``
 shorthands, which must itself be valid) with the point's values set by :meth:`simcore.Preset.replace`.
@@ -14,7 +16,8 @@ grows, shrinks or is reordered; with ``common_random_numbers`` it derives from t
 replicate only. The run id is a hash of everything that determines the run's results.
 
 Order: ``RunSpec.index`` = point index x replicates + replicate, with points in the order of the axes'
-nested loops (first axis outermost). Results tables are sorted by it, whatever order runs finish in.
+nested loops (first axis outermost), the explicit points last. Results tables are sorted by it, whatever
+order runs finish in.
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ from simcore.schema import ConfigError, get_dotted
 from .config import Storage, SweepConfig, check_window
 from .identity import point_key, run_id
 from .seeds import Tag, generator, run_seed
+from .sensitivity import unique_rows
 
 
 @dataclass(frozen=True)
@@ -54,8 +58,18 @@ def base_preset(config: SweepConfig) -> Preset:
     return preset_from_dict(copy.deepcopy(config.preset_data))
 
 
+def integer_keys(base: Preset, keys) -> list[bool]:
+    """Whether each key holds an integer (not a bool) in the base preset: sampled values are rounded."""
+    values = base.full_dict()
+    return [isinstance(get_dotted(values, key), int) and not isinstance(get_dotted(values, key), bool)
+            for key in keys]
+
+
 def sample_points(config: SweepConfig, base: Preset) -> list[tuple]:
-    """The sampled block's points (tuples in bounds order), integer keys rounded."""
+    """The sampled block's points (tuples in bounds order), integer keys rounded; for a ``[design]``
+    block the distinct rows of its sensitivity sample."""
+    if config.design:
+        return unique_rows(config.design.rows(config.seed, integer_keys(base, config.design.keys)))
     from scipy.stats import qmc  # imported here: scipy.stats takes most of a second to import
 
     sample = config.sample
@@ -70,35 +84,33 @@ def sample_points(config: SweepConfig, base: Preset) -> list[tuple]:
     lows = [lo for _, lo, _ in sample.bounds]
     highs = [hi for _, _, hi in sample.bounds]
     scaled = qmc.scale(unit, lows, highs) if d else unit
-    values = base.full_dict()
-    integer = [isinstance(get_dotted(values, key), int) and not isinstance(get_dotted(values, key), bool)
-               for key, _, _ in sample.bounds]
+    integer = integer_keys(base, [key for key, _, _ in sample.bounds])
     return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
 
 
 def factor_levels(config: SweepConfig, base: Preset) -> list[tuple[tuple[str, ...], list[tuple]]]:
     """Per factor of the product: (keys, points); the sampled block, if any, is the last factor."""
     factors = [(axis.keys, list(axis.points)) for axis in config.axes]
-    if config.sample:
-        factors.append((tuple(key for key, _, _ in config.sample.bounds), sample_points(config, base)))
+    if config.sample or config.design:
+        factors.append((tuple(config.block_keys), sample_points(config, base)))
     return factors
 
 
 def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, object]]:
     """Swept parameters as table columns: an axis' name (label, joined zipped values, or the value when
-    renamed) and then every swept key with its resolved value."""
+    renamed) and then every swept key with its resolved value. ``combo``: per axis the level index, or
+    (an explicit point) the tuple of the point's values."""
     cols = []
     for axis, level in zip(config.axes, combo):
-        values = axis.points[level]
+        values = level if isinstance(level, tuple) else axis.points[level]
         if axis.labels:
-            cols.append((axis.name, axis.labels[level]))
+            cols.append((axis.name, axis.labels[axis.points.index(values)]))
         elif len(axis.keys) > 1:
             cols.append((axis.name, "|".join(map(str, values))))
         elif axis.name != axis.keys[0]:
             cols.append((axis.name, get_dotted(resolved, axis.keys[0])))
         cols += [(key, get_dotted(resolved, key)) for key in axis.keys]
-    if config.sample:
-        cols += [(key, get_dotted(resolved, key)) for key, _, _ in config.sample.bounds]
+    cols += [(key, get_dotted(resolved, key)) for key in config.block_keys]
     return cols
 
 
@@ -137,15 +149,24 @@ def stored_spec(model_record: dict, row: dict) -> RunSpec:
                    columns=(), preset=preset, metrics=metrics, storage=storage)
 
 
+def _design_points(config: SweepConfig, base: Preset):
+    """(overrides [(key, value)], column combo, config key) of every design point: the product, then the
+    explicit points."""
+    factors = factor_levels(config, base)
+    for combo in itertools.product(*[range(len(points)) for _, points in factors]):
+        overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
+        yield overrides, combo, "axes"
+    for i, point in enumerate(config.points):
+        yield ([(k, point[k]) for k in config.swept_keys],
+               tuple(tuple(point[k] for k in axis.keys) for axis in config.axes), f"points[{i}]")
+
+
 def expand(config: SweepConfig) -> list[RunSpec]:
     """All runs of the sweep, validated, in design order."""
     base = base_preset(config)
-    factors = factor_levels(config, base)
     specs = []
     seen: dict[str, str] = {}
-    combos = itertools.product(*[range(len(points)) for _, points in factors])
-    for point_index, combo in enumerate(combos):
-        overrides = [(k, v) for (keys, points), level in zip(factors, combo) for k, v in zip(keys, points[level])]
+    for point_index, (overrides, combo, origin) in enumerate(_design_points(config, base)):
         where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
         preset = _point_preset(base, overrides, where)
         check_window(config.metrics.warmup, preset.run, f" (at design point {where})" if overrides else "")
@@ -153,7 +174,7 @@ def expand(config: SweepConfig) -> list[RunSpec]:
         values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
         point = point_key({k: get_dotted(values, k) for k, _ in overrides})
         if point in seen:
-            raise ConfigError("axes", f"design points {seen[point]} and {where} are the same parameters "
+            raise ConfigError(origin, f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")
         seen[point] = where
         metrics = config.metrics.resolve(preset.model)

@@ -5,8 +5,8 @@
 * ``runs``: DataFrame, one row per run (``runs.parquet``; built from the parts if the sweep was
   interrupted before consolidating), in design order;
 * ``factors``: the swept factor columns, in design order (an axis' name column, e.g. ``mode``, or its
-  key, e.g. ``perception.field_deg``; zipped and sampled keys are factors too), only those with more
-  than one level;
+  key, e.g. ``perception.field_deg``; zipped keys and the keys of a ``[sample]`` or ``[design]`` block
+  are factors too), only those with more than one level;
 * ``metrics``: the summary metric columns (``<metric>_mean``, ``<metric>_final``,
   ``time_to_fragmentation``, ``fragmented``);
 * ``manifest``: the provenance stamp (dict), ``design``: ``design.parquet``, ``sweep``: the sweep file's
@@ -57,15 +57,15 @@ def _level_key(value):
 
 def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
     """Factor columns in design order: for each axis its name column (and its keys when they are the
-    only columns), then sampled keys."""
+    only columns), then the keys of the sampled block ([sample] or [design])."""
     columns = []
     for axis in sweep.get("axes", []):
         keys = [axis["key"]] if "key" in axis else list(axis.get("keys", []))
         keys = [canonical_key(k) for k in keys]
         name = axis.get("name", keys[0] if len(keys) == 1 else "+".join(keys))
         columns.append(name if name in design.columns else keys[0])
-    for key in sweep.get("sample", {}).get("bounds", {}):
-        columns.append(canonical_key(key))
+    for block in ("sample", "design"):
+        columns += [canonical_key(key) for key in sweep.get(block, {}).get("bounds", {})]
     return [c for c in columns if c in design.columns and design[c].nunique() > 1]
 
 

@@ -11,12 +11,14 @@ tag                    entropy                      seeds
 ``WALKERS`` (0)        [seed, 0]                    emcee's initial walkers (BSL, emulator)
 ``MOVES`` (1)          [seed, 1]                    emcee's move random state (MT19937)
 ``EVALUATION`` (2)     [seed, 2, phase, step, i]    the simulations of one BSL log-posterior evaluation
-``CONFIRM`` (3)        [seed, 3]                    the emulator's confirmation runs
+``CONFIRM`` (3)        [seed, 3]; [seed, 3, r]      the emulator's confirmation runs; refinement round r >= 1
 ``RECHECK`` (7)        [seed, 7]                    the optimum's fresh-seed re-check (optimize)
 ``PREDICTIVE``         [seed, 0x5050]; [.., i]      which posterior draws are checked; draw i's run
 ``SBC``                [seed, 0x5BC, j, stream]     SBC dataset j (:class:`SBCStream`); [seed, 0x5BC,
                                                     0xECDF] the ECDF band
 ``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
+``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
+``PRIOR``              [seed, 0x9A10]               the prior draws stored in a calibration's posterior.nc
 =====================  ===========================  =================================================
 
 Other seeds: a sweep run's seed is :func:`run_seed` (``[sweep seed, sha256(point) words, replicate]``,
@@ -44,6 +46,8 @@ class Tag(IntEnum):
     PREDICTIVE = 0x5050
     SBC = 0x5BC
     DESIGN_SAMPLE = 0x5A3D1E
+    DESIGN_SENSITIVITY = 0x5E45
+    PRIOR = 0x9A10
 
 
 @unique

@@ -1,10 +1,43 @@
 """analysis.calibration: fitting a flocking model's free parameters to observed flock statistics.
 
-Configuration (``config``: calibration files on the one schema engine, typed settings per method),
-priors and synthetic likelihoods (``priors``, ``likelihood``), the theta -> summaries simulator
-(``simulator``), the one emcee driver (``mcmc``) and the methods on it: BSL (``bsl``), the emulator
-(``training``, ``surrogates``, ``emulated``), optimisation (``optimize``); ``flocksweep calibrate``
-(``run``), diagnostics and figures (``diagnostics``, ``plots``), simulation-based calibration (``sbc``,
-``sbc_report``) and synthetic targets (``synthetic``). This layer sits above ``sweeps`` (its executor,
-seed registry and output folders) and ``analysis.reports`` (figure plumbing); see docs/architecture.md.
+Python API (loaded on first use, so ``import analysis.calibration`` stays light):
+
+* ``load_calibration(path, overrides=()) -> CalibrationConfig``: read and validate a calibration TOML;
+* ``calibrate(config, out_dir=None, ...) -> arviz.InferenceData``: run it, write its outputs (posterior.nc,
+  posterior.csv, convergence.json, figures, report.html) and return the posterior as InferenceData;
+* ``run_calibration(config, ...) -> CalibrationRun``: the same with everything the run produced (verdicts,
+  tables, the emulator's confirmation and refinement rounds);
+* ``load_calibration_results(out_dir) -> arviz.InferenceData``: read a calibration's ``posterior.nc`` back.
+
+Modules: configuration (``config``: calibration files on the one schema engine, typed settings per
+method in ``settings``), priors and synthetic likelihoods (``priors``, ``likelihood``), the theta ->
+summaries simulator (``simulator``), the one emcee driver (``mcmc``) and the methods on it: BSL
+(``bsl``), the emulator (``training``, ``surrogates``, ``emulated``, its sequential design ``refine``),
+optimisation (``optimize``); ``flocksweep calibrate`` (``run``), diagnostics, ArviZ output and figures
+(``diagnostics``, ``inference``, ``plots``), the calibration report (``calibration_report``),
+simulation-based calibration (``sbc``, ``sbc_report``) and synthetic targets (``synthetic``). This layer
+sits above ``sweeps`` (its executor, seed registry, output folders and sweep extension) and
+``analysis.reports`` (figure plumbing, the report document); see docs/architecture.md.
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
+    from .config import CalibrationConfig, load_calibration
+    from .inference import load_calibration_results
+    from .run import CalibrationRun, calibrate, run_calibration
+
+__all__ = ["CalibrationConfig", "CalibrationRun", "calibrate", "load_calibration", "load_calibration_results",
+           "run_calibration"]
+
+_HOMES = {"CalibrationConfig": "config", "load_calibration": "config", "load_calibration_results": "inference",
+          "CalibrationRun": "run", "calibrate": "run", "run_calibration": "run"}
+
+
+def __getattr__(name: str):
+    if name in _HOMES:
+        import importlib
+
+        return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

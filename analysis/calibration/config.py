@@ -39,6 +39,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     sd = [0.05, 0.05, 0.3]          # ... with their uncertainty (sd > 0), or cov = [[...], ...] (k x k,
                                     # symmetric positive definite); OR instead of mean/sd/cov:
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
+    truth = { field = 135, direction = 45 }   # optional: the parameters the targets were simulated at
+                                    # (a recovery study): drawn as truth lines, checked in the report
 
     [method]
     kind = "emcee"                  # "emcee" | "optimize" | "emulator"
@@ -50,7 +52,9 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
-    #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps)
+    #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps),
+    #           refine = { rounds = R, runs_per_round = M } (sequential design: new sweep points where
+    #           the posterior and the emulator's uncertainty are, until the confirmation passes)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
 ``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
@@ -115,6 +119,7 @@ class TargetsTable:
     sd: Any = None
     cov: Any = None
     samples: str | None = None
+    truth: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -159,6 +164,7 @@ class Targets:
     observed: np.ndarray
     cov: np.ndarray | None
     samples_path: Path | None = None
+    truth: dict | None = None      # parameter name -> value the targets were simulated at (recovery studies)
 
     @property
     def k(self) -> int:
@@ -357,6 +363,29 @@ def _targets(targets: TargetsTable, base: Path) -> Targets:
                    cov=_readonly(cov))
 
 
+def _truth(truth: dict | None, parameters: tuple[Parameter, ...]) -> dict | None:
+    """``targets.truth``: a value for every free parameter, inside its bounds, or None."""
+    if truth is None:
+        return None
+    names = [p.name for p in parameters]
+    for name in truth:
+        if name not in names:
+            raise ConfigError(f"targets.truth.{name}", f"not a free parameter{suggest(name, names)}; free "
+                                                      f"parameters: {', '.join(names)}")
+    out = {}
+    for parameter in parameters:
+        if parameter.name not in truth:
+            raise ConfigError("targets.truth", f"missing {parameter.name!r}; give the value of every free parameter "
+                                               f"({', '.join(names)}) the targets were simulated at")
+        value = _float(truth[parameter.name], f"targets.truth.{parameter.name}")
+        low, high = parameter.bounds
+        if not low <= value <= high:
+            raise ConfigError(f"targets.truth.{parameter.name}", f"got {value:g}; outside the bounds [{low:g}, "
+                                                                 f"{high:g}] of {parameter.name}")
+        out[parameter.name] = value
+    return out
+
+
 def _read_samples(path: Path, stats, columns) -> np.ndarray:
     try:
         frame = pd.read_csv(path)
@@ -411,7 +440,7 @@ def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     base = Path(base)
     preset_path, preset_data, preset = _model_and_run(table, base)
     parameters, joint = _parameters(table, preset)
-    targets = _targets(table.targets, base)
+    targets = dataclasses.replace(_targets(table.targets, base), truth=_truth(table.targets.truth, parameters))
     method = _method(table.method, base, len(parameters), targets.k)
     check_memory(preset, parameters, method.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,

@@ -20,6 +20,10 @@ Functions:
     sentences). ``burn`` defaults as in ``posterior_summary``. The autocorrelation time is estimated
     after the burn-in because the walkers' initial contraction from the prior would otherwise dominate
     the estimate (a chain that mixes well after 70 steps would look as if tau were twice its value).
+``arviz_verdicts(diagnostics)``
+    from ArviZ's per-parameter ``r_hat, ess_bulk, ess_tail`` (:func:`~.inference.arviz_diagnostics`):
+    ``rhat_max``, ``ess_bulk_min``, ``ess_tail_min``, ``rhat_ok`` (max R-hat <= 1.01) and ``ess_ok``
+    (bulk and tail ESS >= 400 everywhere; Vehtari et al. 2021) with plain ``messages``.
 ``prior_constraint_warnings(summary, prior)``
     a sentence for each parameter whose posterior sd exceeds 0.8 x its prior marginal's sd.
 ``predictive_check(observed, predictive, names)``
@@ -43,6 +47,8 @@ TAU_FACTOR = 50            # chain length should be at least this many autocorre
 BURN_FACTOR = 2            # default burn-in in autocorrelation times
 ACCEPTANCE_RANGE = (0.2, 0.5)
 PRIOR_SD_RATIO = 0.8       # posterior sd above this fraction of the prior sd: "not constrained"
+RHAT_MAX = 1.01            # Vehtari et al. (2021): rank-normalised split R-hat below 1.01
+ESS_MIN = 400              # and bulk and tail effective sample sizes of at least 400
 QUANTILES = (("q2.5", 0.025), ("q97.5", 0.975), ("q5", 0.05), ("q95", 0.95))
 
 
@@ -197,6 +203,22 @@ def convergence(chain, acceptance, burn: int | None = None) -> dict:
         "acceptance": acc,
         "messages": messages,
     }
+
+
+def arviz_verdicts(diagnostics: pd.DataFrame) -> dict:
+    """R-hat and ESS verdicts from ArviZ's diagnostics table (see the module docstring)."""
+    rhat = float(diagnostics["r_hat"].max())
+    bulk, tail = float(diagnostics["ess_bulk"].min()), float(diagnostics["ess_tail"].min())
+    rhat_ok = bool(math.isfinite(rhat) and rhat <= RHAT_MAX)
+    ess_ok = bool(math.isfinite(bulk) and math.isfinite(tail) and min(bulk, tail) >= ESS_MIN)
+    messages = [f"largest R-hat {rhat:.3f} (ArviZ, walkers as chains) is " +
+                ("at most 1.01: the walkers agree" if rhat_ok else "above 1.01: the walkers have not yet sampled "
+                                                                    "the same distribution; run longer"),
+                f"smallest bulk / tail ESS {bulk:.0f} / {tail:.0f} is " +
+                (f"at least {ESS_MIN}: enough for the means and the 90% intervals" if ess_ok else
+                 f"below {ESS_MIN}: the means or the interval ends are uncertain; run longer")]
+    return {"rhat_max": rhat, "ess_bulk_min": bulk, "ess_tail_min": tail, "rhat_ok": rhat_ok, "ess_ok": ess_ok,
+            "messages": messages}
 
 
 def prior_constraint_warnings(summary: pd.DataFrame, prior) -> list[str]:

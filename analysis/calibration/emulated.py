@@ -25,9 +25,10 @@ resume=False, progress=None, progress_every=None, moves="stretch") -> ChainResul
     records ``emulator_seed``, ``emulator_fingerprint`` (surrogate, training data, targets, prior) and
     ``emulator_moves``, which a resume must match.
 
-``confirm(config, simulator, surrogate, theta, *, count, seed) -> dict``
+``confirm(config, simulator, surrogate, theta, *, count, seed, stream=()) -> dict``
     ``count`` (>= 2) fresh replicates at theta with ``SummarySimulator.simulate(theta,
-    seeds_for(rng, count))``, ``rng = generator(seed, Tag.CONFIRM)`` (:mod:`sweeps.seeds`). Returns
+    seeds_for(rng, count))``, ``rng = generator(seed, Tag.CONFIRM, *stream)`` (:mod:`sweeps.seeds`;
+    ``stream`` = (round,) for the refinement's later rounds). Returns
     ``theta`` (name -> value), ``comparison`` (DataFrame indexed by stat column: emulated_mean,
     emulated_mean_sd, emulated_sd, real_mean, real_sd, n_real, se, z with ``se = sqrt(real_sd^2 /
     n_real + emulated_mean_sd^2)`` and ``z = (real_mean - emulated_mean) / se``, sd_ratio = real_sd /
@@ -53,7 +54,7 @@ from sweeps.seeds import Tag, generator, seeds_for
 from .checks import integer
 from .diagnostics import predictive_check
 from .mcmc import ChainResult, run_chain
-from .surrogates import EmulatorPrediction, Surrogate, _as_points, _rows
+from .surrogates import EmulatorPrediction, Surrogate, _as_points, _rows, single_threaded_blas
 
 MAX_INITIAL_ROUNDS = 1000
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -185,11 +186,12 @@ def run_emulator_mcmc(surrogate: Surrogate, observed, obs_cov, prior, *, walkers
     logpost = _EmulatedPosterior(surrogate, observed, obs_cov, prior)
     meta = {"emulator_seed": seed, "emulator_fingerprint": _fingerprint(surrogate, observed, obs_cov, prior),
             "emulator_moves": moves}
-    return run_chain(logpost, prior, walkers=walkers, steps=steps, seed=seed,
-                     initial=lambda rng, count: _initial_walkers(logpost, rng, count), path=path, resume=resume,
-                     meta=meta, meta_defaults={"emulator_moves": "stretch"},
-                     needs="the same seed, surrogate, training data, targets, prior and moves", moves=moves,
-                     progress=progress, progress_every=progress_every)
+    with single_threaded_blas():
+        return run_chain(logpost, prior, walkers=walkers, steps=steps, seed=seed,
+                         initial=lambda rng, count: _initial_walkers(logpost, rng, count), path=path, resume=resume,
+                         meta=meta, meta_defaults={"emulator_moves": "stretch"},
+                         needs="the same seed, surrogate, training data, targets, prior and moves", moves=moves,
+                         progress=progress, progress_every=progress_every)
 
 
 def posterior_median(chain: np.ndarray, burn: int = 0) -> np.ndarray:
@@ -221,13 +223,13 @@ def _comparison_table(columns, prediction: EmulatorPrediction, finite: np.ndarra
                         index=pd.Index(list(columns), name="statistic"))
 
 
-def confirm(config, simulator, surrogate: Surrogate, theta, *, count: int, seed: int) -> dict:
+def confirm(config, simulator, surrogate: Surrogate, theta, *, count: int, seed: int, stream: tuple = ()) -> dict:
     """Real simulations at ``theta`` against the emulator and the targets; see the module docstring."""
     count, seed = integer(count, "count", 2), integer(seed, "seed", 0)
     theta = np.asarray(theta, dtype=float)
     if theta.shape != (surrogate.d,):
         raise ValueError(f"theta must have shape ({surrogate.d},), got {theta.shape}")
-    rng = generator(seed, Tag.CONFIRM)
+    rng = generator(seed, Tag.CONFIRM, *stream)
     seeds = seeds_for(rng, count)
     summaries = simulator.with_replicates(count).simulate(theta, seeds)
     finite = summaries[np.isfinite(summaries).all(axis=1)]

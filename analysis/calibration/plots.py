@@ -7,9 +7,14 @@ selected inside the function, saves atomically, closes the figure and returns th
 
 ``trace_figure(chain, names, path, burn=None)``
     one panel per parameter, every walker's trace vs step, burn-in shaded.
-``corner_figure(samples, names, path, truths=None)``
-    histograms on the diagonal, 2-D histograms (scatter for fewer than 500 samples) below it;
-    ``truths`` drawn as lines.
+``corner_figure(samples, names, path, truths=None, labels=None)``
+    ``corner.corner``: marginal histograms with the 5%, 50% and 95% quantiles (dashed, and in the titles),
+    2-D histograms with contours holding 50% and 90% of the samples (points drawn below 500 samples),
+    ``truths`` (the parameters the targets were simulated at) as red lines; ``labels`` for the axes
+    (default the names).
+``rank_figure(idata, path)``
+    ArviZ's rank plot (``arviz.plot_rank``, bars): per parameter the rank histogram of every walker
+    (stacked) against the uniform expectation; walkers that mix well all look flat.
 ``predictive_figure(check_df, predictive, observed, names, path)``
     one panel per statistic: histogram of the predictive, observed value marked, tail probability ``p``
     in the title (``check_df`` from :func:`analysis.calibration.diagnostics.predictive_check`).
@@ -22,6 +27,7 @@ selected inside the function, saves atomically, closes the figure and returns th
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -33,6 +39,8 @@ from analysis.reports.plotting import pyplot, save
 from .diagnostics import _bin_probs, _names, ecdf_counts, sbc_histogram
 
 SCATTER_MAX = 500
+CORNER_QUANTILES = (0.05, 0.5, 0.95)   # the marginal 90% interval and the median
+CORNER_LEVELS = (0.5, 0.9)             # 2-D contours holding 50% and 90% of the samples
 
 
 def _panels(n: int, width: float, height: float, ncols_max: int = 4):
@@ -67,7 +75,10 @@ def trace_figure(chain, names: Sequence[str] | None, path, burn: int | None = No
     return save(fig, path)
 
 
-def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Path:
+def corner_figure(samples, names: Sequence[str] | None, path, truths=None, labels: Sequence[str] | None = None) -> Path:
+    """The pairwise posterior through the ``corner`` package (see the module docstring)."""
+    import corner  # imported here: it loads matplotlib
+
     x = np.asarray(samples, dtype=float)
     if x.ndim == 1:
         x = x[:, None]
@@ -79,40 +90,32 @@ def corner_figure(samples, names: Sequence[str] | None, path, truths=None) -> Pa
     truths = None if truths is None else np.asarray(truths, dtype=float).ravel()
     if truths is not None and truths.size != d:
         raise ValueError(f"got {truths.size} truths for {d} parameters")
-    size = max(2.0, min(2.5, 10.0 / d))
-    fig, axes = pyplot().subplots(d, d, figsize=(size * d, size * d), squeeze=False)
-    nbins = int(np.clip(np.sqrt(max(S, 1)), 10, 40))
-    for i in range(d):
-        for j in range(d):
-            ax = axes[i, j]
-            if j > i:
-                ax.set_visible(False)
-                continue
-            if i == j:
-                if S:
-                    ax.hist(x[:, j], bins=nbins, color="tab:blue", histtype="stepfilled", alpha=0.6)
-                ax.set_yticks([])
-                if truths is not None and np.isfinite(truths[j]):
-                    ax.axvline(truths[j], color="tab:red", lw=1.2)
-            else:
-                if S < SCATTER_MAX:
-                    ax.scatter(x[:, j], x[:, i], s=3, color="tab:blue", alpha=0.5, lw=0)
-                elif S:
-                    ax.hist2d(x[:, j], x[:, i], bins=nbins, cmap="Blues")
-                if truths is not None:
-                    if np.isfinite(truths[j]):
-                        ax.axvline(truths[j], color="tab:red", lw=1.0)
-                    if np.isfinite(truths[i]):
-                        ax.axhline(truths[i], color="tab:red", lw=1.0)
-                        ax.plot(truths[j], truths[i], "s", color="tab:red", ms=3)
-            if i == d - 1:
-                ax.set_xlabel(names[j])
-            else:
-                ax.set_xticklabels([])
-            if j == 0 and i > 0:
-                ax.set_ylabel(names[i])
-            elif j > 0:
-                ax.set_yticklabels([])
+    size = max(2.2, min(3.0, 10.0 / d))
+    fig = pyplot().figure(figsize=(size * d, size * d))
+    if S:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # corner warns about too few points for contours on tiny samples
+            corner.corner(x, fig=fig, labels=list(labels or names), quantiles=CORNER_QUANTILES, show_titles=True,
+                          title_quantiles=CORNER_QUANTILES, title_fmt=".3g", levels=CORNER_LEVELS,
+                          plot_datapoints=S < SCATTER_MAX, fill_contours=True, smooth=1.0 if S >= SCATTER_MAX else None,
+                          truths=None if truths is None else list(truths), truth_color="tab:red",
+                          bins=int(np.clip(np.sqrt(S) / 2, 10, 40)))
+    return save(fig, path)
+
+
+def rank_figure(idata, path) -> Path:
+    """ArviZ rank plot of the posterior (see the module docstring)."""
+    from .inference import arviz
+
+    names = list(idata.posterior.data_vars)
+    fig, axes = pyplot().subplots(1, len(names), figsize=(4.2 * len(names), 3.4), squeeze=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        arviz().plot_rank(idata, var_names=names, kind="bars", ax=axes[0])
+    for ax in axes[0]:
+        ax.set_xlabel("rank among all walkers' draws", fontsize=9)
+        ax.set_ylabel("walker", fontsize=9)
+        ax.title.set_fontsize(10)
     return save(fig, path)
 
 

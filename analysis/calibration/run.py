@@ -1,25 +1,41 @@
 """``flocksweep calibrate``: from a calibration TOML to a posterior with its diagnostics, on disk.
 
-``calibrate(config, out_dir, resume=False, progress=True, executor="serial", workers=None,
-scheduler=None) -> dict`` runs the configured method and writes into ``out_dir`` (default
-``results/calibration/<name>/``), an :class:`sweeps.store.OutputFolder`: locked while it runs (a
-second calibration writing there gets ``StoreLocked``), every file written atomically, the provenance
-stamp in ``convergence.json`` / ``optimum.json``. Simulations run on a :class:`sweeps.executors.Executor`
-(``serial``: this process, each evaluation's replicates in one threaded compiled call; ``local``: a
-process pool evaluating proposals in parallel; ``dask``); the results do not depend on it.
+Python API (importable from :mod:`analysis.calibration`):
 
+* ``calibrate(config, out_dir=None, resume=False, progress=True, predictive_draws=100, executor="serial",
+  workers=None, scheduler=None) -> arviz.InferenceData``: runs the configured method, writes its outputs
+  and returns the InferenceData also written as ``posterior.nc``;
+* ``run_calibration(...)`` (same arguments) -> :class:`CalibrationRun`: everything the run produced
+  (InferenceData, posterior table, verdicts, predictive check, confirmation, refinement rounds), what
+  the command line prints from;
+* ``load_calibration_results(out_dir) -> InferenceData`` reads ``posterior.nc`` back
+  (:mod:`~analysis.calibration.inference`).
+
+``out_dir`` (default ``results/calibration/<name>/``) is an :class:`sweeps.store.OutputFolder`: locked
+while it runs (a second calibration writing there gets ``StoreLocked``), every file written atomically,
+the provenance stamp in ``convergence.json`` / ``optimum.json``. Simulations run on a
+:class:`sweeps.executors.Executor` (``serial``: this process, each evaluation's replicates in one
+threaded compiled call; ``local``: a process pool evaluating proposals in parallel; ``dask``); the
+results do not depend on it.
+
+* ``posterior.nc``: ArviZ InferenceData (posterior with parameter names, walkers as chains; sample
+  stats with the log likelihood and acceptance; posterior predictive of the target statistics; observed
+  data; prior draws; :mod:`~analysis.calibration.inference`);
 * ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly). It records everything
   that defines the chain (:func:`chain_meta`: seed, walkers, moves, likelihood, re-evaluation, n_sim, the
   parameters and their priors, the targets, the model and the metric settings); ``resume`` with any of
   them changed is refused with the list of differences (``ChainMismatch``, a ConfigError at
   ``--resume``), never silently continued;
-* ``posterior.csv``: mean, sd, median, 95% and 90% intervals, integrated autocorrelation time, effective
-  sample size and acceptance per parameter;
-* ``convergence.json``: plain verdicts (chain length >= 50 tau, acceptance in [0.2, 0.5]), the
-  warnings for parameters the targets do not constrain, and the provenance stamp;
+* ``posterior.csv``: mean, sd, median, 95% and 90% intervals, emcee's integrated autocorrelation time and
+  effective sample size, acceptance, and ArviZ's R-hat, bulk and tail ESS and MCSE per parameter;
+* ``convergence.json``: plain verdicts (chain length >= 50 tau, acceptance in [0.2, 0.5], R-hat <= 1.01,
+  bulk and tail ESS >= 400), the warnings for parameters the targets do not constrain, and the
+  provenance stamp;
 * ``predictive.csv``: the posterior predictive check (each target against its distribution under
   posterior draws, with its two-sided tail probability);
-* ``trace.png``, ``corner.png``, ``predictive.png``;
+* ``trace.png``, ``rank.png``, ``corner.png`` (the ``corner`` package: quantiles, contours, truth lines
+  when ``targets.truth`` is given), ``predictive.png``;
+* ``report.html`` / ``report.md``: the calibration report (:mod:`~analysis.calibration.calibration_report`);
 * ``viewer_posterior_median.html``: an interactive 3-D page of one run at the posterior median.
 
 The simulator runs ``n_sim`` replicates per evaluation in one batched compiled call, with fresh seeds
@@ -30,8 +46,8 @@ given as samples (a CSV of observed datasets) are used as they are.
 
 Method ``optimize`` (``scipy.optimize``, common random numbers during the search, the optimum
 re-checked with fresh seeds) writes ``optimum.json`` (theta, objective with the common seeds and
-re-checked, its standard error, evaluations) and ``predictive.csv``/``.png`` at the optimum instead of
-a chain.
+re-checked, its standard error, evaluations), ``posterior.nc`` (no posterior: the optimum and the
+re-check runs) and ``predictive.csv``/``.png`` at the optimum instead of a chain.
 
 Method ``emulator`` fits a surrogate (Gaussian process or RBF) of the statistics' mean and variance to an
 existing sweep's results (:mod:`~analysis.calibration.training`, :mod:`~analysis.calibration.surrogates`,
@@ -39,44 +55,76 @@ existing sweep's results (:mod:`~analysis.calibration.training`, :mod:`~analysis
 emcee (``chain.h5``, resumable) and writes the same posterior outputs; the posterior predictive check
 uses REAL simulations at posterior draws. With ``confirm = C`` it then runs C real replicates at the
 posterior median: ``confirm.csv`` (emulated against real mean, z per statistic) and
-``confirm_predictive.csv`` (targets against the real runs), summarised in ``convergence.json``.
+``confirm_predictive.csv`` (targets against the real runs), summarised in ``convergence.json``. With
+``refine = { rounds = R, runs_per_round = M }`` (:mod:`~analysis.calibration.refine`) each round's chain
+goes to ``rounds/chain_round<r>.h5`` (recomputed on every invocation: the sweep holds the state), new
+sweep points are added until the confirmation passes, the final round's chain is copied to ``chain.h5``
+and ``refine.csv`` lists the rounds. The refinement's sweep runs use the ``local`` executor when the
+calibration runs ``serial`` (a sweep's runs are single-threaded).
 """
 from __future__ import annotations
 
 import functools
 import hashlib
 import json
+import shutil
+import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from tqdm import tqdm
 
+from analysis.reports.labels import parameter_label
 from simcore import MODEL_VERSION
 from simcore.schema import ConfigError, to_dict
 from sweeps.executors import Executor
-from sweeps.files import json_ready
+from sweeps.files import atomic_path, json_ready
 from sweeps.seeds import Tag, generator
 from sweeps.store import OutputFolder
 
 from .bsl import run_bsl, simulate_keyed
+from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
 from .config import CalibrationConfig
-from .diagnostics import convergence, posterior_summary, predictive_check, prior_constraint_warnings
+from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
+                          prior_constraint_warnings)
 from .emulated import confirm, observation_covariance, posterior_median, run_emulator_mcmc
+from .inference import (POSTERIOR_FILE, arviz_diagnostics, chain_inference_data, load_calibration_results,
+                        optimum_inference_data, write_inference_data)
 from .optimize import run_optimize
-from .plots import corner_figure, predictive_figure, trace_figure
-from .simulator import SummarySimulator
+from .plots import corner_figure, predictive_figure, rank_figure, trace_figure
+from .refine import P_LIMIT, Z_LIMIT, confirmation_passed, refine_emulator
+from .simulator import SummarySimulator, summary_simulator
 from .surrogates import build_surrogate, prior_outside_box
 from .training import training_set
 from .viewer_page import posterior_median_page
 
+__all__ = ["CalibrationRun", "calibrate", "run_calibration", "load_calibration_results", "summary_simulator",
+           "simulate_fn", "seeded_fn", "posterior_predictive", "SummarySimulator"]
 
-def summary_simulator(config: CalibrationConfig, n_sim: int | None = None) -> SummarySimulator:
-    n_sim = config.method.n_sim if n_sim is None else n_sim
-    m = config.metrics
-    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
-                            m.group_radius, m.fragmentation_cohesion)
+
+@dataclass
+class CalibrationRun:
+    """What one calibration produced (see the module docstring); ``idata`` is also ``posterior.nc``."""
+
+    out: Path
+    idata: object                                  # arviz.InferenceData
+    report: dict                                   # convergence.json (or optimum.json for optimize)
+    summary: pd.DataFrame | None = None            # posterior.csv
+    convergence: dict | None = None
+    warnings: list | None = None
+    predictive: pd.DataFrame | None = None         # predictive.csv
+    confirm: dict | None = None                    # emulator: the confirmation at the posterior median
+    refine: pd.DataFrame | None = None             # emulator: refine.csv
+    optimum: dict | None = None                    # optimize: optimum.json
+    paths: dict | None = None                      # the report's files
+
+    def verdicts(self, config) -> list[str]:
+        """The report's verdicts as plain sentences (what the command line prints)."""
+        return verdict_lines(config, self)
 
 
 def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
@@ -135,21 +183,35 @@ def resume_hint(config_path, out_dir) -> str:
 
 def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
               predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
-              scheduler: str | None = None) -> dict:
-    """Run ``config``'s method, write its outputs into ``out_dir``; see the module docstring."""
+              scheduler: str | None = None):
+    """Run ``config``'s method, write its outputs into ``out_dir`` (default ``results/calibration/<name>``)
+    and return the ArviZ ``InferenceData`` written as ``posterior.nc``: ``posterior`` (one variable per free
+    parameter, walkers as chains), ``sample_stats``, ``posterior_predictive``, ``observed_data``,
+    ``prior``; see the module docstring and :func:`run_calibration` for everything else."""
+    return run_calibration(config, out_dir, resume, progress, predictive_draws, executor, workers, scheduler).idata
+
+
+def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
+                    predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
+                    scheduler: str | None = None) -> CalibrationRun:
+    """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
     folder = OutputFolder(Path(out_dir) if out_dir else Path("results") / "calibration" / config.name)
     chain_path = folder.path("chain.h5")
     if config.method.kind != "optimize" and chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
-            return _optimize(config, folder, pool)
-        if config.method.kind == "emulator":
-            return _emulator(config, folder, resume, progress, predictive_draws, pool)
-        return _emcee(config, folder, resume, progress, predictive_draws, pool)
+            outcome = _optimize(config, folder, pool)
+        elif config.method.kind == "emulator":
+            outcome = _emulator(config, folder, resume, progress, predictive_draws, pool,
+                                (executor, workers, scheduler))
+        else:
+            outcome = _emcee(config, folder, resume, progress, predictive_draws, pool)
+        outcome.paths = calibration_report(config, outcome, folder)
+    return outcome
 
 
-def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -> dict:
+def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -> CalibrationRun:
     started = time.time()
     settings = config.method
     result = run_optimize(seeded_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
@@ -167,12 +229,18 @@ def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -
                "evaluations": int(result.nfev), "success": bool(result.success), "message": str(result.message),
                "wall_s": time.time() - started, "executor": pool.description, **folder.provenance()}
     folder.write_json("optimum.json", optimum)
-    return {"out": folder.root, "optimum": json_ready(optimum), "predictive": check}
+    idata = optimum_inference_data(config, result.theta, result.recheck_summaries)
+    write_inference_data(idata, folder.path(POSTERIOR_FILE))
+    return CalibrationRun(out=folder.root, idata=idata, report=json_ready(optimum), predictive=check,
+                          optimum=json_ready(optimum), warnings=[])
 
 
-def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Generator) -> np.ndarray:
+def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Generator):
+    """(draws (P, d), their (walker, step) (P, 2)) picked without replacement after the burn-in."""
     flat = chain[burn:].reshape(-1, chain.shape[-1])
-    return flat[rng.choice(len(flat), size=min(count, len(flat)), replace=False)]
+    picked = rng.choice(len(flat), size=min(count, len(flat)), replace=False)
+    walkers = chain.shape[1]
+    return flat[picked], np.column_stack([picked % walkers, burn + picked // walkers])
 
 
 def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None) -> np.ndarray:
@@ -184,7 +252,7 @@ def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Exe
 
 
 def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool, predictive_draws: int,
-           pool: Executor) -> dict:
+           pool: Executor) -> CalibrationRun:
     settings = config.method
     started = time.time()
     with _ProgressBar(settings.steps, config.name, progress) as bar:
@@ -197,42 +265,95 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
                            extra={"executor": pool.description})
 
 
+def _emulator_mcmc(config: CalibrationConfig, surrogate, path, resume: bool, progress: bool, label: str):
+    settings = config.method
+    with _ProgressBar(settings.steps, label, progress) as bar:
+        return run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
+                                 walkers=settings.walkers, steps=settings.steps, seed=config.seed, path=path,
+                                 resume=resume, progress=bar.callback, moves=settings.moves)
+
+
+def _emulator_info(config: CalibrationConfig, training, fit_s: float) -> dict:
+    return {"training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
+            "training_box": {n: [float(lo), float(hi)] for n, lo, hi in
+                             zip(config.names, training.lower, training.upper)},
+            "fixed_factors": training.fixed, "notes": list(training.notes), "fit_s": fit_s,
+            "results": str(config.method.results)}
+
+
+def _refined_rounds(config: CalibrationConfig, folder: OutputFolder, progress: bool, sweep_executor: tuple):
+    """The refinement's rounds (analysis.calibration.refine), each chain in rounds/chain_round<r>.h5; the
+    last one copied to chain.h5."""
+    fits = {}
+
+    def fit_round(r: int):
+        started = time.time()
+        training = training_set(config.method.results, config)
+        surrogate = build_surrogate(training, config.method.surrogate)
+        fits[r] = time.time() - started
+        path = folder.path("rounds") / f"chain_round{r}.h5"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.unlink(missing_ok=True)   # recomputed from the sweep as it is now: the sweep holds the state
+        result = _emulator_mcmc(config, surrogate, path, False, progress, f"{config.name} (emulator, round {r})")
+        return training, surrogate, result, default_burn(result.chain)
+
+    executor, workers, scheduler = sweep_executor
+    log = (lambda message: tqdm.write(message, file=sys.stderr)) if progress else (lambda message: None)
+    refinement = refine_emulator(config, fit_round, folder, pool_kind="local" if executor == "serial" else executor,
+                                 workers=workers, scheduler=scheduler, progress=progress, log=log)
+    last = len(refinement.rounds) - 1
+    with atomic_path(folder.path("chain.h5")) as tmp:
+        shutil.copyfile(folder.path("rounds") / f"chain_round{last}.h5", tmp)
+    refinement.result.path = str(folder.path("chain.h5"))
+    return refinement, fits[last]
+
+
 def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool,
-              predictive_draws: int, pool: Executor) -> dict:
+              predictive_draws: int, pool: Executor, sweep_executor: tuple) -> CalibrationRun:
     settings = config.method
     started = time.time()
-    training = training_set(settings.results, config)
-    surrogate = build_surrogate(training, settings.surrogate)
-    fitted = time.time()
-    with _ProgressBar(settings.steps, f"{config.name} (emulator)", progress) as bar:
-        result = run_emulator_mcmc(surrogate, config.targets.observed, observation_covariance(config), config.prior,
-                                   walkers=settings.walkers, steps=settings.steps, seed=config.seed,
-                                   path=folder.path("chain.h5"), resume=resume, progress=bar.callback,
-                                   moves=settings.moves)
-    emulator_info = {"training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
-                     "training_box": {n: [float(lo), float(hi)] for n, lo, hi in
-                                      zip(config.names, training.lower, training.upper)},
-                     "fixed_factors": training.fixed, "notes": list(training.notes),
-                     "fit_s": fitted - started, "results": str(settings.results)}
-    posterior = write_posterior(config, result, folder, pool, predictive_draws, started,
-                                extra={"executor": pool.description, "emulator": emulator_info},
-                                warnings=prior_outside_box(config.prior, surrogate))
+    if settings.refine.rounds:
+        refinement, fit_s = _refined_rounds(config, folder, progress, sweep_executor)
+        training, surrogate, result, check = (refinement.training, refinement.surrogate, refinement.result,
+                                              refinement.confirm)
+        folder.write_csv("refine.csv", refinement.rounds, index=False)
+    else:
+        refinement = None
+        training = training_set(settings.results, config)
+        surrogate = build_surrogate(training, settings.surrogate)
+        fit_s = time.time() - started
+        result = _emulator_mcmc(config, surrogate, folder.path("chain.h5"), resume, progress,
+                                f"{config.name} (emulator)")
+    outcome = write_posterior(config, result, folder, pool, predictive_draws, started,
+                              extra={"executor": pool.description, "emulator": _emulator_info(config, training, fit_s)},
+                              warnings=prior_outside_box(config.prior, surrogate))
+    if settings.confirm and refinement is None:
+        theta = posterior_median(result.chain, outcome.report["burn"])
+        check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm, seed=config.seed)
     if settings.confirm:
-        theta = posterior_median(result.chain, posterior["report"]["burn"])
-        check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm,
-                        seed=config.seed)
-        folder.write_csv("confirm.csv", check["comparison"])
-        folder.write_csv("confirm_predictive.csv", check["predictive"])
-        posterior["confirm"] = check
-        posterior["report"]["confirm"] = {"theta": check["theta"], "count": settings.confirm,
-                                          "max_abs_z": float(np.nanmax(np.abs(check["comparison"]["z"]))),
-                                          "messages": confirm_messages(check)}
-        posterior["report"]["wall_s"] = time.time() - started
-        folder.write_json("convergence.json", posterior["report"])
-    return posterior
+        _write_confirmation(folder, outcome, check, settings.confirm)
+    if refinement is not None:
+        rounds = refinement.rounds
+        outcome.refine = rounds
+        outcome.report["refine"] = {"rounds_run": int(len(rounds)), "rounds_allowed": settings.refine.rounds,
+                                    "runs_per_round": settings.refine.runs_per_round,
+                                    "runs_added": int(rounds["runs_added"].sum()),
+                                    "passed": bool(rounds["passed"].iloc[-1]), "results": str(settings.results)}
+    outcome.report["wall_s"] = time.time() - started
+    folder.write_json("convergence.json", outcome.report)
+    return outcome
 
 
-def confirm_messages(check: dict, z_limit: float = 3.0, p_limit: float = 0.01) -> list[str]:
+def _write_confirmation(folder: OutputFolder, outcome: CalibrationRun, check: dict, count: int) -> None:
+    folder.write_csv("confirm.csv", check["comparison"])
+    folder.write_csv("confirm_predictive.csv", check["predictive"])
+    outcome.confirm = check
+    outcome.report["confirm"] = {"theta": check["theta"], "count": count,
+                                 "max_abs_z": float(np.nanmax(np.abs(check["comparison"]["z"]))),
+                                 "passed": confirmation_passed(check), "messages": confirm_messages(check)}
+
+
+def confirm_messages(check: dict, z_limit: float = Z_LIMIT, p_limit: float = P_LIMIT) -> list[str]:
     """Plain sentences on the real simulations at the posterior median."""
     messages = []
     for stat, row in check["comparison"].iterrows():
@@ -252,19 +373,32 @@ def confirm_messages(check: dict, z_limit: float = 3.0, p_limit: float = 0.01) -
 
 def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, pool: Executor | None,
                     predictive_draws: int, started: float, extra: dict | None = None,
-                    warnings: list | None = None) -> dict:
-    """From a chain (a ChainResult) to posterior.csv, convergence.json, predictive.csv and the figures."""
+                    warnings: list | None = None) -> CalibrationRun:
+    """From a chain (a ChainResult) to posterior.nc, posterior.csv, convergence.json, predictive.csv and
+    the figures."""
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     burn = int(summary.attrs.get("burn", 0))
     verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
-    draws = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
+    draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
     predictive = posterior_predictive(config, draws, pool)
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    idata = chain_inference_data(config, result, burn, predictive=predictive, predictive_source=source)
+    write_inference_data(idata, folder.path(POSTERIOR_FILE))
+    diagnostics = arviz_diagnostics(idata)
+    summary = summary.join(diagnostics)
+    ensemble = arviz_verdicts(diagnostics)
+    verdict = {**verdict, **{k: v for k, v in ensemble.items() if k != "messages"},
+               "converged": bool(verdict["converged"] and ensemble["rhat_ok"] and ensemble["ess_ok"]),
+               "messages": verdict["messages"] + ensemble["messages"]}
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", check)
     trace_figure(result.chain, config.names, folder.path("trace.png"), burn=burn)
-    corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, folder.path("corner.png"))
+    rank_figure(idata, folder.path("rank.png"))
+    truth = config.targets.truth
+    corner_figure(result.chain[burn:].reshape(-1, config.dim), config.names, folder.path("corner.png"),
+                  truths=[truth[n] for n in config.names] if truth else None,
+                  labels=[f"{name}: {parameter_label(key)}" for name, key in zip(config.names, config.keys)])
     predictive_figure(check, predictive, config.targets.observed, config.targets.columns,
                       folder.path("predictive.png"))
     posterior_median_page(config, summary, folder.root)  # viewer page of a run at the posterior median
@@ -274,8 +408,8 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                          "walkers": int(result.chain.shape[1]), "burn": burn, **(extra or {}),
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
-    return {"out": folder.root, "summary": summary, "convergence": verdict, "warnings": warnings,
-            "predictive": check, "report": report}
+    return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
+                          warnings=warnings, predictive=check)
 
 
 class _ProgressBar:

@@ -70,6 +70,20 @@ class OptimizeSettings(MethodSettings):
 
 
 @dataclass(frozen=True, kw_only=True)
+class RefineSettings:
+    """The emulator's sequential design (analysis.calibration.refine): at most ``rounds`` rounds of
+    ``runs_per_round`` new sweep runs (``runs_per_round / replicates`` new points of the sweep's
+    replicates each); 0 rounds: none."""
+
+    rounds: int = 0
+    runs_per_round: int = 50
+
+    def __post_init__(self):
+        check_at_least("rounds", self.rounds, 0)
+        check_at_least("runs_per_round", self.runs_per_round, 1)
+
+
+@dataclass(frozen=True, kw_only=True)
 class EmulatorSettings(ChainSettings):
     """Emcee on a surrogate fitted to a sweep's results (analysis.calibration.training, .surrogates,
     .emulated); ``results`` is resolved against the calibration file's folder."""
@@ -79,12 +93,16 @@ class EmulatorSettings(ChainSettings):
     surrogate: Literal["gp", "rbf"] = "gp"
     confirm: int = 100
     steps: int = 5000
+    refine: RefineSettings = field(default_factory=RefineSettings)
 
     def __post_init__(self):
         super().__post_init__()
         check_at_least("confirm", self.confirm, 0)
         if self.confirm == 1:
             raise ConfigError("confirm", "got 1; use 0 (no confirmation) or >= 2 replicates")
+        if self.refine.rounds and not self.confirm:
+            raise ConfigError("refine.rounds", "refinement stops when the confirmation at the posterior median "
+                                               "passes: set confirm >= 2 (e.g. 50) or rounds = 0")
 
 
 METHODS = {cls.kind: cls for cls in (EmceeSettings, OptimizeSettings, EmulatorSettings)}

@@ -179,3 +179,12 @@ class SummarySimulator:
         values = summarize_run(obs, settings)
         row = np.array([values[c] for c in self.columns], dtype=np.float64)
         return row if np.isfinite(row).all() else nan_row
+
+
+def summary_simulator(config, n_sim: int | None = None) -> SummarySimulator:
+    """The simulator of a calibration ``config`` (its fixed preset, free keys, target columns and metric
+    settings) with ``n_sim`` replicates per call (default: ``config.method.n_sim``)."""
+    n_sim = config.method.n_sim if n_sim is None else n_sim
+    m = config.metrics
+    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
+                            m.group_radius, m.fragmentation_cohesion)

@@ -9,12 +9,12 @@ stat: the point means and the log variances. A log sample variance of n Gaussian
 by ``digamma((n-1)/2) - log((n-1)/2)`` (removed) and has variance ``trigamma((n-1)/2)``; a point mean
 has variance ``var / n``. These are each point's known noise.
 
-* :class:`GPSurrogate`: per output an exact GP, kernel = ARD squared exponential + a linear trend
-  (intercept and slopes with fixed prior variance 1, centred on the box), noise = known noise
-  (heteroscedastic) + a fitted white nugget; hyperparameters (signal variance, length
-  scales, nugget; log scale, bounded) maximise the log marginal likelihood (L-BFGS-B with its analytic
-  gradient, three fixed starting points, best kept). Emulator variance of the mean: the GP's
-  predictive variance of the latent function (no noise); it grows away from the data.
+* :class:`GPSurrogate`: per output scikit-learn's ``GaussianProcessRegressor``, kernel = signal variance
+  x ARD squared exponential + a linear trend (intercept and slopes with fixed prior variance 1, centred
+  on the box) + a fitted white nugget, with each point's known noise as ``alpha`` (heteroscedastic);
+  the signal variance, length scales and nugget (bounded) maximise the log marginal likelihood
+  (sklearn's L-BFGS-B with restarts from a fixed random state). Emulator variance of the mean: the GP's
+  predictive variance of the latent function (nugget excluded); it grows away from the data.
 * :class:`RBFSurrogate`: per output a :class:`scipy.interpolate.RBFInterpolator` (thin-plate spline,
   linear polynomial) with per-point smoothing ``lam x known noise / mean known noise`` (floored at
   1e-3 of the mean). ``lam`` (fixed log grid 1e-6..1e3) minimises Stein's unbiased risk estimate
@@ -32,16 +32,25 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import math
+import warnings
 
 import numpy as np
-from scipy import optimize, special
+from scipy import special
+from scipy.linalg import solve_triangular
 from scipy.interpolate import RBFInterpolator
 
 from .training import TrainingSet
 
 SURROGATE_KINDS = ("gp", "rbf")
-_LOG_2PI = math.log(2.0 * math.pi)
+
+
+def single_threaded_blas():
+    """A context in which BLAS runs on one thread: the emulator's linear algebra is on matrices of a few
+    hundred rows, where a threaded BLAS on a busy machine spends far longer synchronising than computing
+    (measured: a GP prediction 20 x slower under load)."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,8 +136,9 @@ class Surrogate:
         log variances."""
         unit = self.to_unit(self.training.points)
         means, logs = self.outputs()
-        self.mean_models = [output_model(unit, out) for out in means]
-        self.log_var_models = [output_model(unit, out) for out in logs]
+        with single_threaded_blas():
+            self.mean_models = [output_model(unit, out) for out in means]
+            self.log_var_models = [output_model(unit, out) for out in logs]
 
     def outputs(self) -> tuple[list[_Standardised], list[_Standardised]]:
         """Standardised training outputs: per stat the point means, then the log variances."""
@@ -167,97 +177,71 @@ class Surrogate:
         return digest.hexdigest()[:32]
 
 
-class _ExactGP:
-    """One output: GP on unit inputs with an ARD squared-exponential plus a linear-trend kernel, known
-    per-point noise plus a fitted nugget. Hyperparameters h = log [signal variance, length scales (d),
-    nugget]. Factorisations use numpy.linalg."""
+class _SklearnGP:
+    """One output: :class:`sklearn.gaussian_process.GaussianProcessRegressor` on unit inputs centred on the
+    box (x - 0.5), kernel ``ConstantKernel * RBF(ARD length scales) + DotProduct(sigma_0 = 1, fixed) +
+    WhiteKernel`` (the linear trend has intercept and slopes of prior variance 1, smallest in the middle
+    of the box), ``alpha`` = each point's known noise. sklearn maximises the log marginal likelihood
+    (L-BFGS-B from the starting values and ``RESTARTS`` log-uniform restarts drawn with ``random_state``
+    0, so a fit is deterministic)."""
 
-    STARTS = ((0.25, 1e-3), (0.6, 1e-2), (1.5, 1e-1))  # (length scale, nugget); signal variance 1
-    LOG_BOUNDS_SIGNAL = (math.log(1e-3), math.log(1e2))
-    LOG_BOUNDS_LENGTH = (math.log(0.03), math.log(30.0))
-    LOG_BOUNDS_NUGGET = (math.log(1e-8), math.log(10.0))
-    LINEAR_VARIANCE = 1.0
-    JITTER = 1e-10
+    RESTARTS = 3
+    SIGNAL_BOUNDS = (1e-3, 1e2)
+    LENGTH_BOUNDS = (0.03, 30.0)
+    NUGGET_BOUNDS = (1e-8, 10.0)
 
     def __init__(self, x: np.ndarray, output: _Standardised):
-        self.x = x
+        from sklearn.gaussian_process import GaussianProcessRegressor
+        from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, WhiteKernel
+
         self.output = output
-        self.sq_diff = (x[:, None, :] - x[None, :, :]) ** 2          # (P, P, d)
-        self.linear = self._linear(x, x)
-        self.h = self._fit()
-        _, total = self._covariances(self.h)
-        self.inverse_factor = _inverse_cholesky(total)                 # L^-1, (P, P)
-        self.alpha = self.inverse_factor.T @ (self.inverse_factor @ output.values)
+        d = x.shape[1]
+        kernel = (ConstantKernel(1.0, self.SIGNAL_BOUNDS) * RBF(np.full(d, 0.5), self.LENGTH_BOUNDS)
+                  + DotProduct(sigma_0=1.0, sigma_0_bounds="fixed")
+                  + WhiteKernel(1e-3, self.NUGGET_BOUNDS))
+        self.gp = GaussianProcessRegressor(kernel, alpha=np.asarray(output.noise, dtype=float) + 1e-10,
+                                           n_restarts_optimizer=self.RESTARTS, random_state=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # ConvergenceWarning at a bound: the bound is the answer
+            self.gp.fit(x - 0.5, output.values)
+        self.nugget = float(self.gp.kernel_.k2.noise_level)
 
-    def _linear(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Linear-trend kernel (intercept and slopes with prior variance ``LINEAR_VARIANCE``), centred on
-        the box so its prior variance is smallest in the middle."""
-        return self.LINEAR_VARIANCE * (1.0 + (a - 0.5) @ (b - 0.5).T)
+    def covariance(self, unit: np.ndarray) -> np.ndarray:
+        """(n, n) latent posterior covariance at unit points (n, d), standardised units, nugget left out."""
+        gp = self.gp
+        centred = unit - 0.5
+        v = solve_triangular(gp.L_, gp.kernel_(centred, gp.X_train_).T, lower=True, check_finite=False)
+        prior = gp.kernel_(centred) - self.nugget * np.eye(len(unit))
+        return prior - v.T @ v
 
-    def _covariances(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(squared-exponential part, total covariance incl. the linear part and noise), each (P, P)."""
-        signal, length = math.exp(h[0]), np.exp(h[1:-1])
-        kernel = signal * np.exp(-0.5 * np.sum(self.sq_diff / length ** 2, axis=-1))
-        noise = self.output.noise + math.exp(h[-1]) + self.JITTER
-        return kernel, kernel + self.linear + np.diag(noise)
-
-    def _objective(self, h: np.ndarray) -> tuple[float, np.ndarray]:
-        """Negative log marginal likelihood and its gradient in h."""
-        kernel, total = self._covariances(h)
-        try:
-            inverse_factor = _inverse_cholesky(total)
-        except np.linalg.LinAlgError:
-            return 1e25, np.zeros_like(h)
-        y = self.output.values
-        inverse = inverse_factor.T @ inverse_factor
-        alpha = inverse @ y
-        log_det = -2.0 * np.sum(np.log(np.diag(inverse_factor)))
-        value = 0.5 * y @ alpha + 0.5 * log_det + 0.5 * len(y) * _LOG_2PI
-        inner = np.outer(alpha, alpha) - inverse          # d value / d total = -inner / 2
-        weighted = inner * kernel
-        grad = np.empty_like(h)
-        grad[0] = -0.5 * np.sum(weighted)
-        grad[1:-1] = -0.5 * np.einsum("ij,ijd->d", weighted, self.sq_diff) / np.exp(2.0 * h[1:-1])
-        grad[-1] = -0.5 * math.exp(h[-1]) * np.trace(inner)
-        return float(value), grad
-
-    def _fit(self) -> np.ndarray:
-        d = self.x.shape[1]
-        bounds = [self.LOG_BOUNDS_SIGNAL] + [self.LOG_BOUNDS_LENGTH] * d + [self.LOG_BOUNDS_NUGGET]
-        best = None
-        for length, nugget in self.STARTS:
-            start = np.array([0.0] + [math.log(length)] * d + [math.log(nugget)])
-            result = optimize.minimize(self._objective, start, jac=True, method="L-BFGS-B", bounds=bounds)
-            if best is None or result.fun < best.fun:
-                best = result
-        return np.asarray(best.x, dtype=float)
+    @property
+    def length_scales(self) -> np.ndarray:
+        """The fitted ARD length scales (d,), in units of the training box."""
+        return np.atleast_1d(self.gp.kernel_.k1.k1.k2.length_scale)
 
     def predict(self, unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Latent mean and variance (n,) at unit points (n, d), in standardised units."""
-        signal, length = math.exp(self.h[0]), np.exp(self.h[1:-1])
-        sq = (unit[:, None, :] - self.x[None, :, :]) ** 2
-        cross = signal * np.exp(-0.5 * np.sum(sq / length ** 2, axis=-1)) + self._linear(unit, self.x)  # (n, P)
-        mean = cross @ self.alpha
-        v = self.inverse_factor @ cross.T
-        prior = signal + self.LINEAR_VARIANCE * (1.0 + np.sum((unit - 0.5) ** 2, axis=1))
-        var = np.maximum(prior - np.sum(v * v, axis=0), 1e-12 * prior)
-        return mean, var
-
-
-def _inverse_cholesky(matrix: np.ndarray) -> np.ndarray:
-    """L^-1 for the lower Cholesky factor L of a positive definite matrix (LinAlgError otherwise)."""
-    factor = np.linalg.cholesky(matrix)
-    return np.linalg.solve(factor, np.eye(len(matrix)))
+        """Latent mean and variance (n,) at unit points (n, d), in standardised units: sklearn's predictive
+        equations on its fitted attributes (``kernel_``, ``X_train_``, ``alpha_``, ``L_``; what
+        ``GaussianProcessRegressor.predict`` computes, without its per-call input checks, which cost more
+        than the algebra inside an MCMC). The fitted nugget is noise, not emulator uncertainty, so the
+        latent variance leaves it out."""
+        gp = self.gp
+        centred = unit - 0.5
+        cross = gp.kernel_(centred, gp.X_train_)                               # (n, P)
+        mean = cross @ gp.alpha_
+        v = solve_triangular(gp.L_, cross.T, lower=True, check_finite=False)
+        prior = gp.kernel_.diag(centred) - self.nugget
+        return mean, np.maximum(prior - np.einsum("ij,ij->j", v, v), 1e-12 * prior)
 
 
 class GPSurrogate(Surrogate):
-    """Exact GPs (see the module docstring): one per stat for the mean, one per stat for log variance."""
+    """scikit-learn GPs (see the module docstring): one per stat for the mean, one per stat for log variance."""
 
     kind = "gp"
 
     def __init__(self, training: TrainingSet):
         super().__init__(training)
-        self.fit(_ExactGP)
+        self.fit(_SklearnGP)
 
 
 class _SmoothedRBF:

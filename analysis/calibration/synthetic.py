@@ -9,8 +9,9 @@ the same arguments always give the same numbers. A row is one flock's observed s
 what the likelihood models (observation noise is NOT added: the targets' sd is the measurement error
 the user states).
 
-``targets_block(config, rows, sd)`` formats them as a ``[targets]`` TOML block for the calibration file
-(one replicate: its values; several: their means, with the replicate sd in a comment).
+``targets_block(config, rows, sd, truth=None)`` formats them as a ``[targets]`` TOML block for the
+calibration file (one replicate: its values; several: their means, with the replicate sd in a comment;
+with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report).
 """
 from __future__ import annotations
 
@@ -49,14 +50,18 @@ def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicate
     return summary_simulator(config, n_sim=replicates).simulate(theta, common_seeds(seed, replicates))
 
 
-def targets_block(config: CalibrationConfig, rows: np.ndarray, sd) -> str:
-    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error."""
+def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None) -> str:
+    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error, and
+    the ``truth`` (a dict or (d,) vector) they were simulated at as ``truth = { name = value, ... }``."""
     rows = np.atleast_2d(rows)
     mean = rows.mean(axis=0)
     lines = ["[targets]", f'summary = "{config.targets.summary}"',
              "stats = [" + ", ".join(f'"{s}"' for s in config.targets.stats) + "]",
              "mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
              "sd = [" + ", ".join(f"{v:.6g}" for v in np.broadcast_to(sd, mean.shape)) + "]"]
+    if truth is not None:
+        values = truth_vector(config, truth)
+        lines.append("truth = { " + ", ".join(f"{n} = {v:.6g}" for n, v in zip(config.names, values)) + " }")
     if len(rows) > 1:
         spread = rows.std(axis=0, ddof=1)
         lines.append(f"# means of {len(rows)} runs; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))

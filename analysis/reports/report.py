@@ -11,6 +11,12 @@ before anything is written, except the default folder, whose other files are lef
 * ``tables/*.csv``: every table behind the report (tests, main effects, adjacent comparisons, two-way
   tests, cell summaries with CI half-widths, findings, showcase checks).
 
+The analysis follows the design: grid factors (axes) get the analysis below; the continuous factors
+of a ``[design]`` (Saltelli, Morris) or ``[sample]`` block get the sensitivity analysis of
+:mod:`analysis.reports.sensitivity_section` (Sobol' or Morris indices, smoothers, partial dependence,
+rank correlations), per combination of the grid factors' levels when both are present. Explicit
+``[[points]]`` of a sweep (e.g. added by an emulator's refinement) are left out of both.
+
 Sections: overview and provenance; per metric the main effect of every factor (mean and 95% bootstrap
 CI over replicates and the other factors), a Kruskal-Wallis test per factor with epsilon squared and
 Holm correction over the whole family, a rank-based two-way ANOVA for a pair of factors, adjacent-level
@@ -44,15 +50,15 @@ from sweeps.store import ResultsStore
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
 from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
+from .labels import METRICS
+from .sensitivity import continuous_design, design_runs
+from .sensitivity_section import sensitivity_section
 from .viewer_pages import viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",
            "strays": "stray_fraction", "fragmentation": "time_to_fragmentation"}
-LABELS = {"cohesion_mean": "cohesion (largest group share)", "polarization_mean": "alignment (polarization)",
-          "stray_fraction_mean": "stray fraction", "n_groups_mean": "number of groups",
-          "elongation_mean": "elongation of the largest group", "speed_mean_mean": "mean speed",
-          "segregation_mean": "pattern segregation", "aspect_heading_mean": "length/width along heading"}
+LABELS = METRICS
 RANGE = "perception.range"
 REPORT_RECORD = ".flocksweep-report.json"   # the files a build wrote (OwnedFolder)
 STALE = ("figures/*.png", "figures/*.svg", "tables/*.csv", "viewer/*.html", "report.md", "report.html")
@@ -91,6 +97,7 @@ class Context:
     seed: int
     blocks: list
     tables: dict
+    continuous: list = None  # the continuous factors (a [design] or [sample] block's keys)
 
 
 def _save_table(ctx: Context, name: str, df: pd.DataFrame) -> pd.DataFrame:
@@ -124,8 +131,8 @@ def _overview(ctx: Context) -> None:
                         f"**{n_design - ok - failed}** missing. Replicates per cell: "
                         f"{m.get('replicates', '?')}; sweep seed {m.get('seed', '?')}; common random numbers: "
                         f"{m.get('common_random_numbers', False)}.")]
-    levels = pd.DataFrame([{"factor": f, "levels": len(r.levels(f)),
-                            "values": ", ".join(map(_short, r.levels(f)))} for f in r.factors])
+    levels = pd.DataFrame([{"factor": f, "levels": len(r.levels(f)), "values": _levels_text(r.levels(f))}
+                           for f in r.factors])
     ctx.blocks.append(Table(_save_table(ctx, "design", levels), "Factors and levels"))
     pkgs = m.get("packages", {})
     prov = pd.DataFrame([
@@ -140,6 +147,12 @@ def _overview(ctx: Context) -> None:
     if failed:
         fails = runs[runs["status"] == "failed"][["run_id", "error"] + r.factors].head(20)
         ctx.blocks.append(Table(fails, "Failed runs (first 20)"))
+
+
+def _levels_text(levels: list, most: int = 12) -> str:
+    if len(levels) > most and all(isinstance(v, (int, float, np.number)) for v in levels):
+        return f"continuous: {len(levels)} values from {_short(min(levels))} to {_short(max(levels))}"
+    return ", ".join(map(_short, levels))
 
 
 def _short(value) -> str:
@@ -234,9 +247,10 @@ def _showcase_rows(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
 
 def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     metric = "cohesion_mean" if "cohesion_mean" in ctx.runs else ctx.metrics[0]
-    if not ctx.factors:
+    factors = list(ctx.factors) + list(ctx.continuous or [])
+    if not factors:
         return [("all runs", ctx.runs)]
-    means = ctx.runs.groupby(ctx.factors, dropna=False)[metric].mean().dropna().sort_values()
+    means = ctx.runs.groupby(factors, dropna=False)[metric].mean().dropna().sort_values()
     if means.empty:
         return []
     picks = {"lowest " + metric: means.index[0], "median " + metric: means.index[len(means) // 2],
@@ -245,7 +259,7 @@ def _default_cells(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
     for name, key in picks.items():
         key = key if isinstance(key, tuple) else (key,)
         mask = np.ones(len(ctx.runs), dtype=bool)
-        for f, v in zip(ctx.factors, key):
+        for f, v in zip(factors, key):
             mask &= (ctx.runs[f] == v).to_numpy()
         out.append((name, ctx.runs[mask]))
     return out
@@ -372,7 +386,9 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     results = load_results(results_dir)
     if results.ok.empty:
         raise ReportError(f"{results_dir}: no finished runs to report on")
-    factors = list(by) if by else results.factors
+    continuous = continuous_design(results)
+    continuous_keys = list(continuous.keys) if continuous else []
+    factors = list(by) if by else [f for f in results.factors if f not in continuous_keys]
     for f in factors:
         if f not in results.runs.columns:
             raise ReportError(f"--by: unknown factor {f!r}; factors of this sweep: {', '.join(results.factors)}")
@@ -380,8 +396,8 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     out = Path(out_dir) if out_dir else default
     metric_columns = resolve_metrics(results, metrics)
     owned = OwnedFolder(out, REPORT_RECORD, adopt=out.resolve() == default.resolve()).claim()
-    ctx = Context(results, results.ok.reset_index(drop=True), metric_columns, factors, out,
-                  out / "figures", out / "tables", seed, [], {})
+    ctx = Context(results, design_runs(results), metric_columns, factors, out,
+                  out / "figures", out / "tables", seed, [], {}, continuous_keys)
     for stale in owned.stale(STALE):
         stale.unlink()  # a rebuilt report holds only what this build wrote (never a file it did not write)
     for folder in (ctx.fig_dir, ctx.table_dir):
@@ -389,9 +405,12 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     _overview(ctx)
     _findings(ctx)
     _leadership(ctx)
-    st = _statistics(ctx)
-    _metric_sections(ctx, st)
-    _heatmaps(ctx)
+    if continuous and continuous.keys:
+        sensitivity_section(ctx, continuous, _figure, _save_table)
+    if ctx.factors or not continuous:
+        st = _statistics(ctx)
+        _metric_sections(ctx, st)
+        _heatmaps(ctx)
     cells = _showcase_rows(ctx) or _default_cells(ctx)
     _timeseries(ctx, cells)
     _thumbnails(ctx, cells)

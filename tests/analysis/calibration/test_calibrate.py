@@ -1,6 +1,7 @@
 """`flocksweep calibrate` end to end on a tiny configuration: targets made by the simulator at a known
-perception range, a short emcee chain, every output written; refusals for an existing chain and for
-methods this version does not run."""
+perception range, a short emcee chain, every output written (posterior.nc opened by ArviZ with the
+parameter named, the report); refusals for an existing chain and for methods this version does not
+run."""
 from __future__ import annotations
 
 import json
@@ -11,7 +12,9 @@ import pandas as pd
 import pytest
 
 from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.run import calibrate, summary_simulator
+from analysis.calibration import calibrate, load_calibration_results, run_calibration
+from analysis.calibration.inference import arviz
+from analysis.calibration.run import summary_simulator
 from simcore import ConfigError
 from sweeps.cli import main
 from sweeps.seeds import common_seeds
@@ -41,11 +44,30 @@ def truth_targets():
 @pytest.mark.slow
 def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_path):
     config = calibration_from_dict(tiny(truth_targets), ROOT)
-    result = calibrate(config, tmp_path / "cal", progress=False, predictive_draws=10)
+    idata = calibrate(config, tmp_path / "cal", progress=False, predictive_draws=10)
     out = tmp_path / "cal"
     posterior = pd.read_csv(out / "posterior.csv", index_col=0)
     assert list(posterior.index) == ["range"]
-    assert {"mean", "sd", "median", "q2.5", "q97.5", "tau", "ess", "acceptance"} <= set(posterior.columns)
+    assert {"mean", "sd", "median", "q2.5", "q97.5", "tau", "ess", "acceptance", "r_hat", "ess_bulk", "ess_tail",
+            "mcse_mean"} <= set(posterior.columns)
+    burn = json.loads((out / "convergence.json").read_text())["burn"]
+    assert list(idata.posterior.data_vars) == ["range"] and idata.posterior.sizes == {"chain": 4, "draw": 30 - burn}
+    back = arviz().from_netcdf(str(out / "posterior.nc"))
+    np.testing.assert_array_equal(back.posterior["range"].values, idata.posterior["range"].values)
+    assert back.posterior["range"].attrs["key"] == "perception.range"
+    assert set(back.posterior_predictive.data_vars) == {"cohesion_mean", "polarization_mean"}
+    assert back.posterior_predictive.sizes["draw"] == 10 and back.prior.sizes["draw"] == 1000
+    np.testing.assert_allclose(back.observed_data["cohesion_mean"].values, [truth_targets["mean"][0]])
+    lp = back.sample_stats["lp"].values
+    np.testing.assert_allclose(back.sample_stats["log_likelihood"].values + back.sample_stats["log_prior"].values, lp)
+    assert back.sample_stats["walker_acceptance"].values == pytest.approx(posterior.loc["range", "acceptance"] *
+                                                                           np.ones(4), abs=0.5)
+    summary = arviz().summary(back)
+    assert summary.loc["range", "r_hat"] == pytest.approx(posterior.loc["range", "r_hat"], abs=0.01)
+    assert load_calibration_results(out).posterior["range"].shape == (4, 30 - burn)
+    for name in ("report.html", "report.md", "rank.png"):
+        assert (out / name).stat().st_size > 1000, name
+    assert "verdict" in (out / "report.md").read_text().lower()
     assert 5 <= posterior.loc["range", "q2.5"] <= posterior.loc["range", "q97.5"] <= 40
     check = pd.read_csv(out / "predictive.csv", index_col=0)
     assert list(check.index) == ["cohesion_mean", "polarization_mean"]
@@ -54,7 +76,9 @@ def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_p
         assert (out / name).stat().st_size > 1000, name
     report = json.loads((out / "convergence.json").read_text())
     assert report["steps"] == 30 and report["walkers"] == 4 and report["convergence"]["messages"]
-    assert result["summary"].loc["range", "acceptance"] > 0
+    assert {"rhat_ok", "ess_ok", "rhat_max", "ess_bulk_min"} <= set(report["convergence"])
+    assert not report["convergence"]["converged"]                 # 30 steps: too short, and the report says so
+    assert posterior.loc["range", "acceptance"] > 0
 
 
 @pytest.mark.slow
@@ -72,12 +96,16 @@ def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_pa
 def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
     data = tiny(truth_targets)
     data["method"] = {"kind": "optimize", "n_sim": 8, "maxiter": 5, "popsize": 4, "recheck": 16}
-    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
+    result = run_calibration(calibration_from_dict(data, ROOT), tmp_path / "o", progress=False)
     optimum = json.loads((tmp_path / "o" / "optimum.json").read_text())
     assert 5 <= optimum["theta"]["range"] <= 40
     assert np.isfinite(optimum["objective_common_seeds"]) and np.isfinite(optimum["objective_recheck"])
-    assert result["predictive"]["p"].between(0, 1).all()
+    assert result.predictive["p"].between(0, 1).all()
     assert not (tmp_path / "o" / "chain.h5").exists()
+    idata = load_calibration_results(tmp_path / "o")       # no posterior: the optimum and its re-check runs
+    assert float(idata.constant_data["optimum_range"]) == pytest.approx(optimum["theta"]["range"])
+    assert idata.posterior_predictive.sizes["draw"] == 16 and "posterior" not in idata.groups()
+    assert (tmp_path / "o" / "report.html").exists()
 
 
 def test_optimize_distance_objective_with_nelder_mead(truth_targets, tmp_path):
@@ -122,7 +150,7 @@ def test_emulator_method_end_to_end(truth_targets, emulator_sweep, tmp_path):
     data = tiny(truth_targets)
     data["method"] = {"kind": "emulator", "results": str(emulator_sweep), "walkers": 8, "steps": 400,
                       "confirm": 24}
-    result = calibrate(calibration_from_dict(data, ROOT), tmp_path / "emu", progress=False, predictive_draws=12)
+    result = run_calibration(calibration_from_dict(data, ROOT), tmp_path / "emu", progress=False, predictive_draws=12)
     out = tmp_path / "emu"
     posterior = pd.read_csv(out / "posterior.csv", index_col=0)
     assert posterior.loc["range", "q5"] <= 20.0 <= posterior.loc["range", "q95"], posterior.loc["range"].to_dict()
@@ -136,7 +164,8 @@ def test_emulator_method_end_to_end(truth_targets, emulator_sweep, tmp_path):
     assert not any("beyond the swept range" in w for w in report["warnings"])   # box = prior support [5, 40]
     for name in ("trace.png", "corner.png", "predictive.png", "chain.h5"):
         assert (out / name).stat().st_size > 1000, name
-    assert result["confirm"]["theta"]["range"] == pytest.approx(posterior.loc["range", "median"], rel=0.05)
+    assert result.confirm["theta"]["range"] == pytest.approx(posterior.loc["range", "median"], rel=0.05)
+    assert report["confirm"]["passed"] == (report["confirm"]["messages"][0].startswith("confirmed"))
 
 
 def test_emulator_refuses_a_missing_results_folder(truth_targets, tmp_path):
@@ -158,7 +187,8 @@ def test_calibrate_cli(truth_targets, tmp_path, capsys):
              "steps = 8"]
     path.write_text("\n".join(lines) + "\n")
     assert main(["calibrate", str(path), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
-    assert "range" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "range" in printed and "verdict: NOT converged" in printed and "report.html" in printed
     assert main(["calibrate", str(path), "--set", "method.walkers=3", "--out", str(tmp_path / "p")]) == 2
     assert "method.walkers" in capsys.readouterr().err
 
@@ -168,12 +198,13 @@ def test_local_workers_give_the_serial_chain_and_outputs(truth_targets, tmp_path
     import h5py
 
     config = calibration_from_dict(tiny(truth_targets, steps=6), ROOT)
-    serial = calibrate(config, tmp_path / "serial", progress=False, predictive_draws=6)
-    pooled = calibrate(config, tmp_path / "pooled", progress=False, predictive_draws=6, executor="local", workers=2)
+    serial = run_calibration(config, tmp_path / "serial", progress=False, predictive_draws=6)
+    pooled = run_calibration(config, tmp_path / "pooled", progress=False, predictive_draws=6, executor="local",
+                             workers=2)
     chains = []
     for name in ("serial", "pooled"):
         with h5py.File(tmp_path / name / "chain.h5", "r") as f:
             chains.append(np.array(f["mcmc/chain"]))
     np.testing.assert_array_equal(chains[0], chains[1])
-    pd.testing.assert_frame_equal(serial["predictive"], pooled["predictive"])
-    assert "2 processes" in pooled["report"]["executor"]
+    pd.testing.assert_frame_equal(serial.predictive, pooled.predictive)
+    assert "2 processes" in pooled.report["executor"]

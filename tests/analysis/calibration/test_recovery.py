@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.run import calibrate
+from analysis.calibration.run import run_calibration
 from analysis.calibration.synthetic import synthetic_observation, truth_vector
 from simcore import ConfigError
 from sweeps.cli import main
@@ -42,13 +42,13 @@ def observed():
 @pytest.mark.slow
 def test_field_of_vision_is_recovered(observed, tmp_path):
     config = calibration_from_dict(cheap(observed), ROOT)
-    result = calibrate(config, tmp_path / "out", progress=False, predictive_draws=20)
-    row = result["summary"].loc["field"]
+    result = run_calibration(config, tmp_path / "out", progress=False, predictive_draws=20)
+    row = result.summary.loc["field"]
     assert row["q5"] <= TRUTH_FIELD <= row["q95"], row.to_dict()
     prior_sd = (PRIOR[1] - PRIOR[0]) / np.sqrt(12.0)
     assert row["sd"] < 0.4 * prior_sd, (row["sd"], prior_sd)
-    assert not result["warnings"]       # the targets do constrain the field
-    assert (result["predictive"]["p"] > 0.01).all()
+    assert not result.warnings       # the targets do constrain the field
+    assert (result.predictive["p"] > 0.01).all()
 
 
 def test_synthetic_observation_is_deterministic_and_validated(observed):
@@ -78,7 +78,7 @@ def test_targets_cli_prints_a_block_that_loads(observed, tmp_path, capsys):
     block = capsys.readouterr().out
     parsed = tomllib.loads(block)["targets"]
     np.testing.assert_allclose(parsed["mean"], observed, rtol=1e-5)
-    assert parsed["sd"] == data["targets"]["sd"]
+    assert parsed["sd"] == data["targets"]["sd"] and parsed["truth"] == {"field": 150}
     path.write_text(body + block)                       # the printed block is a valid [targets] table
     assert main(["targets", str(path), "--truth", "field=150", "--replicates", "3", "--sd", "0.1,0.2"]) == 0
     assert "means of 3 runs" in capsys.readouterr().out

@@ -1,0 +1,167 @@
+"""A calibration's report: ``report.html`` (self-contained) and ``report.md`` in its output folder, on the
+report document machinery of :mod:`analysis.reports.document`.
+
+``calibration_report(config, outcome, folder) -> dict`` (paths written) renders, from what the run wrote:
+the verdicts first (converged or not, in plain words, with every warning: chain length, acceptance,
+R-hat and ESS, unconstrained parameters, an emulator's box and confirmation, targets in the tail of
+their predictive distribution, a known truth outside its 90% interval), then the settings (method,
+seed, model, free parameters and priors, targets), the posterior table (emcee's tau and ESS next to
+ArviZ's R-hat, bulk/tail ESS and MCSE), the trace, rank and corner plots, the posterior predictive
+check, the emulator's training set, refinement rounds and confirmation, an optimisation's optimum,
+the provenance and the files.
+
+``verdict_lines(outcome) -> list[str]``: the same verdicts as plain sentences, for the console.
+
+``outcome`` is :class:`analysis.calibration.run.CalibrationRun`-like: ``report`` (the convergence.json
+dict), ``summary`` (posterior.csv's frame or None), ``predictive``, ``warnings``, and for the emulator
+``confirm`` and ``refine``; ``optimum`` for optimisation.
+"""
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from analysis.reports.document import Figure, Heading, Para, Table, to_html, to_markdown
+from analysis.reports.labels import parameter_label
+from simcore.schema import to_dict
+
+P_TAIL = 0.05
+
+
+def _truth_lines(config, summary: pd.DataFrame | None) -> list[str]:
+    truth = config.targets.truth
+    if not truth or summary is None:
+        return []
+    out = []
+    for name, value in truth.items():
+        low, high = float(summary.loc[name, "q5"]), float(summary.loc[name, "q95"])
+        inside = low <= value <= high
+        out.append(f"truth {name} = {value:g} is {'inside' if inside else 'OUTSIDE'} the 90% interval "
+                   f"[{low:.4g}, {high:.4g}] (posterior mean {float(summary.loc[name, 'mean']):.4g}, sd "
+                   f"{float(summary.loc[name, 'sd']):.3g})")
+    return out
+
+
+def verdict_lines(config, outcome) -> list[str]:
+    """Plain sentences: convergence, warnings, confirmation, predictive tails, the truth."""
+    report = outcome.report
+    lines = []
+    convergence = report.get("convergence")
+    if convergence:
+        word = "converged" if convergence.get("converged") else "NOT converged"
+        lines.append(f"verdict: {word}")
+        lines += list(convergence.get("messages", []))
+    lines += list(outcome.warnings or [])
+    confirm = report.get("confirm")
+    if confirm:
+        word = "passed" if confirm.get("passed") else "FAILED"
+        lines.append(f"confirmation with {confirm['count']} real runs at the posterior median: {word}")
+        lines += [f"  {m}" for m in confirm.get("messages", [])]
+    refine = report.get("refine")
+    if refine:
+        lines.append(f"refinement: {refine['rounds_run']} round(s), {refine['runs_added']} runs added to the sweep "
+                     f"{refine['results']}; " + ("the confirmation passed" if refine["passed"] else
+                                                  "the confirmation still fails after the last round"))
+    if outcome.predictive is not None:
+        for stat, row in outcome.predictive.iterrows():
+            if math.isfinite(row["p"]) and row["p"] < P_TAIL:
+                lines.append(f"{stat}: the observed value {row['observed']:.4g} lies in the tail of the posterior "
+                             f"predictive distribution (p = {row['p']:.3g}): the model does not reproduce it well")
+    lines += _truth_lines(config, outcome.summary)
+    return lines
+
+
+def _settings_tables(config) -> list:
+    method = pd.DataFrame([{"setting": k, "value": str(v)} for k, v in to_dict(config.method).items()])
+    run = pd.DataFrame([{"setting": "seed", "value": config.seed}, {"setting": "model preset",
+                         "value": str(config.preset_path)},
+                        {"setting": "flock size N", "value": config.preset.init.n},
+                        {"setting": "duration (s)", "value": config.preset.run.duration},
+                        {"setting": "warm-up (s)", "value": config.metrics.warmup}])
+    parameters = pd.DataFrame([{"parameter": p.name, "key": p.key, "meaning": parameter_label(p.key),
+                                "prior": repr(p.prior), "bounds": f"[{p.bounds[0]:g}, {p.bounds[1]:g}]",
+                                "truth": (config.targets.truth or {}).get(p.name, "")} for p in config.parameters])
+    targets = config.targets
+    rows = []
+    for j, (stat, column) in enumerate(zip(targets.stats, targets.columns)):
+        row = {"statistic": stat, "column": column, "observed (mean over rows)": float(targets.observed[:, j].mean())}
+        if targets.cov is not None:
+            row["measurement sd"] = float(targets.cov[j, j] ** 0.5)
+        rows.append(row)
+    return [Table(method, "Method settings"), Table(run, "Model and run"), Table(parameters, "Free parameters"),
+            Table(pd.DataFrame(rows), f"Targets ({len(targets.observed)} observed row(s); summary "
+                                      f"\"{targets.summary}\")")]
+
+
+def _figure(folder, name: str, caption: str) -> list:
+    path = folder.path(name)
+    return [Figure(path, caption)] if path.exists() else []
+
+
+def _emulator_blocks(outcome, folder) -> list:
+    report = outcome.report
+    blocks = []
+    info = report.get("emulator")
+    if not info:
+        return blocks
+    blocks += [Heading("Emulator"), Para(f"Trained on {info['training_points']} parameter points "
+                                         f"({info['training_runs']} runs) of `{info['results']}`; fixed factors "
+                                         f"{info.get('fixed_factors') or 'none'}; surrogate fitted in "
+                                         f"{info['fit_s']:.1f} s.")]
+    if outcome.refine is not None and len(outcome.refine):
+        blocks.append(Table(outcome.refine, "Refinement rounds: training set, posterior and confirmation per round"))
+    if outcome.confirm:
+        blocks.append(Table(outcome.confirm["comparison"].reset_index(),
+                            "Confirmation: real runs at the posterior median against the emulator (z per statistic)"))
+        blocks.append(Table(outcome.confirm["predictive"].reset_index(),
+                            "Confirmation: the targets against the real runs at the posterior median"))
+    return blocks
+
+
+def calibration_report(config, outcome, folder) -> dict:
+    """Write report.html and report.md (see the module docstring)."""
+    report = outcome.report
+    verdicts = verdict_lines(config, outcome)
+    blocks = [Heading(f"Calibration report: {config.name}", 1)]
+    if config.description:
+        blocks.append(Para(config.description))
+    blocks += [Heading("Verdicts")] + [Para(line) for line in verdicts]
+    if outcome.summary is not None:
+        blocks += [Heading("Posterior"),
+                   Para(f"{report.get('walkers')} walkers x {report.get('steps')} steps, burn-in {report.get('burn')} "
+                        "steps (2 x the largest autocorrelation time). tau and ess: emcee's integrated "
+                        "autocorrelation time and effective sample size; r_hat, ess_bulk, ess_tail, mcse: ArviZ's "
+                        "(walkers as chains). The full posterior is `posterior.nc` (ArviZ InferenceData)."),
+                   Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
+        blocks += _figure(folder, "trace.png", "Walkers' traces; the burn-in is shaded.")
+        blocks += _figure(folder, "rank.png", "Rank plots: per parameter, each walker's rank histogram; flat "
+                                              "histograms mean the walkers sample the same distribution.")
+        blocks += _figure(folder, "corner.png", "Pairwise posterior: 5%, 50% and 95% quantiles, contours holding "
+                                                "50% and 90% of the draws, the truth in red when known.")
+    if outcome.optimum:
+        optimum = pd.DataFrame([{"parameter": k, "optimum": v} for k, v in outcome.optimum["theta"].items()])
+        blocks += [Heading("Optimum"), Table(optimum, "Optimum (optimum.json)"),
+                   Para(f"Objective {outcome.optimum['objective_common_seeds']:.4g} with the search's common seeds, "
+                        f"{outcome.optimum['objective_recheck']:.4g} +- {outcome.optimum['recheck_se']:.2g} "
+                        "re-checked with fresh seeds.")]
+    if outcome.predictive is not None:
+        blocks += [Heading("Posterior predictive check"),
+                   Table(outcome.predictive.reset_index(), "Each target against its predictive distribution (p: "
+                                                           "two-sided tail probability)")]
+        blocks += _figure(folder, "predictive.png", "Predictive distribution of each target, the observed value in red.")
+    blocks += _emulator_blocks(outcome, folder)
+    blocks += [Heading("Settings")] + _settings_tables(config)
+    provenance = pd.DataFrame([{"item": "git revision", "value": report.get("git_revision")},
+                               {"item": "model version", "value": report.get("model_version")},
+                               {"item": "wall time (s)", "value": report.get("wall_s")},
+                               {"item": "executor", "value": report.get("executor")},
+                               {"item": "packages", "value": ", ".join(f"{k} {v}" for k, v in
+                                                                      report.get("packages", {}).items() if v)}])
+    blocks += [Heading("Provenance"), Table(provenance, "Provenance")]
+    files = sorted({p.name for p in folder.root.iterdir() if p.is_file() and not p.name.startswith(".")}
+                   | {"report.html", "report.md"})
+    blocks += [Heading("Files"), Para(", ".join(f"`{name}`" for name in files))]
+    written = {"md": folder.write_text("report.md", to_markdown(blocks, folder.root)),
+               "html": folder.write_text("report.html", to_html(blocks, f"flocksweep calibration: {config.name}"))}
+    return written
