@@ -19,7 +19,7 @@ Contract
     farthest from each other and the posterior median, greedily (space filling inside the posterior).
     Deterministic: no random numbers.
 
-``refine_emulator(config, fit_round, folder, *, pool_kind, workers, scheduler, progress, log) -> Refinement``
+``refine_emulator(config, fit_round, *, pool_kind, workers, scheduler, progress, log) -> Refinement``
     Runs the rounds: ``fit_round(r) -> (training, surrogate, chain result, burn)`` fits and samples
     round r (the caller's MCMC, into its own chain file); :func:`~.emulated.confirm` at the posterior
     median with round r's seeds (``generator(seed, Tag.CONFIRM)`` for round 0, ``(seed, Tag.CONFIRM, r)``
@@ -46,7 +46,6 @@ import numpy as np
 import pandas as pd
 
 from sweeps.extend import add_points
-from sweeps.store import OutputFolder
 
 from .emulated import confirm, posterior_median
 from .simulator import summary_simulator
@@ -156,7 +155,7 @@ def _as_sweep_points(theta_rows: np.ndarray, config, training) -> list[dict]:
     return points
 
 
-def refine_emulator(config, fit_round: Callable, folder: OutputFolder, *, pool_kind: str = "local",
+def refine_emulator(config, fit_round: Callable, *, pool_kind: str = "local",
                     workers: int | None = None, scheduler: str | None = None, progress: bool = True,
                     log: Callable = print) -> Refinement:
     """The rounds of fit, confirmation and new sweep points (see the module docstring)."""
@@ -175,7 +174,7 @@ def refine_emulator(config, fit_round: Callable, folder: OutputFolder, *, pool_k
             replicates = int(np.median(training.count))
             picks = select_points(surrogate, result.chain, burn, max(1, settings.refine.runs_per_round // replicates),
                                   _obs_cov(config), replicates)
-            outcome, specs = add_points(settings.results, _as_sweep_points(picks, config, training),
+            _, specs = add_points(settings.results, _as_sweep_points(picks, config, training),
                                         executor=pool_kind, workers=workers, scheduler=scheduler, progress=progress)
             added = len(specs)
         rounds.append(_round_row(r, training, result, burn, config.names, check, added, started))

@@ -299,7 +299,7 @@ def _refined_rounds(config: CalibrationConfig, folder: OutputFolder, progress: b
 
     executor, workers, scheduler = sweep_executor
     log = (lambda message: tqdm.write(message, file=sys.stderr)) if progress else (lambda message: None)
-    refinement = refine_emulator(config, fit_round, folder, pool_kind="local" if executor == "serial" else executor,
+    refinement = refine_emulator(config, fit_round, pool_kind="local" if executor == "serial" else executor,
                                  workers=workers, scheduler=scheduler, progress=progress, log=log)
     last = len(refinement.rounds) - 1
     with atomic_path(folder.path("chain.h5")) as tmp:
