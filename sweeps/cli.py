@@ -5,8 +5,10 @@
     flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress]
+                   [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
+                      [--claims FILE ...] [--seed S]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
@@ -105,7 +107,11 @@ def _add_run(sub) -> None:
     p.add_argument("--until-ci", metavar="METRIC=HALFWIDTH",
                    help="add replicates to the cells whose 95%% CI half-width of METRIC (e.g. cohesion_mean) "
                         "exceeds HALFWIDTH, until all meet it")
-    p.add_argument("--max-replicates", type=int, default=30, help="cap for --until-ci (default 30)")
+    p.add_argument("--until-claims", action="store_true",
+                   help="add replicates to the design points of the sweep's undecided claims (tests that are "
+                        "inconclusive for lack of power) until every claim is decided or the cap is reached")
+    p.add_argument("--max-replicates", type=int, default=30,
+                   help="cap of replicates per design point for --until-ci and --until-claims (default 30)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -121,8 +127,12 @@ def cmd_run(args) -> int:
         raise ConfigError("--scheduler", "only applies with --executor dask")
     config = load_sweep(args.sweep, args.overrides, args.replicates)
     out = args.out or Path("results") / config.name
+    if args.until_ci and args.until_claims:
+        raise ConfigError("--until-claims", "give either --until-ci or --until-claims, not both")
     if args.until_ci:
         return _run_until_ci(args, config, out)
+    if args.until_claims:
+        return _run_until_claims(args, config, out)
     result = run_sweep(config, Path(args.sweep).read_text(), out, args.executor, args.workers, args.scheduler,
                        args.force, args.retry_failed, args.dry_run, not args.no_progress, args.batch_size)
     plan = result.plan
@@ -177,6 +187,30 @@ def _run_until_ci(args, config, out) -> int:
     return 0
 
 
+def _run_until_claims(args, config, out) -> int:
+    from analysis.reports.claims.until import claims_rule
+    from sweeps.claims import sweep_columns
+    from sweeps.runner import run_until
+
+    if not config.claims:
+        raise ConfigError("--until-claims", f"{args.sweep} declares no claims ([[claims]] or include_claims)")
+    if args.max_replicates < config.replicates:
+        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
+    if args.dry_run:
+        raise ConfigError("--until-claims", "cannot be combined with --dry-run (the rounds depend on the results)")
+    print(f"{config.name}: adding replicates where a claim is undecided (at most {args.max_replicates} per cell); "
+          f"claims {', '.join(c.id for c in config.claims)}")
+    factors = sweep_columns(config.axes, config.sample, config.metrics.leadership).factors
+    result = run_until(config, Path(args.sweep).read_text(), out, claims_rule(config.claims, factors),
+                       args.max_replicates, executor=args.executor, workers=args.workers, scheduler=args.scheduler,
+                       force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
+                       batch_size=args.batch_size)
+    table = result.table
+    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
+          f"({int((table['status'] == 'ok').sum())} ok); `flocksweep report {out}` shows the claims' evidence")
+    return 0
+
+
 def _add_status(sub) -> None:
     p = sub.add_parser("status", help="done / failed / missing runs of a results directory")
     p.add_argument("dir", type=Path, help="results directory of a sweep")
@@ -205,7 +239,7 @@ def cmd_status(args) -> int:
 
 
 def _add_report(sub) -> None:
-    p = sub.add_parser("report", help="statistics, figures and findings from a results directory",
+    p = sub.add_parser("report", help="statistics, figures and tested claims from a results directory",
                        description="Write a self-contained HTML report, the same as Markdown with figures, "
                                    "and the tables behind it as CSV (default: RESULTS_DIR/report/).")
     p.add_argument("dir", type=Path, help="results directory of a sweep (with runs.parquet)")
@@ -215,7 +249,10 @@ def _add_report(sub) -> None:
     p.add_argument("--by", nargs="+", metavar="FACTOR", help="factors to analyse (default: all swept factors)")
     p.add_argument("--out", type=Path, help="output directory (default RESULTS_DIR/report)")
     p.add_argument("--format", choices=("html", "md", "both"), default="both")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resampling (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the bootstrap resampling and of the claims' power simulations (default 0)")
+    p.add_argument("--claims", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="also test the claims of these claims files (or sweep files), e.g. configs/claims/holland.toml")
 
 
 def cmd_report(args) -> int:
@@ -223,18 +260,16 @@ def cmd_report(args) -> int:
 
     formats = ("html", "md") if args.format == "both" else (args.format,)
     try:
-        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed)
+        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims)
     except (ReportError, FileNotFoundError) as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         return 2
     for kind, path in result["paths"].items():
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'tables'} ({len(result['tables'])} CSV files); {result['seconds']:.1f} s")
-    for name in ("findings", "leadership_findings"):
-        findings = result["tables"].get(name)
-        if findings is not None and len(findings):
-            for key, group in findings.groupby("finding", sort=True):
-                print(f"  {name.replace('_', ' ')[:-1]} ({key}): {group['verdict'].iloc[0]}: {group['claim'].iloc[0]}")
+    claims = result["tables"].get("claims")
+    for row in (claims.itertuples() if claims is not None else ()):
+        print(f"  claim ({row.claim}): {row.verdict}: {row.statement}")
     return 0
 
 

@@ -47,6 +47,15 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 
     [report]                        # free-form settings for `flocksweep report`
 
+    include_claims = ["../claims/holland.toml"]   # (top level) shared claims files, tested by the report
+    [[claims]]                      # a hypothesis about the results (sweeps/claims.py, docs/claims.md)
+    id = "wider-is-aligned"
+    statement = "A wider field of vision gives a more aligned flock."
+    test = "trend"
+    metric = "polarization_mean"
+    factor = "perception.field_deg"
+    direction = "increasing"
+
 Axis keys are preset keys (``perception.*``, ``steering.*``, ``vehicle.*``, ``world.*``,
 ``patterns.*``, ``init.*``, ``run.*``) or ``n`` (= ``init.n``). Values are validated by building every
 run's preset before anything runs (see :mod:`sweeps.design`).
@@ -70,6 +79,8 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
+
+from .claims import ClaimTable, load_claims, sweep_columns
 
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
@@ -203,6 +214,9 @@ class SweepFile:
     axes: tuple[AxisTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[axes]]"})
     sample: SampleTable | None = None
     report: dict = field(default_factory=dict)
+    claims: tuple[ClaimTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[claims]]"})
+    include_claims: tuple[Any, ...] = field(default=(), metadata={
+        "expected": 'a list of claims files, e.g. ["../claims/holland.toml"]'})
 
     def __post_init__(self):
         check_name(self.name, "the sweep")
@@ -276,6 +290,7 @@ class SweepConfig:
     sample: Sample | None
     report: dict = field(repr=False, compare=False, hash=False)
     source: dict = field(repr=False, compare=False, hash=False)  # the sweep file as given (+ --set)
+    claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
 
     @property
     def factors(self) -> tuple[str, ...]:
@@ -384,11 +399,12 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
     metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys))
+    claims = load_claims(table.claims, table.include_claims, base, sweep_columns(axes, sample, metrics.leadership))
     return SweepConfig(name=table.name, description=table.description, seed=table.seed,
                        replicates=table.replicates, common_random_numbers=table.common_random_numbers,
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
-                       report=table.report, source=data)
+                       report=table.report, source=data, claims=claims)
 
 
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:

@@ -1,12 +1,12 @@
 """``flocksweep report``: what does each factor do to the flock? Statistics, figures and findings from a
 sweep's results directory.
 
-``build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed=0)``
-writes into ``out_dir`` (default ``<results_dir>/report``):
+``build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed=0,
+claims_files=())`` writes into ``out_dir`` (default ``<results_dir>/report``):
 
 * ``report.html``: self-contained (figures embedded); ``report.md`` with ``figures/*.png`` and ``.svg``;
 * ``tables/*.csv``: every table behind the report (tests, main effects, adjacent comparisons, two-way
-  tests, cell summaries with CI half-widths, findings, showcase checks).
+  tests, cell summaries with CI half-widths, claims and their tests, showcase checks).
 
 Sections: overview and provenance; per metric the main effect of every factor (mean and 95% bootstrap
 CI over replicates and the other factors), a Kruskal-Wallis test per factor with epsilon squared and
@@ -15,9 +15,9 @@ comparisons; heatmaps over field x direction of vision (panels per range, rows p
 when swept); time series of chosen cells; 3-D trace thumbnails of the ``[report.showcase]`` runs,
 re-simulated from their seeds (and checked against the table), each with an interactive 3-D viewer page
 (``viewer/<name>.html``, linked from its still; analysis/viewer); replicate adequacy (CI half-width per
-cell); Holland & Semwal's findings when their factors are present; with ``leadership.x`` swept, the
-leadership metrics against X and Hartman & Benes' findings. Factors and metrics are read from the
-results, so any sweep works.
+cell); the sweep's claims, tested (its ``[[claims]]`` and included claims files, plus ``claims_files``:
+verdicts, evidence figures and power, :mod:`analysis.reports.claims`); with ``leadership.x`` swept, the
+leadership metrics against X. Factors and metrics are read from the results, so any sweep works.
 """
 from __future__ import annotations
 
@@ -39,7 +39,9 @@ from sweeps.store import ResultsStore
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
+from .claims.evaluate import evaluate
+from .claims.load import claims_of
+from .claims.section import claims_section
 from .viewer_pages import viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
@@ -50,6 +52,9 @@ LABELS = {"cohesion_mean": "cohesion (largest group share)", "polarization_mean"
           "elongation_mean": "elongation of the largest group", "speed_mean_mean": "mean speed",
           "segregation_mean": "pattern segregation", "aspect_heading_mean": "length/width along heading"}
 RANGE = "perception.range"
+FIELD = "perception.field_deg"
+DIRECTION = "perception.direction_deg"
+LEAD = "leadership.x"
 
 
 class ReportError(ValueError):
@@ -306,21 +311,14 @@ def _adequacy(ctx: Context) -> None:
     ctx.blocks.append(Table(pd.DataFrame(rows), "CI half-width per metric over cells"))
 
 
-def _findings(ctx: Context) -> None:
-    findings = holland_findings(ctx.results.runs)
-    if not findings:
-        return
-    _save_table(ctx, "findings", findings_table(findings))
-    ctx.blocks.append(Heading("Holland & Semwal's findings, tested"))
-    ctx.blocks.append(Para("Each claim of the paper is stated as a hypothesis and judged from this sweep's "
-                           "runs only. p-values are Holm-adjusted across all tests below; alpha = 0.05."))
-    for f in findings:
-        ctx.blocks.append(Para(f"**({f.key}) {f.claim}** Hypothesis: {f.hypothesis}. Verdict: [{f.verdict}]. "
-                               f"{f.summary}."))
-        if f.facts:
-            facts = ", ".join(f"{k.replace('_', ' ')} = {v:.3g}" if isinstance(v, float) else f"{k.replace('_', ' ')} = {v}"
-                              for k, v in f.facts.items())
-            ctx.blocks.append(Para(f"Also: {facts}."))
+def _claims(ctx: Context, files) -> None:
+    """The sweep's declared claims (and those of ``files``), tested on the ok runs."""
+    claims, columns = claims_of(ctx.results, files)
+    outcomes = evaluate(claims, ctx.runs, columns.factors, seed=ctx.seed)
+    blocks, tables = claims_section(outcomes, ctx.fig_dir, ctx.seed)
+    for name, table in tables.items():
+        _save_table(ctx, name, table)
+    ctx.blocks += blocks
 
 
 LEADERSHIP_METRICS = ("trigger_rate", "leaders_mean", "leader_time_fraction", "follow_corr_max",
@@ -346,22 +344,12 @@ def _leadership(ctx: Context) -> None:
                            "fragmentation."))
     _figure(ctx, "leadership_vs_x",
             lambda p: figures.main_effects_figure(effects, "", p, ncols=5, sharey=False, xlabel="X"),
-            "Leadership metrics against X (mean and 95% CI).")
-    findings = leadership_findings(ctx.results.runs)
-    if findings:
-        table = findings_table(findings)
-        table.insert(0, "family", "leadership")
-        ctx.tables["leadership_findings"] = table
-        table.to_csv(ctx.table_dir / "leadership_findings.csv", index=False)
-        ctx.blocks.append(Heading("Hartman & Benes' findings, tested", 3))
-        ctx.blocks.append(Para("Each claim is judged from this sweep's runs only; p-values Holm-adjusted across "
-                               "the tests below; alpha = 0.05."))
-        for f in findings:
-            ctx.blocks.append(Para(f"**({f.key}) {f.claim}** Hypothesis: {f.hypothesis}. Verdict: [{f.verdict}]. "
-                                   f"{f.summary}."))
+            "Leadership metrics against X (mean and 95% CI). Hartman & Benes' findings are tested as claims "
+            "(configs/claims/hartman_benes.toml) when the sweep includes them.")
 
 
-def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0) -> dict:
+def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0,
+                 claims_files=()) -> dict:
     started = time.perf_counter()
     results = load_results(results_dir)
     if results.ok.empty:
@@ -378,7 +366,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
         for stale in [p for pattern in patterns for p in folder.glob(pattern)]:
             stale.unlink()  # a rebuilt report holds only what this build wrote
     _overview(ctx)
-    _findings(ctx)
+    _claims(ctx, claims_files)
     _leadership(ctx)
     st = _statistics(ctx)
     _metric_sections(ctx, st)
