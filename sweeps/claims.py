@@ -24,8 +24,8 @@ Test kinds and their keys (every other key of a test is an error naming it):
 * ``trend``: ``metric``, ``factor`` (a numeric factor), ``direction`` increasing | decreasing,
   ``method`` spearman, ``effect``;
 * ``compare``: ``metric``, ``lower`` and ``higher`` (conditions selecting the group claimed lower and
-  the group claimed higher), ``paired`` (pair runs equal in every other factor and the replicate),
-  ``method`` mann-whitney | welch, ``effect``;
+  the group claimed higher), ``paired`` (pair runs equal in every other factor and the replicate, and
+  test the differences: ``method`` wilcoxon | sign | t), ``method`` mann-whitney | welch, ``effect``;
 * ``sign``: ``metric``, ``direction`` positive | negative | zero (of metric - ``value``, default 0;
   zero means every run within ``tolerance`` of ``value``), ``method`` wilcoxon | sign | t, ``effect``;
 * ``all_of`` / ``any_of``: ``parts``, a list of tests (nested compositions allowed).
@@ -41,176 +41,29 @@ a factor (conditions, ``factor``, ``lower``, ``higher``) or a metric (``metric``
 did-you-mean; every condition must select at least one design point, a trend at least two levels of
 its factor, and the two groups of a comparison must be non-empty and disjoint. :class:`Columns` says
 what a sweep has: :func:`sweep_columns` before it runs, :func:`table_columns` from a results table.
-The result is a tuple of :class:`Claim` whose :class:`Test` trees hold parsed expressions.
+The result is a tuple of :class:`Claim` whose :class:`Test` trees hold parsed expressions (the tables
+and the tree are in :mod:`sweeps.claim_schema`, re-exported here).
 ``claims_record(claims)`` is what a results folder stores (``sweep.effective.json["claims"]``, includes
 expanded); ``claims_from_records`` reads it back. Statistics are not here (analysis/reports/claims).
 """
 from __future__ import annotations
 
 import itertools
-import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import pandas as pd
 
 from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
 from analysis.observables.summary import summary_columns
-from simcore.schema import (ConfigError, build, check_at_least, check_within, read_toml, resolve_path, suggest,
-                            to_dict)
+from simcore.schema import ConfigError, build, read_toml, resolve_path, suggest, to_dict
 
+from .claim_schema import (COMMON, DIRECTIONS, ID, KEYS, KINDS, METHODS, REQUIRED, Claim, ClaimsFile,  # noqa: F401
+                           ClaimTable, IncludeTable, PowerTable, Source, Test, TestTable)
 from .expressions import Expression, ExpressionError, parse
 
-KINDS = ("trend", "compare", "sign", "all_of", "any_of")
-KEYS = {"trend": ("metric", "factor", "direction", "method", "effect"),
-        "compare": ("metric", "lower", "higher", "paired", "method", "effect"),
-        "sign": ("metric", "direction", "value", "tolerance", "method", "effect"),
-        "all_of": ("parts",), "any_of": ("parts",)}
-REQUIRED = {"trend": ("metric", "factor", "direction"), "compare": ("metric", "lower", "higher"),
-            "sign": ("metric", "direction"), "all_of": ("parts",), "any_of": ("parts",)}
-DIRECTIONS = {"trend": ("increasing", "decreasing"), "sign": ("positive", "negative", "zero")}
-METHODS = {"trend": ("spearman",), "compare": ("mann-whitney", "welch"), "sign": ("wilcoxon", "sign", "t")}
-COMMON = ("test", "id", "label", "condition")
-ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 DESIGN_CHECK_MAX = 200_000   # design points enumerated to check conditions; larger designs skip the check
-
-
-# ------------------------------------------------------------------------------------------ the tables
-
-@dataclass(frozen=True)
-class Source:
-    """Where a claim is stated."""
-
-    paper: str = field(metadata={"expected": "a string naming the paper, e.g. \"Holland & Semwal\""})
-    section: str = ""
-    quote: str = ""
-
-
-@dataclass(frozen=True)
-class PowerTable:
-    """The power analysis of a claim's tests (analysis/reports/claims/power.py)."""
-
-    target: float = 0.8
-    simulations: int = 200
-    max_replicates: int = 200
-
-    def __post_init__(self):
-        check_within("target", self.target, 0.0, 1.0, lo_open=True)
-        if self.target >= 1.0:
-            raise ConfigError("target", f"got {self.target!r}; must be < 1")
-        check_at_least("simulations", self.simulations, 20)
-        check_at_least("max_replicates", self.max_replicates, 2)
-
-
-@dataclass(frozen=True)
-class TestTable:
-    """One test as written: a leaf (trend, compare, sign) or a composition of parts (see the module
-    docstring for which keys each kind takes)."""
-
-    __test__ = False  # not a pytest test class
-
-    test: Literal["trend", "compare", "sign", "all_of", "any_of"] = field(
-        default=None, metadata={"expected": "one of trend, compare, sign, all_of, any_of"})
-    id: str | None = None
-    label: str = ""
-    condition: str | None = None
-    metric: str | None = None
-    factor: str | None = None
-    direction: str | None = None
-    lower: str | None = None
-    higher: str | None = None
-    paired: bool = False
-    value: float = 0.0
-    tolerance: float = 0.0
-    method: str | None = None
-    effect: float | None = None
-    parts: tuple[TestTable, ...] = field(default=(), metadata={"expected": "an array of tests: [[claims.parts]]"})
-
-
-@dataclass(frozen=True, kw_only=True)
-class ClaimTable(TestTable):
-    """One ``[[claims]]`` table: a test plus what the claim is, where it is stated and how it is judged."""
-
-    statement: str = field(default=None, metadata={"expected": "the claim as one sentence"})
-    source: Source | None = None
-    family: str = "default"
-    alpha: float = 0.05
-    power: PowerTable = field(default_factory=PowerTable)
-
-
-@dataclass(frozen=True)
-class IncludeTable:
-    file: str = field(metadata={"expected": "a path to a claims file"})
-    only: tuple[str, ...] | None = None
-
-
-@dataclass(frozen=True)
-class ClaimsFile:
-    """A shared claims file: a description and ``[[claims]]``."""
-
-    claims: tuple[ClaimTable, ...] = field(metadata={"expected": "an array of tables: [[claims]]"})
-    description: str = ""
-
-
-# ------------------------------------------------------------------------------------- the resolved tree
-
-@dataclass(frozen=True)
-class Test:
-    """A validated test: ``conditions`` are its own and its parents' (all must hold); ``path`` is
-    ``claim id`` or ``claim id.part id...``; ``key`` the config key it was declared at."""
-
-    __test__ = False
-
-    kind: str
-    path: str
-    label: str
-    key: str
-    conditions: tuple[Expression, ...] = ()
-    metric: Expression | None = None
-    factor: str | None = None
-    direction: str | None = None
-    lower: Expression | None = None
-    higher: Expression | None = None
-    paired: bool = False
-    value: float = 0.0
-    tolerance: float = 0.0
-    method: str | None = None
-    effect: float | None = None
-    parts: tuple[Test, ...] = ()
-
-    @property
-    def composite(self) -> bool:
-        return self.kind in ("all_of", "any_of")
-
-    def leaves(self) -> list[Test]:
-        return [leaf for part in self.parts for leaf in part.leaves()] if self.composite else [self]
-
-    def select(self, frame: pd.DataFrame) -> np.ndarray:
-        """Rows of ``frame`` meeting every condition."""
-        mask = np.ones(len(frame), dtype=bool)
-        for condition in self.conditions:
-            mask &= condition.evaluate(frame)
-        return mask
-
-    @property
-    def claimed_sign(self) -> int:
-        """+1 when the claim says the metric rises (increasing, positive, higher group), -1 falls, 0 zero."""
-        return {"decreasing": -1, "negative": -1, "zero": 0}.get(self.direction, 1)
-
-
-@dataclass(frozen=True)
-class Claim:
-    id: str
-    statement: str
-    source: Source | None
-    family: str
-    alpha: float
-    power: PowerTable
-    test: Test
-    table: ClaimTable = field(repr=False)
-    origin: str = ""     # the claims file it came from ("" for the sweep file itself)
 
 
 # ------------------------------------------------------------------------------- what a sweep can name
@@ -323,9 +176,11 @@ def _check_kind(table: TestTable, key: str) -> None:
     if kind in DIRECTIONS and table.direction not in DIRECTIONS[kind]:
         raise ConfigError(f"{key}.direction", f"got {table.direction!r}; a {kind} test allows "
                                               + ", ".join(DIRECTIONS[kind]) + suggest(str(table.direction), DIRECTIONS[kind]))
-    if kind in METHODS and table.method is not None and table.method not in METHODS[kind]:
-        raise ConfigError(f"{key}.method", f"got {table.method!r}; a {kind} test allows "
-                                           + ", ".join(METHODS[kind]) + suggest(str(table.method), METHODS[kind]))
+    methods = METHODS["sign"] if kind == "compare" and table.paired else METHODS.get(kind, ())
+    if kind in METHODS and table.method is not None and table.method not in methods:
+        what = "a paired compare test (a one-sample test of the differences)" if table.paired else f"a {kind} test"
+        raise ConfigError(f"{key}.method", f"got {table.method!r}; {what} allows "
+                                           + ", ".join(methods) + suggest(str(table.method), methods))
     if table.effect is not None and not (np.isfinite(table.effect) and table.effect > 0):
         raise ConfigError(f"{key}.effect", f"got {table.effect!r}; expected the smallest effect of interest, a number > 0")
     if not (np.isfinite(table.tolerance) and table.tolerance >= 0):
@@ -361,7 +216,8 @@ def _resolve(table: TestTable, key: str, path: str, inherited: tuple, columns: C
     if table.test == "compare":
         extra["lower"] = _expression(table.lower, f"{key}.lower", "condition", columns)
         extra["higher"] = _expression(table.higher, f"{key}.higher", "condition", columns)
-    default_method = {"trend": "spearman", "compare": "mann-whitney", "sign": "wilcoxon"}[table.test]
+    default_method = {"trend": "spearman", "compare": "wilcoxon" if table.paired else "mann-whitney",
+                      "sign": "wilcoxon"}[table.test]
     test = Test(**common, metric=metric, direction=table.direction, paired=table.paired, value=table.value,
                 tolerance=table.tolerance, method=table.method or default_method, effect=table.effect, **extra)
     _check_design(test, columns)

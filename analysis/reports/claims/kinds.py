@@ -7,7 +7,9 @@ expression, non-finite values dropped and counted), and per value
 * ``x``: trend: the factor's value; compare: 1.0 in the group claimed higher, 0.0 in the lower one
   (rows in neither group are left out); sign: none;
 * ``point``: the design point it belongs to (an integer code of its ``factors`` values), which the power
-  analysis uses to separate the spread between design points from the spread between replicates.
+  analysis uses to separate the spread between design points from the spread between replicates;
+* ``cell``: the levels of the other factors (a code of the factors that do not determine ``x``), which
+  the power analysis keeps the same at every level of a trend or in both groups of a comparison.
 
 A ``paired`` comparison matches each run of the higher group with the run of the lower group that has
 the same replicate and the same value of every factor that does not separate the groups, and becomes a
@@ -16,8 +18,9 @@ one-sample test of the differences (higher minus lower; ``x`` none). Unmatched r
 ``leaf_result(test, data) -> LeafResult``: the two-sided test (:mod:`.statistics`), the observed
 direction (+1 as the metric rises along the factor / in the higher group / above ``value``) and the
 estimate in the metric's units: a trend's change of the mean over the factor's range (least-squares
-line), a comparison's difference of means (higher minus lower), a sign test's mean distance from
-``value``. A ``zero`` sign test is a check, not a test: it counts runs farther than ``tolerance`` from
+line), a comparison's difference of means (higher minus lower), a sign test's distance from ``value``
+of its :func:`location` (mean for t, median for sign, Hodges-Lehmann pseudo-median for wilcoxon, the
+share for 0/1 data). A ``zero`` sign test is a check, not a test: it counts runs farther than ``tolerance`` from
 ``value`` (p NaN).
 """
 from __future__ import annotations
@@ -38,6 +41,7 @@ class LeafData:
     rows: pd.Index               # the runs' index in the table (a paired test: both runs of each pair)
     n_missing: int               # rows meeting the conditions whose metric was not finite
     note: str = ""               # what was dropped or matched (paired tests)
+    cell: np.ndarray | None = None  # code of the other factors' levels per value (None: the point)
 
     @property
     def n(self) -> int:
@@ -70,6 +74,18 @@ def _separating(frame: pd.DataFrame, higher: np.ndarray, factors) -> list[str]:
             a = set(frame.loc[higher, column].astype(str))
             b = set(frame.loc[~higher, column].astype(str))
             if not a & b:
+                out.append(column)
+    return out
+
+
+def _determining(frame: pd.DataFrame, target: np.ndarray, factors) -> list[str]:
+    """Factors each of whose values goes with one value of ``target`` only (``target`` itself, its
+    aliases, the columns that define a comparison's groups)."""
+    out = []
+    for column in factors:
+        if column in frame.columns:
+            pairs = pd.DataFrame({"c": frame[column].astype(str).to_numpy(), "t": target})
+            if pairs.groupby("c")["t"].nunique().max() <= 1:
                 out.append(column)
     return out
 
@@ -110,8 +126,28 @@ def leaf_data(test, runs: pd.DataFrame, factors) -> LeafData:
     if x is not None:
         finite &= np.isfinite(x)
     points = _points(frame, factors)
+    cells = points
+    if x is not None and len(frame):
+        others = [c for c in factors if c not in _determining(frame, x, factors)]
+        cells = _points(frame, others)
     return LeafData(y[finite], None if x is None else x[finite], points[finite], frame.index[finite],
-                    int((~finite).sum()))
+                    int((~finite).sum()), cell=cells[finite])
+
+
+def location(values: np.ndarray, method: str) -> float:
+    """Where a one-sample test puts a sample: the mean (t), the median (sign), the Hodges-Lehmann
+    pseudo-median, the median of all pairwise means (wilcoxon); 0/1 data: the mean (the share)."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return float("nan")
+    if method == "t" or np.isin(values, (0.0, 1.0)).all():
+        return float(values.mean())
+    if method == "sign":
+        return float(np.median(values))
+    if values.size > 2000:   # 2000 evenly spaced order statistics keep the pairs in memory
+        values = np.sort(values)[np.linspace(0, values.size - 1, 2000).astype(int)]
+    upper = np.triu_indices(values.size)
+    return float(np.median((values[upper[0]] + values[upper[1]]) / 2.0))
 
 
 def _slope_change(x: np.ndarray, y: np.ndarray) -> float:
@@ -155,9 +191,12 @@ def leaf_result(test, data: LeafData) -> LeafResult:
                   f"{_mean(hi):.3g} (higher group, n = {hi.size}), difference {estimate:+.3g}")
     else:
         reference = 0.0 if test.kind == "compare" else test.value
-        estimate = float(y.mean() - reference)
+        estimate = location(y, test.method) - reference
         what = "paired difference higher - lower" if test.kind == "compare" else f"distance from {reference:g}"
-        detail = f"{name} = {statistic:.4g}; mean {what} {estimate:+.3g}, median {float(np.median(y)) - reference:+.3g}"
+        where = {"t": "mean", "sign": "median", "wilcoxon": "pseudo-median"}[test.method]
+        if np.isin(y, (0.0, 1.0)).all():
+            where = "share"
+        detail = f"{name} = {statistic:.4g}; {where} {what} {estimate:+.3g} (mean {float(y.mean()) - reference:+.3g})"
         if data.note:
             detail += f"; {data.note}"
     return LeafResult(test.method, statistic, p, int(sign), estimate, n, detail)
