@@ -194,7 +194,8 @@ def _resolve(table: TestTable, key: str, path: str, inherited: tuple, columns: C
     conditions = inherited
     if table.condition is not None:
         conditions = inherited + (_expression(table.condition, f"{key}.condition", "condition", columns),)
-    common = {"kind": table.test, "path": path, "label": table.label or path.rsplit(".", 1)[-1], "key": key,
+    default_label = path.rsplit(".", 1)[-1] if "." in path or table.metric is None else table.metric
+    common = {"kind": table.test, "path": path, "label": table.label or default_label, "key": key,
               "conditions": conditions}
     if table.test in ("all_of", "any_of"):
         parts, seen = [], set()

@@ -11,7 +11,7 @@ The metric table that :func:`frame_kernel` fills has one column per name of :dat
 order; the kernel addresses a column as ``Column.<name>`` (an IntEnum generated from ``COLUMNS``), so
 adding a metric is one name here plus the line of the kernel that computes it. Every column but one
 reads a single record; ``overtake_rate`` compares each record with the one before (the kernel keeps the
-previous record's links and projections), so the records must be consecutive and evenly spaced.
+previous record's group headings), so the records must be consecutive and evenly spaced.
 """
 from __future__ import annotations
 
@@ -358,37 +358,34 @@ def _ahead(p, i, j, h, box):
 
 
 @njit(cache=True)
-def count_overtakes(p, nbr, degree, head, ok, p_before, linked_before, head_before, ok_before, box):
-    """Pairs linked now and at the previous record (linked_before, N x N) whose order along their
-    group's heading swapped strictly: (p_i - p_j) . h_g changed sign between the two records (each
-    record with its own positions and heading, minimum-image offsets)."""
+def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, radius, box):
+    """Pairs linked now (nbr, degree) and at the previous record (closer than ``radius`` in
+    ``p_before``, tested as :func:`graph_frame` links) whose order along their group's heading swapped
+    strictly: (p_i - p_j) . h_g changed sign between the two records (each record with its own
+    positions and heading, minimum-image offsets)."""
+    radius2 = radius * radius
     swaps = 0
     for i in range(degree.shape[0]):
         if not (ok[i] and ok_before[i]):
             continue
         for a in range(degree[i]):
             j = nbr[i, a]
-            if j <= i or not linked_before[i, j]:
+            if j <= i:
+                continue
+            dx = p_before[j, 0] - p_before[i, 0]
+            dy = p_before[j, 1] - p_before[i, 1]
+            dz = p_before[j, 2] - p_before[i, 2]
+            if box > 0.0:
+                dx = fold(dx, box)
+                dy = fold(dy, box)
+                dz = fold(dz, box)
+            if not dx * dx + dy * dy + dz * dz < radius2:
                 continue
             before = _ahead(p_before, i, j, head_before[i], box)
             now = _ahead(p, i, j, head[i], box)
             if (before < 0.0 and now > 0.0) or (before > 0.0 and now < 0.0):
                 swaps += 1
     return swaps
-
-
-@njit(cache=True)
-def remember_links(nbr, degree, linked_before, nbr_before, degree_before):
-    """linked_before (N x N) := the links of nbr/degree, clearing the ones remembered before."""
-    n = degree.shape[0]
-    for i in range(n):
-        for a in range(degree_before[i]):
-            linked_before[i, nbr_before[i, a]] = False
-    for i in range(n):
-        degree_before[i] = degree[i]
-        for a in range(degree[i]):
-            nbr_before[i, a] = nbr[i, a]
-            linked_before[i, nbr[i, a]] = True
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -420,9 +417,6 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
     ok = np.empty(n, np.bool_)
     head_before = np.zeros((n, 3))
     ok_before = np.zeros(n, np.bool_)
-    linked_before = np.zeros((n, n), np.bool_)
-    nbr_before = np.empty((n, n), np.int32)
-    degree_before = np.zeros(n, np.int32)
     for f in range(n_frames):
         count = graph_frame(pos[f], pattern, radius, box, nbr, queue, comp, sizes, rank,
                             labels, unwrapped, nn, degree, same)
@@ -456,15 +450,14 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
             out[f, Column.visible_mean] = np.nan
             out[f, Column.binocular_share] = np.nan
         out[f, Column.segregation] = segregation_frame(degree, same, expected)
-        group_headings(vel[f], labels, count, hsum, movers, head, ok)
-        if f > 0 and interval > 0.0:
-            swaps = count_overtakes(pos[f], nbr, degree, head, ok, pos[f - 1], linked_before, head_before,
-                                    ok_before, box)
-            out[f, Column.overtake_rate] = swaps / n / interval
-        else:
-            out[f, Column.overtake_rate] = np.nan
-        remember_links(nbr, degree, linked_before, nbr_before, degree_before)
-        for i in range(n):
-            ok_before[i] = ok[i]
-            for k in range(3):
-                head_before[i, k] = head[i, k]
+        out[f, Column.overtake_rate] = np.nan
+        if interval > 0.0:
+            group_headings(vel[f], labels, count, hsum, movers, head, ok)
+            if f > 0:
+                swaps = count_overtakes(pos[f], pos[f - 1], nbr, degree, head, ok, head_before, ok_before,
+                                        radius, box)
+                out[f, Column.overtake_rate] = swaps / n / interval
+            for i in range(n):
+                ok_before[i] = ok[i]
+                for k in range(3):
+                    head_before[i, k] = head[i, k]

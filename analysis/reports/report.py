@@ -313,12 +313,16 @@ def _adequacy(ctx: Context) -> None:
 
 def _claims(ctx: Context, files) -> None:
     """The sweep's declared claims (and those of ``files``), tested on the ok runs."""
-    claims, columns = claims_of(ctx.results, files)
+    claims, columns, skipped = claims_of(ctx.results, files)
     outcomes = evaluate(claims, ctx.runs, columns.factors, seed=ctx.seed)
     blocks, tables = claims_section(outcomes, ctx.fig_dir, ctx.seed)
     for name, table in tables.items():
         _save_table(ctx, name, table)
     ctx.blocks += blocks
+    if skipped:
+        ctx.blocks.append(Para("Not tested (the stored results lack what they name; rerun the sweep with "
+                               "`--force` to recompute them): " + "; ".join(f"({i}) {why}" for i, why in skipped)
+                               + "."))
 
 
 LEADERSHIP_METRICS = ("trigger_rate", "leaders_mean", "leader_time_fraction", "follow_corr_max",

@@ -89,6 +89,27 @@ def _one_sample(ax, leaf, rng, seed: int) -> None:
         ax.set_xlabel(f"paired: ({test.higher.text}) - ({test.lower.text})", fontsize=7)
 
 
+def _focus(ax, values: np.ndarray) -> None:
+    """The y range of the runs between their 1st and 99th percentiles, widened to keep every mean and
+    CI drawn, so a few far runs do not flatten the evidence (the note says so when runs are cut off)."""
+    low, high = np.percentile(values, [1, 99])
+    drawn_low, drawn_high = ax.get_ylim()
+    lines = [line.get_ydata() for line in ax.get_lines()]
+    marks = np.concatenate([np.asarray(y, dtype=float).ravel() for y in lines]) if lines else np.zeros(0)
+    marks = marks[np.isfinite(marks)]
+    for collection in ax.collections[1:]:                      # error bars (the first collection is the runs)
+        for segment in getattr(collection, "get_segments", lambda: [])():
+            marks = np.concatenate([marks, np.asarray(segment)[:, 1]])
+    low = min(low, marks.min()) if marks.size else low
+    high = max(high, marks.max()) if marks.size else high
+    pad = 0.08 * (high - low or 1.0)
+    ax.set_ylim(max(drawn_low, low - pad), min(drawn_high, high + pad))
+    hidden = int(((values < low - pad) | (values > high + pad)).sum())
+    if hidden:
+        ax.text(0.98, 0.02, f"{hidden} runs outside the axis", transform=ax.transAxes, ha="right", va="bottom",
+                fontsize=6, color="#777777")
+
+
 def claim_figure(outcome, path, seed: int = 0) -> Path:
     plt = pyplot()
     leaves = outcome.outcome.leaves()
@@ -106,6 +127,8 @@ def claim_figure(outcome, path, seed: int = 0) -> Path:
             _groups(ax, leaf, rng, seed)
         else:
             _one_sample(ax, leaf, rng, seed)
+        if leaf.data is not None and leaf.data.n > 20:
+            _focus(ax, leaf.data.y)
         ax.set_title(f"{test.label}: {leaf.verdict}", fontsize=9, color=COLOURS.get(leaf.verdict, "black"))
         ax.set_ylabel(test.metric.text, fontsize=8)
         ax.text(0.02, 0.98, _note(leaf, len(outcome.claim.test.conditions)), transform=ax.transAxes, va="top", ha="left", fontsize=7,

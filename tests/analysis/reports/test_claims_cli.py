@@ -101,3 +101,29 @@ def test_until_claims_needs_claims_and_excludes_until_ci(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "claims[0].metric" in err and "did you mean 'polarization_mean'" in err
     assert not (tmp_path / "r").exists()                            # nothing ran, nothing was written
+
+
+@pytest.mark.slow
+def test_stored_claims_that_no_longer_fit_the_results_are_listed_not_fatal(sweep_file, tmp_path):
+    """Results computed before a metric existed keep their old columns (their runs are done): a stored
+    claim on that metric is skipped with the reason, the others are tested; a --claims file that does
+    not fit is an error."""
+    import json
+
+    from analysis.reports.claims.load import claims_of
+    from simcore.schema import ConfigError
+    from sweeps.results import load_results
+
+    out = tmp_path / "results"
+    assert main(["run", str(sweep_file), "--out", str(out), "--executor", "serial", "--no-progress"]) == 0
+    effective = json.loads((out / "sweep.effective.json").read_text())
+    effective["claims"].append({**effective["claims"][0], "id": "newer", "metric": "newer_metric_mean"})
+    (out / "sweep.effective.json").write_text(json.dumps(effective))
+    claims, columns, skipped = claims_of(load_results(out))
+    assert [c.id for c in claims] == ["full-vision"]
+    assert skipped[0][0] == "newer" and "'newer_metric_mean' is not a metric" in skipped[0][1]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[claims]]\nid = "x"\nstatement = "s"\ntest = "sign"\nmetric = "newer_metric_mean"\n'
+                   'direction = "positive"\n')
+    with pytest.raises(ConfigError, match="bad.toml: claims\\[0\\].metric"):
+        claims_of(load_results(out), [bad])
