@@ -349,15 +349,6 @@ def group_headings(vel, labels, count, hsum, moving, head, ok):
 
 
 @njit(cache=True)
-def _ahead(p, i, j, h, box):
-    """(p_i - p_j) . h with the minimum-image offset."""
-    total = 0.0
-    for k in range(3):
-        total += fold(p[i, k] - p[j, k], box) * h[k]
-    return total
-
-
-@njit(cache=True)
 def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, radius, box):
     """Pairs linked now (nbr, degree) and at the previous record (closer than ``radius`` in
     ``p_before``, tested as :func:`graph_frame` links) whose order along their group's heading swapped
@@ -368,6 +359,8 @@ def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, 
     for i in range(degree.shape[0]):
         if not (ok[i] and ok_before[i]):
             continue
+        h0, h1, h2 = head[i, 0], head[i, 1], head[i, 2]
+        b0, b1, b2 = head_before[i, 0], head_before[i, 1], head_before[i, 2]
         for a in range(degree[i]):
             j = nbr[i, a]
             if j <= i:
@@ -381,8 +374,21 @@ def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, 
                 dz = fold(dz, box)
             if not dx * dx + dy * dy + dz * dz < radius2:
                 continue
-            before = _ahead(p_before, i, j, head_before[i], box)
-            now = _ahead(p, i, j, head[i], box)
+            ex = p_before[i, 0] - p_before[j, 0]
+            ey = p_before[i, 1] - p_before[j, 1]
+            ez = p_before[i, 2] - p_before[j, 2]
+            nx = p[i, 0] - p[j, 0]
+            ny = p[i, 1] - p[j, 1]
+            nz = p[i, 2] - p[j, 2]
+            if box > 0.0:
+                ex = fold(ex, box)
+                ey = fold(ey, box)
+                ez = fold(ez, box)
+                nx = fold(nx, box)
+                ny = fold(ny, box)
+                nz = fold(nz, box)
+            before = ex * b0 + ey * b1 + ez * b2
+            now = nx * h0 + ny * h1 + nz * h2
             if (before < 0.0 and now > 0.0) or (before > 0.0 and now < 0.0):
                 swaps += 1
     return swaps
