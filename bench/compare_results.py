@@ -3,8 +3,10 @@ calibration's (chain.h5 and posterior.csv). For checking that a change of code l
 
     python bench/compare_results.py BASELINE_DIR NEW_DIR [BASELINE_DIR NEW_DIR ...]
 
-Sweeps: the same run ids in the same order, and every column except the timing ones (``wall_s``,
-``sim_s``, ``part``) equal exactly (NaN equal to NaN); the time series of every run equal exactly.
+Sweeps: the same run ids in the same order, and every column of the baseline except the timing ones
+(``wall_s``, ``sim_s``, ``part``) equal exactly (NaN equal to NaN); the time series of every run equal
+exactly in the baseline's columns. Columns only the new folder has (a metric added since the baseline)
+are allowed and listed; a baseline column missing from the new folder is a difference.
 Calibrations: the chain, log-probabilities and acceptance counts in ``chain.h5`` equal exactly, and
 ``posterior.csv`` byte for byte, or else every column of the baseline's exactly (columns added since,
 e.g. ArviZ's R-hat and ESS, are listed). Prints one line per pair; exit status 1 when any pair differs.
@@ -32,15 +34,21 @@ def compare_sweep(old: Path, new: Path) -> str:
     a, b = pd.read_parquet(old / "runs.parquet"), pd.read_parquet(new / "runs.parquet")
     if list(a["run_id"]) != list(b["run_id"]):
         return "run ids differ"
-    if list(a.columns) != list(b.columns):
-        return f"columns differ: {sorted(set(a.columns) ^ set(b.columns))}"
+    missing = [c for c in a.columns if c not in b.columns]
+    if missing:
+        return f"columns missing from the new table: {missing}"
     keep = [c for c in a.columns if c not in TIMING]
     pd.testing.assert_frame_equal(a[keep], b[keep], check_exact=True)
     ta, tb = _timeseries(old), _timeseries(new)
-    pd.testing.assert_frame_equal(ta, tb, check_exact=True)
+    missing_ts = [c for c in ta.columns if c not in tb.columns]
+    if missing_ts:
+        return f"time-series columns missing from the new folder: {missing_ts}"
+    pd.testing.assert_frame_equal(ta, tb[list(ta.columns)], check_exact=True)
     metrics = [c for c in keep if c in set(summary_columns(leadership=True))]
+    added = [c for c in b.columns if c not in a.columns] + [f"series:{c}" for c in tb.columns if c not in ta.columns]
     return (f"identical: {len(a)} runs, same run ids, {len(metrics)} metric columns and {len(keep)} columns "
-            f"in all bit for bit, {len(ta)} time-series rows bit for bit")
+            f"in all bit for bit, {len(ta)} time-series rows bit for bit"
+            + (f"; new columns (not in the baseline): {', '.join(added)}" if added else ""))
 
 
 def compare_calibration(old: Path, new: Path) -> str:

@@ -5,8 +5,10 @@
     flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
+                   [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
+                      [--claims FILE ...] [--seed S]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
@@ -32,8 +34,9 @@ from pathlib import Path
 
 from simcore.schema import ConfigError, suggest
 
-from .failures import INCOMPLETE, check_count, check_out, check_workers, explain, parse_numbers, show_warnings
+from .failures import check_count, check_out, check_workers, explain, parse_numbers, show_warnings
 from .interrupts import ignored, signals_as_exceptions
+from .until_commands import parse_until_ci, report_lost, run_until_ci_command, run_until_claims_command
 
 
 def _add_simulate(sub) -> None:
@@ -123,7 +126,11 @@ def _add_run(sub) -> None:
     p.add_argument("--until-ci", metavar="METRIC=HALFWIDTH",
                    help="add replicates to the cells whose 95%% CI half-width of METRIC (e.g. cohesion_mean) "
                         "exceeds HALFWIDTH, until all meet it")
-    p.add_argument("--max-replicates", type=int, default=30, help="cap for --until-ci (default 30)")
+    p.add_argument("--until-claims", action="store_true",
+                   help="add replicates to the design points of the sweep's undecided claims (tests that are "
+                        "inconclusive for lack of power) until every claim is decided or the cap is reached")
+    p.add_argument("--max-replicates", type=int, default=30,
+                   help="cap of replicates per design point for --until-ci and --until-claims (default 30)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--yes", action="store_true", help=f"run a design of more than {100_000:,} runs")
 
@@ -145,12 +152,16 @@ def cmd_run(args) -> int:
     from sweeps.runner import resume_hint, run_sweep
 
     _check_run_args(args)
-    until = _parse_until_ci(args.until_ci) if args.until_ci else None
+    until = parse_until_ci(args.until_ci) if args.until_ci else None
     config = load_sweep(args.sweep, args.overrides, args.replicates)
     out = args.out or Path("results") / config.name
     args.on_interrupt = lambda: resume_hint(args.sweep, out)
+    if args.until_ci and args.until_claims:
+        raise ConfigError("--until-claims", "give either --until-ci or --until-claims, not both")
     if until:
-        return _run_until_ci(args, config, out, *until)
+        return run_until_ci_command(args, config, out, *until)
+    if args.until_claims:
+        return run_until_claims_command(args, config, out)
     result = run_sweep(config, Path(args.sweep).read_text(encoding="utf-8"), out, args.executor, args.workers,
                        args.scheduler, args.force, args.retry_failed, args.dry_run, not args.no_progress,
                        args.batch_size, yes=args.yes)
@@ -171,57 +182,7 @@ def cmd_run(args) -> int:
     print(f"  table: {out / 'runs.parquet'}")
     if failed:
         print(f"  failures: flocksweep status {out}")
-    return _report_lost(args, result)
-
-
-def _report_lost(args, result) -> int:
-    """Say which runs were left missing because their workers died; exit status 5 if any."""
-    for path in result.quarantined:
-        print(f"  moved aside (unreadable): {path}")
-    if not result.lost:
-        return 0
-    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died (killed, out of "
-          f"memory or crashed) on every attempt; run the same command again to compute them", file=sys.stderr)
-    return INCOMPLETE
-
-
-def _parse_until_ci(text: str) -> tuple[str, float]:
-    from analysis.observables.summary import summary_columns
-
-    metric, _, value = text.partition("=")
-    metric = metric.strip()
-    try:
-        target = float(value)
-    except ValueError:
-        target = float("nan")
-    if not metric or not (0 < target < float("inf")):
-        raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with a finite HALFWIDTH > 0, "
-                                        "e.g. cohesion_mean=0.05")
-    columns = summary_columns(leadership=True)
-    column = metric if metric in columns else f"{metric}_mean"
-    if column not in columns:
-        raise ConfigError("--until-ci", f"unknown metric {metric!r}{suggest(metric, columns)}; expected a summary "
-                                        "column such as cohesion_mean or polarization_final")
-    return column, target
-
-
-def _run_until_ci(args, config, out, metric: str, target: float) -> int:
-    from sweeps.runner import run_until_ci
-
-    if args.max_replicates < config.replicates:
-        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
-    if args.dry_run:
-        raise ConfigError("--until-ci", "cannot be combined with --dry-run (the rounds depend on the results)")
-    print(f"{config.name}: adding replicates until the 95% CI half-width of {metric} <= {target:g} "
-          f"(at most {args.max_replicates} per cell)")
-    result = run_until_ci(config, Path(args.sweep).read_text(), out, metric, target, args.max_replicates,
-                          executor=args.executor, workers=args.workers, scheduler=args.scheduler,
-                          force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
-                          batch_size=args.batch_size, yes=args.yes)
-    table = result.table
-    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
-          f"({int((table['status'] == 'ok').sum())} ok)")
-    return _report_lost(args, result)
+    return report_lost(args, result)
 
 
 def _add_status(sub) -> None:
@@ -254,7 +215,7 @@ def cmd_status(args) -> int:
 
 
 def _add_report(sub) -> None:
-    p = sub.add_parser("report", help="statistics, figures and findings from a results directory",
+    p = sub.add_parser("report", help="statistics, figures and tested claims from a results directory",
                        description="Write a self-contained HTML report, the same as Markdown with figures, "
                                    "and the tables behind it as CSV (default: RESULTS_DIR/report/).")
     p.add_argument("dir", type=Path, help="results directory of a sweep (with runs.parquet)")
@@ -264,7 +225,10 @@ def _add_report(sub) -> None:
     p.add_argument("--by", nargs="+", metavar="FACTOR", help="factors to analyse (default: all swept factors)")
     p.add_argument("--out", type=Path, help="output directory (default RESULTS_DIR/report)")
     p.add_argument("--format", choices=("html", "md", "both"), default="both")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resampling (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the bootstrap resampling and of the claims' power simulations (default 0)")
+    p.add_argument("--claims", nargs="+", type=Path, default=[], metavar="FILE",
+                   help="also test the claims of these claims files (or sweep files), e.g. configs/claims/holland.toml")
 
 
 def cmd_report(args) -> int:
@@ -274,18 +238,16 @@ def cmd_report(args) -> int:
     check_out("--out", args.out)
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     try:
-        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed)
+        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims)
     except (ReportError, FileNotFoundError) as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         return 2
     for kind, path in result["paths"].items():
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'tables'} ({len(result['tables'])} CSV files); {result['seconds']:.1f} s")
-    for name in ("findings", "leadership_findings"):
-        findings = result["tables"].get(name)
-        if findings is not None and len(findings):
-            for key, group in findings.groupby("finding", sort=True):
-                print(f"  {name.replace('_', ' ')[:-1]} ({key}): {group['verdict'].iloc[0]}: {group['claim'].iloc[0]}")
+    claims = result["tables"].get("claims")
+    for row in (claims.itertuples() if claims is not None else ()):
+        print(f"  claim ({row.claim}): {row.verdict}: {row.statement}")
     return 0
 
 

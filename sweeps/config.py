@@ -57,6 +57,15 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 
     [report]                        # free-form settings for `flocksweep report`
 
+    include_claims = ["../claims/holland.toml"]   # (top level) shared claims files, tested by the report
+    [[claims]]                      # a hypothesis about the results (sweeps/claims.py, docs/claims.md)
+    id = "wider-is-aligned"
+    statement = "A wider field of vision gives a more aligned flock."
+    test = "trend"
+    metric = "polarization_mean"
+    factor = "perception.field_deg"
+    direction = "increasing"
+
 Axis keys are preset keys (``perception.*``, ``steering.*``, ``vehicle.*``, ``world.*``,
 ``patterns.*``, ``init.*``, ``run.*``) or ``n`` (= ``init.n``). Values are validated by building every
 run's preset before anything runs (see :mod:`sweeps.design`); every run must record something to
@@ -84,9 +93,11 @@ from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from analysis.observables.summary import MetricSettings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
-                            set_dotted, suggest)
+                            set_dotted)
 
+from .claims import ClaimTable, load_claims, sweep_columns
 from .model_set import flat_changes, model_overrides
+from .points import canonical_axis_key, parse_bounds, parse_points
 from .sensitivity import DesignTable, SensitivityDesign
 
 NAME_MAX = 100
@@ -224,6 +235,9 @@ class SweepFile:
     design: DesignTable | None = None
     points: tuple[dict, ...] = field(default=(), metadata={"expected": "an array of tables: [[points]]"})
     report: dict = field(default_factory=dict)
+    claims: tuple[ClaimTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[claims]]"})
+    include_claims: tuple[Any, ...] = field(default=(), metadata={
+        "expected": 'a list of claims files, e.g. ["../claims/holland.toml"]'})
 
     def __post_init__(self):
         check_name(self.name, "the sweep")
@@ -322,6 +336,7 @@ class SweepConfig:
         """The keys of the sampled block ([sample] or [design]), in bounds order."""
         block = self.sample or self.design
         return [key for key, _, _ in block.bounds] if block else []
+    claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
 
     @property
     def factors(self) -> tuple[str, ...]:
@@ -336,12 +351,6 @@ class SweepConfig:
         m, s = self.metrics, self.storage
         return {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
                 "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
-
-
-def canonical_axis_key(key, where: str) -> str:
-    if not isinstance(key, str) or not key:
-        raise ConfigError(where, f"got {key!r}; expected a dotted preset key such as 'perception.field_deg'")
-    return canonical_key(key)
 
 
 def _axis_points(axis: AxisTable, where: str, n_keys: int) -> list:
@@ -398,50 +407,6 @@ def parse_design(design: DesignTable) -> SensitivityDesign:
                              trajectories=design.trajectories, levels=design.levels)
 
 
-def parse_bounds(bounds, where_table: str) -> tuple[tuple[str, float, float], ...]:
-    """A table of key = [low, high] -> ((canonical key, low, high), ...)."""
-    if not isinstance(bounds, dict) or not bounds:
-        raise ConfigError(where_table, "expected a table of key = [low, high]")
-    out = []
-    for key, pair in bounds.items():
-        where = f"{where_table}.{key}"
-        numbers = isinstance(pair, list) and len(pair) == 2 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pair)
-        if not numbers:
-            raise ConfigError(where, f"got {pair!r}; expected [low, high] (finite numbers)")
-        low, high = map(float, pair)
-        if not low < high:
-            raise ConfigError(where, f"got {pair!r}; low must be < high")
-        out.append((canonical_axis_key(key, where), low, high))
-    return tuple(out)
-
-
-def parse_points(points: tuple[dict, ...], axes: tuple[Axis, ...], keys: list[str]) -> tuple[dict, ...]:
-    """``[[points]]``: each a table giving every swept key once (canonical keys); a labelled axis'
-    value must be one of its values (it takes that value's label)."""
-    out = []
-    for i, point in enumerate(points):
-        where = f"points[{i}]"
-        given = {}
-        for key, value in point.items():
-            canonical = canonical_axis_key(key, where)
-            if canonical not in keys:
-                raise ConfigError(f"{where}.{key}", f"not a swept key{suggest(canonical, keys)}; a point gives a "
-                                                    f"value to each swept key: {', '.join(keys)}")
-            given[canonical] = value
-        missing = [k for k in keys if k not in given]
-        if missing:
-            raise ConfigError(where, f"missing swept key(s) {', '.join(missing)}; a point gives a value to each "
-                                     f"swept key: {', '.join(keys)}")
-        for axis in axes:
-            if axis.labels and tuple(given[k] for k in axis.keys) not in axis.points:
-                raise ConfigError(f"{where}.{axis.keys[0]}", f"got {given[axis.keys[0]]!r}; axis {axis.name!r} is "
-                                                             f"labelled, so a point takes one of its values "
-                                                             f"{[p[0] if len(p) == 1 else list(p) for p in axis.points]}")
-        out.append(given)
-    return tuple(out)
-
-
 def _leadership_on(setting, preset_data: dict, swept: list[str]) -> bool:
     """``leadership_metrics``: true/false as given; "auto" when leadership is swept or switched on."""
     if setting != "auto":
@@ -468,12 +433,13 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
     metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys))
+    claims = load_claims(table.claims, table.include_claims, base, sweep_columns(axes, sample or design, metrics.leadership))
     return SweepConfig(name=table.name, description=table.description, seed=table.seed,
                        replicates=table.replicates, common_random_numbers=table.common_random_numbers,
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
                        report=table.report, source=data, design=design,
-                       points=parse_points(table.points, axes, keys))
+                       points=parse_points(table.points, axes, keys), claims=claims)
 
 
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:

@@ -21,6 +21,9 @@ Failures, each kept apart (docs/errors.md):
 Finished runs are saved on time: at most :data:`FLUSH_SECONDS` after they finish (plus a heartbeat),
 whatever the executor is busy with, and all of them at the end or on an interrupt.
 ``status(out_dir)`` counts done / failed / missing runs and says whether a runner holds the folder.
+``run_until(config, ..., grow, max_replicates)`` adds replicates in rounds where a rule asks for them:
+``run_until_ci`` (``--until-ci``) with :func:`ci_rule`, ``--until-claims`` with the rule of
+:mod:`analysis.reports.claims.until`.
 """
 from __future__ import annotations
 
@@ -42,6 +45,7 @@ from simcore import simulate
 
 from . import worker
 from .budget import check_sweep
+from .claims import with_claims
 from .config import SweepConfig, describe
 from .design import RunSpec, base_preset, expand
 from .executors import Executor, WorkerLost, check_scheduler
@@ -237,7 +241,7 @@ def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "lo
     with store.lock():
         quarantined = store.repair()
         plan = make_plan(specs, store, force, retry_failed)
-        effective = {**config.source, "replicates": config.replicates}
+        effective = with_claims({**config.source, "replicates": config.replicates}, config.claims)
         design = design_table(specs)
         store.write_inputs(sweep_text, effective, model_record(config), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
@@ -318,11 +322,13 @@ def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd
     return out
 
 
-def run_until_ci(config: SweepConfig, sweep_text: str, out_dir, metric: str, target: float,
-                 max_replicates: int, log=print, **run_options) -> SweepResult:
-    """Add replicates only to the design points whose CI half-width of ``metric`` exceeds ``target``,
-    reusing the store (existing replicates are found as done), until every point meets it or has
-    ``max_replicates``. Each round asks a point for n (h / target)^2 replicates (at least one more)."""
+def run_until(config: SweepConfig, sweep_text: str, out_dir, grow, max_replicates: int, log=print,
+              **run_options) -> SweepResult:
+    """Add replicates in rounds to the design points a rule asks for, reusing the store (existing
+    replicates are found as done), until the rule asks for nothing or every point it asks for has
+    ``max_replicates``. ``grow(table, have) -> (wanted, message)``: ``table`` the runs so far, ``have``
+    {point index: replicates}, ``wanted`` {point index: replicates it should have}; each round gives a
+    point min(max_replicates, max(have + 1, wanted)). ``message`` goes into the round's log line."""
     counts: dict[int, int] = {}
     result = None
     check_sweep(dataclasses.replace(config, replicates=max(max_replicates, config.replicates)),
@@ -333,24 +339,40 @@ def run_until_ci(config: SweepConfig, sweep_text: str, out_dir, metric: str, tar
         full = expand(dataclasses.replace(config, replicates=max(want, config.replicates)))
         chosen = [s for s in full if s.replicate < counts.get(s.point_index, config.replicates)]
         result = run_sweep(config, sweep_text, out_dir, specs=chosen, **run_options)
-        if metric not in result.table:
-            raise ValueError(f"--until-ci: metric {metric!r} is not a column of the results")
-        widths = halfwidths(result.table, metric)
-        points = sorted({s.point_index for s in full})
-        grow, capped = {}, 0
-        for point in points:
-            have = counts.get(point, config.replicates)
-            width = widths["halfwidth"].get(point, np.inf)
-            capped += int(width > target and have >= max_replicates)
-            if width > target and have < max_replicates:
-                n = int(widths["n"].get(point, 0))
-                need = math.ceil(n * (width / target) ** 2) if np.isfinite(width) else have + 1
-                grow[point] = min(max_replicates, max(have + 1, need))
-        worst = float(widths["halfwidth"].replace(np.inf, np.nan).max())
-        log(f"  round {round_number}: {len(chosen)} runs; largest {metric} CI half-width {worst:.4g} "
-            f"(target {target:g}); {len(grow)} points get more replicates, {capped} above target at the cap")
-        if not grow:
+        have = {point: counts.get(point, config.replicates) for point in sorted({s.point_index for s in full})}
+        wanted, message = grow(result.table, have)
+        more = {point: min(max_replicates, max(have[point] + 1, int(n))) for point, n in wanted.items()
+                if have.get(point, max_replicates) < max_replicates}
+        capped = sum(1 for point in wanted if have.get(point, max_replicates) >= max_replicates)
+        log(f"  round {round_number}: {len(chosen)} runs; {message}; {len(more)} points get more replicates, "
+            f"{capped} at the cap")
+        if not more:
             break
-        counts.update({p: counts.get(p, config.replicates) for p in points})
-        counts.update(grow)
+        counts.update(have)
+        counts.update(more)
     return result
+
+
+def ci_rule(metric: str, target: float):
+    """The :func:`run_until` rule of ``--until-ci``: a point whose CI half-width of ``metric`` exceeds
+    ``target`` wants n (h / target)^2 replicates (n its replicates with a value, h its half-width)."""
+    def grow(table: pd.DataFrame, have: dict) -> tuple[dict, str]:
+        if metric not in table:
+            raise ValueError(f"--until-ci: metric {metric!r} is not a column of the results")
+        widths = halfwidths(table, metric)
+        wanted = {}
+        for point in have:
+            width = widths["halfwidth"].get(point, np.inf)
+            if width > target:
+                n = int(widths["n"].get(point, 0))
+                wanted[point] = math.ceil(n * (width / target) ** 2) if np.isfinite(width) else have[point] + 1
+        worst = float(widths["halfwidth"].replace(np.inf, np.nan).max())
+        return wanted, f"largest {metric} CI half-width {worst:.4g} (target {target:g})"
+    return grow
+
+
+def run_until_ci(config: SweepConfig, sweep_text: str, out_dir, metric: str, target: float,
+                 max_replicates: int, log=print, **run_options) -> SweepResult:
+    """Add replicates only to the design points whose CI half-width of ``metric`` exceeds ``target``
+    (:func:`run_until` with :func:`ci_rule`), until every point meets it or has ``max_replicates``."""
+    return run_until(config, sweep_text, out_dir, ci_rule(metric, target), max_replicates, log, **run_options)

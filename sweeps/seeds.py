@@ -19,6 +19,8 @@ tag                    entropy                      seeds
 ``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
 ``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
 ``PRIOR``              [seed, 0x9A10]               the prior draws stored in a calibration's posterior.nc
+``CLAIM_POWER``        [seed, 0xC1A1, sha256(test)]  the power simulation of a claim's test (``test`` its
+                                                    path, e.g. "d.faster"; :func:`named_generator`)
 =====================  ===========================  =================================================
 
 Other seeds: a sweep run's seed is :func:`run_seed` (``[sweep seed, sha256(point) words, replicate]``,
@@ -48,6 +50,7 @@ class Tag(IntEnum):
     DESIGN_SAMPLE = 0x5A3D1E
     DESIGN_SENSITIVITY = 0x5E45
     PRIOR = 0x9A10
+    CLAIM_POWER = 0xC1A1
 
 
 @unique
@@ -99,6 +102,12 @@ def common_seeds(seed: int, n: int) -> list[int]:
 def _words(text: str, count: int = 4) -> list[int]:
     digest = hashlib.sha256(text.encode()).digest()
     return [int.from_bytes(digest[4 * k:4 * k + 4], "little") for k in range(count)]
+
+
+def named_generator(seed: int, tag: Tag, name: str) -> np.random.Generator:
+    """The generator of [seed, tag, 4 words of sha256(name)]: one stream per name, so adding a name never
+    shifts another's numbers."""
+    return generator(seed, tag, *_words(name))
 
 
 def run_seed(sweep_seed: int, point: str | None, replicate: int) -> int:

@@ -62,10 +62,11 @@ def components(pos: np.ndarray, radius: float, box: float | None) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------------- metrics
 
-def shape(points: np.ndarray, vel: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
-    """(gyration radius, elongation, aspect_heading) of the selected boids of contiguous points."""
+def shape(points: np.ndarray, vel: np.ndarray, mask: np.ndarray) -> tuple[float, float, float, float]:
+    """(gyration radius, elongation, aspect_heading, elongation_heading) of the selected boids of
+    contiguous points."""
     if not mask.any():
-        return np.nan, np.nan, np.nan
+        return np.nan, np.nan, np.nan, np.nan
     x = points[mask] - points[mask].mean(axis=0)
     gyration = x.T @ x / len(x)
     radius = float(np.sqrt(max(np.trace(gyration), 0.0)))
@@ -76,14 +77,52 @@ def shape(points: np.ndarray, vel: np.ndarray, mask: np.ndarray) -> tuple[float,
     total = heading.sum(axis=0)
     norm = np.linalg.norm(total)
     if not moving.any() or norm <= TINY * moving.sum():
-        return radius, elongation, np.nan
+        return radius, elongation, np.nan, np.nan
     h = total / norm
     extent = np.ptp(x @ h)
     across = np.eye(3) - np.outer(h, h)
-    major = np.linalg.eigh(across @ gyration @ across)[1][:, -1]   # the restricted gyration's major axis
+    values, vectors = np.linalg.eigh(across @ gyration @ across)
+    major = vectors[:, -1]                                          # the restricted gyration's major axis
     width = np.ptp(x @ major)
     aspect = float(extent / width) if width > 0 and width > TINY * extent else np.nan
-    return radius, elongation, aspect
+    along, widest = h @ gyration @ h, values[-1]                    # second moments along h, and across it
+    stretched = float(np.sqrt(along / widest)) if len(x) >= 3 and widest > 0 and widest > TINY * along else np.nan
+    return radius, elongation, aspect, stretched
+
+
+def overtakes(pos: np.ndarray, vel: np.ndarray, radius: float, interval: float, box: float | None = None) -> np.ndarray:
+    """Overtakes per boid per second between consecutive records (R, N, 3): pairs closer than the radius
+    at records r - 1 and r whose order along their group's heading swaps; nan at r = 0."""
+    n_records, n = pos.shape[:2]
+    out = np.full(n_records, np.nan)
+
+    def order(r):
+        """(linked (N, N), signed separation along the group's heading (N, N): (p_i - p_j).h, usable)."""
+        d = offsets(pos[r], box)                       # d[i, j] = p_j - p_i (minimum image)
+        linked = np.linalg.norm(d, axis=-1) < radius
+        np.fill_diagonal(linked, False)
+        labels = components(pos[r], radius, box)
+        heads, moving = units(vel[r])
+        ahead = np.zeros((n, n))
+        usable = np.zeros(n, bool)
+        for g in np.unique(labels):
+            members = labels == g
+            total = heads[members].sum(axis=0)
+            movers = moving[members].sum()
+            if movers and np.linalg.norm(total) > TINY * movers:
+                usable[members] = True
+                h = total / np.linalg.norm(total)
+                ahead[np.ix_(members, members)] = -(d[np.ix_(members, members)] @ h)
+        return linked, ahead, usable
+
+    before = order(0)
+    for r in range(1, n_records):
+        now = order(r)
+        both = before[0] & now[0] & np.outer(before[2] & now[2], before[2] & now[2])
+        swapped = np.sign(before[1]) * np.sign(now[1]) < 0
+        out[r] = np.triu(both & swapped, 1).sum() / n / interval
+        before = now
+    return out
 
 
 def milling(pos: np.ndarray, vel: np.ndarray, box: float | None = None) -> float:

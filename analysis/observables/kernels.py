@@ -9,7 +9,9 @@ document the public behaviour. No fastmath: results are reproducible to the last
 
 The metric table that :func:`frame_kernel` fills has one column per name of :data:`COLUMNS`, in that
 order; the kernel addresses a column as ``Column.<name>`` (an IntEnum generated from ``COLUMNS``), so
-adding a metric is one name here plus the line of the kernel that computes it.
+adding a metric is one name here plus the line of the kernel that computes it. Every column but one
+reads a single record; ``overtake_rate`` compares each record with the one before (the kernel keeps the
+previous record's group headings), so the records must be consecutive and evenly spaced.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ TINY = 1e-12  # relative size below which an eigenvalue, width or summed heading
 # the one declaration of the per-record metrics: the columns of frame_kernel's table, in order
 COLUMNS = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
            "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
-           "visible_mean", "binocular_share", "segregation")
+           "visible_mean", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
 Column = IntEnum("Column", [(name, index) for index, name in enumerate(COLUMNS)])
 
 
@@ -238,14 +240,17 @@ def _quadratic(g, u, v):
 
 @njit(cache=True)
 def shape_frame(points, vel, mask):
-    """(gyration radius, elongation, aspect_heading) of the boids with mask true; points unwrapped.
+    """(gyration radius, elongation, aspect_heading, elongation_heading) of the boids with mask true;
+    points unwrapped.
 
     G = mean x x^T with x = p - centroid, eigenvalues l1 >= l2 >= l3. Gyration radius sqrt(trace G);
     elongation sqrt(l1/l2), nan below 3 boids or when l2 <= TINY l1. Aspect: h = normalised sum of
     unit headings of the moving selected boids; extent = range of x.h; width = range of x.e with e the
     major axis of G restricted to the plane perpendicular to h (the top eigenvector of P G P,
     P = I - h h^T, found in an orthonormal basis of that plane); extent/width, nan when no heading
-    (|sum| <= TINY count) or width <= TINY extent."""
+    (|sum| <= TINY count) or width <= TINY extent. Elongation along the heading: sqrt(h^T G h / m)
+    with m the top eigenvalue of P G P (the largest second moment across h); nan below 3 boids, without
+    a heading, or when m <= TINY h^T G h."""
     n = points.shape[0]
     count = 0
     c = np.zeros(3)
@@ -255,7 +260,7 @@ def shape_frame(points, vel, mask):
             for k in range(3):
                 c[k] += points[i, k]
     if count == 0:
-        return np.nan, np.nan, np.nan
+        return np.nan, np.nan, np.nan, np.nan
     for k in range(3):
         c[k] /= count
     x = np.empty((n, 3))
@@ -283,7 +288,7 @@ def shape_frame(points, vel, mask):
                 total[k] += hv[k]
     norm = np.sqrt(total[0] ** 2 + total[1] ** 2 + total[2] ** 2)
     if moving == 0 or norm <= TINY * moving:
-        return radius, elong, np.nan
+        return radius, elong, np.nan, np.nan
     h = total / norm
     extent = _range_along(x, mask, h)
     # orthonormal basis (a, b) of the plane perpendicular to h, then the major axis of the 2-D
@@ -299,9 +304,11 @@ def shape_frame(points, vel, mask):
     angle = 0.5 * np.arctan2(2.0 * gab, gaa - gbb)
     e = np.cos(angle) * a + np.sin(angle) * b
     width = _range_along(x, mask, e)
-    if width > 0.0 and width > TINY * extent:
-        return radius, elong, extent / width
-    return radius, elong, np.nan
+    aspect = extent / width if width > 0.0 and width > TINY * extent else np.nan
+    along = _quadratic(g, h, h)
+    across = 0.5 * (gaa + gbb) + np.sqrt(0.25 * (gaa - gbb) ** 2 + gab * gab)  # top eigenvalue in the plane
+    elong_heading = np.sqrt(along / across) if count >= 3 and across > 0.0 and across > TINY * along else np.nan
+    return radius, elong, aspect, elong_heading
 
 
 @njit(cache=True)
@@ -316,13 +323,87 @@ def segregation_frame(degree, same, expected):
     return total / count if count > 0 else np.nan
 
 
+@njit(cache=True)
+def group_headings(vel, labels, count, hsum, moving, head, ok):
+    """head[i] = h_g, the normalised sum of the unit headings of the moving boids of i's group g
+    (labels < count); ok[i] false when g has no heading (no boid of g moves, or |sum| <= TINY x
+    movers). Scratch: hsum (N, 3), moving (N,)."""
+    n = vel.shape[0]
+    hv = np.empty(3)
+    for g in range(count):
+        moving[g] = 0
+        for k in range(3):
+            hsum[g, k] = 0.0
+    for i in range(n):
+        if unit(vel[i], hv):
+            g = labels[i]
+            moving[g] += 1
+            for k in range(3):
+                hsum[g, k] += hv[k]
+    for i in range(n):
+        g = labels[i]
+        norm = np.sqrt(hsum[g, 0] ** 2 + hsum[g, 1] ** 2 + hsum[g, 2] ** 2)
+        ok[i] = moving[g] > 0 and norm > TINY * moving[g]
+        for k in range(3):
+            head[i, k] = hsum[g, k] / norm if ok[i] else 0.0
+
+
+@njit(cache=True)
+def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, radius, box):
+    """Pairs linked now (nbr, degree) and at the previous record (closer than ``radius`` in
+    ``p_before``, tested as :func:`graph_frame` links) whose order along their group's heading swapped
+    strictly: (p_i - p_j) . h_g changed sign between the two records (each record with its own
+    positions and heading, minimum-image offsets)."""
+    radius2 = radius * radius
+    swaps = 0
+    for i in range(degree.shape[0]):
+        if not (ok[i] and ok_before[i]):
+            continue
+        h0, h1, h2 = head[i, 0], head[i, 1], head[i, 2]
+        b0, b1, b2 = head_before[i, 0], head_before[i, 1], head_before[i, 2]
+        for a in range(degree[i]):
+            j = nbr[i, a]
+            if j <= i:
+                continue
+            dx = p_before[j, 0] - p_before[i, 0]
+            dy = p_before[j, 1] - p_before[i, 1]
+            dz = p_before[j, 2] - p_before[i, 2]
+            if box > 0.0:
+                dx = fold(dx, box)
+                dy = fold(dy, box)
+                dz = fold(dz, box)
+            if not dx * dx + dy * dy + dz * dz < radius2:
+                continue
+            ex = p_before[i, 0] - p_before[j, 0]
+            ey = p_before[i, 1] - p_before[j, 1]
+            ez = p_before[i, 2] - p_before[j, 2]
+            nx = p[i, 0] - p[j, 0]
+            ny = p[i, 1] - p[j, 1]
+            nz = p[i, 2] - p[j, 2]
+            if box > 0.0:
+                ex = fold(ex, box)
+                ey = fold(ey, box)
+                ez = fold(ez, box)
+                nx = fold(nx, box)
+                ny = fold(ny, box)
+                nz = fold(nz, box)
+            before = ex * b0 + ey * b1 + ez * b2
+            now = nx * h0 + ny * h1 + nz * h2
+            if (before < 0.0 and now > 0.0) or (before > 0.0 and now < 0.0):
+                swaps += 1
+    return swaps
+
+
 # ---------------------------------------------------------------------------------------------------
 # the whole table
 
 
 @njit(cache=True)
-def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, out):
-    """out (R, len(COLUMNS)): every metric of every record, column ``Column.<name>``."""
+def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, interval, out):
+    """out (R, len(COLUMNS)): every metric of every record, column ``Column.<name>``.
+
+    ``overtake_rate`` of record f counts the overtakes between records f - 1 and f per boid per
+    ``interval`` seconds (the time between records); nan at f = 0 and when interval <= 0."""
     n_frames, n = pos.shape[0], pos.shape[1]
     nbr = np.empty((n, n), np.int32)
     queue = np.empty(n, np.int32)
@@ -336,6 +417,12 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
     same = np.empty(n, np.int32)
     everyone = np.ones(n, np.bool_)
     largest = np.empty(n, np.bool_)
+    hsum = np.empty((n, 3))
+    movers = np.empty(n, np.int64)
+    head = np.empty((n, 3))
+    ok = np.empty(n, np.bool_)
+    head_before = np.zeros((n, 3))
+    ok_before = np.zeros(n, np.bool_)
     for f in range(n_frames):
         count = graph_frame(pos[f], pattern, radius, box, nbr, queue, comp, sizes, rank,
                             labels, unwrapped, nn, degree, same)
@@ -354,8 +441,8 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
         out[f, Column.cohesion] = in_largest / n
         out[f, Column.stray_fraction] = strays / n
         out[f, Column.nn_distance] = nn_total / n
-        (out[f, Column.gyration_radius], out[f, Column.elongation],
-         out[f, Column.aspect_heading]) = shape_frame(unwrapped, vel[f], largest)
+        (out[f, Column.gyration_radius], out[f, Column.elongation], out[f, Column.aspect_heading],
+         out[f, Column.elongation_heading]) = shape_frame(unwrapped, vel[f], largest)
         out[f, Column.speed_mean], out[f, Column.speed_cv] = speed_frame(vel[f])
         if have_visible:
             seen = 0.0
@@ -369,3 +456,14 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
             out[f, Column.visible_mean] = np.nan
             out[f, Column.binocular_share] = np.nan
         out[f, Column.segregation] = segregation_frame(degree, same, expected)
+        out[f, Column.overtake_rate] = np.nan
+        if interval > 0.0:
+            group_headings(vel[f], labels, count, hsum, movers, head, ok)
+            if f > 0:
+                swaps = count_overtakes(pos[f], pos[f - 1], nbr, degree, head, ok, head_before, ok_before,
+                                        radius, box)
+                out[f, Column.overtake_rate] = swaps / n / interval
+            for i in range(n):
+                ok_before[i] = ok[i]
+                for k in range(3):
+                    head_before[i, k] = head[i, k]

@@ -7,8 +7,10 @@ Shapes: ``pos``, ``vel`` float64 (..., N, 3); results drop the last two axes, so
   sqrt(8 / (3 pi N)) for N independent headings uniform on the sphere. Stopped boids (|v| = 0) are
   left out of the mean.
 * ``mean_speed(vel)`` = mean_i |v_i|.
-* ``frame_metrics(pos, vel, visible, binocular, pattern, group_radius, box=None)``: every per-record
-  metric of :data:`METRIC_NAMES` at once, as a dict of arrays.
+* ``frame_metrics(pos, vel, visible, binocular, pattern, group_radius, box=None, record_interval=None)``:
+  every per-record metric of :data:`METRIC_NAMES` at once, as a dict of arrays (``overtake_rate``, the
+  one metric of a pair of consecutive records, needs the records' spacing ``record_interval`` in
+  seconds and a single leading axis of records; it is nan otherwise).
 * ``summarize(series, times, warmup=3.0, fragmentation_cohesion=0.5)``: one run's series reduced to
   ``<name>_mean`` (over records at t >= warmup), ``<name>_final``, ``time_to_fragmentation`` and
   ``fragmented``.
@@ -129,15 +131,20 @@ def group_shape(points: np.ndarray, vel: np.ndarray, mask: np.ndarray | None = N
       width = max_i x_i.e - min_i x_i.e. So > 1 for a group drawn out along its
       heading (single file), < 1 for a line abreast. nan when no selected boid moves, the headings
       cancel (|sum| <= 1e-12 x count) or the width is zero (to rounding: width <= 1e-12 extent).
+    * ``elongation_heading`` = sqrt(h^T G h / m), m the top eigenvalue of (I - hh^T) G (I - hh^T): the
+      RMS extent along the heading over the largest RMS extent across it: a second-moment (not a range)
+      version of the aspect, so one straggler at distance d moves it by about d^2 / n, not by d. nan
+      for fewer than 3 boids, without
+      a heading (as the aspect), or when m = 0 (to rounding: m <= 1e-12 h^T G h).
 
     All nan when nothing is selected.
     """
     lead, (p, v) = _frames(points, vel)
     mask = np.ones(p.shape[:2], dtype=bool) if mask is None else \
         np.ascontiguousarray(np.broadcast_to(mask, np.shape(points)[:-1]).reshape(p.shape[:2]))
-    rows = np.array([kernels.shape_frame(p[f], v[f], mask[f]) for f in range(len(p))]).reshape(-1, 3)
+    rows = np.array([kernels.shape_frame(p[f], v[f], mask[f]) for f in range(len(p))]).reshape(-1, 4)
     return {name: rows[:, c].reshape(lead)
-            for c, name in enumerate(("gyration_radius", "elongation", "aspect_heading"))}
+            for c, name in enumerate(("gyration_radius", "elongation", "aspect_heading", "elongation_heading"))}
 
 
 def gyration_radius(points: np.ndarray) -> np.ndarray:
@@ -155,19 +162,37 @@ def aspect_heading(points: np.ndarray, vel: np.ndarray) -> np.ndarray:
     return group_shape(points, vel)["aspect_heading"]
 
 
+def elongation_heading(points: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """RMS extent along the mean heading / largest RMS extent across it (see :func:`group_shape`)."""
+    return group_shape(points, vel)["elongation_heading"]
+
+
+def overtake_rate(pos: np.ndarray, vel: np.ndarray, group_radius: float, record_interval: float,
+                  box: float | None = None) -> np.ndarray:
+    """Overtakes per boid per second between consecutive records of (R, N, 3) positions and
+    velocities, record r counting the swaps since record r - 1 (nan at r = 0). An overtake is a pair
+    closer than ``group_radius`` at both records whose order along its group's mean heading swaps (the
+    heading of the group, a connected component, at each record; see docs/metrics.md)."""
+    if np.ndim(pos) != 3:
+        raise ValueError(f"pos: expected (R, N, 3) consecutive records, got shape {np.shape(pos)}")
+    return frame_metrics(pos, vel, None, None, None, group_radius, box, record_interval)["overtake_rate"]
+
+
 # ---------------------------------------------------------------------------------------------------
 # all metrics of a run
 
 
 def frame_metrics(pos: np.ndarray, vel: np.ndarray, visible: np.ndarray | None, binocular: np.ndarray | None,
-                  pattern: np.ndarray | None, group_radius: float, box: float | None = None
-                  ) -> dict[str, np.ndarray]:
+                  pattern: np.ndarray | None, group_radius: float, box: float | None = None,
+                  record_interval: float | None = None) -> dict[str, np.ndarray]:
     """Every metric of :data:`METRIC_NAMES` for every record, as float64 arrays of shape ``pos.shape[:-2]``.
 
     ``pos``, ``vel`` (R, N, 3) (or (N, 3) for one record, or any leading shape); ``visible``,
     ``binocular`` int (R, N) as recorded (None: ``visible_mean`` and ``binocular_share`` are nan);
     ``pattern`` (N,) (None: one pattern for all); ``group_radius`` links boids closer than it;
-    ``box`` the side of a periodic box (None: open world). Definitions in docs/metrics.md.
+    ``box`` the side of a periodic box (None: open world); ``record_interval`` the seconds between
+    consecutive records of (R, N, 3) input (None, or another leading shape: ``overtake_rate`` is nan).
+    Definitions in docs/metrics.md.
     """
     if np.shape(pos) != np.shape(vel) or np.ndim(pos) < 2 or np.shape(pos)[-1] != 3 or np.shape(pos)[-2] < 1:
         raise ValueError(f"pos and vel: expected equal shapes (..., N, 3), N >= 1, got {np.shape(pos)} "
@@ -182,9 +207,14 @@ def frame_metrics(pos: np.ndarray, vel: np.ndarray, visible: np.ndarray | None, 
     else:
         visible = binocular = np.zeros((n_frames, n))
     codes = pattern_codes(pattern, n)
+    interval = -1.0  # the kernel's "no spacing": overtake_rate nan
+    if record_interval is not None and len(lead) == 1:
+        interval = float(record_interval)
+        if not (np.isfinite(interval) and interval > 0):
+            raise ValueError(f"record_interval: got {record_interval!r}; expected seconds > 0")
     table = np.empty((n_frames, len(kernels.COLUMNS)))
     kernels.frame_kernel(p, v, visible, binocular, have_visible, codes, expected_same_share(codes),
-                         radius, box_arg, table)
+                         radius, box_arg, interval, table)
     return {name: table[:, kernels.COLUMNS.index(name)].reshape(lead) for name in METRIC_NAMES}
 
 

@@ -16,6 +16,7 @@ in that order. ``measure_run(obs, settings)`` gives the row together with the pe
 (plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
 The row is a pure function of the observations and the settings.
 
+``record_interval(obs)`` is the seconds between records (``overtake_rate`` needs it).
 ``check_finite(obs)`` raises :class:`NonFiniteState` when a position or velocity is not finite;
 ``every_nth(obs, k)`` keeps every k-th record (records at the record interval of a run recorded more
 finely, e.g. for stored trajectories). ``default_group_radius(model)``, ``world_box(model)``,
@@ -87,7 +88,7 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if not settings.resolved:
         raise ValueError("metric settings: resolve them for the run's model first (MetricSettings.resolve)")
     series = frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, settings.group_radius,
-                           settings.box)
+                           settings.box, record_interval(obs))
     row = summarize(series, obs.times, settings.warmup, settings.fragmentation_cohesion)
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
@@ -140,7 +141,14 @@ def observation_metrics(obs, model, group_radius: float | None = None) -> dict[s
     """:func:`~analysis.observables.metrics.frame_metrics` of a simulator ``Observations`` with the
     model's perception range (or ``group_radius``) and periodic box."""
     s = MetricSettings(group_radius=group_radius).resolve(model)
-    return frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, s.group_radius, s.box)
+    return frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, s.group_radius, s.box,
+                         record_interval(obs))
+
+
+def record_interval(obs) -> float:
+    """Seconds between an ``Observations``' records: ``record_every`` steps of ``dt`` (computed as that
+    integer times dt, so records picked from a finer recording give the same bits)."""
+    return int(obs.record_every) * float(obs.dt)
 
 
 def observation_leadership(obs, model, group_radius: float | None = None, max_lag: float = 2.0) -> dict[str, float]:

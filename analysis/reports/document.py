@@ -71,7 +71,7 @@ def _rows(df: pd.DataFrame, max_rows: int) -> tuple[list[str], list[list[str]], 
     return [str(c) for c in df.columns], cells, len(df) - len(shown)
 
 
-VERDICTS = ("not supported", "supported", "inconclusive")
+VERDICTS = ("not supported", "supported", "inconclusive", "partly supported")  # "[verdict]" in a Para is styled
 
 
 def _md_inline(text: str) -> str:
@@ -118,7 +118,7 @@ td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px soli
 figure{margin:1em 0 2em}.gallery{display:flex;flex-wrap:wrap;gap:1em}.gallery figure{margin:0;width:32%}
 figcaption{font-size:.9em;color:#555}code{background:#f4f4f4;padding:0 .2em}
 .verdict-supported{color:#0a6b2a;font-weight:600}.verdict-not{color:#a11;font-weight:600}
-.verdict-inconclusive{color:#9a6700;font-weight:600}"""
+.verdict-inconclusive{color:#9a6700;font-weight:600}.verdict-partly{color:#2f6f9f;font-weight:600}"""
 
 
 def to_html(blocks: list, title: str) -> str:
@@ -130,7 +130,8 @@ def to_html(blocks: list, title: str) -> str:
             out.append(f"<h{block.level} id='{anchor}'>{html.escape(block.text)}</h{block.level}>")
         elif isinstance(block, Para):
             text = _html_inline(block.text)
-            for verdict, css in zip(VERDICTS, ("verdict-not", "verdict-supported", "verdict-inconclusive")):
+            for verdict, css in zip(VERDICTS, ("verdict-not", "verdict-supported", "verdict-inconclusive",
+                                               "verdict-partly")):
                 text = text.replace(f"[{verdict}]", f"<span class='{css}'>{verdict}</span>")
             out.append(f"<p>{text}</p>")
         elif isinstance(block, Table):

@@ -1,15 +1,15 @@
 """``flocksweep report``: what does each factor do to the flock? Statistics, figures and findings from a
 sweep's results directory.
 
-``build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed=0)``
-writes into ``out_dir`` (default ``<results_dir>/report``), a folder it owns (:class:`sweeps.owned.OwnedFolder`,
-record ``.flocksweep-report.json``): a rebuild removes the files of the previous build first, and never
+``build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed=0,
+claims_files=())`` writes into ``out_dir`` (default ``<results_dir>/report``), a folder it owns
+(:class:`sweeps.owned.OwnedFolder`, record ``.flocksweep-report.json``): a rebuild removes the files of the previous build first, and never
 a file it did not write; a non-empty folder it did not write is refused (ConfigError at ``--out``)
 before anything is written, except the default folder, whose other files are left alone:
 
 * ``report.html``: self-contained (figures embedded); ``report.md`` with ``figures/*.png`` and ``.svg``;
 * ``tables/*.csv``: every table behind the report (tests, main effects, adjacent comparisons, two-way
-  tests, cell summaries with CI half-widths, findings, showcase checks).
+  tests, cell summaries with CI half-widths, claims and their tests, showcase checks).
 
 The analysis follows the design: grid factors (axes) get the analysis below; the continuous factors
 of a ``[design]`` (Saltelli, Morris) or ``[sample]`` block get the sensitivity analysis of
@@ -24,9 +24,9 @@ comparisons; heatmaps over field x direction of vision (panels per range, rows p
 when swept); time series of chosen cells; 3-D trace thumbnails of the ``[report.showcase]`` runs,
 re-simulated from their seeds (and checked against the table), each with an interactive 3-D viewer page
 (``viewer/<name>.html``, linked from its still; analysis/viewer); replicate adequacy (CI half-width per
-cell); Holland & Semwal's findings when their factors are present; with ``leadership.x`` swept, the
-leadership metrics against X and Hartman & Benes' findings. Factors and metrics are read from the
-results, so any sweep works.
+cell); the sweep's claims, tested (its ``[[claims]]`` and included claims files, plus ``claims_files``:
+verdicts, evidence figures and power, :mod:`analysis.reports.claims`); with ``leadership.x`` swept, the
+leadership metrics against X. Factors and metrics are read from the results, so any sweep works.
 """
 from __future__ import annotations
 
@@ -49,10 +49,12 @@ from sweeps.store import ResultsStore
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .findings import DIRECTION, FIELD, LEAD, findings_table, holland_findings, leadership_findings
 from .labels import METRICS
 from .sensitivity import continuous_design, design_runs
 from .sensitivity_section import sensitivity_section
+from .claims.evaluate import evaluate
+from .claims.load import claims_of
+from .claims.section import claims_section
 from .viewer_pages import viewer_blocks
 
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
@@ -60,6 +62,9 @@ ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fr
            "strays": "stray_fraction", "fragmentation": "time_to_fragmentation"}
 LABELS = METRICS
 RANGE = "perception.range"
+FIELD = "perception.field_deg"
+DIRECTION = "perception.direction_deg"
+LEAD = "leadership.x"
 REPORT_RECORD = ".flocksweep-report.json"   # the files a build wrote (OwnedFolder)
 STALE = ("figures/*.png", "figures/*.svg", "tables/*.csv", "viewer/*.html", "report.md", "report.html")
 
@@ -326,21 +331,18 @@ def _adequacy(ctx: Context) -> None:
     ctx.blocks.append(Table(pd.DataFrame(rows), "CI half-width per metric over cells"))
 
 
-def _findings(ctx: Context) -> None:
-    findings = holland_findings(ctx.results.runs)
-    if not findings:
-        return
-    _save_table(ctx, "findings", findings_table(findings))
-    ctx.blocks.append(Heading("Holland & Semwal's findings, tested"))
-    ctx.blocks.append(Para("Each claim of the paper is stated as a hypothesis and judged from this sweep's "
-                           "runs only. p-values are Holm-adjusted across all tests below; alpha = 0.05."))
-    for f in findings:
-        ctx.blocks.append(Para(f"**({f.key}) {f.claim}** Hypothesis: {f.hypothesis}. Verdict: [{f.verdict}]. "
-                               f"{f.summary}."))
-        if f.facts:
-            facts = ", ".join(f"{k.replace('_', ' ')} = {v:.3g}" if isinstance(v, float) else f"{k.replace('_', ' ')} = {v}"
-                              for k, v in f.facts.items())
-            ctx.blocks.append(Para(f"Also: {facts}."))
+def _claims(ctx: Context, files) -> None:
+    """The sweep's declared claims (and those of ``files``), tested on the ok runs."""
+    claims, columns, skipped = claims_of(ctx.results, files)
+    outcomes = evaluate(claims, ctx.runs, columns.factors, seed=ctx.seed)
+    blocks, tables = claims_section(outcomes, ctx.fig_dir, ctx.seed)
+    for name, table in tables.items():
+        _save_table(ctx, name, table)
+    ctx.blocks += blocks
+    if skipped:
+        ctx.blocks.append(Para("Not tested (the stored results lack what they name; rerun the sweep with "
+                               "`--force` to recompute them): " + "; ".join(f"({i}) {why}" for i, why in skipped)
+                               + "."))
 
 
 LEADERSHIP_METRICS = ("trigger_rate", "leaders_mean", "leader_time_fraction", "follow_corr_max",
@@ -366,22 +368,12 @@ def _leadership(ctx: Context) -> None:
                            "fragmentation."))
     _figure(ctx, "leadership_vs_x",
             lambda p: figures.main_effects_figure(effects, "", p, ncols=5, sharey=False, xlabel="X"),
-            "Leadership metrics against X (mean and 95% CI).")
-    findings = leadership_findings(ctx.results.runs)
-    if findings:
-        table = findings_table(findings)
-        table.insert(0, "family", "leadership")
-        ctx.tables["leadership_findings"] = table
-        table.to_csv(ctx.table_dir / "leadership_findings.csv", index=False)
-        ctx.blocks.append(Heading("Hartman & Benes' findings, tested", 3))
-        ctx.blocks.append(Para("Each claim is judged from this sweep's runs only; p-values Holm-adjusted across "
-                               "the tests below; alpha = 0.05."))
-        for f in findings:
-            ctx.blocks.append(Para(f"**({f.key}) {f.claim}** Hypothesis: {f.hypothesis}. Verdict: [{f.verdict}]. "
-                                   f"{f.summary}."))
+            "Leadership metrics against X (mean and 95% CI). Hartman & Benes' findings are tested as claims "
+            "(configs/claims/hartman_benes.toml) when the sweep includes them.")
 
 
-def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0) -> dict:
+def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0,
+                 claims_files=()) -> dict:
     started = time.perf_counter()
     results = load_results(results_dir)
     if results.ok.empty:
@@ -403,7 +395,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     for folder in (ctx.fig_dir, ctx.table_dir):
         folder.mkdir(parents=True, exist_ok=True)
     _overview(ctx)
-    _findings(ctx)
+    _claims(ctx, claims_files)
     _leadership(ctx)
     if continuous and continuous.keys:
         sensitivity_section(ctx, continuous, _figure, _save_table)

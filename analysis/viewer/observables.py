@@ -59,5 +59,6 @@ def record_metrics(obs, every: int, group_radius: float, model) -> dict:
     """``frame_metrics`` of every ``every``-th record of simulator observations, as a sweep's worker
     computes them (same arrays, radius and box): used to check a re-simulated run's trajectory."""
     pick = slice(None, None, every)
+    interval = int(obs.record_every) * int(every) * float(obs.dt)  # as summary.record_interval of the picks
     return frame_metrics(obs.pos[pick], obs.vel[pick], obs.visible[pick], obs.binocular[pick], obs.pattern,
-                         group_radius, world_box(model))
+                         group_radius, world_box(model), interval)

@@ -170,7 +170,8 @@ def test_the_seed_registry_is_pinned():
     assert {t.name: int(t) for t in Tag} == {"WALKERS": 0, "MOVES": 1, "EVALUATION": 2, "CONFIRM": 3,
                                              "RECHECK": 7, "PREDICTIVE": 0x5050, "SBC": 0x5BC,
                                              "DESIGN_SAMPLE": 0x5A3D1E,
-                                             "DESIGN_SENSITIVITY": 24133, "PRIOR": 39440}
+                                             "DESIGN_SENSITIVITY": 24133, "PRIOR": 39440,
+                                             "CLAIM_POWER": 0xC1A1}
     assert [int(s) for s in SBCStream] == [0, 1, 2, 3, 4] and ECDF_BAND == 0xECDF
 
 

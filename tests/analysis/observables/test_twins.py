@@ -73,10 +73,11 @@ def test_frame_kernel_columns_match_the_twins(seed, box):
     series = frame_metrics(pos, vel, None, None, pattern, radius, box)
     for r in range(len(pos)):
         largest = ref.components(pos[r], radius, box) == 0
-        gyration, elongation, aspect = ref.shape(pos[r], vel[r], largest)
+        gyration, elongation, aspect, stretched = ref.shape(pos[r], vel[r], largest)
         assert close(series["gyration_radius"][r], gyration)
         assert close(series["elongation"][r], elongation)
         assert close(series["aspect_heading"][r], aspect)
+        assert close(series["elongation_heading"][r], stretched)
         assert close(series["cohesion"][r], largest.mean())
         assert close(series["milling"][r], ref.milling(pos[r], vel[r], box))
         assert close(series["segregation"][r], ref.segregation(pos[r], pattern, radius, box))
@@ -121,3 +122,28 @@ def test_hash4_matches_its_integer_twin_exactly():
         expect = ref.hash4(int(key), int(stream), int(step), int(index))
         assert int(hash4(key, stream, step, index)) == expect
         assert uniform01(key, stream, step, index) == ref.uniform01(int(key), int(stream), int(step), int(index))
+
+
+def passing_flock(seed: int, records: int = 12, n: int = 14):
+    """Boids flying roughly +x at their own, wandering speeds, so neighbours pass each other; a few
+    stopped records."""
+    rng = np.random.default_rng(seed)
+    speed = rng.uniform(1.0, 3.0, (1, n)) + rng.normal(0, 0.8, (records, n))
+    vel = np.zeros((records, n, 3))
+    vel[..., 0] = speed
+    vel[..., 1:] = rng.normal(0, 0.4, (records, n, 2))
+    vel[rng.random((records, n)) < 0.04] = 0.0
+    pos = rng.uniform(-4, 4, (1, n, 3)) + np.cumsum(vel, axis=0) * 0.5
+    return pos, vel
+
+
+@pytest.mark.parametrize("seed, box", [(s, b) for s in range(4) for b in (None, 12.0)])
+def test_overtake_rate_matches_its_twin(seed, box):
+    pos, vel = passing_flock(seed)
+    if box is not None:
+        pos = pos % box
+    for radius in (2.5, 5.0):
+        got = frame_metrics(pos, vel, None, None, None, radius, box, record_interval=0.5)["overtake_rate"]
+        want = ref.overtakes(pos, vel, radius, 0.5, box)
+        assert close(got, want), (got, want)
+    assert np.nansum(want) > 0                     # the case does test swaps

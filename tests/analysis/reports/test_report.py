@@ -1,6 +1,7 @@
-"""`flocksweep report`: the report renders on real sweep results with every figure and table, the
-Holland findings reach a verdict from data, and the verdict logic follows the data on synthetic tables;
-`run --until-ci` adds replicates only where the confidence interval is too wide."""
+"""`flocksweep report`: the report renders on real sweep results with every figure and table, declared
+claims (Holland & Semwal's, Hartman & Benes') reach verdicts from data with their evidence; `run
+--until-ci` adds replicates only where the confidence interval is too wide. (The verdict logic on
+synthetic tables is in test_claims_verdicts.py.)"""
 from __future__ import annotations
 
 import re
@@ -11,7 +12,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.reports.findings import holland_findings
 from analysis.reports.report import ReportError, build_report, resolve_metrics
 from sweeps.cli import main
 from sweeps.config import load_sweep, sweep_from_dict
@@ -21,7 +21,8 @@ from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
 PNG = b"\x89PNG\r\n\x1a\n"
-VERDICTS = {"supported", "not supported", "inconclusive"}
+VERDICTS = {"supported", "partly supported", "not supported", "inconclusive"}
+CLAIMS = ROOT / "configs/claims"
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +43,8 @@ def holland_like(tmp_path_factory):
                      {"key": "perception.direction_deg", "values": [20, 90]},
                      {"key": "perception.field_deg", "values": [30, 60, 120, 180]}],
             "report": {"showcase": {"wide": {"mode": "normal", "perception.direction_deg": 90,
-                                             "perception.field_deg": 180}}}}
+                                             "perception.field_deg": 180}}},
+            "include_claims": [str(CLAIMS / "holland.toml")]}
     out = tmp_path_factory.mktemp("holland_like") / "results"
     run_sweep(sweep_from_dict(data, ROOT), "# test sweep\n", out, executor="serial", progress=False)
     return out
@@ -63,14 +65,14 @@ def test_report_renders_every_figure_and_table(smoke_results, tmp_path):
     assert html.count("data:image/png;base64,") == md.count("![")     # every figure embedded in the HTML
     assert not re.search(r"<img[^>]+src='(?!data:)", html)             # and nothing linked from outside
     for name in ("design", "factor_tests", "main_effects", "adjacent_comparisons", "two_way_tests",
-                 "cell_summaries", "findings"):
+                 "cell_summaries", "claims", "claim_tests"):
         table = pd.read_csv(tmp_path / "report" / "tables" / f"{name}.csv")
         assert len(table), name
     tests = pd.read_csv(tmp_path / "report" / "tables" / "factor_tests.csv")
     assert {"H", "p", "epsilon2", "p_holm"} <= set(tests.columns)
     assert set(tests["factor"]) == {"mode", "perception.field_deg"}
-    for section in ("Overview", "Which factor matters", "Heatmaps", "Time series", "Replicate adequacy",
-                    "Holland & Semwal's findings"):
+    for section in ("Overview", "Claims, tested", "Which factor matters", "Heatmaps", "Time series",
+                    "Replicate adequacy"):
         assert section in md and section in unescape(html)
 
 
@@ -85,57 +87,23 @@ def test_report_tables_are_reproducible_from_the_results(smoke_results, tmp_path
 
 
 @pytest.mark.slow
-def test_holland_findings_reach_verdicts_on_a_small_holland_like_sweep(holland_like, tmp_path):
-    findings = holland_findings(load_results(holland_like).runs)
-    assert [f.key for f in findings] == ["a", "b", "c", "d", "e"]
-    for f in findings:
-        assert f.verdict in VERDICTS
-        assert f.tests and all(np.isfinite(t.p_holm) for t in f.tests)
+def test_holland_claims_reach_verdicts_on_a_small_holland_like_sweep(holland_like, tmp_path):
     result = build_report(holland_like, tmp_path / "report")
     checks = pd.read_csv(tmp_path / "report" / "tables" / "showcase_checks.csv")
     assert checks["identical"].all()            # the showcase run re-simulates bit for bit
-    table = result["tables"]["findings"]
-    assert set(table["verdict"]) <= VERDICTS
-
-
-def _synthetic(field_effect: float, seed: int = 0, n_per: int = 20) -> pd.DataFrame:
-    rng = np.random.default_rng(seed)
-    rows = []
-    for field in (30, 60, 90, 120, 150, 180):
-        for direction in (0, 45, 90):
-            for mode in ("normal", "pattern"):
-                for _ in range(n_per):
-                    cohesion = np.clip(0.5 + field_effect * (field - 105) / 150 + rng.normal(0, 0.1), 0, 1)
-                    rows.append({"status": "ok", "mode": mode, "perception.field_deg": float(field),
-                                 "perception.direction_deg": float(direction), "cohesion_mean": cohesion,
-                                 "polarization_mean": cohesion + rng.normal(0, 0.05),
-                                 "fragmented": float(cohesion < 0.5),
-                                 "speed_mean_mean": 5 - field_effect * field / 100 + rng.normal(0, 0.3),
-                                 "aspect_heading_mean": 2 - field_effect * field / 100 + rng.normal(0, 0.3),
-                                 "segregation_mean": (0.1 if mode == "pattern" else 0.0) * field_effect
-                                 + rng.normal(0, 0.02) * (mode == "pattern")})
-    return pd.DataFrame(rows)
-
-
-def test_verdicts_follow_planted_effects():
-    verdicts = {f.key: f.verdict for f in holland_findings(_synthetic(+1.0))}
-    assert verdicts == {"a": "supported", "b": "supported", "c": "inconclusive", "d": "supported",
-                        "e": "supported"}
-    # c: direction has no planted effect at field 60 -> never "supported"
-
-
-def test_verdicts_turn_when_the_effect_is_reversed_or_absent():
-    reversed_ = {f.key: f.verdict for f in holland_findings(_synthetic(-1.0))}
-    assert reversed_["a"] == "not supported" and reversed_["b"] == "not supported"
-    assert reversed_["d"] == "not supported" and reversed_["e"] == "not supported"
-    absent = {f.key: f.verdict for f in holland_findings(_synthetic(0.0, seed=3))}
-    assert absent["a"] != "supported" and absent["b"] != "supported" and absent["d"] != "supported"
-
-
-def test_findings_need_their_factors():
-    table = _synthetic(1.0).drop(columns=["perception.direction_deg"])
-    assert [f.key for f in holland_findings(table)] == ["a", "b", "d", "e"]
-    assert holland_findings(table.drop(columns=["perception.field_deg", "mode"])) == []
+    claims, tests = result["tables"]["claims"], result["tables"]["claim_tests"]
+    assert list(claims["claim"]) == ["a", "b", "c", "d", "e"]
+    assert set(claims["verdict"]) <= VERDICTS and set(tests["verdict"]) <= VERDICTS - {"partly supported"}
+    assert list(tests["test"]) == ["a.cohesion", "a.alignment", "b.cohesion", "b.disperses", "c.cohesion",
+                                   "c.alignment", "d.faster", "d.elongated", "d.leapfrog", "e"]
+    assert np.isfinite(tests["p_holm"]).all() and (tests["p_holm"] >= tests["p"]).all()
+    # (d) is tested where the paper states it: direction of vision <= 20 (half of the 32 runs)
+    assert (tests.loc[tests["claim"] == "d", "n"] == 16).all()
+    assert (tests.loc[tests["claim"] == "c", "n"] == 8).all()        # field 60 only
+    for claim in "abcde":
+        assert (tmp_path / "report" / "figures" / f"claim_{claim}.png").stat().st_size > 5000
+    md = result["paths"]["md"].read_text()
+    assert "(d) Narrow fields of vision" in md and "Tested where `perception.direction_deg <= 20`" in md
 
 
 def test_metric_names_and_aliases_resolve(smoke_results):
@@ -151,7 +119,7 @@ def test_report_cli_end_to_end_and_bad_input(smoke_results, tmp_path, capsys):
     assert main(["report", str(smoke_results), "--out", str(tmp_path / "r"), "--format", "html",
                  "--metrics", "cohesion", "alignment"]) == 0
     out = capsys.readouterr().out
-    assert "report.html" in out and "finding (a)" in out
+    assert "report.html" in out and "claim (wider-is-aligned): " in out
     assert (tmp_path / "r" / "report.html").exists() and not (tmp_path / "r" / "report.md").exists()
     assert main(["report", str(smoke_results), "--by", "perception.feild_deg"]) == 2
     assert "unknown factor" in capsys.readouterr().err
@@ -179,42 +147,14 @@ def test_until_ci_adds_replicates_only_where_needed(tmp_path):
     assert len(again.plan.todo) == 0 and len(again.table) == len(table)
 
 
-def _leadership_table(seed: int = 0, reverse: bool = False) -> pd.DataFrame:
-    rng = np.random.default_rng(seed)
-    rows = []
-    for x in (0.0, 0.5, 1.0, 2.0, 3.0):
-        for _ in range(12):
-            effect = -x if reverse else x
-            rate = 0.0 if x == 0 else max(0.0, 3 * x + rng.normal(0, 0.5))
-            rows.append({"status": "ok", "leadership.x": x, "trigger_rate": rate,
-                         "leaders_mean": rate / 10, "follow_corr_max": np.nan if x == 0 else 0.5 + rng.normal(0, 0.1),
-                         "follow_lag_max": np.nan if x == 0 else 0.3 + abs(rng.normal(0, 0.1)),
-                         "follow_corr_before": np.nan if x == 0 else 0.4 + rng.normal(0, 0.1),
-                         "n_groups_mean": 1 + max(0.0, 2 * effect) + rng.normal(0, 0.3),
-                         "cohesion_mean": float(np.clip(1 - 0.1 * effect + rng.normal(0, 0.03), 0, 1))})
-    return pd.DataFrame(rows)
-
-
-def test_leadership_verdicts_follow_planted_effects():
-    from analysis.reports.findings import leadership_findings
-
-    verdicts = {f.key: f.verdict for f in leadership_findings(_leadership_table())}
-    assert verdicts == {"a": "supported", "b": "supported", "c": "supported", "d": "supported"}
-    reversed_ = {f.key: f.verdict for f in leadership_findings(_leadership_table(reverse=True))}
-    assert reversed_["d"] == "not supported"
-    table = _leadership_table()
-    table.loc[table["leadership.x"] == 0, "trigger_rate"] = 0.2       # a trigger at X = 0
-    assert {f.key: f.verdict for f in leadership_findings(table)}["a"] == "not supported"
-    assert leadership_findings(table.drop(columns=["trigger_rate"])) == []
-
-
 @pytest.fixture(scope="module")
 def leadership_results(tmp_path_factory):
     """A small leadership sweep on the hartman_benes preset: X x 2 replicates, 20 boids, 6 s."""
     data = {"name": "lead", "seed": 3, "replicates": 2,
             "model": {"preset": str(ROOT / "configs/models/hartman_benes.toml")},
             "run": {"n": 20, "duration": 6.0, "record_interval": 0.1, "warmup": 1.0},
-            "axes": [{"key": "leadership.x", "values": [0, 0.5, 2]}]}
+            "axes": [{"key": "leadership.x", "values": [0, 0.5, 2]}],
+            "include_claims": [str(CLAIMS / "hartman_benes.toml")]}
     out = tmp_path_factory.mktemp("lead") / "results"
     run_sweep(sweep_from_dict(data, ROOT), "", out, executor="serial", progress=False)
     return out
@@ -230,12 +170,12 @@ def test_events_increase_with_x_on_a_small_sweep(leadership_results):
 
 
 @pytest.mark.slow
-def test_report_has_a_leadership_section_with_verdicts(leadership_results, tmp_path):
+def test_report_has_a_leadership_section_and_claims(leadership_results, tmp_path):
     result = build_report(leadership_results, tmp_path / "report", formats=("md",))
     md = result["paths"]["md"].read_text()
-    assert "## Change of leadership" in md and "Hartman & Benes' findings, tested" in md
+    assert "## Change of leadership" in md and "## Claims, tested" in md
     assert (tmp_path / "report" / "figures" / "leadership_vs_x.png").stat().st_size > 10_000
-    findings = result["tables"]["leadership_findings"]
-    assert list(findings["finding"].unique()) == ["a", "b", "c", "d"]
-    assert set(findings["verdict"]) <= VERDICTS
-    assert findings.loc[findings["finding"] == "a", "verdict"].iloc[0] == "supported"
+    claims = result["tables"]["claims"].set_index("claim")
+    assert list(claims.index) == ["a", "b", "c", "d"] and set(claims["verdict"]) <= VERDICTS
+    assert claims.loc["a", "verdict"] == "supported"       # X = 0: no trigger, no leader in any run
+    assert claims.loc["b", "verdict"] == "supported"       # events rise with X, even on 6 runs per level
