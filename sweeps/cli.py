@@ -1,7 +1,8 @@
 """The ``flocksweep`` command line. Subcommands parse their arguments here and call library code.
 
     flocksweep simulate MODEL.toml [--set key=value ...] [--seed S] [--n N] [--duration T] [--dt DT]
-                        [--record-every STEPS] [--out DIR] [--plot] [--color-by auto|boid|pattern]
+                        [--record-every STEPS] [--out DIR] [--tracks csv|parquet] [--plot]
+                        [--color-by auto|boid|pattern]
     flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress]
@@ -10,9 +11,12 @@
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
+    flocksweep targets CALIB.toml --from-tracks [TRACKS]
     flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
     flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
                     [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
+    flocksweep measure TRACKS --group-radius R [--columns ROLE=NAME ...] [--units ...] [--body-length M]
+                       [--interval S] [--velocity-interval S] [--out DIR] ... (analysis/reports/measure_command.py)
 
 Exit status: 0 on success, 2 for bad input (a config error names the key, the value and what is allowed),
 3 when another runner holds the results directory.
@@ -47,6 +51,9 @@ def _add_simulate(sub) -> None:
     p.add_argument("--record-every", type=int, default=1, metavar="STEPS",
                    help="record positions and velocities every STEPS steps (default 1: every step)")
     p.add_argument("--out", type=Path, help="write trajectory.npz and params.json (and traces.png) here")
+    p.add_argument("--tracks", choices=("csv", "parquet"),
+                   help="also write the records as long-format tracks (tracks.csv or tracks.parquet, in body "
+                        "lengths, with a tracks.json sidecar) into --out, for flocksweep measure")
     p.add_argument("--plot", action="store_true",
                    help="save a PNG of the 3-D traces (into --out, default results/simulate/NAME-seedS/)")
     p.add_argument("--color-by", choices=("auto", "boid", "pattern"), default="auto",
@@ -67,9 +74,9 @@ def cmd_simulate(args) -> int:
     if args.seed < 0:
         raise ConfigError("--seed", f"got {args.seed}; must be an integer >= 0")
     out = args.out
-    if out is None and args.plot:
+    if out is None and (args.plot or args.tracks):
         out = Path("results") / "simulate" / f"{preset.model.name}-seed{args.seed}"
-    summary, written, obs = run_single(preset, args.seed, out, args.record_every)
+    summary, written, obs = run_single(preset, args.seed, out, args.record_every, args.tracks)
     if args.plot:
         title = (f"{preset.model.name}: N={obs.n}, {obs.times[-1]:g} s, seed {args.seed}, "
                  f"final polarization {summary['final_polarization']:.2f}")
@@ -376,6 +383,19 @@ def cmd_view(args) -> int:
     return run(args)
 
 
+def _add_measure(sub) -> None:
+    from analysis.reports.measure_command import DESCRIPTION, add_arguments
+
+    add_arguments(sub.add_parser("measure", help="flock metrics of measured tracks (tables and a report)",
+                                 description=DESCRIPTION))
+
+
+def cmd_measure(args) -> int:
+    from analysis.reports.measure_command import run
+
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -387,12 +407,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_targets(sub)
     _add_sbc(sub)
     _add_view(sub)
+    _add_measure(sub)
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
             "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
-            "view": cmd_view}
+            "view": cmd_view, "measure": cmd_measure}
 
 
 def main(argv=None) -> int:
