@@ -299,6 +299,30 @@ def _add_targets(sub) -> None:
     p.add_argument("--replicates", type=int, default=1,
                    help="runs to average (default 1: one flock's statistics, as the likelihood assumes)")
     p.add_argument("--sd", help="measurement sd per stat, comma-separated (default: the file's sd)")
+    p.add_argument("--from-tracks", nargs="?", const="", metavar="TRACKS",
+                   help="instead: print the targets measured from tracks (the file's from_tracks, or TRACKS), "
+                        "one row per flock, with the file's [observation] block")
+
+
+def _targets_from_tracks(args) -> int:
+    from analysis.calibration.config import calibration_from_dict
+    from analysis.calibration.tracks_targets import tracks_block
+    from simcore.schema import read_config
+
+    if args.truth:
+        raise ConfigError("--from-tracks", "measured targets take no --truth")
+    path = Path(args.config)
+    data = read_config(path, "calibration file")
+    if args.from_tracks:
+        targets = data.setdefault("targets", {})
+        for key in ("mean", "sd", "cov", "samples"):
+            targets.pop(key, None)
+        targets["from_tracks"] = str(Path(args.from_tracks).resolve())
+    config = calibration_from_dict(data, path.resolve().parent)
+    if config.targets.tracks_path is None:
+        raise ConfigError("--from-tracks", f"{path} has no targets.from_tracks; name the track file: --from-tracks TRACKS")
+    print(tracks_block(config), end="")
+    return 0
 
 
 def cmd_targets(args) -> int:
@@ -308,6 +332,8 @@ def cmd_targets(args) -> int:
     from analysis.calibration.synthetic import synthetic_observation, targets_block
     from simcore.schema import parse_value
 
+    if args.from_tracks is not None:
+        return _targets_from_tracks(args)
     config = load_calibration(args.config)
     truth = {}
     for item in args.truth:

@@ -39,6 +39,13 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     sd = [0.05, 0.05, 0.3]          # ... with their uncertainty (sd > 0), or cov = [[...], ...] (k x k,
                                     # symmetric positive definite); OR instead of mean/sd/cov:
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
+    # from_tracks = "tracks.csv.gz" # OR measured tracks: each flock one sample (aggregate = "mean": their
+                                    # mean and its covariance); [targets.tracks] says how to read them and
+                                    # [observation] how they were measured (analysis/calibration/tracks_targets.py)
+
+    [observation]                   # optional: how the targets were measured; every simulated run is then
+    interval = 0.2                  # measured alike (analysis.observables.observation: velocity_interval,
+                                    # max_gap, detection_probability, position_sd, projection)
 
     [method]
     kind = "emcee"                  # "emcee" | "optimize" | "emulator"
@@ -77,6 +84,7 @@ import pandas as pd
 
 from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
 from analysis.observables.metrics import METRIC_NAMES
+from analysis.observables.observation import Observation
 from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
@@ -86,6 +94,7 @@ from sweeps.config import ModelTable, RunTable, check_name, model_data
 from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
 from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
+from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
 STAT_NAMES = tuple(METRIC_NAMES) + tuple(LEADERSHIP_METRIC_NAMES)
 
@@ -107,6 +116,9 @@ class TargetsTable:
     sd: Any = None
     cov: Any = None
     samples: str | None = None
+    from_tracks: str | None = None
+    aggregate: Literal["samples", "mean"] | None = None
+    tracks: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -123,6 +135,7 @@ class CalibrationFile:
     description: str = ""
     seed: int = 0
     run: RunTable = field(default_factory=RunTable)
+    observation: Observation | None = None
 
     def __post_init__(self):
         check_name(self.name, "the calibration")
@@ -151,6 +164,9 @@ class Targets:
     observed: np.ndarray
     cov: np.ndarray | None
     samples_path: Path | None = None
+    tracks_path: Path | None = None     # from_tracks: the track file, its flocks and their values (m, k)
+    flocks: tuple[str, ...] = ()
+    per_flock: np.ndarray | None = None
 
     @property
     def k(self) -> int:
@@ -171,6 +187,7 @@ class CalibrationConfig:
     targets: Targets | None = field(default=None, compare=False, hash=False)
     method: MethodSettings | None = None
     source: dict = field(default_factory=dict, repr=False, compare=False, hash=False)  # file as given (+ overrides)
+    observation: Observation | None = None   # how the targets were measured; simulated runs are measured alike
 
     @property
     def warmup(self) -> float:
@@ -331,6 +348,9 @@ def _targets(targets: TargetsTable, base: Path) -> Targets:
     stats = _stats(targets)
     k = len(stats)
     columns = tuple(s if s in LEADERSHIP_METRIC_NAMES else f"{s}_{targets.summary}" for s in stats)
+    for key in ("aggregate", "tracks"):
+        if getattr(targets, key) is not None:
+            raise ConfigError(f"targets.{key}", "only with from_tracks = \"tracks file\"")
     has_mean, has_samples = targets.mean is not None, targets.samples is not None
     if has_mean and has_samples:
         raise ConfigError("targets.samples", "give either mean (with sd or cov) or samples, not both")
@@ -398,18 +418,39 @@ def _method(table: dict, base: Path, dim: int, k: int) -> MethodSettings:
 
 # -------------------------------------------------------------------------------------------- public
 
+def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path
+                      ) -> tuple[Targets, MetricSettings]:
+    """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
+    metrics = table.run.metrics(leadership=False)
+    stats = _stats(table.targets)
+    if table.observation is not None:
+        check_observation(table.observation, preset, table.run, stats, table.method.get("kind"))
+    if table.targets.from_tracks is None:
+        targets = _targets(table.targets, base)
+    else:
+        columns = tuple(f"{s}_{table.targets.summary}" for s in stats)
+        metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
+        found = tracks_targets(table.targets, table.observation, metrics.group_radius,
+                               metrics.fragmentation_cohesion, columns, base)
+        targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
+                          observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
+                          samples_path=found.path if found.cov is None else None, tracks_path=found.path,
+                          flocks=found.flocks, per_flock=_readonly(found.per_flock))
+    return targets, metrics
+
+
 def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     """Validated calibration from a parsed TOML dict; ``base`` is the folder relative paths start from."""
     table = build(CalibrationFile, data)
     base = Path(base)
     preset_path, preset_data, preset = _model_and_run(table, base)
     parameters, joint = _parameters(table, preset)
-    targets = _targets(table.targets, base)
+    targets, metrics = _observed_targets(table, preset, parameters, base)
     method = _method(table.method, base, len(parameters), targets.k)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
-                             metrics=table.run.metrics(leadership=False), parameters=parameters, prior=joint,
-                             targets=targets, method=method, source=data)
+                             metrics=metrics, parameters=parameters, prior=joint,
+                             targets=targets, method=method, source=data, observation=table.observation)
 
 
 def load_calibration(path, overrides=()) -> CalibrationConfig:

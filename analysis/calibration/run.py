@@ -68,7 +68,7 @@ def summary_simulator(config: CalibrationConfig, n_sim: int | None = None) -> Su
     n_sim = config.method.n_sim if n_sim is None else n_sim
     m = config.metrics
     return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
-                            m.group_radius, m.fragmentation_cohesion)
+                            m.group_radius, m.fragmentation_cohesion, config.observation)
 
 
 def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):

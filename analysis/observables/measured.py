@@ -30,7 +30,7 @@ import pandas as pd
 
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
-from .resample import RECORDED, resample
+from .resample import MAX_GAP_INTERVALS, RECORDED, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .validation import Issue, TrackError, check_flock, infer_interval
@@ -82,7 +82,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
         except ValueError as err:
             errors.append(Issue("error", "interval", str(err), flock=raw.name))
             continue
-        gap = 2.0 * step if max_gap is None else max_gap
+        gap = MAX_GAP_INTERVALS * step if max_gap is None else max_gap
         raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]

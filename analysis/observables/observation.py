@@ -7,7 +7,7 @@ An :class:`Observation` (the ``[observation]`` table of a calibration file; the 
 * ``velocity_interval`` (s, a whole multiple of ``interval``; default ``interval``): velocities are
   differences of positions over it, or ``"recorded"``: the tracker's own velocities (the simulator's,
   for a simulated run);
-* ``max_gap`` (s, default 2 x ``interval``): gaps up to this long are bridged by linear interpolation;
+* ``max_gap`` (s, default 2.5 x ``interval``): gaps up to this long are bridged by linear interpolation;
 * ``detection_probability`` (default 1): the chance that an individual is detected at a sample;
 * ``position_sd`` (length units, default 0): sd of independent Gaussian noise on each coordinate;
 * ``projection`` ("none", or the plane kept: "xz", "xy", "yz"): a 3-D run seen in 2-D. The simulator's

@@ -10,7 +10,8 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
   time exactly (so regular data keep their own times and values, bit for bit).
 * **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
   interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
-  (default 2 h: one missed sample of a regular track is bridged); else missing (nan).
+  (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up
+  to a quarter interval; two missed samples are not); else missing (nan).
 * **velocities**: ``velocity_interval`` D = m h (m a whole number >= 1; default h, m = 1) differences
   positions over m intervals, v_k = (p_{k+a} - p_{k-b}) / (t_{k+a} - t_{k-b}) with a = ceil(m/2),
   b = floor(m/2): centred for even m, half an interval ahead for odd m. The first b and last a grid
@@ -31,6 +32,7 @@ from .observed import ObservedFlock
 
 SNAP = 1e-6          # grid and sample times closer than SNAP x interval are the same time
 RECORDED = "recorded"
+MAX_GAP_INTERVALS = 2.5  # default max_gap, in sampling intervals
 
 
 def check_interval(interval: float, what: str = "interval") -> float:
@@ -93,7 +95,7 @@ def at_times(t: np.ndarray, values: np.ndarray, grid: np.ndarray, max_gap: float
 def resample(raw, interval: float, max_gap: float | None = None, velocity_interval=None) -> ObservedFlock:
     """The flock on its record grid (see the module docstring)."""
     interval = check_interval(interval)
-    max_gap = 2.0 * interval if max_gap is None else float(max_gap)
+    max_gap = MAX_GAP_INTERVALS * interval if max_gap is None else float(max_gap)
     m = velocity_steps(velocity_interval, interval)
     if m is None and raw.vel is None:
         raise ValueError(f'flock {raw.name!r}: velocity_interval = "recorded" but the tracks have no velocities')

@@ -54,6 +54,8 @@ ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
 REQUIRED = ("id", "t", "x", "y")
 LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None}
+# CSV numbers read back exactly as written (pandas >= 3 does by default and deprecates the option)
+EXACT_FLOATS = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
 
 
 @dataclass(frozen=True)
@@ -130,12 +132,14 @@ def read_sidecar(path) -> dict:
     return data
 
 
-def track_source(path, given: dict, where: str = "") -> TrackSource:
-    """The :class:`TrackSource` of ``path``: the sidecar's settings, overridden by ``given``."""
+def track_source(path, given: dict, where: str = "", cls=None) -> TrackSource:
+    """The :class:`TrackSource` (or subclass ``cls``) of ``path``: the sidecar's settings, overridden by
+    ``given``."""
+    cls = TrackSource if cls is None else cls
     known = {f.name for f in fields(TrackSource)}
     settings = {k: v for k, v in read_sidecar(path).items() if k in known}
     settings.update({k: v for k, v in given.items() if v is not None})
-    return build(TrackSource, settings, where)
+    return build(cls, settings, where)
 
 
 # ------------------------------------------------------------------------------------------- reading
@@ -160,7 +164,7 @@ def read_table(path, fmt: str = "auto") -> pd.DataFrame:
     try:
         if fmt == "parquet":
             return pd.read_parquet(path)
-        return pd.read_csv(path, sep=_delimiter(path), float_precision="round_trip")
+        return pd.read_csv(path, sep=_delimiter(path), **EXACT_FLOATS)
     except Exception as err:  # noqa: BLE001 - an unreadable file is the user's input problem
         raise ConfigError(str(path), f"cannot read it as {fmt}: {err}") from None
 

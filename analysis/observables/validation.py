@@ -16,7 +16,8 @@ The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
   warning listing the samples left out);
 * **gaps**: consecutive samples of an individual more than 1.5 sampling intervals apart. Gaps up to
   ``max_gap`` are bridged by linear interpolation when resampling (a note), longer ones stay missing (a
-  warning); one issue per individual, with the longest gap and its rows.
+  warning); one issue of each kind per flock, counting them and naming the longest gap, its individual
+  and rows.
 
 ``infer_interval(flock)`` is the sampling interval of tracks that do not state it: the median time
 between consecutive samples of an individual, to 9 significant digits. ``issues_table`` lists issues as
@@ -169,13 +170,13 @@ def _gaps(raw, interval: float, max_gap: float) -> list[Issue]:
                                   ("warning", "left missing", gap & (dt > max_gap * (1 + 1e-9)))):
         if not selected.any():
             continue
-        for i in np.unique(raw.ind[later[selected]]):
-            mine = selected & (raw.ind[later] == i)
-            worst = np.flatnonzero(mine)[np.argmax(dt[mine])]
-            k = later[worst]
-            issues.append(Issue(level, "gap", f"{int(mine.sum())} gap(s) {kind} (max_gap {max_gap:g} s); longest "
-                                f"{dt[worst]:.4g} s from t = {raw.t[k - 1]:.6g} s to {raw.t[k]:.6g} s",
-                                flock=raw.name, id=str(raw.ids[i]), rows=raw.source_rows([k - 1, k])))
+        worst = np.flatnonzero(selected)[np.argmax(dt[selected])]
+        k = later[worst]
+        count = int(np.unique(raw.ind[later[selected]]).size)
+        issues.append(Issue(level, "gap", f"{int(selected.sum())} gap(s) of {count} individual(s) {kind} (max_gap "
+                            f"{max_gap:g} s); the longest: {dt[worst]:.4g} s, from t = {raw.t[k - 1]:.6g} s to "
+                            f"{raw.t[k]:.6g} s (its rows)", flock=raw.name, id=str(raw.ids[raw.ind[k]]),
+                            rows=raw.source_rows([k - 1, k])))
     return issues
 
 

@@ -47,7 +47,7 @@ def add_arguments(p) -> None:
                    help="body length in metres: lengths become body lengths (BL), speeds BL/s")
     p.add_argument("--interval", type=float, metavar="S",
                    help="resample onto this sampling interval (default: each flock's median sample spacing)")
-    p.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2 intervals)")
+    p.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2.5 intervals)")
     p.add_argument("--velocity-interval", metavar="S|recorded",
                    help="difference positions over S seconds (a whole number of intervals), or 'recorded' "
                         "(default: recorded when the file has velocities, else one interval)")

@@ -13,7 +13,8 @@ formats=("html", "md")) -> dict`` reads a track file
 * ``measure.json``: the file, units, interval, velocity handling, metric settings, issue counts and the
   provenance stamp;
 * ``figures/metrics_over_time.png`` (every flock, one panel per metric) and ``figures/flock_<name>.png``
-  (one per flock); ``report.md`` and a self-contained ``report.html``.
+  (one per flock, for the first 12 flocks: the time series of all are in ``timeseries.parquet``);
+  ``report.md`` and a self-contained ``report.html``.
 
 When the tracks have errors (:class:`~analysis.observables.validation.TrackError`), ``validation.csv`` is
 written all the same and the error is raised: nothing is measured from tracks that are not right.
@@ -39,6 +40,7 @@ from .figures import timeseries_figure
 
 FIGURE_METRICS = ("polarization", "nn_distance", "speed_mean", "cohesion", "n_groups", "gyration_radius",
                   "elongation", "milling", "tracked")
+FLOCK_FIGURES = 12          # figures of single flocks drawn at most
 TABLE_COLUMNS = ("flock", "status", "individuals", "records", "duration", "tracked_mean", "polarization_mean",
                  "nn_distance_mean", "speed_mean_mean", "speed_cv_mean", "cohesion_mean", "n_groups_mean",
                  "gyration_radius_mean", "elongation_mean", "milling_mean")
@@ -60,7 +62,10 @@ def _figures(measurement: Measurement, folder: OutputFolder, unit: str) -> list:
     path = timeseries_figure(ts, {name: [name] for name in names}, metrics,
                              folder.path("figures/metrics_over_time.png"), title="every flock")
     blocks.append(Figure(path, "The per-record metrics of every flock"))
-    for name in names:
+    if len(names) > FLOCK_FIGURES:
+        blocks.append(Para(f"Figures of single flocks: the first {FLOCK_FIGURES} of {len(names)} (all time series "
+                           "are in `timeseries.parquet`)."))
+    for name in names[:FLOCK_FIGURES]:
         path = timeseries_figure(ts[ts["run_id"] == name], {name: [name]}, metrics,
                                  folder.path(f"figures/flock_{_slug(name)}.png"), title=f"flock {name}")
         blocks.append(Figure(path, f"Flock {name}"))
@@ -120,7 +125,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
                 "dims": table.dims, "length_unit": table.unit_label, "units": dict(source.units),
                 "columns": dict(source.columns), "body_length_m": source.body_length,
                 "interval": interval if interval is not None else "inferred per flock (runs.interval)",
-                "max_gap": max_gap if max_gap is not None else "2 x interval", "velocities": velocities,
+                "max_gap": max_gap if max_gap is not None else "2.5 x interval", "velocities": velocities,
                 "warmup": settings.warmup, "group_radius": settings.group_radius,
                 "fragmentation_cohesion": settings.fragmentation_cohesion, "flocks": int(len(measurement.runs)),
                 "issues": issues["level"].value_counts().to_dict(), "t_origin": table.t_origin}
