@@ -14,7 +14,7 @@ takes a read track file (:func:`~analysis.observables.tracks.load_tracks`) and, 
 
 ``Measurement.runs`` has one row per flock: ``run_id`` (the flock's name), ``flock``, ``status`` ("ok",
 or "failed" with the reason in ``error``: a flock too short for the velocity interval), ``individuals``,
-``records``, ``dims``, ``t_start`` (time of its first sample, in the file's clock), ``duration``,
+``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
 ``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~analysis.observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
@@ -83,6 +83,10 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
             errors.append(Issue("error", "interval", str(err), flock=raw.name))
             continue
         gap = MAX_GAP_INTERVALS * step if max_gap is None else max_gap
+        if gap < step:
+            errors.append(Issue("error", "max_gap", f"max_gap {gap:g} s is below the sampling interval {step:g} s: "
+                                "consecutive samples would not be joined", flock=raw.name))
+            continue
         raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]

@@ -66,8 +66,8 @@ class Observation:
                 velocity_steps(value, self.interval)
             except ValueError as err:
                 raise ConfigError("velocity_interval", str(err).split(": ", 1)[-1]) from None
-        if self.max_gap is not None:
-            check_non_negative("max_gap", self.max_gap)
+        if self.max_gap is not None and not (math.isfinite(self.max_gap) and self.max_gap >= self.interval):
+            raise ConfigError("max_gap", f"got {self.max_gap!r}; must be at least the interval {self.interval!r} s")
         check_within("detection_probability", self.detection_probability, 0.0, 1.0, lo_open=True)
         check_non_negative("position_sd", self.position_sd)
 

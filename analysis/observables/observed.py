@@ -38,7 +38,7 @@ class ObservedFlock:
     present: np.ndarray        # (R, N) bool: position and velocity known
     dims: int = 3
     pattern: np.ndarray | None = None   # (N,) int, each individual's pattern (None: one for all)
-    t_start: float = 0.0       # time of the first record in the source's clock (s)
+    t_start: float = 0.0       # the source clock's time at t = 0 (s)
     visible = None             # not observable: the perception metrics are nan
     binocular = None
 

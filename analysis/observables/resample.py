@@ -5,13 +5,16 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
 
 ``resample(raw, interval, max_gap=None, velocity_interval=None) -> ObservedFlock``:
 
-* **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_0 and t_last
-  the flock's first and last sample time. A grid time within 1e-6 h of a sample time is that sample's
-  time exactly (so regular data keep their own times and values, bit for bit).
+* **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
+  flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
+  the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
+  denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A grid time within 1e-6 h of a sample time
+  is that sample's time exactly (so regular data keep their own times and values, bit for bit).
 * **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
   interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
   (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up
-  to a quarter interval; two missed samples are not); else missing (nan).
+  to a quarter interval; two missed samples are not; ``max_gap`` < h is an error, since then even
+  consecutive samples of jittered tracks would not be joined); else missing (nan).
 * **velocities**: ``velocity_interval`` D = m h (m a whole number >= 1; default h, m = 1) differences
   positions over m intervals, v_k = (p_{k+a} - p_{k-b}) / (t_{k+a} - t_{k-b}) with a = ceil(m/2),
   b = floor(m/2): centred for even m, half an interval ahead for odd m. The first b and last a grid
@@ -19,7 +22,7 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
   own velocities, resampled like the positions (every grid time is a record).
 * an individual is **present** at a record when its position and velocity there are known.
 
-Record times are seconds since the flock's first sample (``t_start`` keeps that sample's time).
+Record times are seconds since the first grid time t_0 (``t_start`` keeps t_0 in the source's clock).
 Position noise sd s on each coordinate gives velocity noise sd s sqrt(2) / D per coordinate, so a short
 ``velocity_interval`` on noisy positions lowers polarization and raises speed statistics
 (docs/measured.md gives the numbers).
@@ -57,12 +60,25 @@ def velocity_steps(velocity_interval, interval: float) -> int | None:
     return m
 
 
+def grid_phase(t: np.ndarray, interval: float) -> float:
+    """Offset in [0, h) of the sampling phase from the first sample time: the circular mean of the sample
+    times modulo h when they cluster (mean resultant length >= 0.5: a regular sampling, also with jittered
+    stamps), else 0 (samples denser than h, or without a common phase)."""
+    angle = 2.0 * np.pi * ((t - t.min()) / interval)
+    x, y = np.cos(angle).mean(), np.sin(angle).mean()
+    if np.hypot(x, y) < 0.5:
+        return 0.0
+    offset = (np.arctan2(y, x) / (2.0 * np.pi)) % 1.0 * interval
+    return 0.0 if offset <= SNAP * interval or offset >= (1 - SNAP) * interval else float(offset)
+
+
 def record_grid(t: np.ndarray, interval: float) -> np.ndarray:
-    """The grid t_0 + k h over the sample times ``t``, snapped to the sample times (module docstring)."""
+    """The grid over the sample times ``t``, in phase with them and snapped to them (module docstring)."""
     times = np.unique(t)
-    count = int(np.floor((times[-1] - times[0]) / interval + SNAP)) + 1
-    grid = times[0] + np.arange(count) * interval
-    j = np.clip(np.searchsorted(times, grid), 1, len(times) - 1) if len(times) > 1 else np.zeros(count, int)
+    start = times[0] + grid_phase(times, interval)
+    count = int(np.floor((times[-1] - start) / interval + SNAP)) + 1
+    grid = start + np.arange(max(count, 1)) * interval
+    j = np.clip(np.searchsorted(times, grid), 1, len(times) - 1) if len(times) > 1 else np.zeros(len(grid), int)
     for candidate in (times[j - 1] if len(times) > 1 else times[j], times[j]):
         close = np.abs(candidate - grid) <= SNAP * interval
         grid = np.where(close, candidate, grid)
@@ -96,6 +112,9 @@ def resample(raw, interval: float, max_gap: float | None = None, velocity_interv
     """The flock on its record grid (see the module docstring)."""
     interval = check_interval(interval)
     max_gap = MAX_GAP_INTERVALS * interval if max_gap is None else float(max_gap)
+    if not max_gap >= interval:
+        raise ValueError(f"max_gap: got {max_gap!r}; must be at least the sampling interval {interval!r} s (consecutive "
+                         f"samples are that far apart; default {MAX_GAP_INTERVALS:g} intervals)")
     m = velocity_steps(velocity_interval, interval)
     if m is None and raw.vel is None:
         raise ValueError(f'flock {raw.name!r}: velocity_interval = "recorded" but the tracks have no velocities')

@@ -4,6 +4,7 @@
                        [--units length=m|cm|mm|km|bl time=s|ms|min|h|datetime] [--body-length METRES]
                        [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
                        [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
+                       [--no-figures]
 
 Lengths given here (group radius, max speed) are in the analysis units: body lengths with
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
@@ -59,6 +60,7 @@ def add_arguments(p) -> None:
     p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
                    help="samples reached at an impossible speed: stop (default), keep them, or drop them")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
+    p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
 
 
 def _pairs(items, flag: str, bare: str | None = None) -> dict:
@@ -102,7 +104,7 @@ def run(args) -> int:
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
-                                _velocity_interval(args.velocity_interval))
+                                _velocity_interval(args.velocity_interval), figures=not args.no_figures)
     except TrackError as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         print(f"  (every problem is listed in {out / 'validation.csv'})", file=sys.stderr)

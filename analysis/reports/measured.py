@@ -1,7 +1,7 @@
 """``flocksweep measure``: measured tracks -> the tidy tables of a sweep and a short report.
 
 ``measure_folder(path, source, settings, out_dir, interval=None, max_gap=None, velocity_interval="auto",
-formats=("html", "md")) -> dict`` reads a track file
+formats=("html", "md"), figures=True) -> dict`` reads a track file
 (:func:`analysis.observables.tracks.load_tracks`), measures every flock
 (:func:`analysis.observables.measured.measure_tracks`) and writes into ``out_dir``, an
 :class:`sweeps.store.OutputFolder` (locked while it writes, every file atomic):
@@ -14,7 +14,8 @@ formats=("html", "md")) -> dict`` reads a track file
   provenance stamp;
 * ``figures/metrics_over_time.png`` (every flock, one panel per metric) and ``figures/flock_<name>.png``
   (one per flock, for the first 12 flocks: the time series of all are in ``timeseries.parquet``);
-  ``report.md`` and a self-contained ``report.html``.
+  ``report.md`` and a self-contained ``report.html``. ``figures=False`` leaves the figures out (large
+  data sets: matplotlib takes seconds per figure).
 
 When the tracks have errors (:class:`~analysis.observables.validation.TrackError`), ``validation.csv`` is
 written all the same and the error is raised: nothing is measured from tracks that are not right.
@@ -36,8 +37,10 @@ from sweeps.files import write_parquet
 from sweeps.store import OutputFolder
 
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .figures import timeseries_figure
+from .plotting import pyplot, save
 
+UNITS = {"nn_distance": "L", "gyration_radius": "L", "speed_mean": "L/s", "n_groups": "count",
+         "tracked": "count"}   # L: the analysis length unit
 FIGURE_METRICS = ("polarization", "nn_distance", "speed_mean", "cohesion", "n_groups", "gyration_radius",
                   "elongation", "milling", "tracked")
 FLOCK_FIGURES = 12          # figures of single flocks drawn at most
@@ -50,6 +53,35 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_") or "flock"
 
 
+def series_figure(ts: pd.DataFrame, names: list, metrics: list, path, unit: str, title: str = "") -> Path:
+    """One panel per metric, one line per flock (plain subplots: cheaper than a constrained layout)."""
+    plt = pyplot()
+    ncols = 3
+    nrows = -(-len(metrics) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 2.5 * nrows + 0.8), sharex=True, squeeze=False)
+    colours = plt.get_cmap("tab10" if len(names) <= 10 else "turbo")
+    for k, name in enumerate(names):
+        flock = ts[ts["run_id"] == name]
+        colour = colours(k) if len(names) <= 10 else colours(k / max(len(names) - 1, 1))
+        for ax, metric in zip(axes.flat, metrics):
+            ax.plot(flock["t"], flock[metric], color=colour, linewidth=1.1, label=str(name))
+    for ax, metric in zip(axes.flat, metrics):
+        ax.set_title(f"{metric} ({UNITS.get(metric, '1').replace('L', unit)})", fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3, linewidth=0.5)
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)", fontsize=8)
+    for ax in axes.flat[len(metrics):]:
+        ax.set_visible(False)
+    if len(names) <= 12:
+        handles, labels = axes.flat[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="lower center", ncols=min(len(names), 6), fontsize=7, frameon=False)
+    fig.suptitle(title, fontsize=10)
+    fig.subplots_adjust(left=0.07, right=0.98, top=0.92 - 0.02 * (nrows < 3), bottom=0.15 if len(names) <= 12 else 0.08,
+                        hspace=0.35, wspace=0.25)
+    return save(fig, path, tight=False)
+
+
 def _figures(measurement: Measurement, folder: OutputFolder, unit: str) -> list:
     ts = measurement.timeseries
     if ts.empty:
@@ -59,15 +91,14 @@ def _figures(measurement: Measurement, folder: OutputFolder, unit: str) -> list:
     blocks = [Heading("Metrics over time"),
               Para(f"Lengths in {unit}, speeds in {unit}/s, t in seconds since each flock's first sample. "
                    "`tracked` is the number of individuals with a known position and velocity.")]
-    path = timeseries_figure(ts, {name: [name] for name in names}, metrics,
-                             folder.path("figures/metrics_over_time.png"), title="every flock")
+    path = series_figure(ts, names, metrics, folder.path("figures/metrics_over_time.png"), unit, "every flock")
     blocks.append(Figure(path, "The per-record metrics of every flock"))
     if len(names) > FLOCK_FIGURES:
         blocks.append(Para(f"Figures of single flocks: the first {FLOCK_FIGURES} of {len(names)} (all time series "
                            "are in `timeseries.parquet`)."))
     for name in names[:FLOCK_FIGURES]:
-        path = timeseries_figure(ts[ts["run_id"] == name], {name: [name]}, metrics,
-                                 folder.path(f"figures/flock_{_slug(name)}.png"), title=f"flock {name}")
+        path = series_figure(ts, [name], metrics, folder.path(f"figures/flock_{_slug(name)}.png"), unit,
+                             f"flock {name}")
         blocks.append(Figure(path, f"Flock {name}"))
     return blocks
 
@@ -101,7 +132,8 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
 
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,
-                   max_gap: float | None = None, velocity_interval="auto", formats=("html", "md")) -> dict:
+                   max_gap: float | None = None, velocity_interval="auto", formats=("html", "md"),
+                   figures: bool = True) -> dict:
     """Measure the track file at ``path`` and write the folder (see the module docstring); ``velocity_interval``
     "auto" uses the tracks' velocities when they have them, else one sampling interval."""
     started = time.perf_counter()
@@ -132,7 +164,8 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         folder.write_json("measure.json", {**info, **folder.provenance()})
         for stale in folder.path("figures").glob("*.png") if folder.path("figures").is_dir() else []:
             stale.unlink()
-        blocks = _report(measurement, settings, info, issues, _figures(measurement, folder, table.unit_label))
+        drawn = _figures(measurement, folder, table.unit_label) if figures else []
+        blocks = _report(measurement, settings, info, issues, drawn)
         written = {}
         if "md" in formats:
             written["md"] = folder.write_text("report.md", to_markdown(blocks, folder.root))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.observables.measured import track_settings
+from analysis.observables.metrics import frame_metrics
 from analysis.observables.observation import Observation, detect, observe_run, predicted_velocity_sd
 from analysis.observables.resample import resample
 from analysis.observables.summary import measure_run, summarize_run
@@ -41,6 +42,8 @@ def test_observation_block_is_validated_with_key_names():
         Observation(interval=0.2, detection_probability=0.0)
     with pytest.raises(ConfigError, match="position_sd"):
         Observation(interval=0.2, position_sd=-0.1)
+    with pytest.raises(ConfigError, match="max_gap: got 0.1; must be at least the interval 0.2"):
+        Observation(interval=0.2, max_gap=0.1)
     with pytest.raises(ConfigError, match="interval: got 0.21; must be a whole multiple of the run's dt"):
         Observation(interval=0.21).record_every(1 / 60)
     assert Observation(interval=0.2).record_every(1 / 60) == 12
@@ -143,25 +146,28 @@ def test_noisy_gappy_tracks_measure_as_the_observation_model_predicts():
 def test_jittered_time_stamps_move_positions_by_at_most_the_interpolation_bound():
     obs = _flock_run(duration=6.0, n=12)
     rng = np.random.default_rng(7)
-    raw = _sample_at(obs, 12, rng, 2, 1.0, 0.0)                      # 0.2 s samples, +-2 steps, no noise
-    flock = resample(raw, 0.2, max_gap=0.5, velocity_interval=0.2)
-    truth = resample(_sample_at(obs, 12, rng, 0, 1.0, 0.0), 0.2, velocity_interval=0.2)
-    common = min(len(flock.times), len(truth.times))
-    assert np.allclose(flock.times[:common] + flock.t_start, truth.times[:common] + truth.t_start)
+    flock = resample(_sample_at(obs, 12, rng, 2, 1.0, 0.0), 0.2, max_gap=0.5, velocity_interval=0.2)
+    # records at the nominal times 2/60 + 0.2 k (up to the phase estimate's error, well below a step)
+    assert abs(flock.t_start - 2 / 60) < 0.1 / 60 and np.allclose(np.diff(flock.times), 0.2)
+    grid = flock.times + flock.t_start
+    # the true positions there, from the run's every-step records (error <= A dt^2 / 8, negligible)
+    steps = grid / obs.dt
+    low = np.floor(steps).astype(int)
+    w = (steps - low)[:, None, None]
+    truth = obs.pos[low] * (1 - w) + obs.pos[low + 1] * w
     # linear interpolation between samples g apart misses a path with |acceleration| <= A by <= A g^2 / 8
-    accel = np.abs(np.diff(obs.vel, axis=0)).max() / obs.dt * math.sqrt(3)
+    accel = np.linalg.norm(np.diff(obs.vel, axis=0), axis=2).max() / obs.dt
     g = 0.2 + 4 / 60
-    bound = accel * g * g / 8
-    both = flock.present[:common] & truth.present[:common]
-    assert both[1:-1].all()                           # only the ends can miss a jittered sample
-    error = np.linalg.norm(flock.pos[:common] - truth.pos[:common], axis=2)[both].max()
+    bound = accel * (g * g + obs.dt * obs.dt) / 8
+    inner = slice(1, len(grid) - 1)
+    assert flock.present[inner].all()                 # only the ends can miss a jittered sample
+    error = np.linalg.norm(flock.pos[inner] - truth[inner], axis=2).max()
     assert 0 < error <= bound
-    a = measure_run(flock, track_settings(20.0)).series
-    b = measure_run(truth, track_settings(20.0)).series
+    a = frame_metrics(flock.pos[inner], flock.vel[inner], None, None, None, 20.0)
+    b = frame_metrics(truth[inner], flock.vel[inner], None, None, None, 20.0)
     # each distance moves by at most 2 x the position error, so do the nearest neighbours and the size
-    inner = slice(1, common - 1)
-    assert np.all(np.abs(a["nn_distance"][inner] - b["nn_distance"][inner]) <= 2 * error + 1e-12)
-    assert np.all(np.abs(a["gyration_radius"][inner] - b["gyration_radius"][inner]) <= 2 * error + 1e-12)
+    assert np.all(np.abs(a["nn_distance"] - b["nn_distance"]) <= 2 * error + 1e-12)
+    assert np.all(np.abs(a["gyration_radius"] - b["gyration_radius"]) <= 2 * error + 1e-12)
 
 
 def test_detect_keeps_every_sample_of_a_perfect_tracker():

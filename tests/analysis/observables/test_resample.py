@@ -128,3 +128,19 @@ def test_everyone_present_is_exactly_frame_metrics_and_measure_run_adds_tracked(
     assert run.row["tracked_mean"] == 9.0
     with pytest.raises(ValueError, match="leadership"):
         measure_run(flock, MetricSettings(group_radius=5.0, leadership=True, escape_duration=1.0))
+
+
+def test_grid_follows_the_phase_of_jittered_sampling_and_starts_at_the_first_sample_otherwise():
+    rng = np.random.default_rng(2)
+    nominal = 10.05 + np.arange(40) * 0.2
+    jittered = np.sort(np.concatenate([nominal + rng.choice([-0.01, 0.0, 0.01], 40) for _ in range(5)]))
+    grid = record_grid(jittered, 0.2)
+    assert np.abs(grid - nominal[:len(grid)]).max() < 0.003 and len(grid) >= 39
+    dense = np.arange(50) * 0.1 + 3.0                  # samples twice as dense as the grid: no common phase
+    assert np.array_equal(record_grid(dense, 0.2)[:3], dense[[0, 2, 4]])
+
+
+def test_max_gap_below_the_interval_is_refused():
+    raw = raw_from([np.arange(5) * 0.1], curve)
+    with pytest.raises(ValueError, match="max_gap: got 0.05; must be at least the sampling interval"):
+        resample(raw, 0.1, max_gap=0.05)
