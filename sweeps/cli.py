@@ -289,9 +289,10 @@ def cmd_calibrate(args) -> int:
 
 
 def _add_targets(sub) -> None:
-    p = sub.add_parser("targets", help="simulate a calibration's target statistics at known parameters",
+    p = sub.add_parser("targets", help="a calibration's targets: simulated at known parameters, or from tracks",
                        description="For parameter-recovery studies: run the calibration's model at the given "
-                                   "truth and print a [targets] block to paste into the calibration file.")
+                                   "truth and print a [targets] block to paste into the calibration file. "
+                                   "With --from-tracks: the targets measured from tracks, one row per flock.")
     p.add_argument("config", help="calibration TOML")
     p.add_argument("--truth", action="append", default=[], metavar="NAME=VALUE",
                    help="value of a free parameter (repeat for each), e.g. --truth field=150")
