@@ -306,23 +306,11 @@ def _add_targets(sub) -> None:
 
 
 def _targets_from_tracks(args) -> int:
-    from analysis.calibration.config import calibration_from_dict
-    from analysis.calibration.tracks_targets import tracks_block
-    from simcore.schema import read_config
+    from analysis.calibration.synthetic import measured_targets_block
 
     if args.truth:
         raise ConfigError("--from-tracks", "measured targets take no --truth")
-    path = Path(args.config)
-    data = read_config(path, "calibration file")
-    if args.from_tracks:
-        targets = data.setdefault("targets", {})
-        for key in ("mean", "sd", "cov", "samples"):
-            targets.pop(key, None)
-        targets["from_tracks"] = str(Path(args.from_tracks).resolve())
-    config = calibration_from_dict(data, path.resolve().parent)
-    if config.targets.tracks_path is None:
-        raise ConfigError("--from-tracks", f"{path} has no targets.from_tracks; name the track file: --from-tracks TRACKS")
-    print(tracks_block(config), end="")
+    print(measured_targets_block(args.config, args.from_tracks or None), end="")
     return 0
 
 

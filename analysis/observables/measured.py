@@ -1,6 +1,7 @@
 """Measured tracks -> the tables of a sweep: one row per flock, one time series per flock.
 
-``measure_tracks(table, settings, interval=None, max_gap=None, velocity_interval=None) -> Measurement``
+``measure_tracks(table, settings, interval=None, max_gap=None, velocity_interval=None, progress=False)
+-> Measurement``
 takes a read track file (:func:`~analysis.observables.tracks.load_tracks`) and, flock by flock:
 
 1. checks it (:func:`~analysis.observables.validation.check_flock`: duplicates, impossible speeds,
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
@@ -71,8 +73,9 @@ def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings) ->
 
 
 def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float | None = None,
-                   max_gap: float | None = None, velocity_interval=None) -> Measurement:
-    """Check, resample and measure every flock of ``table`` (see the module docstring)."""
+                   max_gap: float | None = None, velocity_interval=None, progress: bool = False) -> Measurement:
+    """Check, resample and measure every flock of ``table`` (see the module docstring); ``progress`` shows a
+    progress bar over the flocks."""
     raws, issues = raw_flocks(table)
     issues = list(table.issues) + issues
     checked, errors = [], []
@@ -94,7 +97,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
     if errors:
         raise TrackError(errors, table.path, table.line_offset)
     rows, frames, flocks = [], [], []
-    for raw, step, gap in checked:
+    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress or len(checked) < 2):
         velocity = step if velocity_interval is None else velocity_interval
         row = _row(raw.name, "ok", "", table, step, velocity)
         try:

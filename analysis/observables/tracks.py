@@ -2,17 +2,14 @@
 
 A track file (CSV, also gzipped, or Parquet) has one row per detection of one individual at one time:
 
-=========  =============================================================================  ==========
-role       meaning                                                                        required
-=========  =============================================================================  ==========
-``flock``  flock / event id (absent: the whole file is one flock, named after the file)    no
-``id``     individual id (numbers sort numerically, anything else as text)               yes
-``t``      time, in ``units.time`` (s, ms, min, h; or ``datetime``: timestamps)          yes
-``x, y``   position, in ``units.length`` (m, cm, mm, km; or ``bl``: body lengths)        yes
-``z``      third coordinate (absent: 2-D tracks, marked as such, z = 0)                    no
-``vx, vy, vz``  velocities, the same units per time unit (all of them or none)           no
-``pattern``  an integer label per individual (e.g. a pattern or class), constant over time  no
-=========  =============================================================================  ==========
+* ``flock``: flock / event id (optional; without it the whole file is one flock, named after the file);
+* ``id``: individual id (numbers sort numerically, anything else as text);
+* ``t``: time, in ``units.time`` (s, ms, min, h; or ``datetime``: timestamps);
+* ``x``, ``y``: position, in ``units.length`` (m, cm, mm, km; or ``bl``: body lengths);
+* ``z``: third coordinate (optional; without it the tracks are 2-D, marked as such, with z = 0);
+* ``vx``, ``vy``, ``vz``: velocities in the same units per time unit (per second with timestamps), all of
+  them or none (optional);
+* ``pattern``: an integer label per individual, constant over time (optional).
 
 A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
 cells are missed detections (reported, then left out); any other bad cell stops the reading with the row
@@ -154,13 +151,19 @@ def _delimiter(path: Path) -> str:
     return r"\s+"
 
 
+def file_format(path, fmt: str = "auto") -> str:
+    """"parquet" or "csv": ``fmt``, or with "auto" Parquet for .parquet/.pq files and CSV otherwise."""
+    if fmt != "auto":
+        return fmt
+    return "parquet" if Path(path).suffix in (".parquet", ".pq") else "csv"
+
+
 def read_table(path, fmt: str = "auto") -> pd.DataFrame:
-    """The raw table of a track file (format "auto": Parquet for .parquet/.pq, CSV otherwise)."""
+    """The raw table of a track file (see :func:`file_format`)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(str(path), "no such track file")
-    if fmt == "auto":
-        fmt = "parquet" if path.suffix in (".parquet", ".pq") else "csv"
+    fmt = file_format(path, fmt)
     try:
         if fmt == "parquet":
             return pd.read_parquet(path)
@@ -247,10 +250,11 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
     out = {"row": np.arange(1, len(frame) + 1)}
     flock_name = path.name.split(".")[0]
     out["flock"] = frame[roles["flock"]].astype(str).to_numpy() if "flock" in roles else np.full(len(frame), flock_name)
+    for role in ("flock", "id"):
+        if role in roles and frame[roles[role]].isna().any():
+            errors.append(Issue("error", "bad value", f"{role}: missing",
+                                rows=tuple(np.flatnonzero(frame[roles[role]].isna()) + 1), column=roles[role]))
     ids = frame[roles["id"]]
-    if ids.isna().any():
-        errors.append(Issue("error", "bad value", "id: missing", rows=tuple(np.flatnonzero(ids.isna()) + 1),
-                            column=roles["id"]))
     out["id"] = ids.to_numpy()
     out["t"], origin = _times(frame, roles["t"], source.time_unit, errors)
     scale = LENGTH_UNITS[source.length_unit] or 1.0
@@ -270,13 +274,13 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
             errors.append(Issue("error", "bad value", "pattern: not an integer", column=roles["pattern"],
                                 rows=tuple(np.flatnonzero(pattern != np.round(pattern)) + 1)))
         out["pattern"] = pattern
+    line_offset = None if file_format(path, source.format) == "parquet" else 1
     if errors:
-        raise TrackError(errors, path, line_offset=None if path.suffix in (".parquet", ".pq") else 1)
+        raise TrackError(errors, path, line_offset)
     table = pd.DataFrame(out)
     return _drop_undetected(TrackTable(frame=table, path=path, source=source, dims=3 if "z" in roles else 2,
                                        has_velocity="vx" in roles, has_pattern="pattern" in roles,
-                                       line_offset=None if path.suffix in (".parquet", ".pq") else 1,
-                                       t_origin=origin))
+                                       line_offset=line_offset, t_origin=origin))
 
 
 def _drop_undetected(table: TrackTable) -> TrackTable:

@@ -4,7 +4,7 @@
                        [--units length=m|cm|mm|km|bl time=s|ms|min|h|datetime] [--body-length METRES]
                        [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
                        [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
-                       [--no-figures]
+                       [--no-figures] [--no-progress]
 
 Lengths given here (group radius, max speed) are in the analysis units: body lengths with
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
@@ -61,6 +61,7 @@ def add_arguments(p) -> None:
                    help="samples reached at an impossible speed: stop (default), keep them, or drop them")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
     p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def _pairs(items, flag: str, bare: str | None = None) -> dict:
@@ -104,7 +105,8 @@ def run(args) -> int:
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
-                                _velocity_interval(args.velocity_interval), figures=not args.no_figures)
+                                _velocity_interval(args.velocity_interval), figures=not args.no_figures,
+                                progress=not args.no_progress)
     except TrackError as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         print(f"  (every problem is listed in {out / 'validation.csv'})", file=sys.stderr)

@@ -1,7 +1,7 @@
 """``flocksweep measure``: measured tracks -> the tidy tables of a sweep and a short report.
 
 ``measure_folder(path, source, settings, out_dir, interval=None, max_gap=None, velocity_interval="auto",
-formats=("html", "md"), figures=True) -> dict`` reads a track file
+formats=("html", "md"), figures=True, progress=False) -> dict`` reads a track file
 (:func:`analysis.observables.tracks.load_tracks`), measures every flock
 (:func:`analysis.observables.measured.measure_tracks`) and writes into ``out_dir``, an
 :class:`sweeps.store.OutputFolder` (locked while it writes, every file atomic):
@@ -15,7 +15,7 @@ formats=("html", "md"), figures=True) -> dict`` reads a track file
 * ``figures/metrics_over_time.png`` (every flock, one panel per metric) and ``figures/flock_<name>.png``
   (one per flock, for the first 12 flocks: the time series of all are in ``timeseries.parquet``);
   ``report.md`` and a self-contained ``report.html``. ``figures=False`` leaves the figures out (large
-  data sets: matplotlib takes seconds per figure).
+  data sets: matplotlib takes seconds per figure); ``progress`` shows progress bars (flocks, figures).
 
 When the tracks have errors (:class:`~analysis.observables.validation.TrackError`), ``validation.csv`` is
 written all the same and the error is raised: nothing is measured from tracks that are not right.
@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
+from tqdm import tqdm
 
 from analysis.observables.measured import Measurement, measure_tracks, velocity_label
 from analysis.observables.resample import RECORDED
@@ -82,7 +83,7 @@ def series_figure(ts: pd.DataFrame, names: list, metrics: list, path, unit: str,
     return save(fig, path, tight=False)
 
 
-def _figures(measurement: Measurement, folder: OutputFolder, unit: str) -> list:
+def _figures(measurement: Measurement, folder: OutputFolder, unit: str, progress: bool) -> list:
     ts = measurement.timeseries
     if ts.empty:
         return []
@@ -96,7 +97,7 @@ def _figures(measurement: Measurement, folder: OutputFolder, unit: str) -> list:
     if len(names) > FLOCK_FIGURES:
         blocks.append(Para(f"Figures of single flocks: the first {FLOCK_FIGURES} of {len(names)} (all time series "
                            "are in `timeseries.parquet`)."))
-    for name in names[:FLOCK_FIGURES]:
+    for name in tqdm(names[:FLOCK_FIGURES], desc="figures", unit="flock", disable=not progress):
         path = series_figure(ts, [name], metrics, folder.path(f"figures/flock_{_slug(name)}.png"), unit,
                              f"flock {name}")
         blocks.append(Figure(path, f"Flock {name}"))
@@ -133,7 +134,7 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,
                    max_gap: float | None = None, velocity_interval="auto", formats=("html", "md"),
-                   figures: bool = True) -> dict:
+                   figures: bool = True, progress: bool = False) -> dict:
     """Measure the track file at ``path`` and write the folder (see the module docstring); ``velocity_interval``
     "auto" uses the tracks' velocities when they have them, else one sampling interval."""
     started = time.perf_counter()
@@ -143,7 +144,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
             table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
-            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval)
+            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
         except TrackError as err:
             folder.write_csv("validation.csv", issues_table(err.issues, err.line_offset), index=False)
             raise
@@ -164,7 +165,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         folder.write_json("measure.json", {**info, **folder.provenance()})
         for stale in folder.path("figures").glob("*.png") if folder.path("figures").is_dir() else []:
             stale.unlink()
-        drawn = _figures(measurement, folder, table.unit_label) if figures else []
+        drawn = _figures(measurement, folder, table.unit_label, progress) if figures else []
         blocks = _report(measurement, settings, info, issues, drawn)
         written = {}
         if "md" in formats:

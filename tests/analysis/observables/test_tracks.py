@@ -83,12 +83,14 @@ def test_a_bad_cell_is_named_by_row_line_and_column(tmp_path):
     frame = straight_tracks().astype({"x": object})
     frame.loc[6, "x"] = "abc"
     frame.loc[9, "t"] = np.inf
+    frame.loc[2, "flock"] = None
     path = write(frame, tmp_path / "bad.csv")
     with pytest.raises(TrackError) as caught:
         load_tracks(path, TrackSource())
     text = str(caught.value)
     assert "row 7 (line 8), column 'x'" in text and "'abc'" in text
     assert "row 10 (line 11), column 't'" in text
+    assert "row 3 (line 4), column 'flock': flock: missing" in text
 
 
 def test_missing_columns_list_what_the_file_has_with_a_suggestion(tmp_path):
