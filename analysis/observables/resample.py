@@ -8,8 +8,9 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
 * **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
   flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
   the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
-  denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A grid time within 1e-6 h of a sample time
-  is that sample's time exactly (so regular data keep their own times and values, bit for bit).
+  denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A
+  grid time within 1e-6 h of a sample time is that sample's time exactly (so regular data keep their own
+  times and values, bit for bit).
 * **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
   interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
   (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up

@@ -185,3 +185,17 @@ def test_pattern_must_stay_constant_per_individual(tmp_path):
     table = load_tracks(write(frame, tmp_path / "t.csv"), TrackSource())
     with pytest.raises(TrackError, match="pattern changes over time"):
         raw_flocks(table)
+
+
+def test_a_flock_too_short_for_the_velocity_interval_is_a_failed_row_with_its_reason(tmp_path):
+    frame = pd.concat([straight_tracks(flocks=("long",)), straight_tracks(samples=2, flocks=("short",))])
+    table = load_tracks(write(frame, tmp_path / "t.csv"), TrackSource())
+    measured = measure_tracks(table, track_settings(5.0), 0.5, None, 1.0)
+    runs = measured.runs.set_index("flock")
+    assert runs.loc["long", "status"] == "ok" and runs.loc["long", "records"] == 9
+    assert runs.loc["short", "status"] == "failed" and "too few" in runs.loc["short", "error"]
+    assert np.isnan(runs.loc["short", "polarization_mean"]) and len(measured.flocks) == 1
+    assert set(measured.timeseries["run_id"]) == {"long"}
+    # the straight flock: aligned, 2 m apart along a line, flying at 1 m/s
+    assert runs.loc["long", "polarization_mean"] == 1.0 and np.isclose(runs.loc["long", "nn_distance_mean"], 2.0)
+    assert np.isclose(runs.loc["long", "speed_mean_mean"], 1.0)
