@@ -1,8 +1,8 @@
 """Write the SYNTHETIC example tracks ``synthetic_holland.csv.gz`` and its sidecar ``synthetic_holland.json``.
 
 Not real birds: eight simulated flocks of the Holland & Semwal model (configs/models/holland.toml, 20
-boids, separation weight 12, alignment weight 8: the truth a calibration should recover), seen the
-way a stereo-camera or GPS tracker sees real ones:
+boids, separation weight 12, maximum speed 7 body lengths/s: the truth a calibration should recover),
+seen the way a stereo-camera or GPS tracker sees real ones:
 
 * sampled every 0.2 s (5 Hz) from t = 3.8 s to 12 s of each run, each sample taken at the nominal time
   plus a jitter of -1, 0 or +1 simulation steps (1/60 s) and stamped with its true time (irregular but
@@ -29,7 +29,7 @@ import pandas as pd
 from simcore import load_preset, simulate
 
 HERE = Path(__file__).resolve().parent
-TRUTH = {"steering.separation_weight": 12.0, "steering.alignment_weight": 8.0}
+TRUTH = {"steering.separation_weight": 12.0, "vehicle.max_speed": 7.0}
 FLOCKS = 8
 BODY_LENGTH_M = 0.3
 INTERVAL = 0.2
@@ -68,7 +68,7 @@ def main() -> None:
     frame.to_csv(out, index=False, compression={"method": "gzip", "mtime": 0})
     sidecar = {
         "description": ("SYNTHETIC tracks, not real birds: 8 simulated flocks of the holland model (20 boids, "
-                        "separation weight 12, alignment weight 8), sampled at 5 Hz with +-1/60 s jitter, "
+                        "separation weight 12, maximum speed 7 BL/s), sampled at 5 Hz with +-1/60 s jitter, "
                         "detection probability 0.95, position noise sd 0.15 body lengths (4.5 cm), body length "
                         "0.3 m; one glitch (flock F3, bird 7). Made by configs/tracks/make_synthetic_holland.py"),
         "synthetic": True,
