@@ -90,7 +90,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
             errors.append(Issue("error", "max_gap", f"max_gap {gap:g} s is below the sampling interval {step:g} s: "
                                 "consecutive samples would not be joined", flock=raw.name))
             continue
-        raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds)
+        raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds, table.unit_label)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]
         checked.append((raw, step, gap))

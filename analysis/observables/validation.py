@@ -134,7 +134,7 @@ def _too_fast(raw, limit: float) -> np.ndarray:
     return flagged
 
 
-def _speeds(raw, max_speed: float | None, policy: str):
+def _speeds(raw, max_speed: float | None, policy: str, unit: str):
     later, dt = _steps(raw)
     if later.size == 0:
         return raw, []
@@ -147,7 +147,7 @@ def _speeds(raw, max_speed: float | None, policy: str):
         return raw, []
     ids = sorted({str(raw.ids[raw.ind[k]]) for k in np.flatnonzero(flagged)})
     how = "max_speed" if max_speed is not None else f"{SPEED_FACTOR:g} x the median step speed"
-    text = (f"{int(flagged.sum())} samples reached faster than {limit:.4g} length units/s ({how}) from the "
+    text = (f"{int(flagged.sum())} samples reached faster than {limit:.4g} {unit}/s ({how}) from the "
             f"individual's previous good sample (individuals {', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})")
     rows = raw.source_rows(np.flatnonzero(flagged))
     if policy == "error":
@@ -180,10 +180,12 @@ def _gaps(raw, interval: float, max_gap: float) -> list[Issue]:
     return issues
 
 
-def check_flock(raw, interval: float, max_gap: float, max_speed: float | None = None, bad_speeds: str = "error"):
-    """(the flock to use, its issues): duplicates, impossible speeds and gaps (see the module docstring)."""
+def check_flock(raw, interval: float, max_gap: float, max_speed: float | None = None, bad_speeds: str = "error",
+                unit: str = "length units"):
+    """(the flock to use, its issues): duplicates, impossible speeds and gaps (see the module docstring);
+    ``unit`` names the length unit in messages."""
     issues = _duplicates(raw)
     if issues:
         return raw, issues
-    raw, speed_issues = _speeds(raw, max_speed, bad_speeds)
+    raw, speed_issues = _speeds(raw, max_speed, bad_speeds, unit)
     return raw, speed_issues + _gaps(raw, interval, max_gap)
