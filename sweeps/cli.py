@@ -1,7 +1,8 @@
 """The ``flocksweep`` command line. Subcommands parse their arguments here and call library code.
 
     flocksweep simulate MODEL.toml [--set key=value ...] [--seed S] [--n N] [--duration T] [--dt DT]
-                        [--record-every STEPS] [--out DIR] [--plot] [--color-by auto|boid|pattern]
+                        [--record-every STEPS] [--out DIR] [--tracks csv|parquet] [--plot]
+                        [--color-by auto|boid|pattern]
     flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
                    [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
@@ -12,9 +13,12 @@
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
+    flocksweep targets CALIB.toml --from-tracks [TRACKS]
     flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
     flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
                     [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
+    flocksweep measure TRACKS --group-radius R [--columns ROLE=NAME ...] [--units ...] [--body-length M]
+                       [--interval S] [--velocity-interval S] [--out DIR] ... (analysis/reports/measure_command.py)
 
 Exit status (sweeps/failures.py, docs/errors.md): 0 on success, 2 for bad input (a config error names
 the key, the value and what is allowed; nothing is written), 3 when another runner holds the results
@@ -52,6 +56,9 @@ def _add_simulate(sub) -> None:
     p.add_argument("--record-every", type=int, default=1, metavar="STEPS",
                    help="record positions and velocities every STEPS steps (default 1: every step)")
     p.add_argument("--out", type=Path, help="write trajectory.npz and params.json (and traces.png) here")
+    p.add_argument("--tracks", choices=("csv", "parquet"),
+                   help="also write the records as long-format tracks (tracks.csv or tracks.parquet, in body "
+                        "lengths, with a tracks.json sidecar) into --out, for flocksweep measure")
     p.add_argument("--plot", action="store_true",
                    help="save a PNG of the 3-D traces (into --out, default results/simulate/NAME-seedS/)")
     p.add_argument("--color-by", choices=("auto", "boid", "pattern"), default="auto",
@@ -86,9 +93,9 @@ def cmd_simulate(args) -> int:
     check_out("--out", args.out)
     check_runs("init.n", preset.init.n, preset.run.n_steps, args.record_every)
     out = args.out
-    if out is None and args.plot:
+    if out is None and (args.plot or args.tracks):
         out = Path("results") / "simulate" / f"{preset.model.name}-seed{args.seed}"
-    summary, written, obs = run_single(preset, args.seed, out, args.record_every)
+    summary, written, obs = run_single(preset, args.seed, out, args.record_every, args.tracks)
     if args.plot:
         from analysis.reports.traces import plot_traces, wrap_distance
 
@@ -295,9 +302,10 @@ def cmd_calibrate(args) -> int:
 
 
 def _add_targets(sub) -> None:
-    p = sub.add_parser("targets", help="simulate a calibration's target statistics at known parameters",
+    p = sub.add_parser("targets", help="a calibration's targets: simulated at known parameters, or from tracks",
                        description="For parameter-recovery studies: run the calibration's model at the given "
-                                   "truth and print a [targets] block to paste into the calibration file.")
+                                   "truth and print a [targets] block to paste into the calibration file. "
+                                   "With --from-tracks: the targets measured from tracks, one row per flock.")
     p.add_argument("config", help="calibration TOML")
     p.add_argument("--truth", action="append", default=[], metavar="NAME=VALUE",
                    help="value of a free parameter (repeat for each), e.g. --truth field=150")
@@ -305,6 +313,18 @@ def _add_targets(sub) -> None:
     p.add_argument("--replicates", type=int, default=1,
                    help="runs to average (default 1: one flock's statistics, as the likelihood assumes)")
     p.add_argument("--sd", help="measurement sd per stat, comma-separated (default: the file's sd)")
+    p.add_argument("--from-tracks", nargs="?", const="", metavar="TRACKS",
+                   help="instead: print the targets measured from tracks (the file's from_tracks, or TRACKS), "
+                        "one row per flock, with the file's [observation] block")
+
+
+def _targets_from_tracks(args) -> int:
+    from analysis.calibration.synthetic import measured_targets_block
+
+    if args.truth:
+        raise ConfigError("--from-tracks", "measured targets take no --truth")
+    print(measured_targets_block(args.config, args.from_tracks or None), end="")
+    return 0
 
 
 def cmd_targets(args) -> int:
@@ -314,6 +334,8 @@ def cmd_targets(args) -> int:
     from analysis.calibration.synthetic import synthetic_observation, targets_block
     from simcore.schema import parse_value
 
+    if args.from_tracks is not None:
+        return _targets_from_tracks(args)
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     check_count("--replicates", args.replicates, 1, 10_000)
     config = load_calibration(args.config)
@@ -398,6 +420,19 @@ def cmd_view(args) -> int:
     return run(args)
 
 
+def _add_measure(sub) -> None:
+    from analysis.reports.measure_command import DESCRIPTION, add_arguments
+
+    add_arguments(sub.add_parser("measure", help="flock metrics of measured tracks (tables and a report)",
+                                 description=DESCRIPTION))
+
+
+def cmd_measure(args) -> int:
+    from analysis.reports.measure_command import run
+
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -409,12 +444,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_targets(sub)
     _add_sbc(sub)
     _add_view(sub)
+    _add_measure(sub)
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
             "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
-            "view": cmd_view}
+            "view": cmd_view, "measure": cmd_measure}
 
 
 def main(argv=None) -> int:

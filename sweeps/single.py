@@ -5,7 +5,10 @@ simulates and returns a summary dict (final polarization, mean speed, mean visib
 share, wall time); when ``out_dir`` is given it writes there atomically:
 
 * ``trajectory.npz``: times (R,), pos and vel (R, N, 3), visible and binocular (R, N), pattern (N,);
-* ``params.json``: the resolved preset, seed, record interval, the summary and the provenance stamp.
+* ``params.json``: the resolved preset, seed, record interval, the summary and the provenance stamp;
+* with ``tracks = "csv"`` or ``"parquet"``: ``tracks.csv`` / ``tracks.parquet``, the records as long-format
+  tracks (:func:`analysis.observables.tracks.tracks_frame`: flock, id, t, x, y, z, vx, vy, vz, pattern, in
+  body lengths and seconds), and the sidecar ``tracks.json`` saying so, for ``flocksweep measure``.
 
 The trace figure of ``--plot`` is drawn by the CLI (:mod:`analysis.reports.traces`).
 """
@@ -17,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from analysis.observables.metrics import mean_speed, polarization
+from analysis.observables.tracks import TRACKS_SIDECAR, tracks_frame
 from simcore import Observations, Preset, simulate_preset
 
-from .files import atomic_path, write_json
+from .files import atomic_path, write_csv, write_json, write_parquet
 from .provenance import stamp
 
 
@@ -43,7 +47,19 @@ def save_trajectory(obs: Observations, path: Path) -> None:
                                 binocular=obs.binocular, pattern=obs.pattern)
 
 
-def run_single(preset: Preset, seed, out_dir=None, record_every: int | None = None
+def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, description: str) -> list[Path]:
+    """``tracks.<fmt>`` and its sidecar ``tracks.json`` (units: body lengths, seconds)."""
+    frame = tracks_frame(obs, flock)
+    path = out_dir / f"tracks.{fmt}"
+    if fmt == "csv":
+        write_csv(path, frame, index=False)
+    else:
+        write_parquet(path, frame)
+    write_json(out_dir / "tracks.json", {**TRACKS_SIDECAR, "description": description})
+    return [path, out_dir / "tracks.json"]
+
+
+def run_single(preset: Preset, seed, out_dir=None, record_every: int | None = None, tracks: str | None = None
                ) -> tuple[dict, list[Path], Observations]:
     """Simulate and write the trajectory and parameters; returns (summary, written paths, observations)."""
     started = time.perf_counter()
@@ -58,4 +74,8 @@ def run_single(preset: Preset, seed, out_dir=None, record_every: int | None = No
                                              "record_every_steps": obs.record_every,
                                              "summary": summary, "provenance": stamp()})
         written += [out_dir / "trajectory.npz", out_dir / "params.json"]
+        if tracks:
+            flock = f"{preset.model.name}-seed{seed}"
+            written += save_tracks(obs, out_dir, tracks, flock, f"simulated: {preset.model.name}, seed {seed}, "
+                                   f"{obs.n} boids, records every {obs.dt * obs.record_every:g} s")
     return summary, written, obs

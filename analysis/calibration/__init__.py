@@ -15,7 +15,8 @@ summaries simulator (``simulator``), the one emcee driver (``mcmc``) and the met
 (``bsl``), the emulator (``training``, ``surrogates``, ``emulated``, its sequential design ``refine``),
 optimisation (``optimize``); ``flocksweep calibrate`` (``run``), diagnostics, ArviZ output and figures
 (``diagnostics``, ``inference``, ``plots``), the calibration report (``calibration_report``),
-simulation-based calibration (``sbc``, ``sbc_report``) and synthetic targets (``synthetic``). This layer
+simulation-based calibration (``sbc``, ``sbc_report``), synthetic targets (``synthetic``) and targets
+from measured tracks with the ``[observation]`` block's checks (``tracks_targets``). This layer
 sits above ``sweeps`` (its executor, seed registry, output folders and sweep extension) and
 ``analysis.reports`` (figure plumbing, the report document); see docs/architecture.md.
 """

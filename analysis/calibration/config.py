@@ -41,6 +41,13 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
     truth = { field = 135, direction = 45 }   # optional: the parameters the targets were simulated at
                                     # (a recovery study): drawn as truth lines, checked in the report
+    # from_tracks = "tracks.csv.gz" # OR measured tracks: each flock one sample (aggregate = "mean": their
+                                    # mean and its covariance); [targets.tracks] says how to read them and
+                                    # [observation] how they were measured (analysis/calibration/tracks_targets.py)
+
+    [observation]                   # optional: how the targets were measured; every simulated run is then
+    interval = 0.2                  # measured alike (analysis.observables.observation: velocity_interval,
+                                    # max_gap, detection_probability, position_sd, projection)
 
     [method]
     kind = "emcee"                  # "emcee" | "optimize" | "emulator"
@@ -87,6 +94,7 @@ import pandas as pd
 
 from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
 from analysis.observables.metrics import METRIC_NAMES
+from analysis.observables.observation import Observation
 from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
@@ -98,6 +106,7 @@ from .feasibility import check_memory, check_support
 from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
 from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
+from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
 STAT_NAMES = tuple(METRIC_NAMES) + tuple(LEADERSHIP_METRIC_NAMES)
 
@@ -120,6 +129,9 @@ class TargetsTable:
     cov: Any = None
     samples: str | None = None
     truth: dict | None = None
+    from_tracks: str | None = None
+    aggregate: Literal["samples", "mean"] | None = None
+    tracks: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -136,6 +148,7 @@ class CalibrationFile:
     description: str = ""
     seed: int = 0
     run: RunTable = field(default_factory=RunTable)
+    observation: Observation | None = None
 
     def __post_init__(self):
         check_name(self.name, "the calibration")
@@ -165,6 +178,9 @@ class Targets:
     cov: np.ndarray | None
     samples_path: Path | None = None
     truth: dict | None = None      # parameter name -> value the targets were simulated at (recovery studies)
+    tracks_path: Path | None = None     # from_tracks: the track file, its flocks and their values (m, k)
+    flocks: tuple[str, ...] = ()
+    per_flock: np.ndarray | None = None
 
     @property
     def k(self) -> int:
@@ -185,6 +201,7 @@ class CalibrationConfig:
     targets: Targets | None = field(default=None, compare=False, hash=False)
     method: MethodSettings | None = None
     source: dict = field(default_factory=dict, repr=False, compare=False, hash=False)  # file as given (+ overrides)
+    observation: Observation | None = None   # how the targets were measured; simulated runs are measured alike
 
     @property
     def warmup(self) -> float:
@@ -344,6 +361,9 @@ def _targets(targets: TargetsTable, base: Path) -> Targets:
     stats = _stats(targets)
     k = len(stats)
     columns = tuple(s if s in LEADERSHIP_METRIC_NAMES else f"{s}_{targets.summary}" for s in stats)
+    for key in ("aggregate", "tracks"):
+        if getattr(targets, key) is not None:
+            raise ConfigError(f"targets.{key}", "only with from_tracks = \"tracks file\"")
     has_mean, has_samples = targets.mean is not None, targets.samples is not None
     if has_mean and has_samples:
         raise ConfigError("targets.samples", "give either mean (with sd or cov) or samples, not both")
@@ -434,19 +454,41 @@ def _method(table: dict, base: Path, dim: int, k: int) -> MethodSettings:
 
 # -------------------------------------------------------------------------------------------- public
 
+def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path
+                      ) -> tuple[Targets, MetricSettings]:
+    """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
+    metrics = table.run.metrics(leadership=False)
+    stats = _stats(table.targets)
+    if table.observation is not None:
+        check_observation(table.observation, preset, table.run, stats, table.method.get("kind"))
+    if table.targets.from_tracks is None:
+        targets = _targets(table.targets, base)
+    else:
+        columns = tuple(f"{s}_{table.targets.summary}" for s in stats)
+        metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
+        found = tracks_targets(table.targets, table.observation, metrics.group_radius,
+                               metrics.fragmentation_cohesion, columns, base)
+        targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
+                          observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
+                          samples_path=found.path if found.cov is None else None, tracks_path=found.path,
+                          flocks=found.flocks, per_flock=_readonly(found.per_flock))
+    return targets, metrics
+
+
 def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
     """Validated calibration from a parsed TOML dict; ``base`` is the folder relative paths start from."""
     table = build(CalibrationFile, data)
     base = Path(base)
     preset_path, preset_data, preset = _model_and_run(table, base)
     parameters, joint = _parameters(table, preset)
-    targets = dataclasses.replace(_targets(table.targets, base), truth=_truth(table.targets.truth, parameters))
+    targets, metrics = _observed_targets(table, preset, parameters, base)
+    targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
     method = _method(table.method, base, len(parameters), targets.k)
     check_memory(preset, parameters, method.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
-                             metrics=table.run.metrics(leadership=False), parameters=parameters, prior=joint,
-                             targets=targets, method=method, source=data)
+                             metrics=metrics, parameters=parameters, prior=joint,
+                             targets=targets, method=method, source=data, observation=table.observation)
 
 
 def load_calibration(path, overrides=()) -> CalibrationConfig:

@@ -5,7 +5,7 @@ Contract
 :class:`SummarySimulator` is configured once and called many times:
 
     sim = SummarySimulator(base_preset_data, keys, columns, n_sim, warmup, group_radius=None,
-                           fragmentation_cohesion=0.5)
+                           fragmentation_cohesion=0.5, observation=None)
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
 
@@ -28,6 +28,11 @@ Contract
   ValueError at construction.
 * ``group_radius`` None (default) uses the perception range of the model *at theta*, as the sweeps do,
   so a free perception radius also moves the group radius. Pass a number to keep it fixed.
+* ``observation`` (an :class:`analysis.observables.observation.Observation`, default None): each run is
+  recorded at the observation's sampling interval and measured as an observer measured the targets
+  (:func:`~analysis.observables.observation.observe_run`: projection, missed detections, position noise
+  drawn from the run seed's observation stream, resampling, velocities by differencing) before
+  ``summarize_run``. Without it nothing changes: rows are those of the bare runs, bit for bit.
 * ``seeds`` (n_sim,) are run seeds: ints >= 0, tuples of them, or ``numpy.random.SeedSequence``
   objects (copied before use, so the caller's objects are never advanced and the same seeds always give
   the same rows). All seeds run in ONE :func:`simcore.simulate.simulate_batch` call (threaded, compiled);
@@ -53,6 +58,7 @@ import numpy as np
 
 from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
 from analysis.observables.metrics import FRAGMENTATION_COHESION
+from analysis.observables.observation import observe_run
 from analysis.observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, suggest
@@ -91,8 +97,9 @@ class SummarySimulator:
 
     def __init__(self, base_preset_data: dict, keys: Sequence[str], columns: Sequence[str], n_sim: int,
                  warmup: float, group_radius: float | None = None,
-                 fragmentation_cohesion: float = FRAGMENTATION_COHESION):
+                 fragmentation_cohesion: float = FRAGMENTATION_COHESION, observation=None):
         self.base = copy.deepcopy(dict(base_preset_data))
+        self.observation = observation
         self.base_preset = preset_from_dict(self.base)
         self.keys = tuple(keys)
         self.columns = tuple(columns)
@@ -135,7 +142,7 @@ class SummarySimulator:
         if n_sim == self.n_sim:
             return self
         return SummarySimulator(self.base, self.keys, self.columns, n_sim, self.warmup, self.group_radius,
-                                self.metrics.fragmentation_cohesion)
+                                self.metrics.fragmentation_cohesion, self.observation)
 
     def preset(self, theta) -> Preset:
         """The validated preset at ``theta`` (integer keys rounded; ConfigError naming the key when invalid)."""
@@ -158,24 +165,27 @@ class SummarySimulator:
             raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
         preset = self.preset(theta)
         run = preset.run
+        every = run.record_every if self.observation is None else self.observation.record_every(run.dt)
         runs = simulate_batch(preset.model, preset.init, [_fresh_seed(s) for s in seeds], run.duration, run.dt,
-                              run.record_every)
+                              every)
         settings = self.metrics.resolve(preset.model)
         out = np.empty((self.n_sim, len(self.columns)))
         for i, obs in enumerate(runs):
-            out[i] = self._row(obs, settings)
+            out[i] = self._row(obs, settings, seeds[i])
         return out
 
     def __call__(self, theta, rng: np.random.Generator) -> np.ndarray:
         """``simulate(theta, seeds_for(rng, n_sim))``: fresh replicates at every call."""
         return self.simulate(theta, seeds_for(rng, self.n_sim))
 
-    def _row(self, obs, settings: MetricSettings) -> np.ndarray:
+    def _row(self, obs, settings: MetricSettings, seed) -> np.ndarray:
         nan_row = np.full(len(self.columns), np.nan)
         try:
             check_finite(obs)
         except NonFiniteState:
             return nan_row
+        if self.observation is not None:
+            obs = observe_run(obs, self.observation, _fresh_seed(seed))
         values = summarize_run(obs, settings)
         row = np.array([values[c] for c in self.columns], dtype=np.float64)
         return row if np.isfinite(row).all() else nan_row
@@ -187,4 +197,4 @@ def summary_simulator(config, n_sim: int | None = None) -> SummarySimulator:
     n_sim = config.method.n_sim if n_sim is None else n_sim
     m = config.metrics
     return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
-                            m.group_radius, m.fragmentation_cohesion)
+                            m.group_radius, m.fragmentation_cohesion, config.observation)

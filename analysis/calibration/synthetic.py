@@ -12,17 +12,24 @@ the user states).
 ``targets_block(config, rows, sd, truth=None)`` formats them as a ``[targets]`` TOML block for the
 calibration file (one replicate: its values; several: their means, with the replicate sd in a comment;
 with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report).
+
+``measured_targets_block(path, tracks=None)`` is ``flocksweep targets --from-tracks``: the calibration
+file's targets measured from its ``from_tracks`` file (or from ``tracks`` instead of the file's own
+targets), one row per flock, as :func:`~analysis.calibration.tracks_targets.tracks_block` prints them.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from simcore.schema import ConfigError
+from pathlib import Path
+
+from simcore.schema import ConfigError, read_config
 
 from sweeps.seeds import common_seeds
 
-from .config import CalibrationConfig
+from .config import CalibrationConfig, calibration_from_dict
 from .run import summary_simulator
+from .tracks_targets import tracks_block
 
 
 def truth_vector(config: CalibrationConfig, truth) -> np.ndarray:
@@ -66,3 +73,18 @@ def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None) -
         spread = rows.std(axis=0, ddof=1)
         lines.append(f"# means of {len(rows)} runs; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))
     return "\n".join(lines) + "\n"
+
+
+def measured_targets_block(path, tracks=None) -> str:
+    """The targets of calibration file ``path`` measured from tracks (see the module docstring)."""
+    path = Path(path)
+    data = read_config(path, "calibration file")
+    if tracks:
+        targets = data.setdefault("targets", {})
+        for key in ("mean", "sd", "cov", "samples"):
+            targets.pop(key, None)
+        targets["from_tracks"] = str(Path(tracks).resolve())
+    config = calibration_from_dict(data, path.resolve().parent)
+    if config.targets.tracks_path is None:
+        raise ConfigError("--from-tracks", f"{path} has no targets.from_tracks; name the track file: --from-tracks TRACKS")
+    return tracks_block(config)

@@ -14,7 +14,11 @@ with ``settings.leadership``, the leadership scalars
 (:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`); :func:`summary_columns` lists them
 in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
 (plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
-The row is a pure function of the observations and the settings.
+The row is a pure function of the observations and the settings. Observations with a ``present`` mask
+(an :class:`~analysis.observables.observed.ObservedFlock`: measured tracks, or a run seen through an
+observation model) are measured record by record over the individuals present
+(:func:`~analysis.observables.observed.present_metrics`), and their series and row add ``tracked``
+(individuals present per record; ``tracked_mean``, ``tracked_final``).
 
 ``record_interval(obs)`` is the seconds between records (``overtake_rate`` needs it).
 ``check_finite(obs)`` raises :class:`NonFiniteState` when a position or velocity is not finite;
@@ -34,6 +38,7 @@ from simcore.schema import ConfigError, check_finite as _finite, check_non_negat
 
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
+from .observed import present_metrics
 
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
 
@@ -87,8 +92,15 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     """The per-record series and the summary row of one run (see the module docstring)."""
     if not settings.resolved:
         raise ValueError("metric settings: resolve them for the run's model first (MetricSettings.resolve)")
-    series = frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, settings.group_radius,
-                           settings.box, record_interval(obs))
+    if getattr(obs, "present", None) is not None:  # an observed flock: who is seen varies by record
+        if settings.leadership:
+            raise ValueError("metric settings: leadership metrics need the simulator's leader records, "
+                             "an observed flock has none")
+        series = present_metrics(obs, settings.group_radius, settings.box)
+        series["tracked"] = obs.tracked
+    else:
+        series = frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, settings.group_radius,
+                               settings.box, record_interval(obs))
     row = summarize(series, obs.times, settings.warmup, settings.fragmentation_cohesion)
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))

@@ -1,0 +1,205 @@
+"""Calibration targets straight from measured tracks, and the checks of a calibration's ``[observation]``.
+
+A calibration file may take its targets from a track file instead of typed numbers::
+
+    [observation]                 # how the real flocks were measured; simulated runs are measured alike
+    interval = 0.2                # seconds between samples (the records of every simulated run)
+    velocity_interval = 0.4       # positions differenced over 0.4 s (or "recorded")
+    detection_probability = 0.95
+    position_sd = 0.1             # body lengths
+    projection = "none"           # or "xz" (the simulator's horizontal plane) for 2-D tracks
+
+    [targets]
+    summary = "mean"
+    stats = ["polarization", "nn_distance", "speed_cv"]
+    from_tracks = "../tracks/synthetic_holland.csv.gz"
+    aggregate = "samples"         # each measured flock is one sample of the statistics (default), or
+                                  # "mean": the flocks' mean with the covariance of that mean
+
+    [targets.tracks]              # how to read them (defaults from the file's sidecar JSON)
+    columns = { flock = "event" }
+    units = { length = "m", time = "s" }
+    body_length = 0.3             # metres: lengths in body lengths, the model's units
+    warmup = 0.0                  # seconds skipped at the start of each measured flock
+
+The tracks are measured by :func:`analysis.observables.measured.measure_tracks` with the observation's
+interval, gap limit and velocity interval, the calibration's fragmentation threshold and a fixed group
+radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
+:class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
+metres need ``body_length``), 2-D tracks need a ``projection`` and 3-D tracks must not have one, every
+flock must be measured and every target statistic finite; ``aggregate = "mean"`` needs more flocks than
+statistics.
+
+:func:`check_observation` checks an ``[observation]`` block against the model and the rest of the file:
+an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
+number of steps and fits the run, no ``run.record_interval`` beside it (the samples are the records),
+statistics an observer can measure (not ``visible_mean``, ``binocular_share`` or the leadership
+statistics), and not the emulator (a sweep's runs were not measured through the block).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
+from analysis.observables.measured import Measurement, measure_tracks, track_settings
+from analysis.observables.observation import Observation
+from analysis.observables.summary import MetricSettings, default_group_radius
+from analysis.observables.tracks import TrackSource, load_tracks, track_source
+from analysis.observables.validation import TrackError
+from simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
+
+UNOBSERVABLE = ("visible_mean", "binocular_share") + tuple(LEADERSHIP_METRIC_NAMES)
+
+
+@dataclass(frozen=True)
+class TracksTable(TrackSource):
+    """``[targets.tracks]``: how to read the track file, and the warm-up skipped in each measured flock."""
+
+    warmup: float = 0.0
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_non_negative("warmup", self.warmup)
+
+
+class TrackTargets(NamedTuple):
+    observed: np.ndarray          # (m, k), or (1, k) with aggregate = "mean"
+    cov: np.ndarray | None        # (k, k) with aggregate = "mean"
+    path: Path
+    flocks: tuple[str, ...]
+    per_flock: np.ndarray         # (m, k) always
+    measurement: Measurement
+
+
+def check_observation(observation: Observation, preset, run_table, stats, method_kind: str) -> None:
+    """ConfigError when the block does not fit the model or the file (see the module docstring)."""
+    boundary = preset.model.world.boundary
+    if boundary != "open":
+        raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are differenced "
+                                         "and bridged over time, which needs the continuous tracks of an open world")
+    try:
+        observation.record_every(preset.run.dt)
+    except ConfigError as err:
+        raise ConfigError("observation.interval", err.detail) from None
+    if observation.interval > preset.run.duration:
+        raise ConfigError("observation.interval", f"got {observation.interval!r}; longer than the run "
+                                                  f"({preset.run.duration!r} s)")
+    if run_table.record_interval is not None:
+        raise ConfigError("run.record_interval", "with an [observation] block the records are its samples "
+                                                 "(observation.interval); remove run.record_interval")
+    hidden = [s for s in stats if s in UNOBSERVABLE]
+    if hidden:
+        raise ConfigError("targets.stats", f"{hidden[0]!r} cannot be measured by an observer; with an [observation] "
+                                           "block use statistics of positions and velocities")
+    if method_kind == "emulator":
+        raise ConfigError("method.kind", "the emulator learns from a sweep's runs, which were not measured through "
+                                         "the [observation] block; use emcee or optimize")
+
+
+def fixed_group_radius(metrics: MetricSettings, preset, parameters) -> float:
+    """The group radius measured tracks and simulations share: run.group_radius, or with "auto" the model's
+    perception range, which then must not depend on a free parameter."""
+    if metrics.group_radius is not None:
+        return float(metrics.group_radius)
+    radius = default_group_radius(preset.model)
+    full = preset.full_dict()
+    for parameter in parameters:
+        for value in parameter.bounds:
+            if isinstance(get_dotted(full, parameter.key), int):
+                value = int(round(value))
+            try:
+                moved = default_group_radius(preset.replace({parameter.key: value}).model)
+            except ConfigError:
+                continue
+            if moved != radius:
+                raise ConfigError("run.group_radius", f'"auto" is the perception range, which parameter '
+                                                      f"{parameter.name!r} ({parameter.key}) changes; measured "
+                                                      "tracks need one fixed radius: give a number (body lengths)")
+    return float(radius)
+
+
+def _given_with_tracks(targets) -> None:
+    for key in ("mean", "sd", "cov", "samples"):
+        if getattr(targets, key) is not None:
+            raise ConfigError(f"targets.{key}", "not with from_tracks: the tracks give the targets")
+
+
+def _measure(path: Path, targets, observation: Observation, radius: float, fragmentation: float) -> Measurement:
+    source = track_source(path, targets.tracks or {}, "targets.tracks", cls=TracksTable)
+    try:
+        table = load_tracks(path, source)
+    except TrackError as err:
+        raise ConfigError("targets.from_tracks", str(err)) from None
+    if table.unit_label != "BL":
+        raise ConfigError("targets.tracks.body_length", f"{path.name} is in metres; give the body length (metres) "
+                                                        "so that lengths are in body lengths, the model's units")
+    if table.dims == 2 and observation.projection == "none":
+        raise ConfigError("observation.projection", f"{path.name} holds 2-D tracks: project the simulated runs "
+                                                    'too, e.g. projection = "xz" (the horizontal plane)')
+    if table.dims == 3 and observation.projection != "none":
+        raise ConfigError("observation.projection", f"{path.name} holds 3-D tracks; a projection is for 2-D ones")
+    settings = track_settings(radius, source.warmup, fragmentation)
+    try:
+        return measure_tracks(table, settings, observation.interval, observation.max_gap, observation.velocity_interval)
+    except TrackError as err:
+        raise ConfigError("targets.from_tracks", str(err)) from None
+
+
+def tracks_targets(targets, observation: Observation | None, radius: float, fragmentation: float, columns,
+                   base: Path) -> TrackTargets:
+    """The targets of ``[targets] from_tracks`` (see the module docstring)."""
+    path = resolve_path(targets.from_tracks, base, "targets.from_tracks", "track file")
+    if observation is None:
+        raise ConfigError("targets.from_tracks", "needs an [observation] block (at least interval = seconds between "
+                                                 "samples) so that simulated runs are measured as the tracks were")
+    _given_with_tracks(targets)
+    measurement = _measure(path, targets, observation, radius, fragmentation)
+    runs = measurement.runs
+    failed = runs[runs["status"] != "ok"]
+    if len(failed):
+        raise ConfigError("targets.from_tracks", f"flock {failed['flock'].iloc[0]!r} could not be measured: "
+                                                 f"{failed['error'].iloc[0]}")
+    per_flock = runs[list(columns)].to_numpy(dtype=np.float64)
+    bad = ~np.isfinite(per_flock)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ConfigError("targets.stats", f"{columns[c]} is undefined (nan) for flock {runs['flock'].iloc[r]!r}; "
+                                           "choose statistics every flock has")
+    flocks = tuple(runs["flock"])
+    if (targets.aggregate or "samples") == "samples":
+        return TrackTargets(per_flock, None, path, flocks, per_flock, measurement)
+    m, k = per_flock.shape
+    if m < k + 1:
+        raise ConfigError("targets.aggregate", f'"mean" needs more flocks than statistics for a covariance ({m} '
+                                               f"flocks, {k} stats); use \"samples\"")
+    cov = np.atleast_2d(np.cov(per_flock, rowvar=False, ddof=1)) / m
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise ConfigError("targets.aggregate", "the flocks' covariance is singular; use \"samples\"") from None
+    return TrackTargets(per_flock.mean(axis=0)[None, :], cov, path, flocks, per_flock, measurement)
+
+
+def tracks_block(config) -> str:
+    """The ``[targets]`` block of a calibration whose targets come from tracks, with every flock's values."""
+    t = config.targets
+    rows, stats = t.per_flock, t.stats
+    width = max(12, *(len(s) + 2 for s in stats))
+    name_width = max(8, *(len(f) + 2 for f in t.flocks))
+    lines = [f"# targets from {t.tracks_path} ({len(t.flocks)} flocks), {t.summary} of each flock's records",
+             f"# observation: {config.observation.describe()}",
+             "# " + "flock".ljust(name_width) + "".join(s.rjust(width) for s in stats)]
+    lines += ["# " + f.ljust(name_width) + "".join(f"{v:.6g}".rjust(width) for v in row) for f, row in zip(t.flocks, rows)]
+    mean = rows.mean(axis=0)
+    lines += ["[targets]", f'summary = "{t.summary}"', "stats = [" + ", ".join(f'"{s}"' for s in stats) + "]",
+              f'from_tracks = "{t.tracks_path}"      # each flock one sample']
+    if len(rows) > 1:
+        cov = np.atleast_2d(np.cov(rows, rowvar=False, ddof=1)) / len(rows)
+        lines += ['# or aggregate = "mean": the flocks\' mean and the covariance of that mean',
+                  "# mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
+                  "# cov = [" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in r) + "]" for r in cov) + "]"]
+    return "\n".join(lines) + "\n"

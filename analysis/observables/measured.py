@@ -1,0 +1,131 @@
+"""Measured tracks -> the tables of a sweep: one row per flock, one time series per flock.
+
+``measure_tracks(table, settings, interval=None, max_gap=None, velocity_interval=None, progress=False)
+-> Measurement``
+takes a read track file (:func:`~analysis.observables.tracks.load_tracks`) and, flock by flock:
+
+1. checks it (:func:`~analysis.observables.validation.check_flock`: duplicates, impossible speeds,
+   gaps); errors of every flock are collected and raised together as one
+   :class:`~analysis.observables.validation.TrackError`;
+2. resamples it onto its record grid (:func:`~analysis.observables.resample.resample`; ``interval``
+   None: each flock's own sampling interval, :func:`~analysis.observables.validation.infer_interval`;
+   ``velocity_interval`` None: differences over one interval);
+3. measures it with :func:`~analysis.observables.summary.measure_run`, the step every sweep and
+   calibration uses (``settings``: :func:`track_settings`).
+
+``Measurement.runs`` has one row per flock: ``run_id`` (the flock's name), ``flock``, ``status`` ("ok",
+or "failed" with the reason in ``error``: a flock too short for the velocity interval), ``individuals``,
+``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
+``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
+:func:`~analysis.observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
+``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
+``Measurement.issues`` lists what the reading and the checks found (notes and warnings).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from .metrics import FRAGMENTATION_COHESION
+from .observed import ObservedFlock
+from .resample import MAX_GAP_INTERVALS, RECORDED, resample
+from .summary import MetricSettings, measure_run, summary_columns
+from .tracks import TrackTable, raw_flocks
+from .validation import Issue, TrackError, check_flock, infer_interval
+
+
+def track_settings(group_radius: float, warmup: float = 0.0,
+                   fragmentation_cohesion: float = FRAGMENTATION_COHESION) -> MetricSettings:
+    """Metric settings for measured flocks: the group radius (analysis length units) is required, there is
+    no periodic box and no leadership (the escape duration is not applicable: nan)."""
+    if group_radius is None:
+        raise ValueError("group radius: measured flocks need one (in the tracks' length units); there is no "
+                         "model perception range to default to")
+    return MetricSettings(warmup=warmup, group_radius=float(group_radius), fragmentation_cohesion=fragmentation_cohesion,
+                          leadership=False, box=None, escape_duration=math.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class Measurement:
+    runs: pd.DataFrame
+    timeseries: pd.DataFrame
+    issues: list
+    flocks: list            # ObservedFlock per measured flock (failed ones left out)
+    table: TrackTable
+
+
+def _row(name: str, status: str, error: str, table: TrackTable, interval: float, velocity_interval) -> dict:
+    return {"run_id": name, "flock": name, "status": status, "error": error, "individuals": 0, "records": 0,
+            "dims": table.dims, "t_start": math.nan, "duration": math.nan, "interval": interval,
+            "velocity_interval": str(velocity_interval), "length_unit": table.unit_label}
+
+
+def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings) -> pd.DataFrame:
+    series, summary = measure_run(flock, settings)
+    row.update(individuals=int(flock.n), records=int(len(flock.times)), t_start=flock.t_start,
+               duration=float(flock.times[-1] - flock.times[0]))
+    row.update(summary)
+    return pd.DataFrame({"run_id": flock.name, "t": flock.times, **series})
+
+
+def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float | None = None,
+                   max_gap: float | None = None, velocity_interval=None, progress: bool = False) -> Measurement:
+    """Check, resample and measure every flock of ``table`` (see the module docstring); ``progress`` shows a
+    progress bar over the flocks."""
+    raws, issues = raw_flocks(table)
+    issues = list(table.issues) + issues
+    checked, errors = [], []
+    for raw in raws:
+        try:
+            step = interval if interval is not None else infer_interval(raw)
+        except ValueError as err:
+            errors.append(Issue("error", "interval", str(err), flock=raw.name))
+            continue
+        gap = MAX_GAP_INTERVALS * step if max_gap is None else max_gap
+        if gap < step:
+            errors.append(Issue("error", "max_gap", f"max_gap {gap:g} s is below the sampling interval {step:g} s: "
+                                "consecutive samples would not be joined", flock=raw.name))
+            continue
+        raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds, table.unit_label)
+        errors += [i for i in found if i.level == "error"]
+        issues += [i for i in found if i.level != "error"]
+        checked.append((raw, step, gap))
+    if errors:
+        raise TrackError(errors, table.path, table.line_offset)
+    rows, frames, flocks = [], [], []
+    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress or len(checked) < 2):
+        velocity = step if velocity_interval is None else velocity_interval
+        row = _row(raw.name, "ok", "", table, step, velocity)
+        try:
+            flock = resample(raw, step, gap, velocity)
+        except ValueError as err:
+            row.update(status="failed", error=str(err))
+            rows.append(row)
+            continue
+        if not flock.present.any():
+            row.update(status="failed", error="no record has an individual with a known position and velocity")
+            rows.append(row)
+            continue
+        frames.append(_measure_flock(flock, row, settings))
+        rows.append(row)
+        flocks.append(flock)
+    runs = pd.DataFrame(rows)
+    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final"):
+        if column not in runs:
+            runs[column] = np.nan
+    timeseries = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id", "t"])
+    return Measurement(runs=runs, timeseries=timeseries, issues=issues, flocks=flocks, table=table)
+
+
+def velocity_label(velocity_interval, interval: float | None) -> str:
+    """How the velocities were obtained, in words."""
+    if velocity_interval == RECORDED:
+        return "the tracks' recorded velocities"
+    if velocity_interval is None:
+        step = "one sampling interval" if interval is None else f"{interval:g} s (one sampling interval)"
+        return f"velocities from positions differenced over {step}"
+    return f"velocities from positions differenced over {float(velocity_interval):g} s"

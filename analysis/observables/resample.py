@@ -1,0 +1,146 @@
+"""Raw samples -> a flock on a regular record grid, with velocities: the one way tracks become records.
+
+Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation model
+(:mod:`.observation`) both pass through :func:`resample`, so their statistics are measured alike.
+
+``resample(raw, interval, max_gap=None, velocity_interval=None) -> ObservedFlock``:
+
+* **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
+  flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
+  the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
+  denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A
+  grid time within 1e-6 h of a sample time is that sample's time exactly (so regular data keep their own
+  times and values, bit for bit).
+* **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
+  interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
+  (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up
+  to a quarter interval; two missed samples are not; ``max_gap`` < h is an error, since then even
+  consecutive samples of jittered tracks would not be joined); else missing (nan).
+* **velocities**: ``velocity_interval`` D = m h (m a whole number >= 1; default h, m = 1) differences
+  positions over m intervals, v_k = (p_{k+a} - p_{k-b}) / (t_{k+a} - t_{k-b}) with a = ceil(m/2),
+  b = floor(m/2): centred for even m, half an interval ahead for odd m. The first b and last a grid
+  times only end differences and are not records. ``velocity_interval = "recorded"`` uses the samples'
+  own velocities, resampled like the positions (every grid time is a record).
+* an individual is **present** at a record when its position and velocity there are known.
+
+Record times are seconds since the first grid time t_0 (``t_start`` keeps t_0 in the source's clock).
+Position noise sd s on each coordinate gives velocity noise sd s sqrt(2) / D per coordinate, so a short
+``velocity_interval`` on noisy positions lowers polarization and raises speed statistics
+(docs/measured.md gives the numbers).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .observed import ObservedFlock
+
+SNAP = 1e-6          # grid and sample times closer than SNAP x interval are the same time
+RECORDED = "recorded"
+MAX_GAP_INTERVALS = 2.5  # default max_gap, in sampling intervals
+
+
+def check_interval(interval: float, what: str = "interval") -> float:
+    if isinstance(interval, bool) or not (np.isfinite(interval) and interval > 0):
+        raise ValueError(f"{what}: got {interval!r}; expected a number of seconds > 0")
+    return float(interval)
+
+
+def velocity_steps(velocity_interval, interval: float) -> int | None:
+    """m = velocity_interval / interval (a whole number >= 1), or None for recorded velocities."""
+    if velocity_interval is None:
+        return 1
+    if isinstance(velocity_interval, str):
+        if velocity_interval != RECORDED:
+            raise ValueError(f'velocity_interval: got {velocity_interval!r}; expected seconds or "recorded"')
+        return None
+    ratio = check_interval(velocity_interval, "velocity_interval") / interval
+    m = int(round(ratio))
+    if m < 1 or abs(ratio - m) > SNAP * max(1.0, ratio):
+        raise ValueError(f"velocity_interval: got {velocity_interval!r}; must be a whole multiple of the sampling "
+                         f"interval {interval!r} s")
+    return m
+
+
+def grid_phase(t: np.ndarray, interval: float) -> float:
+    """Offset in [0, h) of the sampling phase from the first sample time: the circular mean of the sample
+    times modulo h when they cluster (mean resultant length >= 0.5: a regular sampling, also with jittered
+    stamps), else 0 (samples denser than h, or without a common phase)."""
+    angle = 2.0 * np.pi * ((t - t.min()) / interval)
+    x, y = np.cos(angle).mean(), np.sin(angle).mean()
+    if np.hypot(x, y) < 0.5:
+        return 0.0
+    offset = (np.arctan2(y, x) / (2.0 * np.pi)) % 1.0 * interval
+    return 0.0 if offset <= SNAP * interval or offset >= (1 - SNAP) * interval else float(offset)
+
+
+def record_grid(t: np.ndarray, interval: float) -> np.ndarray:
+    """The grid over the sample times ``t``, in phase with them and snapped to them (module docstring)."""
+    times = np.unique(t)
+    start = times[0] + grid_phase(times, interval)
+    count = int(np.floor((times[-1] - start) / interval + SNAP)) + 1
+    grid = start + np.arange(max(count, 1)) * interval
+    j = np.clip(np.searchsorted(times, grid), 1, len(times) - 1) if len(times) > 1 else np.zeros(len(grid), int)
+    for candidate in (times[j - 1] if len(times) > 1 else times[j], times[j]):
+        close = np.abs(candidate - grid) <= SNAP * interval
+        grid = np.where(close, candidate, grid)
+    return grid
+
+
+def at_times(t: np.ndarray, values: np.ndarray, grid: np.ndarray, max_gap: float, interval: float) -> np.ndarray:
+    """(R, 3) values of one individual at the grid times: exact samples, bridged gaps, else nan."""
+    out = np.full((len(grid), values.shape[1]), np.nan)
+    if len(t) == 0:
+        return out
+    tol = SNAP * interval
+    j = np.searchsorted(t, grid)                               # first sample at or after the grid time
+    after = j < len(t)
+    before = j > 0
+    j_after, j_before = np.minimum(j, len(t) - 1), np.maximum(j - 1, 0)
+    exact_after = after & (np.abs(t[j_after] - grid) <= tol)
+    exact_before = before & ~exact_after & (np.abs(grid - t[j_before]) <= tol)
+    span = t[j_after] - t[j_before]
+    between = before & after & ~exact_after & ~exact_before & (span <= max_gap * (1 + 1e-9))
+    out[exact_after] = values[j_after[exact_after]]
+    out[exact_before] = values[j_before[exact_before]]
+    if between.any():
+        w = ((grid - t[j_before]) / np.where(between, span, 1.0))[between, None]
+        lo, hi = values[j_before[between]], values[j_after[between]]
+        out[between] = lo + w * (hi - lo)
+    return out
+
+
+def resample(raw, interval: float, max_gap: float | None = None, velocity_interval=None) -> ObservedFlock:
+    """The flock on its record grid (see the module docstring)."""
+    interval = check_interval(interval)
+    max_gap = MAX_GAP_INTERVALS * interval if max_gap is None else float(max_gap)
+    if not max_gap >= interval:
+        raise ValueError(f"max_gap: got {max_gap!r}; must be at least the sampling interval {interval!r} s (consecutive "
+                         f"samples are that far apart; default {MAX_GAP_INTERVALS:g} intervals)")
+    m = velocity_steps(velocity_interval, interval)
+    if m is None and raw.vel is None:
+        raise ValueError(f'flock {raw.name!r}: velocity_interval = "recorded" but the tracks have no velocities')
+    grid = record_grid(raw.t, interval)
+    n = len(raw.ids)
+    pos = np.full((len(grid), n, 3), np.nan)
+    vel = np.full((len(grid), n, 3), np.nan)
+    bounds = raw.bounds()
+    for i in range(n):
+        mine = slice(bounds[i], bounds[i + 1])
+        pos[:, i] = at_times(raw.t[mine], raw.pos[mine], grid, max_gap, interval)
+        if m is None:
+            vel[:, i] = at_times(raw.t[mine], raw.vel[mine], grid, max_gap, interval)
+    keep = slice(None)
+    if m is not None:
+        ahead, behind = (m + 1) // 2, m // 2
+        last = len(grid) - 1 - ahead
+        if last < behind:
+            raise ValueError(f"flock {raw.name!r}: {len(grid)} grid times are too few for a velocity interval of "
+                             f"{m} sampling intervals")
+        span = grid[behind + ahead:] - grid[:len(grid) - behind - ahead]
+        vel[behind:last + 1] = (pos[behind + ahead:] - pos[:len(grid) - behind - ahead]) / span[:, None, None]
+        keep = slice(behind, last + 1)
+    pos, vel = pos[keep], vel[keep]
+    present = np.isfinite(pos).all(axis=2) & np.isfinite(vel).all(axis=2)
+    return ObservedFlock(name=raw.name, ids=raw.ids, times=grid[keep] - grid[0], pos=pos, vel=vel,
+                         present=present, dims=raw.dims, pattern=raw.pattern, t_start=float(grid[0]),
+                         interval=interval)

@@ -1,0 +1,380 @@
+"""Measured trajectories in long format: reading a track file into flocks of raw samples, and writing one.
+
+A track file (CSV, also gzipped, or Parquet) has one row per detection of one individual at one time:
+
+* ``flock``: flock / event id (optional; without it the whole file is one flock, named after the file);
+* ``id``: individual id (numbers sort numerically, anything else as text);
+* ``t``: time, in ``units.time`` (s, ms, min, h; or ``datetime``: timestamps);
+* ``x``, ``y``: position, in ``units.length`` (m, cm, mm, km; or ``bl``: body lengths);
+* ``z``: third coordinate (optional; without it the tracks are 2-D, marked as such, with z = 0);
+* ``vx``, ``vy``, ``vz``: velocities in the same units per time unit (per second with timestamps), all of
+  them or none (optional);
+* ``pattern``: an integer label per individual, constant over time (optional).
+
+A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
+cells are missed detections (reported, then left out); any other bad cell stops the reading with the row
+and column named (:class:`~analysis.observables.validation.TrackError`). Rows are numbered from 1 in
+file order; in a CSV file row k is line k + 1 (the header is line 1).
+
+Units. Positions are converted to metres; with ``body_length`` (metres) they are then divided by it,
+so lengths are in body lengths (BL) and speeds in BL/s, the simulator's own units (a boid's body
+length is 1). ``units.length = "bl"`` means the file is already in body lengths (tracks written by
+``flocksweep simulate``); ``body_length`` is then not allowed. Times become seconds.
+
+A sidecar JSON file with the same stem (``tracks.csv.gz`` -> ``tracks.json``) may give defaults for
+``columns``, ``units`` and ``body_length`` (and a ``description`` shown in reports); what a command line
+or calibration file gives explicitly wins.
+
+``load_tracks(path, source) -> TrackTable`` reads and converts (the table holds the source row of every
+sample); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
+``tracks_frame(obs, flock)`` is the inverse for a simulator run: its records as a long table in body
+lengths (``flocksweep simulate --tracks``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import gzip
+import json
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from simcore.schema import ConfigError, build, suggest
+
+from .validation import Issue, TrackError
+
+ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
+REQUIRED = ("id", "t", "x", "y")
+LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None}
+# CSV numbers read back exactly as written (pandas >= 3 does by default and deprecates the option)
+EXACT_FLOATS = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+
+
+@dataclass(frozen=True)
+class TrackSource:
+    """How to read a track file: column map, units, body length, the speed check (see the module docstring)."""
+
+    columns: dict = field(default_factory=dict)   # role -> column name in the file
+    units: dict = field(default_factory=dict)     # {"length": "m", "time": "s"} (these are the defaults)
+    body_length: float | None = None              # metres; lengths then in body lengths
+    max_speed: float | None = None                # analysis units per s; None: 10 x the flock's median step speed
+    bad_speeds: Literal["error", "keep", "drop"] = "error"
+    format: Literal["auto", "csv", "parquet"] = "auto"
+
+    def __post_init__(self):
+        for role, name in self.columns.items():
+            if role not in ROLES:
+                raise ConfigError(f"columns.{role}", f"unknown role{suggest(role, ROLES)}; roles: {', '.join(ROLES)}")
+            if not isinstance(name, str) or not name:
+                raise ConfigError(f"columns.{role}", f"got {name!r}; expected the column's name in the file")
+        names = list(self.columns.values())
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ConfigError("columns", f"column {twice[0]!r} is mapped to two roles")
+        for key, value in self.units.items():
+            allowed = {"length": LENGTH_UNITS, "time": TIME_UNITS}.get(key)
+            if allowed is None:
+                raise ConfigError(f"units.{key}", f"unknown unit kind{suggest(key, ('length', 'time'))}; "
+                                                  "allowed: length, time")
+            if value not in allowed:
+                raise ConfigError(f"units.{key}", f"got {value!r}; allowed: {', '.join(allowed)}"
+                                                  f"{suggest(str(value), allowed)}")
+        if self.body_length is not None:
+            if isinstance(self.body_length, bool) or not (math.isfinite(self.body_length) and self.body_length > 0):
+                raise ConfigError("body_length", f"got {self.body_length!r}; expected metres > 0")
+            if self.length_unit == "bl":
+                raise ConfigError("body_length", 'the tracks are already in body lengths (units.length = "bl")')
+        if self.max_speed is not None and not (math.isfinite(self.max_speed) and self.max_speed > 0):
+            raise ConfigError("max_speed", f"got {self.max_speed!r}; expected a number > 0 (length units per s)")
+
+    @property
+    def length_unit(self) -> str:
+        return self.units.get("length", "m")
+
+    @property
+    def time_unit(self) -> str:
+        return self.units.get("time", "s")
+
+    @property
+    def unit_label(self) -> str:
+        """The analysis length unit: "BL" (body lengths) or "m"."""
+        return "BL" if self.length_unit == "bl" or self.body_length is not None else "m"
+
+    def column(self, role: str) -> str:
+        return self.columns.get(role, role)
+
+
+def sidecar_path(path) -> Path:
+    """``tracks.csv.gz`` -> ``tracks.json`` (every suffix replaced)."""
+    path = Path(path)
+    return path.with_name(path.name.split(".")[0] + ".json")
+
+
+def read_sidecar(path) -> dict:
+    """The sidecar JSON of a track file ({} when there is none)."""
+    side = sidecar_path(path)
+    if not side.is_file():
+        return {}
+    try:
+        data = json.loads(side.read_text())
+    except json.JSONDecodeError as err:
+        raise ConfigError(str(side), f"not valid JSON: {err}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(str(side), "expected a JSON object")
+    return data
+
+
+def track_source(path, given: dict, where: str = "", cls=None) -> TrackSource:
+    """The :class:`TrackSource` (or subclass ``cls``) of ``path``: the sidecar's settings, overridden by
+    ``given``."""
+    cls = TrackSource if cls is None else cls
+    known = {f.name for f in fields(TrackSource)}
+    settings = {k: v for k, v in read_sidecar(path).items() if k in known}
+    settings.update({k: v for k, v in given.items() if v is not None})
+    return build(cls, settings, where)
+
+
+# ------------------------------------------------------------------------------------------- reading
+
+def _delimiter(path: Path) -> str:
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as handle:
+        header = handle.readline()
+    for sep in (",", "\t", ";"):
+        if sep in header:
+            return sep
+    return r"\s+"
+
+
+def file_format(path, fmt: str = "auto") -> str:
+    """"parquet" or "csv": ``fmt``, or with "auto" Parquet for .parquet/.pq files and CSV otherwise."""
+    if fmt != "auto":
+        return fmt
+    return "parquet" if Path(path).suffix in (".parquet", ".pq") else "csv"
+
+
+def read_table(path, fmt: str = "auto") -> pd.DataFrame:
+    """The raw table of a track file (see :func:`file_format`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(str(path), "no such track file")
+    fmt = file_format(path, fmt)
+    try:
+        if fmt == "parquet":
+            return pd.read_parquet(path)
+        return pd.read_csv(path, sep=_delimiter(path), **EXACT_FLOATS)
+    except Exception as err:  # noqa: BLE001 - an unreadable file is the user's input problem
+        raise ConfigError(str(path), f"cannot read it as {fmt}: {err}") from None
+
+
+@dataclass(frozen=True, eq=False)
+class TrackTable:
+    """A track file read and converted: ``frame`` has row, flock, id, t (s), x, y, z (analysis units) and,
+    when given, vx, vy, vz and pattern; ``issues`` what reading found (notes and warnings only)."""
+
+    frame: pd.DataFrame
+    path: Path
+    source: TrackSource
+    dims: int
+    has_velocity: bool
+    has_pattern: bool
+    line_offset: int | None      # CSV: line = row + 1; Parquet: None
+    t_origin: str = ""           # datetime tracks: the timestamp of t = 0
+    issues: tuple = ()
+
+    @property
+    def unit_label(self) -> str:
+        return self.source.unit_label
+
+
+def _numeric(frame: pd.DataFrame, role: str, name: str, errors: list, allow_missing: bool) -> np.ndarray:
+    raw = frame[name]
+    values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+    bad = np.isnan(values) & raw.notna().to_numpy()
+    bad |= np.isinf(values)
+    if not allow_missing:
+        bad |= raw.isna().to_numpy()
+    if bad.any():
+        rows = np.flatnonzero(bad) + 1
+        example = raw.iloc[rows[0] - 1]
+        errors.append(Issue("error", "bad value", f"{role}: not a finite number (first: {example!r})",
+                            rows=tuple(rows), column=name))
+    return values
+
+
+def _times(frame: pd.DataFrame, name: str, unit: str, errors: list) -> tuple[np.ndarray, str]:
+    if unit != "datetime":
+        return _numeric(frame, "t", name, errors, allow_missing=False) * TIME_UNITS[unit], ""
+    stamps = pd.to_datetime(frame[name], errors="coerce")
+    bad = stamps.isna().to_numpy()
+    if bad.any():
+        rows = np.flatnonzero(bad) + 1
+        errors.append(Issue("error", "bad value", f"t: not a timestamp (first: {frame[name].iloc[rows[0] - 1]!r})",
+                            rows=tuple(rows), column=name))
+        return np.zeros(len(frame)), ""
+    origin = stamps.min()
+    return (stamps - origin).dt.total_seconds().to_numpy(dtype=np.float64), str(origin)
+
+
+def _present_roles(frame: pd.DataFrame, source: TrackSource, path: Path) -> dict:
+    columns = [str(c) for c in frame.columns]
+    roles = {}
+    for role in ROLES:
+        name = source.column(role)
+        if name in columns:
+            roles[role] = name
+        elif role in REQUIRED or role in source.columns:
+            mapped = f" (mapped to {name!r})" if role in source.columns else ""
+            raise TrackError([Issue("error", "missing column", f"no column for role {role!r}{mapped}"
+                                    f"{suggest(name, columns)}; the file has: {', '.join(columns)}; map one with "
+                                    f"columns {role}=NAME", column=name)], path)
+    velocity = [r for r in ("vx", "vy", "vz") if r in roles]
+    need = ["vx", "vy"] + (["vz"] if "z" in roles else [])
+    if velocity and sorted(velocity) != sorted(need):
+        raise TrackError([Issue("error", "missing column", f"velocities need all of {need}, the file maps "
+                                f"{velocity}")], path)
+    return roles
+
+
+def load_tracks(path, source: TrackSource) -> TrackTable:
+    """Read ``path`` and convert it (see the module docstring); TrackError lists every bad cell."""
+    path = Path(path)
+    frame = read_table(path, source.format)
+    roles = _present_roles(frame, source, path)
+    errors: list[Issue] = []
+    out = {"row": np.arange(1, len(frame) + 1)}
+    flock_name = path.name.split(".")[0]
+    out["flock"] = frame[roles["flock"]].astype(str).to_numpy() if "flock" in roles else np.full(len(frame), flock_name)
+    for role in ("flock", "id"):
+        if role in roles and frame[roles[role]].isna().any():
+            errors.append(Issue("error", "bad value", f"{role}: missing",
+                                rows=tuple(np.flatnonzero(frame[roles[role]].isna()) + 1), column=roles[role]))
+    ids = frame[roles["id"]]
+    out["id"] = ids.to_numpy()
+    out["t"], origin = _times(frame, roles["t"], source.time_unit, errors)
+    scale = LENGTH_UNITS[source.length_unit] or 1.0
+    if source.body_length is not None:
+        scale = scale / source.body_length
+    for role in ("x", "y", "z", "vx", "vy", "vz"):
+        if role in roles:
+            values = _numeric(frame, role, roles[role], errors, allow_missing=True)
+            if role.startswith("v") and source.time_unit != "datetime":
+                values = values / TIME_UNITS[source.time_unit]
+            out[role] = values if scale == 1.0 else values * scale
+    if "z" not in roles:
+        out["z"] = np.zeros(len(frame))
+    if "pattern" in roles:
+        pattern = _numeric(frame, "pattern", roles["pattern"], errors, allow_missing=False)
+        if np.any(pattern != np.round(pattern)):
+            errors.append(Issue("error", "bad value", "pattern: not an integer", column=roles["pattern"],
+                                rows=tuple(np.flatnonzero(pattern != np.round(pattern)) + 1)))
+        out["pattern"] = pattern
+    line_offset = None if file_format(path, source.format) == "parquet" else 1
+    if errors:
+        raise TrackError(errors, path, line_offset)
+    table = pd.DataFrame(out)
+    return _drop_undetected(TrackTable(frame=table, path=path, source=source, dims=3 if "z" in roles else 2,
+                                       has_velocity="vx" in roles, has_pattern="pattern" in roles,
+                                       line_offset=line_offset, t_origin=origin))
+
+
+def _drop_undetected(table: TrackTable) -> TrackTable:
+    """Rows without a complete position are missed detections: reported as a note, then left out."""
+    frame = table.frame
+    missing = frame[["x", "y", "z"]].isna().any(axis=1).to_numpy()
+    if not missing.any():
+        return table
+    note = Issue("note", "missed detection", f"{int(missing.sum())} rows have no (complete) position: "
+                 "treated as not detected at that time", rows=tuple(frame["row"].to_numpy()[missing]))
+    return dataclasses.replace(table, frame=frame[~missing].reset_index(drop=True), issues=table.issues + (note,))
+
+
+# -------------------------------------------------------------------------------------------- flocks
+
+@dataclass(frozen=True, eq=False)
+class RawFlock:
+    """One flock's samples as detected: sorted by individual, then time (see :func:`raw_flocks`)."""
+
+    name: str
+    ids: np.ndarray                 # (N,) individual ids, sorted
+    t: np.ndarray                   # (S,) seconds
+    ind: np.ndarray                 # (S,) int64 index into ids, non-decreasing
+    pos: np.ndarray                 # (S, 3) analysis units
+    vel: np.ndarray | None = None   # (S, 3) or None
+    pattern: np.ndarray | None = None  # (N,) int64 or None
+    dims: int = 3
+    rows: np.ndarray | None = None  # (S,) source rows, None for simulated samples
+
+    def bounds(self) -> np.ndarray:
+        """(N + 1,) start of each individual's samples in the arrays."""
+        return np.searchsorted(self.ind, np.arange(len(self.ids) + 1))
+
+    def source_rows(self, samples) -> tuple:
+        """Source rows of the given sample indices (empty for simulated flocks)."""
+        return () if self.rows is None else tuple(int(r) for r in self.rows[np.asarray(samples, dtype=int)])
+
+
+def _sorted_ids(ids: np.ndarray) -> np.ndarray:
+    unique = pd.unique(ids)
+    try:
+        return np.array(sorted(unique))
+    except TypeError:  # mixed types: sort as text
+        return np.array(sorted(unique, key=str), dtype=object)
+
+
+def raw_flocks(table: TrackTable) -> tuple[list[RawFlock], list[Issue]]:
+    """The flocks of a table, in order of first appearance, and notes on rows that were out of order."""
+    flocks, issues = [], []
+    frame = table.frame
+    for name, group in frame.groupby("flock", sort=False):
+        ids = _sorted_ids(group["id"].to_numpy())
+        ind = pd.Index(ids).get_indexer(group["id"].to_numpy()).astype(np.int64)
+        t = group["t"].to_numpy(dtype=np.float64)
+        order = np.lexsort((t, ind))
+        by_file = np.argsort(ind, kind="stable")       # each individual's samples in file order
+        backwards = np.flatnonzero((np.diff(ind[by_file]) == 0) & (np.diff(t[by_file]) < 0)) + 1
+        if backwards.size:
+            rows = group["row"].to_numpy()[by_file][backwards]
+            issues.append(Issue("note", "unsorted", f"{backwards.size} samples come after a later time of the "
+                                "same individual in the file; sorted by time", flock=str(name), rows=tuple(rows)))
+        pos = group[["x", "y", "z"]].to_numpy(dtype=np.float64)[order]
+        vel = group[["vx", "vy", "vz"]].to_numpy(dtype=np.float64)[order] if table.has_velocity else None
+        if vel is not None and table.dims == 2:
+            vel[:, 2] = 0.0
+        pattern = None
+        if table.has_pattern:
+            per_id = group.groupby(ind)["pattern"].agg(["min", "max"])
+            mixed = per_id.index[per_id["min"] != per_id["max"]]
+            if len(mixed):
+                raise TrackError([Issue("error", "bad value", "pattern changes over time for an individual",
+                                        flock=str(name), id=str(ids[mixed[0]]),
+                                        column=table.source.column("pattern"))], table.path, table.line_offset)
+            pattern = per_id["min"].to_numpy().astype(np.int64)
+        flocks.append(RawFlock(name=str(name), ids=ids, t=t[order], ind=ind[order], pos=pos, vel=vel,
+                               pattern=pattern, dims=table.dims, rows=group["row"].to_numpy()[order]))
+    return flocks, issues
+
+
+# ------------------------------------------------------------------------------------------- writing
+
+def tracks_frame(obs, flock: str) -> pd.DataFrame:
+    """A simulator run's records as a long track table (flock, id, t, x, y, z, vx, vy, vz, pattern), in
+    body lengths and seconds, one row per boid and record, record-major. Values are the simulator's own
+    float64 numbers, so reading the table back gives them exactly."""
+    n_records, n = obs.pos.shape[:2]
+    return pd.DataFrame({
+        "flock": flock,
+        "id": np.tile(np.arange(n), n_records),
+        "t": np.repeat(obs.times, n),
+        **{axis: obs.pos[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
+        **{f"v{axis}": obs.vel[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
+        "pattern": np.tile(np.asarray(obs.pattern, dtype=np.int64), n_records),
+    })
+
+
+TRACKS_SIDECAR = {"units": {"length": "bl", "time": "s"}}

@@ -1,0 +1,191 @@
+"""Checking measured tracks: every problem named by flock, individual, row and column; nothing dropped
+without saying so.
+
+An :class:`Issue` is one finding: ``level`` "error" (the tracks cannot be used as they are), "warning"
+(used, but look) or "note" (how the data were handled); ``check`` says which check found it. A
+:class:`TrackError` carries the errors and says where they are (rows numbered from 1 in file order; a
+CSV's line is the row + 1).
+
+The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
+
+* **duplicates**: two samples of one individual at the same time: an error (which one is right?);
+* **impossible speeds**: a sample reached from the individual's previous good sample faster than
+  ``max_speed`` (default: 10 x the flock's median step speed) is flagged; a glitch then shows as one
+  flagged sample and the track continues from the last good one. ``bad_speeds`` says what happens:
+  "error" (the default: stop and list them), "keep" (a warning, the samples are used) or "drop" (a
+  warning listing the samples left out);
+* **gaps**: consecutive samples of an individual more than 1.5 sampling intervals apart. Gaps up to
+  ``max_gap`` are bridged by linear interpolation when resampling (a note), longer ones stay missing (a
+  warning); one issue of each kind per flock, counting them and naming the longest gap, its individual
+  and rows.
+
+``infer_interval(flock)`` is the sampling interval of tracks that do not state it: the median time
+between consecutive samples of an individual, to 9 significant digits. ``issues_table`` lists issues as
+a DataFrame (level, check, flock, id, column, rows, detail).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+GAP_FACTOR = 1.5          # consecutive samples further apart than this many intervals make a gap
+SPEED_FACTOR = 10.0       # default max_speed: this many times the flock's median step speed
+LEVELS = ("error", "warning", "note")
+
+
+@dataclass(frozen=True)
+class Issue:
+    level: str
+    check: str
+    detail: str
+    flock: str | None = None
+    id: str | None = None
+    rows: tuple = ()
+    column: str | None = None
+
+
+def rows_text(rows, line_offset: int | None = None, limit: int = 8) -> str:
+    """'row 12' / 'rows 12, 13, 40 (+5 more)', with the file lines when ``line_offset`` is given."""
+    rows = [int(r) for r in rows]
+    if not rows:
+        return ""
+    shown = ", ".join(map(str, rows[:limit])) + (f" (+{len(rows) - limit} more)" if len(rows) > limit else "")
+    text = f"row{'s' if len(rows) > 1 else ''} {shown}"
+    if line_offset is not None:
+        lines = ", ".join(str(r + line_offset) for r in rows[:limit])
+        text += f" (line{'s' if len(rows) > 1 else ''} {lines}{', ...' if len(rows) > limit else ''})"
+    return text
+
+
+def describe(issue: Issue, line_offset: int | None = None) -> str:
+    where = [f"flock {issue.flock!r}" if issue.flock is not None else "",
+             f"id {issue.id}" if issue.id is not None else "", rows_text(issue.rows, line_offset),
+             f"column {issue.column!r}" if issue.column else ""]
+    where = ", ".join(w for w in where if w)
+    return f"{issue.level}: {issue.check}: {where + ': ' if where else ''}{issue.detail}"
+
+
+class TrackError(ValueError):
+    """Tracks that cannot be used as they are; ``issues`` lists every error found."""
+
+    def __init__(self, issues, path=None, line_offset: int | None = None):
+        self.issues = list(issues)
+        self.path = path
+        self.line_offset = line_offset
+        errors = [i for i in self.issues if i.level == "error"] or self.issues
+        head = f"{path}: " if path else ""
+        lines = [describe(i, line_offset) for i in errors[:20]]
+        more = f"\n  ... and {len(errors) - 20} more" if len(errors) > 20 else ""
+        super().__init__(f"{head}{len(errors)} problem(s) in the tracks:\n  " + "\n  ".join(lines) + more)
+
+
+def issues_table(issues, line_offset: int | None = None) -> pd.DataFrame:
+    rows = [{"level": i.level, "check": i.check, "flock": i.flock, "id": i.id, "column": i.column,
+             "rows": rows_text(i.rows, line_offset, limit=20).split(" ", 1)[-1] if i.rows else "",
+             "detail": i.detail} for i in issues]
+    frame = pd.DataFrame(rows, columns=["level", "check", "flock", "id", "column", "rows", "detail"])
+    order = frame["level"].map({level: k for k, level in enumerate(LEVELS)})
+    return frame.iloc[np.argsort(order.to_numpy(), kind="stable")].reset_index(drop=True)
+
+
+def _steps(raw) -> tuple[np.ndarray, np.ndarray]:
+    """(index of each step's later sample, its time difference) for consecutive samples of an individual."""
+    same = np.flatnonzero(np.diff(raw.ind) == 0) + 1
+    return same, raw.t[same] - raw.t[same - 1]
+
+
+def infer_interval(raw) -> float:
+    later, dt = _steps(raw)
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        raise ValueError(f"flock {raw.name!r}: no individual has two samples; cannot infer the sampling interval")
+    return float(f"{np.median(dt):.9g}")
+
+
+def _duplicates(raw) -> list[Issue]:
+    later, dt = _steps(raw)
+    same = later[dt == 0]
+    if not same.size:
+        return []
+    ids = sorted({str(raw.ids[raw.ind[k]]) for k in same})
+    rows = sorted(set(raw.source_rows(same)) | set(raw.source_rows(same - 1)))
+    return [Issue("error", "duplicate", f"{same.size} samples repeat an individual's time "
+                  f"(individuals {', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''}); remove or merge them",
+                  flock=raw.name, rows=tuple(rows))]
+
+
+def _too_fast(raw, limit: float) -> np.ndarray:
+    """Samples reached from the individual's last good sample faster than ``limit`` (greedy, in time order)."""
+    flagged = np.zeros(len(raw.t), dtype=bool)
+    later, dt = _steps(raw)
+    speed = np.linalg.norm(raw.pos[later] - raw.pos[later - 1], axis=1) / dt
+    suspects = np.unique(raw.ind[later[speed > limit]])
+    bounds = raw.bounds()
+    for i in suspects:
+        good = bounds[i]
+        for k in range(bounds[i] + 1, bounds[i + 1]):
+            if np.linalg.norm(raw.pos[k] - raw.pos[good]) / (raw.t[k] - raw.t[good]) > limit:
+                flagged[k] = True
+            else:
+                good = k
+    return flagged
+
+
+def _speeds(raw, max_speed: float | None, policy: str, unit: str):
+    later, dt = _steps(raw)
+    if later.size == 0:
+        return raw, []
+    speed = np.linalg.norm(raw.pos[later] - raw.pos[later - 1], axis=1) / dt
+    limit = max_speed if max_speed is not None else SPEED_FACTOR * float(np.median(speed))
+    if not limit > 0:
+        return raw, [Issue("note", "speed", "the median step speed is 0: no speed check", flock=raw.name)]
+    flagged = _too_fast(raw, limit)
+    if not flagged.any():
+        return raw, []
+    ids = sorted({str(raw.ids[raw.ind[k]]) for k in np.flatnonzero(flagged)})
+    how = "max_speed" if max_speed is not None else f"{SPEED_FACTOR:g} x the median step speed"
+    text = (f"{int(flagged.sum())} samples reached faster than {limit:.4g} {unit}/s ({how}) from the "
+            f"individual's previous good sample (individuals {', '.join(ids[:10])}{' ...' if len(ids) > 10 else ''})")
+    rows = raw.source_rows(np.flatnonzero(flagged))
+    if policy == "error":
+        return raw, [Issue("error", "speed", text + "; fix them, or pass bad_speeds = keep / drop",
+                           flock=raw.name, rows=rows)]
+    if policy == "keep":
+        return raw, [Issue("warning", "speed", text + "; kept (bad_speeds = keep)", flock=raw.name, rows=rows)]
+    keep = ~flagged
+    cleaned = dataclasses.replace(raw, t=raw.t[keep], ind=raw.ind[keep], pos=raw.pos[keep],
+                                  vel=None if raw.vel is None else raw.vel[keep],
+                                  rows=None if raw.rows is None else raw.rows[keep])
+    return cleaned, [Issue("warning", "speed", text + "; left out (bad_speeds = drop)", flock=raw.name, rows=rows)]
+
+
+def _gaps(raw, interval: float, max_gap: float) -> list[Issue]:
+    later, dt = _steps(raw)
+    gap = dt > GAP_FACTOR * interval
+    issues = []
+    for level, kind, selected in (("note", "bridged by interpolation", gap & (dt <= max_gap * (1 + 1e-9))),
+                                  ("warning", "left missing", gap & (dt > max_gap * (1 + 1e-9)))):
+        if not selected.any():
+            continue
+        worst = np.flatnonzero(selected)[np.argmax(dt[selected])]
+        k = later[worst]
+        count = int(np.unique(raw.ind[later[selected]]).size)
+        issues.append(Issue(level, "gap", f"{int(selected.sum())} gap(s) of {count} individual(s) {kind} (max_gap "
+                            f"{max_gap:g} s); the longest: {dt[worst]:.4g} s, from t = {raw.t[k - 1]:.6g} s to "
+                            f"{raw.t[k]:.6g} s (its rows)", flock=raw.name, id=str(raw.ids[raw.ind[k]]),
+                            rows=raw.source_rows([k - 1, k])))
+    return issues
+
+
+def check_flock(raw, interval: float, max_gap: float, max_speed: float | None = None, bad_speeds: str = "error",
+                unit: str = "length units"):
+    """(the flock to use, its issues): duplicates, impossible speeds and gaps (see the module docstring);
+    ``unit`` names the length unit in messages."""
+    issues = _duplicates(raw)
+    if issues:
+        return raw, issues
+    raw, speed_issues = _speeds(raw, max_speed, bad_speeds, unit)
+    return raw, speed_issues + _gaps(raw, interval, max_gap)

@@ -1,0 +1,127 @@
+"""``flocksweep measure``: the command line of :func:`analysis.reports.measured.measure_folder`.
+
+    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet] [--columns ROLE=NAME ...]
+                       [--units length=m|cm|mm|km|bl time=s|ms|min|h|datetime] [--body-length METRES]
+                       [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
+                       [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
+                       [--no-figures] [--no-progress]
+
+Lengths given here (group radius, max speed) are in the analysis units: body lengths with
+``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
+when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
+``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
+``--out``. ``sweeps/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks exit
+with status 2 after listing every problem (and writing ``validation.csv``).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from analysis.observables.measured import track_settings
+from analysis.observables.metrics import FRAGMENTATION_COHESION
+from analysis.observables.resample import RECORDED
+from analysis.observables.tracks import LENGTH_UNITS, ROLES, track_source
+from analysis.observables.validation import TrackError
+from simcore.schema import ConfigError
+
+from .measured import measure_folder
+
+DESCRIPTION = ("Compute every flock metric from measured trajectories (long format: flock, id, t, x, y[, z]"
+               "[, vx, vy, vz]): validate them, resample onto a regular interval, and write a runs table (one "
+               "row per flock), time series per flock, a validation table and a short report with figures.")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("tracks", type=Path, help="track file: CSV (also .csv.gz) or Parquet, one row per detection")
+    p.add_argument("--group-radius", type=float, required=True, metavar="R",
+                   help="individuals closer than R are linked into one group (analysis length units: body "
+                        "lengths with --body-length, else metres); groups, cohesion and the shape metrics use it")
+    p.add_argument("--format", choices=("auto", "csv", "parquet"), default=None,
+                   help="file format (default: from the extension)")
+    p.add_argument("--columns", nargs="+", default=[], metavar="ROLE=NAME",
+                   help=f"column map, e.g. id=bird t=time; roles: {', '.join(ROLES)}")
+    p.add_argument("--units", nargs="+", default=[], metavar="KIND=UNIT",
+                   help="length=m|cm|mm|km|bl and time=s|ms|min|h|datetime (default m and s); a bare unit "
+                        "such as cm means length")
+    p.add_argument("--body-length", type=float, metavar="METRES",
+                   help="body length in metres: lengths become body lengths (BL), speeds BL/s")
+    p.add_argument("--interval", type=float, metavar="S",
+                   help="resample onto this sampling interval (default: each flock's median sample spacing)")
+    p.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2.5 intervals)")
+    p.add_argument("--velocity-interval", metavar="S|recorded",
+                   help="difference positions over S seconds (a whole number of intervals), or 'recorded' "
+                        "(default: recorded when the file has velocities, else one interval)")
+    p.add_argument("--warmup", type=float, default=0.0, help="seconds at the start left out of window means")
+    p.add_argument("--fragmentation-cohesion", type=float, default=FRAGMENTATION_COHESION,
+                   help="cohesion below this counts as fragmented (default 0.5)")
+    p.add_argument("--max-speed", type=float, metavar="V",
+                   help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
+    p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
+                   help="samples reached at an impossible speed: stop (default), keep them, or drop them")
+    p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
+    p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _pairs(items, flag: str, bare: str | None = None) -> dict:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            if bare is None:
+                raise ConfigError(flag, f"got {item!r}; expected KEY=VALUE")
+            key, value = bare, item
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _velocity_interval(text: str | None):
+    if text is None:
+        return "auto"
+    if text == RECORDED:
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise ConfigError("--velocity-interval", f"got {text!r}; expected seconds or 'recorded'") from None
+
+
+def run(args) -> int:
+    units = _pairs(args.units, "--units", bare="length")
+    if "length" in units and units["length"] not in LENGTH_UNITS:
+        units["length"] = units["length"].lower()
+    given = {"columns": _pairs(args.columns, "--columns"), "units": units, "body_length": args.body_length,
+             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format}
+    given = {k: v for k, v in given.items() if v not in (None, {})}
+    source = track_source(args.tracks, given, "")
+    for flag, value in (("--interval", args.interval), ("--max-gap", args.max_gap)):
+        if value is not None and not value > 0:
+            raise ConfigError(flag, f"got {value}; expected seconds > 0")
+    try:
+        settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion)
+    except (ValueError, ConfigError) as err:
+        raise ConfigError("--group-radius" if "radius" in str(err) else "--warmup", str(err)) from None
+    out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
+    try:
+        result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
+                                _velocity_interval(args.velocity_interval), figures=not args.no_figures,
+                                progress=not args.no_progress)
+    except TrackError as err:
+        print(f"flocksweep: {err}", file=sys.stderr)
+        print(f"  (every problem is listed in {out / 'validation.csv'})", file=sys.stderr)
+        return 2
+    runs = result["measurement"].runs
+    table = result["measurement"].table
+    print(f"{table.path.name}: {len(runs)} flock(s), {int((runs['status'] == 'ok').sum())} measured, "
+          f"{table.dims}-D, lengths in {table.unit_label}; {len(result['issues'])} validation issue(s)")
+    shown = runs[["flock", "individuals", "records", "tracked_mean", "polarization_mean", "nn_distance_mean",
+                  "speed_mean_mean", "cohesion_mean"]]
+    print(shown.head(20).round(4).to_string(index=False))
+    for name, error in runs.loc[runs["status"] == "failed", ["flock", "error"]].itertuples(index=False):
+        print(f"  flock {name} not measured: {error}")
+    for path in result["paths"].values():
+        print(f"  wrote {path}")
+    print(f"  tables: {result['out'] / 'runs.parquet'}, {result['out'] / 'timeseries.parquet'}, "
+          f"{result['out'] / 'validation.csv'}; {result['seconds']:.1f} s")
+    return 0

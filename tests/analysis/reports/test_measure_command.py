@@ -1,0 +1,77 @@
+"""End-to-end: `flocksweep simulate --tracks` and `flocksweep measure` (analysis.reports.measured)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.observables.metrics import frame_metrics, summarize
+from analysis.observables.summary import summary_columns
+from sweeps.cli import main
+from paths import ROOT
+
+HOLLAND = str(ROOT / "configs/models/holland.toml")
+EXAMPLE = ROOT / "configs/tracks/synthetic_holland.csv.gz"
+
+
+def test_simulated_tracks_measure_back_to_the_simulators_metrics_through_the_cli(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["simulate", HOLLAND, "--n", "10", "--duration", "2", "--seed", "5", "--record-every", "6",
+                 "--set", "init.radius=5", "--out", str(run), "--tracks", "parquet"]) == 0
+    assert json.loads((run / "tracks.json").read_text())["units"] == {"length": "bl", "time": "s"}
+    out = tmp_path / "measured"
+    assert main(["measure", str(run / "tracks.parquet"), "--group-radius", "6", "--warmup", "0.5",
+                 "--out", str(out), "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    assert "1 flock(s), 1 measured, 3-D, lengths in BL" in printed
+    data = np.load(run / "trajectory.npz")
+    series = frame_metrics(data["pos"], data["vel"], None, None, data["pattern"], 6.0)
+    expected = summarize(series, data["times"], warmup=0.5)
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "flock"] == "holland-seed5" and runs.loc[0, "velocity_interval"] == "recorded"
+    for column, value in expected.items():
+        assert np.array_equal(runs.loc[0, column], value, equal_nan=True), column
+    assert set(summary_columns(leadership=False)) <= set(runs.columns)
+    ts = pd.read_parquet(out / "timeseries.parquet")
+    assert np.array_equal(ts["t"].to_numpy(), data["times"]) and np.array_equal(ts["polarization"], series["polarization"])
+    for name in ("report.md", "report.html", "validation.csv", "measure.json", "runs.csv"):
+        assert (out / name).stat().st_size > 0, name
+    assert "Measured flocks: tracks.parquet" in (out / "report.md").read_text()
+    assert not (out / "figures").exists()
+
+
+def test_bad_tracks_exit_2_naming_row_and_column_and_keep_the_validation_table(tmp_path, capsys):
+    frame = pd.DataFrame({"bird": [1, 1, 2, 2], "time": [0.0, 0.1, 0.0, 0.1], "x": [0.0, 0.1, 1.0, "oops"],
+                          "y": [0.0, 0.0, 0.0, 0.0]})
+    path = tmp_path / "bad.csv"
+    frame.to_csv(path, index=False)
+    out = tmp_path / "out"
+    code = main(["measure", str(path), "--group-radius", "2", "--columns", "id=bird", "t=time", "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "row 4 (line 5), column 'x'" in err and "'oops'" in err
+    table = pd.read_csv(out / "validation.csv")
+    assert list(table["level"]) == ["error"] and table.loc[0, "column"] == "x"
+    # an unknown unit is a config error naming the key
+    assert main(["measure", str(path), "--group-radius", "2", "--units", "furlong"]) == 2
+    assert "units.length: got 'furlong'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["measure", str(path)])                         # --group-radius is required
+
+
+@pytest.mark.slow
+def test_the_shipped_synthetic_example_measures_with_its_glitch_reported(tmp_path, capsys):
+    out = tmp_path / "example"
+    assert main(["measure", str(EXAMPLE), "--group-radius", "20", "--velocity-interval", "0.4", "--out", str(out)]) == 0
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert list(runs["flock"]) == [f"F{k}" for k in range(1, 9)] and (runs["status"] == "ok").all()
+    assert (runs["length_unit"] == "BL").all() and (runs["interval"] == 0.2).all()
+    validation = pd.read_csv(out / "validation.csv")
+    speed = validation[validation["check"] == "speed"]
+    assert len(speed) == 1 and speed.iloc[0]["flock"] == "F3" and "left out" in speed.iloc[0]["detail"]
+    report = (out / "report.md").read_text()
+    assert "SYNTHETIC" in report and len(list((out / "figures").glob("flock_F*.png"))) == 8
+    assert "figures/metrics_over_time.png" in report and "Flock F8" in report
+    assert (out / "figures/metrics_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
