@@ -27,7 +27,8 @@ def test_simulated_tracks_measure_back_to_the_simulators_metrics_through_the_cli
     printed = capsys.readouterr().out
     assert "1 flock(s), 1 measured, 3-D, lengths in BL" in printed
     data = np.load(run / "trajectory.npz")
-    series = frame_metrics(data["pos"], data["vel"], None, None, data["pattern"], 6.0)
+    series = frame_metrics(data["pos"], data["vel"], None, None, data["pattern"], 6.0,
+                           record_interval=0.1)   # 6 steps of 1/60 s: the interval measure infers
     expected = summarize(series, data["times"], warmup=0.5)
     runs = pd.read_parquet(out / "runs.parquet")
     assert runs.loc[0, "flock"] == "holland-seed5" and runs.loc[0, "velocity_interval"] == "recorded"
