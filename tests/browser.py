@@ -1,6 +1,6 @@
 """Driving a real headless Chromium (Debian's ``chromium``) through Playwright's Python API.
 
-Used by tests/test_viewer_browser.py, bench/bench_viewer.py and for the README's screenshot::
+Used by tests/analysis/viewer/test_viewer_browser.py, bench/bench_viewer.py and for the README's screenshot::
 
     python tests/browser.py PAGE.html OUT.png [--play SECONDS] [--seek FRAME] [--color-by MODE] [--fit] [--whole-page]
 
