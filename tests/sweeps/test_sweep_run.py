@@ -367,6 +367,7 @@ def test_force_recomputes_every_run_into_new_parts_with_equal_results(tmp_path):
     assert len(ResultsStore(out).all_rows()) == 6  # old parts are kept, the latest row wins
 
 
+@pytest.mark.slow
 def test_second_runner_on_a_locked_directory_is_refused(tmp_path, capsys):
     sweep = write_sweep(tmp_path, N_AXIS)
     out = tmp_path / "results"

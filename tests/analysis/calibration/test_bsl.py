@@ -62,6 +62,7 @@ def test_posterior_matches_conjugate_normal():
     assert np.all((res.acceptance_fraction > 0) & (res.acceptance_fraction < 1))
 
 
+@pytest.mark.slow
 def test_same_seed_bit_identical_different_seed_differs():
     a, b, c = run(seed=5), run(seed=5), run(seed=6)
     assert same(a, b)
@@ -94,6 +95,7 @@ def test_existing_file_without_resume_and_mismatched_resume_are_errors(tmp_path)
         run(steps=10, resume=True)
 
 
+@pytest.mark.slow
 def test_reevaluation_changes_current_log_prob_and_converges():
     k = 10
     plain = run(steps=200, walkers=16)

@@ -93,6 +93,7 @@ def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_pa
     assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16
 
 
+@pytest.mark.slow
 def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
     data = tiny(truth_targets)
     data["method"] = {"kind": "optimize", "n_sim": 8, "maxiter": 5, "popsize": 4, "recheck": 16}
