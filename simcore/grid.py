@@ -16,7 +16,9 @@ snapshot instead: boids ordered by bucket with a copy of their positions, read a
 
 Contract: ``gather(grid, i, pos, cand, cpos)`` writes into ``cand`` (and their positions, bit for bit,
 into ``cpos``) every boid whose true distance from boid i can be at most the query radius (and others,
-boid i included), each once, in no particular order. ``build``
+boid i included), each once, in no particular order. In the sorted layout ``runs(grid, i, pos, first,
+last)`` gives the same candidates in the same order without copying them: the slices
+``first[r]:last[r]`` of ``order`` (and ``spos``), r < the count it returns (at most 27). ``build``
 returns False, and the caller must search all pairs for this step, when the grid cannot give that
 guarantee: a non-finite position, coordinates beyond 1e9 cells (rounding), or a periodic box under 3
 query radii. Topological searches (:mod:`simcore.topological`) walk cubic shells of cells with
@@ -232,6 +234,33 @@ def _fold(c, a):
     elif c < 0:
         c += a
     return c
+
+
+@inline
+def runs(grid, i, pos, first, last):
+    """Sorted layout: the candidates of :func:`gather`, in its order, as runs ``first[r]:last[r]`` of
+    ``grid.order`` / ``grid.spos`` (buckets that follow each other in memory merged); returns the count."""
+    side, nc = grid.side[0], grid.shape[N_CELLS]
+    ax, ay, az = grid.shape[A_X], grid.shape[A_Y], grid.shape[A_Z]
+    bx = cell_coord(pos[i, 0], side, nc) % ax
+    by = cell_coord(pos[i, 1], side, nc) % ay
+    bz = cell_coord(pos[i, 2], side, nc) % az
+    count = 0
+    previous = -2
+    for dz in range(-1, 2):
+        z = _fold(bz + dz, az)
+        for dy in range(-1, 2):
+            row = ax * (_fold(by + dy, ay) + ay * z)
+            for dx in range(-1, 2):
+                b = row + _fold(bx + dx, ax)
+                if b == previous + 1:
+                    last[count - 1] = grid.start[b + 1]
+                else:
+                    first[count] = grid.start[b]
+                    last[count] = grid.start[b + 1]
+                    count += 1
+                previous = b
+    return count
 
 
 @inline
