@@ -56,9 +56,15 @@ def min_image(x, box):
 @inline
 def offset_from(x, y, z, pos, i, periodic, box):
     """d = (x, y, z) - p_i, minimum image when ``periodic``."""
-    dx = x - pos[i, 0]
-    dy = y - pos[i, 1]
-    dz = z - pos[i, 2]
+    return offset_to(x, y, z, pos[i, 0], pos[i, 1], pos[i, 2], periodic, box)
+
+
+@inline
+def offset_to(x, y, z, px, py, pz, periodic, box):
+    """d = (x, y, z) - (px, py, pz), minimum image when ``periodic``."""
+    dx = x - px
+    dy = y - py
+    dz = z - pz
     if periodic:
         dx = min_image(dx, box)
         dy = min_image(dy, box)

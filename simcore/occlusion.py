@@ -13,10 +13,11 @@ Cost. An occluder j can only hide a k within rho_j of it along every axis. With 
 slots are sorted by their direction's coordinate along the axis of widest spread, and j meets the run of
 slots within its reach on that axis; with many (``GRID_3D_MIN``) candidates come from a 3-D grid of bins
 over the directions, so an occluder meets only the boids whose directions lie within its own disc's
-reach, and the work grows with the number of such pairs (about (3/4) (body_radius / range)^2 m^2 in a uniform flock), not with m^2. An occluder already
-hidden "robustly" (with a margin of 1e-7 (1 + rho), far above rounding) is skipped: containment is
-transitive, so whatever it would hide, the disc hiding it hides too. Every candidate pair gets the exact
-containment test, so the hidden set is exactly that of testing every pair.
+reach, and the work grows with the number of such pairs (about (3/4) (body_radius / range)^2 m^2 in a
+uniform flock), not with m^2. An occluder already hidden "robustly" (with a margin of 1e-7 (1 + rho),
+far above rounding) is skipped: containment is transitive, so whatever it would hide, the disc hiding it
+hides too. Every candidate pair gets the exact containment test, so the hidden set is exactly that of
+testing every pair.
 """
 from __future__ import annotations
 

@@ -31,9 +31,13 @@ from .grid import LAYOUT, SORTED, gather, runs
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
 from .neighbours import (EYE_BOTH, EYE_LEFT, EYE_RIGHT, RULE_ALIGNMENT, RULE_ALL, RULE_COHESION,  # noqa: F401
-                         RULE_SEPARATION, offset_from, sort_by_index, store)
+                         RULE_SEPARATION, offset_from, offset_to, sort_by_index,
+                         store)
 from .occlusion import occlude
 from .topological import nearest
+
+SURE = 1e-12                # relative gap between squares beyond any rounding of the cone test (a few 1e-16)
+TINY, HUGE = 1e-250, 1e250  # squares compared only between these (no underflow or overflow)
 
 
 @inline
@@ -50,16 +54,16 @@ def query_radius(fp, ip):
 
 
 @inline
-def _candidates(i, pos, nbrs, grid, use_grid):
+def _candidates(i, pos, fp, ip, nbrs, grid, use_grid):
     """(n_runs, first, last, indices, positions): the candidate neighbours of boid i (boid i among them)
     are ``indices[c]`` at ``positions[c]`` for c in the runs ``first[r]:last[r]``, r < n_runs: the grid's
-    (read in place from a sorted grid, else gathered into ``nbrs.cand``/``nbrs.cpos``), or every boid in
-    ascending order (then the positions are ``pos`` itself). The runs live in rows 0 and 1 of the scratch
-    ``nbrs.occ_i`` (free until the perspective phase)."""
+    (read in place from a sorted grid, less the cells wholly beyond :func:`query_radius`; else gathered
+    into ``nbrs.cand``/``nbrs.cpos``), or every boid in ascending order (then the positions are ``pos``).
+    The runs live in rows 0 and 1 of the scratch ``nbrs.occ_i`` (free until the perspective phase)."""
     first, last = nbrs.occ_i[0], nbrs.occ_i[1]
     if use_grid:
         if grid.shape[LAYOUT] == SORTED:
-            return runs(grid, i, pos, first, last), first, last, grid.order, grid.spos
+            return runs(grid, i, pos, query_radius(fp, ip), first, last), first, last, grid.order, grid.spos
         first[0], last[0] = 0, gather(grid, i, pos, nbrs.cand, nbrs.cpos)
         return 1, first, last, nbrs.cand, nbrs.cpos
     first[0], last[0] = 0, pos.shape[0]
@@ -119,8 +123,12 @@ def _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, 
 
 
 @inline
-def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
-    """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?"""
+def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, cos_half2, see_all):
+    """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?
+
+    The cone test is a . q >= cos_half |q|. Its square root is spared when the answer is sure without it:
+    the signs of a . q and cos_half differ, or the squares (a . q)^2 and cos_half^2 |q|^2 differ by far more
+    than rounding (``SURE``); otherwise the test is computed as written, so the answer is always its."""
     qx = dx - ex
     qy = dy - ey
     qz = dz - ez
@@ -129,7 +137,20 @@ def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
         return False
     if see_all:
         return True
-    return ax * qx + ay * qy + az * qz >= cos_half * math.sqrt(q2)
+    along = ax * qx + ay * qy + az * qz
+    if cos_half >= 0.0:
+        if along < 0.0:
+            return False
+    elif along >= 0.0:
+        return True
+    bound2 = cos_half2 * q2
+    if TINY < bound2 < HUGE:
+        along2 = along * along
+        if along2 > bound2 * (1.0 + SURE):
+            return cos_half >= 0.0
+        if along2 < bound2 * (1.0 - SURE):
+            return cos_half < 0.0
+    return along >= cos_half * math.sqrt(q2)
 
 
 @inline
@@ -148,18 +169,22 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
     range2 = rng * rng
     reach2 = (rng + h) * (rng + h)  # no eye sees beyond range + head_radius from the centre
     cos_half = fp[F.COS_HALF_FIELD]
+    cos_half2 = cos_half * cos_half
     see_all = ip[I.SEE_ALL] != 0
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     m = 0
     for r in range(n_runs):
         for c in range(first[r], last[r]):
+            dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
+            if dx * dx + dy * dy + dz * dz > reach2:
+                continue
             j = cand[c]
-            dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
-            if dx * dx + dy * dy + dz * dz > reach2 or j == i:
+            if j == i:
                 continue
             label = 0
-            if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, see_all):
+            if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, cos_half2, see_all):
                 label |= EYE_LEFT
-            if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, see_all):
+            if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, cos_half2, see_all):
                 label |= EYE_RIGHT
             if label != 0:
                 store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
@@ -176,7 +201,7 @@ def perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     if kind == PERCEPTION_TOPOLOGICAL:
         m = nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid)
     else:
-        n_runs, first, last, cand, cpos = _candidates(i, pos, nbrs, grid, use_grid)
+        n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
         if kind == PERCEPTION_BINOCULAR:
             m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
             if ip[I.OCCLUSION] != 0 and m > 1:
