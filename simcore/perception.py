@@ -126,22 +126,20 @@ def _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, 
 def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, cos_half2, see_all):
     """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?
 
-    The cone test is a . q >= cos_half |q|. Its square root is spared when the answer is sure without it:
-    the signs of a . q and cos_half differ, or the squares (a . q)^2 and cos_half^2 |q|^2 differ by far more
-    than rounding (``SURE``); otherwise the test is computed as written, so the answer is always its."""
+    The cone test is a . q >= cos_half |q| (for q within range). Its square root is spared when the answer
+    is sure without it: the signs of a . q and cos_half differ, or the squares (a . q)^2 and
+    cos_half^2 |q|^2 differ by far more than rounding (``SURE``); otherwise the test is computed as
+    written, so the answer is always its."""
     qx = dx - ex
     qy = dy - ey
     qz = dz - ez
+    along = ax * qx + ay * qy + az * qz
+    if along < 0.0 and cos_half >= 0.0 and not see_all:  # behind the eye: out whatever the range
+        return False
     q2 = qx * qx + qy * qy + qz * qz
     if q2 <= 0.0 or q2 > range2:
         return False
-    if see_all:
-        return True
-    along = ax * qx + ay * qy + az * qz
-    if cos_half >= 0.0:
-        if along < 0.0:
-            return False
-    elif along >= 0.0:
+    if see_all or (along >= 0.0 and cos_half < 0.0):
         return True
     bound2 = cos_half2 * q2
     if TINY < bound2 < HUGE:
@@ -172,15 +170,19 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
     cos_half2 = cos_half * cos_half
     see_all = ip[I.SEE_ALL] != 0
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
-    m = 0
+    near = nbrs.slot  # scratch: the candidates within reach, in candidate order
+    n_near = 0
     for r in range(n_runs):
-        for c in range(first[r], last[r]):
+        for c in range(first[r], last[r]):  # branch-free: most candidates are out of reach
             dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
-            if dx * dx + dy * dy + dz * dz > reach2:
-                continue
-            j = cand[c]
-            if j == i:
-                continue
+            near[n_near] = c
+            n_near += dx * dx + dy * dy + dz * dz <= reach2
+    m = 0
+    for t in range(n_near):
+        c = near[t]
+        j = cand[c]
+        if j != i:
+            dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
             label = 0
             if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, cos_half2, see_all):
                 label |= EYE_LEFT
