@@ -16,7 +16,10 @@ snapshot instead: boids ordered by bucket with a copy of their positions, read a
 
 Contract: ``gather(grid, i, pos, cand, cpos)`` writes into ``cand`` (and their positions, bit for bit,
 into ``cpos``) every boid whose true distance from boid i can be at most the query radius (and others,
-boid i included), each once, in no particular order. ``build``
+boid i included), each once, in no particular order. In the sorted layout ``runs(grid, i, pos, radius,
+first, last)`` gives the same candidates in the same order without copying them, less the cells wholly
+beyond the query radius in an open world: the slices ``first[r]:last[r]`` of ``order`` (and ``spos``),
+r < the count it returns (at most 27). ``build``
 returns False, and the caller must search all pairs for this step, when the grid cannot give that
 guarantee: a non-finite position, coordinates beyond 1e9 cells (rounding), or a periodic box under 3
 query radii. Topological searches (:mod:`simcore.topological`) walk cubic shells of cells with
@@ -33,6 +36,7 @@ from .jit import inline, leaf
 
 CELL_MARGIN = 1e-6   # cells are this much wider than the query radius
 MAX_CELL_COORD = 1e9  # beyond this many cells from the origin, rounding could misplace a boid
+SKIP_TOLERANCE = 1e-6  # cells: far above the rounding of a cell face or of a boid's cell (< 1e9 cells out)
 
 # head int64 (T,), nxt/prv/bucket int64 (N,): the lists; shape int64 (5,): A_x, A_y, A_z, nc (0 when open),
 # layout (LISTS or SORTED); the occupied cell range lo (3,), hi (3,); side float64 (1,): the cell side;
@@ -232,6 +236,55 @@ def _fold(c, a):
     elif c < 0:
         c += a
     return c
+
+
+@inline
+def _near_gap(x, c, side, d):
+    """Open world: how far boid coordinate x (in cell c) is from the nearest face of its neighbour cell
+    c + d (d = -1, 0, +1) along one axis, less ``SKIP_TOLERANCE`` cells for rounding; 0 when d = 0."""
+    if d == 0:
+        return 0.0
+    if d < 0:
+        gap = x - c * side
+    else:
+        gap = (c + 1) * side - x
+    return max(gap - SKIP_TOLERANCE * side, 0.0)
+
+
+@inline
+def runs(grid, i, pos, radius, first, last):
+    """Sorted layout: the candidates of :func:`gather`, in its order, as runs ``first[r]:last[r]`` of
+    ``grid.order`` / ``grid.spos`` (buckets that follow each other in memory merged); returns the count.
+    In an open world a neighbour cell lying wholly beyond ``radius`` (the query radius the grid was built
+    for; with a margin of 1e-9 on its square, far above rounding) is left out: none of its boids is within
+    the radius, and the boids of farther cells folded into its bucket are farther still."""
+    side, nc = grid.side[0], grid.shape[N_CELLS]
+    ax, ay, az = grid.shape[A_X], grid.shape[A_Y], grid.shape[A_Z]
+    x, y, z = pos[i, 0], pos[i, 1], pos[i, 2]
+    cx, cy, cz = cell_coord(x, side, nc), cell_coord(y, side, nc), cell_coord(z, side, nc)
+    bx, by, bz = cx % ax, cy % ay, cz % az
+    limit2 = radius * radius * (1.0 + 1e-9)
+    count = 0
+    previous = -2
+    for dz in range(-1, 2):
+        z2 = _near_gap(z, cz, side, dz) ** 2 if nc == 0 else 0.0
+        zb = _fold(bz + dz, az)
+        for dy in range(-1, 2):
+            yz2 = z2 + _near_gap(y, cy, side, dy) ** 2 if nc == 0 else 0.0
+            row = ax * (_fold(by + dy, ay) + ay * zb)
+            for dx in range(-1, 2):
+                if nc == 0 and yz2 + _near_gap(x, cx, side, dx) ** 2 > limit2:
+                    previous = -2
+                    continue
+                b = row + _fold(bx + dx, ax)
+                if b == previous + 1:
+                    last[count - 1] = grid.start[b + 1]
+                else:
+                    first[count] = grid.start[b]
+                    last[count] = grid.start[b + 1]
+                    count += 1
+                previous = b
+    return count
 
 
 @inline

@@ -5,7 +5,8 @@ int64 (n,), ``off`` float64 (n, 3), ``mask`` int64 (n,) (rule bits ``RULE_*``) a
 (eye labels ``EYE_*``), and scratch: ``cand`` int64 (n,) candidate indices with their positions ``cpos``
 float64 (n, 3), ``everyone`` int64 (n,) = 0..n-1 (the all-pairs candidates), ``occ_f`` float64 (4, n) and
 ``occ_i`` int64 (4, 2n + 66) (rows) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
-uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting.
+uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting (and the binocular view
+phase's list of candidates within reach).
 ``sort_by_index(m, nbrs)`` puts the first m slots in ascending index order.
 """
 from __future__ import annotations
@@ -56,9 +57,15 @@ def min_image(x, box):
 @inline
 def offset_from(x, y, z, pos, i, periodic, box):
     """d = (x, y, z) - p_i, minimum image when ``periodic``."""
-    dx = x - pos[i, 0]
-    dy = y - pos[i, 1]
-    dz = z - pos[i, 2]
+    return offset_to(x, y, z, pos[i, 0], pos[i, 1], pos[i, 2], periodic, box)
+
+
+@inline
+def offset_to(x, y, z, px, py, pz, periodic, box):
+    """d = (x, y, z) - (px, py, pz), minimum image when ``periodic``."""
+    dx = x - px
+    dy = y - py
+    dz = z - pz
     if periodic:
         dx = min_image(dx, box)
         dy = min_image(dy, box)

@@ -9,19 +9,22 @@ direction u_a = d_a / |d_a|. A farther k is hidden when some in-view j has rho_j
 hidden set does not depend on the order of the checks. A neighbour exactly at the observer's centre
 (possible when the eyes sit off-centre) has no direction: it neither hides nor is hidden.
 
-Cost. Candidate pairs come from bins of the directions u: an occluder j can only hide a k within
-rho_j of it along every axis. With few neighbours the bins are m slices along the axis of widest spread;
-with many (``GRID_3D_MIN``) they are a 3-D grid over the directions, so an occluder meets only the
-boids whose directions lie within its own disc's reach, and the work grows with the number of such
-pairs (about (3/4) (body_radius / range)^2 m^2 in a uniform flock), not with m^2. An occluder already
-hidden "robustly" (with a margin of 1e-7 (1 + rho), far above rounding) is skipped: containment is
-transitive, so whatever it would hide, the disc hiding it hides too. Every candidate pair gets the exact
-containment test, so the hidden set is exactly that of testing every pair.
+Cost. An occluder j can only hide a k within rho_j of it along every axis. With few neighbours the
+slots are sorted by their direction's coordinate along the axis of widest spread, and j meets the run of
+slots within its reach on that axis; with many (``GRID_3D_MIN``) candidates come from a 3-D grid of bins
+over the directions, so an occluder meets only the boids whose directions lie within its own disc's
+reach, and the work grows with the number of such pairs (about (3/4) (body_radius / range)^2 m^2 in a
+uniform flock), not with m^2. An occluder already hidden "robustly" (with a margin of 1e-7 (1 + rho),
+far above rounding) is skipped: containment is transitive, so whatever it would hide, the disc hiding it
+hides too. Every candidate pair gets the exact containment test, so the hidden set is exactly that of
+testing every pair.
 """
 from __future__ import annotations
 
 import math
 from enum import IntEnum
+
+import numpy as np
 
 from .jit import inline, leaf
 from .layout import F
@@ -37,8 +40,12 @@ NOT_HIDDEN, HIDDEN, ROBUSTLY_HIDDEN = 0, 1, 2
 
 @inline
 def _bin(x, n_bins):
-    b = int((x + 1.0) * (0.5 * n_bins))
-    return min(max(b, 0), n_bins - 1)
+    b = np.int64((x + 1.0) * (0.5 * n_bins))
+    if b < 0:
+        b = 0
+    if b > n_bins - 1:
+        b = n_bins - 1
+    return b
 
 
 @inline
@@ -102,35 +109,78 @@ def _sort_into_bins(m, disc, bins, nx, ny, nz, axis):
 
 
 @inline
-def _occlude_from(j, disc, bins, nx, ny, nz, axis):
-    """Test occluder j against every slot in the bins within its reach (a branch-light inner loop: almost
-    every candidate fails, and only a hit branches)."""
+def _hide(j, k, xj, yj, zj, rho_j, margin, disc, flags):
+    """The exact containment test of k in occluder j's disc; marks k (robustly) hidden."""
+    rho_k = disc[DISC.RHO, k]
+    gap = rho_j - rho_k
+    ux = xj - disc[DISC.UX, k]
+    uy = yj - disc[DISC.UY, k]
+    uz = zj - disc[DISC.UZ, k]
+    dist2 = ux * ux + uy * uy + uz * uz
+    if (gap > 0.0) & (rho_k >= 0.0) & (dist2 <= gap * gap):
+        robust = gap - margin
+        flag = ROBUSTLY_HIDDEN if robust > 0.0 and dist2 <= robust * robust else HIDDEN
+        if flag > flags[k]:
+            flags[k] = flag
+
+
+@inline
+def _occlude_from(j, disc, bins, nx, ny, nz):
+    """3-D grid: test occluder j against every slot in the bins within its reach."""
     rho_j = disc[DISC.RHO, j]
     reach = rho_j * (1.0 + 1e-9)
-    if ny == 1 and nz == 1:  # slices along one axis
-        x0, x1 = _bin(disc[axis, j] - reach, nx), _bin(disc[axis, j] + reach, nx)
-        y0 = y1 = z0 = z1 = 0
-    else:
-        x0, x1 = _bin(disc[DISC.UX, j] - reach, nx), _bin(disc[DISC.UX, j] + reach, nx)
-        y0, y1 = _bin(disc[DISC.UY, j] - reach, ny), _bin(disc[DISC.UY, j] + reach, ny)
-        z0, z1 = _bin(disc[DISC.UZ, j] - reach, nz), _bin(disc[DISC.UZ, j] + reach, nz)
+    x0, x1 = _bin(disc[DISC.UX, j] - reach, nx), _bin(disc[DISC.UX, j] + reach, nx)
+    y0, y1 = _bin(disc[DISC.UY, j] - reach, ny), _bin(disc[DISC.UY, j] + reach, ny)
+    z0, z1 = _bin(disc[DISC.UZ, j] - reach, nz), _bin(disc[DISC.UZ, j] + reach, nz)
     xj, yj, zj = disc[DISC.UX, j], disc[DISC.UY, j], disc[DISC.UZ, j]
     margin = ROBUST * (1.0 + rho_j)
+    flags = bins[BINS.FLAG]
     for bz in range(z0, z1 + 1):
         for by in range(y0, y1 + 1):
             row = nx * (by + ny * bz)
             for s in range(bins[BINS.START, row + x0], bins[BINS.START, row + x1 + 1]):
-                k = bins[BINS.SLOT, s]
-                rho_k = disc[DISC.RHO, k]
-                gap = rho_j - rho_k
-                ux = xj - disc[DISC.UX, k]
-                uy = yj - disc[DISC.UY, k]
-                uz = zj - disc[DISC.UZ, k]
-                dist2 = ux * ux + uy * uy + uz * uz
-                if (gap > 0.0) & (rho_k >= 0.0) & (dist2 <= gap * gap):
-                    robust = gap - margin
-                    flag = ROBUSTLY_HIDDEN if robust > 0.0 and dist2 <= robust * robust else HIDDEN
-                    bins[BINS.FLAG, k] = max(bins[BINS.FLAG, k], flag)
+                _hide(j, bins[BINS.SLOT, s], xj, yj, zj, rho_j, margin, disc, flags)
+
+
+@inline
+def _sort_along(m, disc, bins, axis):
+    """bins[SLOT, :m]: the slots in ascending order of their coordinate along ``axis`` (counting sort into
+    m slices, then an insertion sort that has little left to do); every flag cleared."""
+    _sort_into_bins(m, disc, bins, m, 1, 1, axis)
+    order = bins[BINS.SLOT]
+    for p in range(1, m):
+        a = order[p]
+        x = disc[axis, a]
+        q = p - 1
+        while q >= 0 and disc[axis, order[q]] > x:
+            order[q + 1] = order[q]
+            q -= 1
+        order[q + 1] = a
+
+
+@inline
+def _occlude_sorted(m, disc, bins, axis):
+    """Few neighbours: walk the slots sorted along ``axis``; occluder j meets the slots whose coordinate
+    lies within its reach (rho_j (1 + 1e-9), far above rounding: a k outside it has |u_j - u_k| > rho_j
+    and cannot be contained), each given the exact test."""
+    order, flags = bins[BINS.SLOT], bins[BINS.FLAG]
+    for p in range(m):
+        j = order[p]
+        rho_j = disc[DISC.RHO, j]
+        if rho_j <= 0.0 or flags[j] == ROBUSTLY_HIDDEN:
+            continue
+        reach = rho_j * (1.0 + 1e-9)
+        xj, yj, zj = disc[DISC.UX, j], disc[DISC.UY, j], disc[DISC.UZ, j]
+        aj = disc[axis, j]
+        margin = ROBUST * (1.0 + rho_j)
+        q = p + 1
+        while q < m and disc[axis, order[q]] - aj <= reach:
+            _hide(j, order[q], xj, yj, zj, rho_j, margin, disc, flags)
+            q += 1
+        q = p - 1
+        while q >= 0 and aj - disc[axis, order[q]] <= reach:
+            _hide(j, order[q], xj, yj, zj, rho_j, margin, disc, flags)
+            q -= 1
 
 
 @leaf
@@ -139,13 +189,14 @@ def occlude(m, fp, nbrs):
     disc, bins = nbrs.occ_f, nbrs.occ_i
     axis = _discs(m, fp, nbrs)
     if m < GRID_3D_MIN:
-        nx, ny, nz = m, 1, 1
+        _sort_along(m, disc, bins, axis)
+        _occlude_sorted(m, disc, bins, axis)
     else:
         nx = ny = nz = int(math.floor((2.0 * m) ** (1.0 / 3.0)))
-    _sort_into_bins(m, disc, bins, nx, ny, nz, axis)
-    for j in range(m):
-        if disc[DISC.RHO, j] > 0.0 and bins[BINS.FLAG, j] != ROBUSTLY_HIDDEN:
-            _occlude_from(j, disc, bins, nx, ny, nz, axis)
+        _sort_into_bins(m, disc, bins, nx, ny, nz, axis)
+        for j in range(m):
+            if disc[DISC.RHO, j] > 0.0 and bins[BINS.FLAG, j] != ROBUSTLY_HIDDEN:
+                _occlude_from(j, disc, bins, nx, ny, nz)
     kept = 0
     for a in range(m):
         if bins[BINS.FLAG, a] == NOT_HIDDEN:

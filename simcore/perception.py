@@ -27,13 +27,17 @@ import math
 
 
 from .jit import inline, leaf
-from .grid import gather
+from .grid import LAYOUT, SORTED, gather, runs
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
 from .neighbours import (EYE_BOTH, EYE_LEFT, EYE_RIGHT, RULE_ALIGNMENT, RULE_ALL, RULE_COHESION,  # noqa: F401
-                         RULE_SEPARATION, offset_from, sort_by_index, store)
+                         RULE_SEPARATION, offset_from, offset_to, sort_by_index,
+                         store)
 from .occlusion import occlude
 from .topological import nearest
+
+SURE = 1e-12                # relative gap between squares beyond any rounding of the cone test (a few 1e-16)
+TINY, HUGE = 1e-250, 1e250  # squares compared only between these (no underflow or overflow)
 
 
 @inline
@@ -50,30 +54,38 @@ def query_radius(fp, ip):
 
 
 @inline
-def _candidates(i, pos, nbrs, grid, use_grid):
-    """(count, indices, positions) of the candidate neighbours of boid i (boid i among them): the grid's,
-    or every boid in ascending order (then the positions are ``pos`` itself)."""
+def _candidates(i, pos, fp, ip, nbrs, grid, use_grid):
+    """(n_runs, first, last, indices, positions): the candidate neighbours of boid i (boid i among them)
+    are ``indices[c]`` at ``positions[c]`` for c in the runs ``first[r]:last[r]``, r < n_runs: the grid's
+    (read in place from a sorted grid, less the cells wholly beyond :func:`query_radius`; else gathered
+    into ``nbrs.cand``/``nbrs.cpos``), or every boid in ascending order (then the positions are ``pos``).
+    The runs live in rows 0 and 1 of the scratch ``nbrs.occ_i`` (free until the perspective phase)."""
+    first, last = nbrs.occ_i[0], nbrs.occ_i[1]
     if use_grid:
-        count = gather(grid, i, pos, nbrs.cand, nbrs.cpos)
-        return count, nbrs.cand, nbrs.cpos
-    return pos.shape[0], nbrs.everyone, pos
+        if grid.shape[LAYOUT] == SORTED:
+            return runs(grid, i, pos, query_radius(fp, ip), first, last), first, last, grid.order, grid.spos
+        first[0], last[0] = 0, gather(grid, i, pos, nbrs.cand, nbrs.cpos)
+        return 1, first, last, nbrs.cand, nbrs.cpos
+    first[0], last[0] = 0, pos.shape[0]
+    return 1, first, last, nbrs.everyone, pos
 
 
 @inline
-def _sphere(i, count, cand, cpos, pos, fp, periodic, box, nbrs):
+def _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, box, nbrs):
     r2 = fp[F.SPHERE_RADIUS] * fp[F.SPHERE_RADIUS]
     m = 0
-    for c in range(count):
-        j = cand[c]
-        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
-        if dx * dx + dy * dy + dz * dz < r2 and j != i:
-            store(nbrs, m, j, dx, dy, dz, RULE_ALL, 0)
-            m += 1
+    for r in range(n_runs):
+        for c in range(first[r], last[r]):
+            j = cand[c]
+            dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
+            if dx * dx + dy * dy + dz * dz < r2 and j != i:
+                store(nbrs, m, j, dx, dy, dz, RULE_ALL, 0)
+                m += 1
     return m
 
 
 @inline
-def _opensteer(i, count, cand, cpos, pos, fwd, fp, periodic, box, nbrs):
+def _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, nbrs):
     near2 = fp[F.NEAR_R] * fp[F.NEAR_R]
     sep_r2 = fp[F.SEP_R] * fp[F.SEP_R]
     ali_r2 = fp[F.ALI_R] * fp[F.ALI_R]
@@ -82,49 +94,65 @@ def _opensteer(i, count, cand, cpos, pos, fwd, fp, periodic, box, nbrs):
     sep_cos, ali_cos, coh_cos = fp[F.SEP_COS], fp[F.ALI_COS], fp[F.COH_COS]
     fx, fy, fz = fwd[i, 0], fwd[i, 1], fwd[i, 2]
     m = 0
-    for c in range(count):
-        j = cand[c]
-        if j == i:
-            continue
-        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
-        dd = dx * dx + dy * dy + dz * dz
-        if dd < near2:
-            mask = RULE_ALL
-        elif dd > far2:
-            continue
-        else:
-            dist = math.sqrt(dd)
-            forwardness = (fx * dx + fy * dy + fz * dz) / dist
-            mask = 0
-            if dd <= sep_r2 and forwardness > sep_cos:
-                mask |= RULE_SEPARATION
-            if dd <= ali_r2 and forwardness > ali_cos:
-                mask |= RULE_ALIGNMENT
-            if dd <= coh_r2 and forwardness > coh_cos:
-                mask |= RULE_COHESION
-            if mask == 0:
+    for r in range(n_runs):
+        for c in range(first[r], last[r]):
+            j = cand[c]
+            if j == i:
                 continue
-        store(nbrs, m, j, dx, dy, dz, mask, 0)
-        m += 1
+            dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
+            dd = dx * dx + dy * dy + dz * dz
+            if dd < near2:
+                mask = RULE_ALL
+            elif dd > far2:
+                continue
+            else:
+                dist = math.sqrt(dd)
+                forwardness = (fx * dx + fy * dy + fz * dz) / dist
+                mask = 0
+                if dd <= sep_r2 and forwardness > sep_cos:
+                    mask |= RULE_SEPARATION
+                if dd <= ali_r2 and forwardness > ali_cos:
+                    mask |= RULE_ALIGNMENT
+                if dd <= coh_r2 and forwardness > coh_cos:
+                    mask |= RULE_COHESION
+                if mask == 0:
+                    continue
+            store(nbrs, m, j, dx, dy, dz, mask, 0)
+            m += 1
     return m
 
 
 @inline
-def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, see_all):
-    """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?"""
+def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, cos_half2, see_all):
+    """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?
+
+    The cone test is a . q >= cos_half |q| (for q within range). Its square root is spared when the answer
+    is sure without it: the signs of a . q and cos_half differ, or the squares (a . q)^2 and
+    cos_half^2 |q|^2 differ by far more than rounding (``SURE``); otherwise the test is computed as
+    written, so the answer is always its."""
     qx = dx - ex
     qy = dy - ey
     qz = dz - ez
+    along = ax * qx + ay * qy + az * qz
+    if along < 0.0 and cos_half >= 0.0 and not see_all:  # behind the eye: out whatever the range
+        return False
     q2 = qx * qx + qy * qy + qz * qz
     if q2 <= 0.0 or q2 > range2:
         return False
-    if see_all:
+    if see_all or (along >= 0.0 and cos_half < 0.0):
         return True
-    return ax * qx + ay * qy + az * qz >= cos_half * math.sqrt(q2)
+    bound2 = cos_half2 * q2
+    if TINY < bound2 < HUGE:
+        along2 = along * along
+        if along2 > bound2 * (1.0 + SURE):
+            return cos_half >= 0.0
+        if along2 < bound2 * (1.0 - SURE):
+            return cos_half < 0.0
+    return along >= cos_half * math.sqrt(q2)
 
 
 @inline
-def _view_phase(i, count, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
+def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
     s0, s1, s2 = side[i, 0], side[i, 1], side[i, 2]
@@ -139,21 +167,30 @@ def _view_phase(i, count, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbr
     range2 = rng * rng
     reach2 = (rng + h) * (rng + h)  # no eye sees beyond range + head_radius from the centre
     cos_half = fp[F.COS_HALF_FIELD]
+    cos_half2 = cos_half * cos_half
     see_all = ip[I.SEE_ALL] != 0
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    near = nbrs.slot  # scratch: the candidates within reach, in candidate order
+    n_near = 0
+    for r in range(n_runs):
+        for c in range(first[r], last[r]):  # branch-free: most candidates are out of reach
+            dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
+            near[n_near] = c
+            n_near += dx * dx + dy * dy + dz * dz <= reach2
     m = 0
-    for c in range(count):
+    for t in range(n_near):
+        c = near[t]
         j = cand[c]
-        dx, dy, dz = offset_from(cpos[c, 0], cpos[c, 1], cpos[c, 2], pos, i, periodic, box)
-        if dx * dx + dy * dy + dz * dz > reach2 or j == i:
-            continue
-        label = 0
-        if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, see_all):
-            label |= EYE_LEFT
-        if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, see_all):
-            label |= EYE_RIGHT
-        if label != 0:
-            store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
-            m += 1
+        if j != i:
+            dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
+            label = 0
+            if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, cos_half2, see_all):
+                label |= EYE_LEFT
+            if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, cos_half2, see_all):
+                label |= EYE_RIGHT
+            if label != 0:
+                store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
+                m += 1
     return m
 
 
@@ -166,15 +203,15 @@ def perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     if kind == PERCEPTION_TOPOLOGICAL:
         m = nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid)
     else:
-        count, cand, cpos = _candidates(i, pos, nbrs, grid, use_grid)
+        n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
         if kind == PERCEPTION_BINOCULAR:
-            m = _view_phase(i, count, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
+            m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
             if ip[I.OCCLUSION] != 0 and m > 1:
                 m = occlude(m, fp, nbrs)
         elif kind == PERCEPTION_OPENSTEER:
-            m = _opensteer(i, count, cand, cpos, pos, fwd, fp, periodic, box, nbrs)
+            m = _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, nbrs)
         else:
-            m = _sphere(i, count, cand, cpos, pos, fp, periodic, box, nbrs)
+            m = _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, box, nbrs)
         if use_grid:
             sort_by_index(m, nbrs)
     return m

@@ -108,28 +108,35 @@ def test_topological_ties_are_broken_by_index_with_the_grid():
         assert got["grid"] == (search == "grid")
 
 
-def test_dense_flock_occlusion_uses_the_direction_grid_and_hides_the_same():
-    """Hundreds of in-view neighbours (the 3-D direction grid of the perspective phase): the hidden set is
-    the brute-force one, checked pair by pair in numpy."""
+def brute_force_hidden(state, i, n, body):
+    """Indices other than i and which of them are hidden, testing every pair in numpy."""
+    d = np.delete(state.pos, i, axis=0) - state.pos[i]
+    idx = np.delete(np.arange(n), i)
+    inv = 1.0 / np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2)
+    rho, u = body * inv, d * inv[:, None]                  # as the kernel computes them
+    gap = rho[:, None] - rho[None, :]                      # [j, k]: j would hide k
+    diff = u[:, None, :] - u[None, :, :]
+    s = diff[..., 0] ** 2 + diff[..., 1] ** 2 + diff[..., 2] ** 2
+    return idx, ((gap > 0) & (s <= gap * gap)).any(axis=0)
+
+
+@pytest.mark.parametrize("n, body, min_hidden", [(700, 0.4, 50), (120, 0.7, 10)])
+def test_occlusion_hides_the_brute_force_set(n, body, min_hidden):
+    """Hundreds of in-view neighbours (the 3-D direction grid of the perspective phase) and fewer than
+    ``GRID_3D_MIN`` (the slots sorted along one axis): the hidden set is the brute-force one, checked pair
+    by pair in numpy."""
     rng = np.random.default_rng(11)
-    n = 700
     pos = rng.standard_normal((n, 3))
     pos *= (6.0 * rng.random(n) ** (1 / 3) / np.linalg.norm(pos, axis=1))[:, None]
     state = state_from(pos, unit_vectors(rng, n), 1.0)
     model = make_model("binocular", direction_deg=0.0, field_deg=360.0, range=30.0, head_radius=0.0,
-                       body_radius=0.4, search="all_pairs")
+                       body_radius=body, search="all_pairs")
     for i in (0, 1, 2):
         got = perceived(model, state, i)
-        d = np.delete(state.pos, i, axis=0) - state.pos[i]
-        idx = np.delete(np.arange(n), i)
-        inv = 1.0 / np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2)
-        rho, u = 0.4 * inv, d * inv[:, None]                  # as the kernel computes them
-        gap = rho[:, None] - rho[None, :]                     # [j, k]: j would hide k
-        diff = u[:, None, :] - u[None, :, :]
-        s = diff[..., 0] ** 2 + diff[..., 1] ** 2 + diff[..., 2] ** 2
-        hidden = ((gap > 0) & (s <= gap * gap)).any(axis=0)
+        idx, hidden = brute_force_hidden(state, i, n, body)
         assert got["idx"].tolist() == idx[~hidden].tolist(), f"boid {i}"
-        assert len(idx) >= GRID_3D_MIN and hidden.sum() > 50, "the dense path and real occlusion were exercised"
+        assert (len(idx) >= GRID_3D_MIN) == (n > GRID_3D_MIN), "the intended path was exercised"
+        assert hidden.sum() >= min_hidden, "real occlusion was exercised"
 
 
 def test_search_is_not_part_of_the_run_identity():
