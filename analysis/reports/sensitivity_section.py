@@ -113,9 +113,7 @@ def _index_blocks(ctx, design, out, figure, save_table, strata_labels) -> None:
                                "left in the point means raises every ST and lowers every S1 by up to the "
                                "`noise_share` column."))
         for stratum, where in strata_labels:
-            rows = table
-            for key, value in where.items():
-                rows = rows[rows[key] == value]
+            rows = _in_stratum(table, where)
             for metric in ctx.metrics:
                 block = rows[rows["metric"] == metric]
                 if len(block):
@@ -125,9 +123,7 @@ def _index_blocks(ctx, design, out, figure, save_table, strata_labels) -> None:
         ctx.blocks.append(Table(shown.assign(factor=shown["factor"].map(parameter_label)),
                                 "Sobol' indices, factors ranked by total index", max_rows=80))
         for k, (stratum, where) in enumerate(strata_labels[:MAX_STRATA_FIGURES]):
-            rows = table
-            for key, value in where.items():
-                rows = rows[rows[key] == value]
+            rows = _in_stratum(table, where)
             figure(ctx, f"sobol_indices{k or ''}", lambda p, r=rows: figs.sobol_figure(r, p),
                    f"Sobol' total (ST) and first-order (S1) indices with 95% CIs{': ' + stratum if stratum else ''}.")
     if design.kind == "morris" and out["morris"]:
@@ -139,9 +135,7 @@ def _index_blocks(ctx, design, out, figure, save_table, strata_labels) -> None:
         ctx.blocks.append(Table(table.assign(factor=table["factor"].map(parameter_label)), "Morris statistics",
                                 max_rows=80))
         for k, (stratum, where) in enumerate(strata_labels[:MAX_STRATA_FIGURES]):
-            rows = table
-            for key, value in where.items():
-                rows = rows[rows[key] == value]
+            rows = _in_stratum(table, where)
             figure(ctx, f"morris{k or ''}", lambda p, r=rows: figs.morris_figure(r, p),
                    f"Morris sigma against mu*{': ' + stratum if stratum else ''}.")
 
@@ -195,9 +189,14 @@ def sensitivity_section(ctx, design: ContinuousDesign, figure, save_table) -> No
     ctx.blocks.append(Table(corr.assign(factor=corr["factor"].map(parameter_label)), "Rank correlations",
                             max_rows=80))
     for k, (stratum, where) in enumerate(labels[:MAX_STRATA_FIGURES]):
-        rows = corr
-        for key, value in where.items():
-            rows = rows[rows[key] == value]
+        rows = _in_stratum(corr, where)
         figure(ctx, f"rank_correlations{k or ''}", lambda p, r=rows: figs.correlation_figure(r, p),
                f"PRCC and Spearman's rho with 95% CIs{': ' + stratum if stratum else ''}.")
     _shape_blocks(ctx, design, strata, figure, save_table)
+
+
+def _in_stratum(table: pd.DataFrame, where: dict) -> pd.DataFrame:
+    """The rows of ``table`` at one combination of the grid factors' levels (``{column: level}``)."""
+    for key, value in where.items():
+        table = table[table[key] == value]
+    return table
