@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
+from .obstacle_spec import Obstacle, canonical_obstacles
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
@@ -25,6 +26,7 @@ from .schema import (ConfigError, apply_overrides, build, check_choice as _choic
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
 DYNAMICS = ("opensteer", "hartman_benes")
+OBSTACLE_DYNAMICS: tuple[str, ...] = ()  # the dynamics whose kernels read world.obstacles
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
@@ -152,6 +154,7 @@ class World:
     sphere_radius: float = 50.0
     box_size: float = 100.0
     update_order: str = "synchronous"
+    obstacles: tuple[Obstacle, ...] = ()
 
     def __post_init__(self):
         _choice("world.boundary", self.boundary, BOUNDARIES)
@@ -272,6 +275,9 @@ class ModelParams:
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
+        if self.world.obstacles and self.dynamics not in OBSTACLE_DYNAMICS:
+            raise ConfigError("world.obstacles", f"dynamics {self.dynamics!r} does not avoid obstacles; obstacles "
+                                                 f"are read by dynamics {OBSTACLE_DYNAMICS}")
         if self.dynamics == "hartman_benes" and self.perception.kind != "sphere":
             raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics 'hartman_benes' "
                                                  "uses the visibility sphere: set perception.kind = 'sphere'")
@@ -446,6 +452,10 @@ def model_dict(model: ModelParams) -> dict:
         del out["gains"]
     if not model.leadership.enabled:
         del out["leadership"]
+    if model.world.obstacles:
+        out["world"]["obstacles"] = canonical_obstacles(model.world.obstacles)
+    else:
+        del out["world"]["obstacles"]
     return out
 
 

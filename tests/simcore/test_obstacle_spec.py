@@ -143,3 +143,21 @@ def test_packed_table_layout():
 def test_no_obstacles_pack_to_empty_arrays_of_the_right_shape():
     table, kinds = pack_obstacles(())
     assert table.shape == (0, OBSTACLE_COLUMNS) and kinds.shape == (0,)
+
+
+def test_a_preset_without_obstacles_keeps_its_canonical_form():
+    """world.obstacles is left out of the canonical dict when empty, so existing run ids stay."""
+    from simcore.params import load_preset
+    from paths import ROOT
+
+    preset = load_preset(ROOT / "configs/models/opensteer.toml")
+    assert preset.model.world.obstacles == ()
+    assert "obstacles" not in preset.to_dict()["world"]
+
+
+def test_obstacles_on_a_model_that_does_not_avoid_them_are_an_error():
+    from simcore.params import preset_from_dict
+    from simcore.schema import ConfigError
+
+    with pytest.raises(ConfigError, match=r"world\.obstacles.*'opensteer'"):
+        preset_from_dict({"world": {"obstacles": [{"kind": "sphere", "centre": [0, 0, 9], "radius": 2.0}]}})
