@@ -107,7 +107,10 @@ def _watch_parent() -> None:
 @contextmanager
 def _sigint_blocked():
     """Block SIGINT in this thread while worker processes are started: they inherit the blocked mask, so
-    a Ctrl-C during their start-up waits until ``_init_worker`` ignores it (here it is delivered on exit)."""
+    a Ctrl-C during their start-up waits until ``_init_worker`` ignores it (here it is delivered on exit).
+    The mask covers this thread only: a thread started earlier (tqdm's monitor) may still take the signal
+    and Python then raises in the main thread, so submissions also run under ``interrupts.deferred``,
+    which holds the interrupt until the new worker has been handed its start-up data."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -351,7 +354,7 @@ class Executor:
                 break
             index = queue.popleft()
             try:
-                with _sigint_blocked():   # a submission may start a worker process
+                with deferred(), _sigint_blocked():   # a submission may start a worker process
                     running[self._pool.submit(_call_pickled, (blob, items[index]))] = index
             except BrokenProcessPool:
                 queue.appendleft(index)   # never started: not counted as an attempt

@@ -150,3 +150,67 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path):
         assert not any(alive(p) for p in pids), "workers outlived their parent"
     finally:
         parent.kill()
+
+
+INTERRUPTED_SPAWN = """
+import os, queue, signal, threading, time
+import multiprocessing.util as util
+from sweeps.executors import Executor
+
+requests, done, spawned = queue.Queue(), queue.Queue(), []
+
+def interrupter():
+    # started before any worker, so SIGINT is not blocked in this thread (as in tqdm's monitor thread):
+    # the kernel hands the signal to this thread and Python raises it in the main thread
+    while True:
+        requests.get()
+        os.kill(os.getpid(), signal.SIGINT)
+        done.put(None)
+
+real_spawn = util.spawnv_passfds
+
+def spawn_then_interrupt(*args, **kwargs):
+    pid = real_spawn(*args, **kwargs)
+    if "spawn_main" in " ".join(map(str, args[1])):
+        spawned.append(pid)
+        requests.put(None)
+        done.get()            # a Ctrl-C after the worker exists, before it has its start-up data
+        time.sleep(0.05)
+    return pid
+
+def square(x):
+    return x * x
+
+def gone(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    with open(f"/proc/{pid}/stat") as handle:
+        return handle.read().split()[2] == "Z"
+
+if __name__ == "__main__":
+    threading.Thread(target=interrupter, daemon=True).start()
+    util.spawnv_passfds = spawn_then_interrupt
+    try:
+        with Executor("local", workers=2) as pool:
+            pool.map(square, [1, 2, 3])
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+    deadline = time.monotonic() + 30
+    while not all(gone(pid) for pid in spawned) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    print("workers gone" if all(gone(pid) for pid in spawned) else "workers left", flush=True)
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to see worker processes")
+def test_a_ctrl_c_while_a_worker_starts_leaves_no_half_started_worker(tmp_path):
+    """A Ctrl-C taken by another thread while a worker is being spawned used to close the worker's start-up
+    pipe before its data was written: the orphan printed "EOFError: Ran out of input"."""
+    script = tmp_path / "spawn.py"
+    script.write_text(INTERRUPTED_SPAWN)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert done.stdout.split("\n")[:2] == ["interrupted", "workers gone"], done.stdout + done.stderr
+    assert "Traceback" not in done.stderr and "EOFError" not in done.stderr, done.stderr
