@@ -34,13 +34,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_within
+from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
+from .encounters import CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, encounter_columns, encounter_metrics
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .observed import present_metrics
 
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
+# the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
+ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
+ENCOUNTER_SETTINGS = {"capture_radius": CAPTURE_RADIUS, "predator_near": PREDATOR_NEAR, "prey_reach": PREY_REACH}
 
 
 class NonFiniteState(RuntimeError):
@@ -57,8 +61,15 @@ class MetricSettings:
     leadership: bool = False
     box: float | None = None                   # periodic box side; None: no periodic box
     escape_duration: float | None = None       # the model's leadership.duration (set by resolve)
+    capture_radius: float = CAPTURE_RADIUS     # predator captures: boids this close to it
+    predator_near: float = PREDATOR_NEAR       # the predator is near: this close to the flock centre
+    prey_reach: float = PREY_REACH             # the prey is reached: the flock centre this close
+    obstacles: tuple = ()                      # the model's world.obstacles (set by resolve)
+    body_radius: float | None = None           # the model's perception.body_radius (set by resolve)
 
     def __post_init__(self):
+        for key in ENCOUNTER_SETTINGS:
+            check_positive(key, getattr(self, key))
         check_non_negative("warmup", self.warmup)
         if self.group_radius is not None:
             _finite("group_radius", self.group_radius)
@@ -70,17 +81,29 @@ class MetricSettings:
         """These settings for ``model``: the group radius (when None), box and escape duration filled in."""
         radius = default_group_radius(model) if self.group_radius is None else self.group_radius
         return dataclasses.replace(self, group_radius=radius, box=world_box(model),
-                                   escape_duration=float(model.leadership.duration))
+                                   escape_duration=float(model.leadership.duration),
+                                   obstacles=tuple(model.world.obstacles),
+                                   body_radius=float(model.perception.body_radius))
 
     @property
     def resolved(self) -> bool:
         return self.group_radius is not None and self.escape_duration is not None
 
 
-def summary_columns(leadership: bool = True) -> tuple[str, ...]:
-    """The columns of :func:`summarize_run`'s row, in order (with or without the leadership scalars)."""
+def summary_columns(leadership: bool = True, encounters: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
+    scalars, then the columns of the given encounter families (``ENCOUNTER_FAMILIES`` for all; a row has
+    a family's columns only when its run has obstacles, a predator or prey, see
+    :mod:`analysis.observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
-    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ())
+    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()) + encounter_columns(encounters)
+
+
+def encounter_settings(settings: MetricSettings) -> dict:
+    """The encounter settings (``ENCOUNTER_SETTINGS``) that differ from their defaults: what run
+    identity and a sweep's ``model.json`` record, so run ids of earlier sweeps stay valid."""
+    return {key: getattr(settings, key) for key, default in ENCOUNTER_SETTINGS.items()
+            if getattr(settings, key) != default}
 
 
 class RunMetrics(NamedTuple):
@@ -105,6 +128,10 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    if getattr(obs, "present", None) is None:
+        extra_series, extra_row = encounter_metrics(obs, settings, series)
+        series.update(extra_series)
+        row.update(extra_row)
     return RunMetrics(series, row)
 
 
@@ -125,9 +152,10 @@ def every_nth(obs, k: int):
     if k == 1:
         return obs
     pick = slice(None, None, k)
+    agents = {name: getattr(obs, name)[pick] for name in ("predator", "prey") if getattr(obs, name, None) is not None}
     return dataclasses.replace(obs, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
                                visible=obs.visible[pick], binocular=obs.binocular[pick], leader=obs.leader[pick],
-                               record_every=obs.record_every * k)
+                               record_every=obs.record_every * k, **agents)
 
 
 def default_group_radius(model) -> float:
