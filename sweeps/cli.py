@@ -102,7 +102,8 @@ def cmd_simulate(args) -> int:
         title = (f"{preset.model.name}: N={obs.n}, {obs.times[-1]:g} s, seed {args.seed}, "
                  f"final polarization {summary['final_polarization']:.2f}")
         written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
-                                   wrap_distance(preset.model), title))
+                                   wrap_distance(preset.model), title, preset.model.world.obstacles,
+                                   obs.predator, obs.prey))
     print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s")
     print(f"  final polarization     {summary['final_polarization']:.3f}")
     print(f"  final mean speed       {summary['final_mean_speed']:.3f}")

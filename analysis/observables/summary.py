@@ -3,16 +3,19 @@ simulation into numbers.
 
 :class:`MetricSettings` says how records become a row: the warm-up excluded from window means, the
 group radius linking boids (None: the model's perception range), the cohesion below which the flock
-counts as fragmented, whether the leadership metrics are computed, and the two values a model fixes,
-the periodic box side and the escape duration. :meth:`MetricSettings.resolve` fills those in from a
-model; a configuration file sets only the first four (its ``[run]`` table).
+counts as fragmented, whether the leadership metrics are computed, the capture radius, predator "near"
+distance and prey reach of the encounter metrics (:mod:`analysis.observables.encounters`), and the values
+a model fixes: the periodic box side, the escape duration, the obstacles and the body radius.
+:meth:`MetricSettings.resolve` fills those in from a model; a configuration file sets the others (its
+``[run]`` table).
 
 ``summarize_run(obs, settings) -> dict`` is the row: for every per-record metric of
 :data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
 ``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`); :func:`summary_columns` lists them
-in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
+(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then the obstacle, predator and prey
+columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
+observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
 (plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
 The row is a pure function of the observations and the settings. Observations with a ``present`` mask
 (an :class:`~analysis.observables.observed.ObservedFlock`: measured tracks, or a run seen through an
