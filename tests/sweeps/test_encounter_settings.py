@@ -1,0 +1,50 @@
+"""The obstacle, predator and prey metric settings of a sweep's [run] table: validated with the key
+named, part of a run's identity only when they differ from their defaults (shipped sweeps keep their run
+ids), recorded in model.json and rebuilt from it."""
+from __future__ import annotations
+
+import pytest
+
+from simcore import ConfigError
+from sweeps.config import sweep_from_dict
+from sweeps.design import expand, rebuild
+from sweeps.runner import model_record
+from paths import ROOT
+
+HOLLAND = ROOT / "configs" / "models" / "holland.toml"
+
+
+def sweep(**run) -> dict:
+    return {"name": "tiny", "seed": 7, "model": {"preset": str(HOLLAND)},
+            "run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "warmup": 0.25, **run}, "axes": []}
+
+
+def run_ids(data: dict) -> list[str]:
+    return [spec.run_id for spec in expand(sweep_from_dict(data, ROOT))]
+
+
+@pytest.mark.parametrize("key", ["capture_radius", "predator_near", "prey_reach"])
+@pytest.mark.parametrize("bad", [0.0, -1.5, float("inf")])
+def test_bad_settings_are_config_errors_naming_the_key(key, bad):
+    with pytest.raises(ConfigError, match=rf"run\.{key}: got {bad!r}; must be a finite number > 0"):
+        sweep_from_dict(sweep(**{key: bad}), ROOT)
+    with pytest.raises(ConfigError, match=rf"run\.{key}"):
+        sweep_from_dict(sweep(**{key: "far"}), ROOT)
+
+
+def test_defaults_keep_the_run_ids_and_other_values_change_them():
+    plain = run_ids(sweep())
+    assert run_ids(sweep(capture_radius=1.0, predator_near=10.0, prey_reach=5.0)) == plain
+    changed = {key: run_ids(sweep(**{key: 2.5})) for key in ("capture_radius", "predator_near", "prey_reach")}
+    assert all(ids != plain for ids in changed.values())
+    assert len({tuple(ids) for ids in changed.values()}) == 3
+
+
+def test_settings_are_recorded_in_model_json_and_rebuilt():
+    config = sweep_from_dict(sweep(capture_radius=2.5), ROOT)
+    record = config.analysis_record()
+    assert record["capture_radius"] == 2.5 and "prey_reach" not in record   # defaults are left out
+    spec = expand(config)[0]
+    _, metrics = rebuild(model_record(config), {})
+    assert (metrics.capture_radius, metrics.predator_near, metrics.prey_reach) == (2.5, 10.0, 5.0)
+    assert metrics == spec.metrics
