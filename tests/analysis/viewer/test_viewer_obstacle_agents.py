@@ -108,3 +108,26 @@ def test_the_page_draws_obstacles_agents_and_agent_trails(tmp_path):
     # every boid and agent has a full trail at frame 50 (no wraps in an open world)
     assert counts["bare"] == 12 * points * 2
     assert counts["with"] == (12 + 2) * points * 2
+
+
+def test_stills_and_animations_draw_the_agents_in_their_colours(tmp_path):
+    from PIL import Image
+
+    from analysis.viewer.animation import poster, write_animation
+
+    obs = circling_run(frames=21)
+    with_agents = from_observations(obs)
+    bare = from_observations(Observations(**{**obs.__dict__, "predator": None, "prey": None}))
+
+    def share(path, rgb) -> float:
+        with Image.open(path) as image:
+            pixels = np.asarray(image.convert("RGB"), dtype=int)
+        return float((np.abs(pixels - rgb).max(axis=-1) < 30).mean())
+
+    red, green = (0xd6, 0x27, 0x28), (0x2c, 0xa0, 0x2c)   # the predator's and the prey's colours
+    for name, track in (("with", with_agents), ("bare", bare)):
+        poster(track, tmp_path / f"{name}.png", color_by="speed")
+    assert share(tmp_path / "with.png", red) > 0.001 and share(tmp_path / "with.png", green) > 0.0005
+    assert share(tmp_path / "bare.png", red) == 0.0 and share(tmp_path / "bare.png", green) == 0.0
+    animation = write_animation(with_agents, tmp_path / "run.gif", fps=10, size=(320, 240))
+    assert animation.frames == 11 and (tmp_path / "run.gif").stat().st_size > 10_000
