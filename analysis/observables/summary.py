@@ -15,9 +15,9 @@ a model fixes: the periodic box side, the escape duration, the obstacles and the
 with ``settings.leadership``, the leadership scalars
 (:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then the obstacle, predator and prey
 columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
-observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
-(plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
-The row is a pure function of the observations and the settings. Observations with a ``present`` mask
+observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the
+row together with the per-record series (plus ``leaders``, the number of leaders per record, with
+leadership on). ``settings`` must be resolved. The row is a pure function of the observations and the settings. Observations with a ``present`` mask
 (an :class:`~analysis.observables.observed.ObservedFlock`: measured tracks, or a run seen through an
 observation model) are measured record by record over the individuals present
 (:func:`~analysis.observables.observed.present_metrics`), and their series and row add ``tracked``
@@ -45,8 +45,8 @@ from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metri
 from .observed import present_metrics
 
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
-# the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
 ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
+# the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
 ENCOUNTER_SETTINGS = {"capture_radius": CAPTURE_RADIUS, "predator_near": PREDATOR_NEAR, "prey_reach": PREY_REACH}
 
 
@@ -81,7 +81,8 @@ class MetricSettings:
         check_within("fragmentation_cohesion", self.fragmentation_cohesion, 0.0, 1.0, lo_open=True)
 
     def resolve(self, model) -> "MetricSettings":
-        """These settings for ``model``: the group radius (when None), box and escape duration filled in."""
+        """These settings for ``model``: the group radius (when None), box, escape duration, obstacles and
+        body radius filled in."""
         radius = default_group_radius(model) if self.group_radius is None else self.group_radius
         return dataclasses.replace(self, group_radius=radius, box=world_box(model),
                                    escape_duration=float(model.leadership.duration),

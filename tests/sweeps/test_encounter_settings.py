@@ -48,3 +48,45 @@ def test_settings_are_recorded_in_model_json_and_rebuilt():
     _, metrics = rebuild(model_record(config), {})
     assert (metrics.capture_radius, metrics.predator_near, metrics.prey_reach) == (2.5, 10.0, 5.0)
     assert metrics == spec.metrics
+
+
+CALIBRATION = f"""
+name = "cal"
+seed = 7
+
+[model]
+preset = "{HOLLAND}"
+
+[run]
+n = 30
+duration = 10.0
+warmup = 3.0
+{{extra}}
+[parameters.field]
+key = "perception.field_deg"
+prior = {{{{ dist = "uniform", low = 30, high = 360 }}}}
+
+[targets]
+summary = "mean"
+stats = ["cohesion", "polarization"]
+mean = [0.9, 0.8]
+sd = [0.05, 0.05]
+
+[method]
+kind = "emcee"
+n_sim = 10
+walkers = 8
+steps = 100
+"""
+
+
+def test_a_calibration_file_refuses_them_as_they_are_no_targets(tmp_path):
+    from analysis.calibration.config import load_calibration
+
+    path = tmp_path / "cal.toml"
+    path.write_text(CALIBRATION.format(extra="prey_reach = 2.0\n"))
+    with pytest.raises(ConfigError, match="not calibration targets") as info:
+        load_calibration(path)
+    assert info.value.key == "run.prey_reach"
+    path.write_text(CALIBRATION.format(extra="prey_reach = 5.0\n"))   # the default changes nothing
+    assert load_calibration(path).metrics.prey_reach == 5.0
