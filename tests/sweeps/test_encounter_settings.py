@@ -90,3 +90,36 @@ def test_a_calibration_file_refuses_them_as_they_are_no_targets(tmp_path):
     assert info.value.key == "run.prey_reach"
     path.write_text(CALIBRATION.format(extra="prey_reach = 5.0\n"))   # the default changes nothing
     assert load_calibration(path).metrics.prey_reach == 5.0
+
+
+def test_a_run_with_a_predator_stores_its_metrics_series_and_track(tmp_path, monkeypatch):
+    """The worker's path for a model with a predator (none is shipped on this branch: the simulator's
+    observations get a predator circling the flock's start): the row gets the predator columns, the
+    series frame the predator series, a kept trajectory the predator's positions."""
+    import dataclasses
+
+    import numpy as np
+
+    from analysis.observables.summary import every_nth, measure_run
+    from simcore import simulate
+    from sweeps import worker
+
+    def with_predator(*args, **kwargs):
+        obs = simulate(*args, **kwargs)
+        angle = obs.times
+        return dataclasses.replace(obs, predator=np.stack([6 * np.cos(angle), np.zeros_like(angle),
+                                                           6 * np.sin(angle)], axis=1))
+
+    monkeypatch.setattr(worker, "simulate", with_predator)
+    spec = expand(sweep_from_dict(sweep(keep="trajectories", trajectory_every=10, predator_near=30.0), ROOT))[0]
+    row, series = worker.execute_run(spec, tmp_path)
+    assert row["status"] == "ok", row["error"]
+    run = spec.preset.run
+    obs = with_predator(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, run.record_every)
+    expected = measure_run(obs, spec.metrics)
+    for column in ("predator_distance_mean", "flash_nn_ratio", "predator_captures", "remerge_time"):
+        assert row[column] == pytest.approx(expected.row[column], nan_ok=True), column
+    assert "prey_distance_mean" not in row and "collisions_mean" not in row
+    np.testing.assert_array_equal(series["predator_distance"], expected.series["predator_distance"])
+    with np.load(tmp_path / "trajectories" / f"{spec.run_id}.npz") as saved:
+        assert saved["predator"].shape == (saved["pos"].shape[0], 3)
