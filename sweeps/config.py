@@ -260,6 +260,14 @@ def check_name(name: str, what: str) -> None:
                                   "characters, no '/', '\\', control characters or leading '.')")
 
 
+def check_no_encounter_settings(run: RunTable) -> None:
+    """ConfigError for a calibration file's ``[run]`` that sets an obstacle, predator or prey metric
+    setting: those metrics are not calibration targets, so the setting would do nothing."""
+    for key in encounter_settings(run.metrics(leadership=False)):
+        raise ConfigError(f"run.{key}", "sets an obstacle, predator or prey metric, and those are not calibration "
+                                        "targets: leave it out of a calibration file")
+
+
 def check_window(warmup: float, run, where: str = "") -> None:
     """A run of ``run`` (a preset's RunSettings) records something to summarise: ``record_interval <=
     duration`` and a record at or after ``warmup`` (< duration). ``where`` is appended to messages."""
