@@ -110,6 +110,7 @@ def test_the_page_draws_obstacles_agents_and_agent_trails(tmp_path):
     assert counts["with"] == (12 + 2) * points * 2
 
 
+@pytest.mark.slow
 def test_stills_and_animations_draw_the_agents_in_their_colours(tmp_path):
     from PIL import Image
 
