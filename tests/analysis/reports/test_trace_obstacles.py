@@ -86,3 +86,21 @@ def test_plot_traces_writes_a_picture_with_obstacles_and_agents(tmp_path, suffix
     out = plot_traces(pos, tmp_path / f"traces.{suffix}", title="obstacles", obstacles=OBSTACLES,
                       predator=pos[:, 0] + 1.0, prey=pos[:, -1] - 1.0)
     assert out.is_file() and out.stat().st_size > 10_000
+
+
+def test_thumbnails_pass_obstacles_and_agents_to_each_panel(tmp_path, monkeypatch):
+    from analysis.reports import figures
+
+    drawn = []
+
+    def recording(ax, pos, *args, **scene):
+        drawn.append(scene)
+        return draw_traces(ax, pos, *args, **scene)
+
+    monkeypatch.setattr(figures, "draw_traces", recording)
+    pos = flock()
+    items = [("plain", pos, None), ("scene", pos, None, {"obstacles": OBSTACLES, "predator": pos[:, 0], "prey": None})]
+    out = figures.thumbnails_figure(items, tmp_path / "thumbs.png", ncols=2)
+    assert out.is_file()
+    assert drawn[0] == {} and drawn[1]["obstacles"] == OBSTACLES
+    np.testing.assert_array_equal(drawn[1]["predator"], pos[:, 0])
