@@ -123,3 +123,59 @@ def test_a_run_with_a_predator_stores_its_metrics_series_and_track(tmp_path, mon
     np.testing.assert_array_equal(series["predator_distance"], expected.series["predator_distance"])
     with np.load(tmp_path / "trajectories" / f"{spec.run_id}.npz") as saved:
         assert saved["predator"].shape == (saved["pos"].shape[0], 3)
+
+
+def test_simulate_prints_and_records_the_encounter_summary(tmp_path, monkeypatch, capsys):
+    """``flocksweep simulate`` of a run with a predator and prey (given to the simulator's observations
+    here; no shipped model has them on this branch): the summary lines and params.json carry them, and
+    --plot draws their paths."""
+    import dataclasses
+    import json
+
+    import numpy as np
+
+    from sweeps import single
+    from sweeps.cli import main
+
+    def with_agents(preset, seed, record_every=None, threads=None):
+        obs = real(preset, seed, record_every, threads)
+        centre = obs.pos.mean(axis=1)
+        return dataclasses.replace(obs, predator=centre + [0.0, 0.5, 0.0], prey=centre + [100.0, 0.0, 0.0])
+
+    real = single.simulate_preset
+    monkeypatch.setattr(single, "simulate_preset", with_agents)
+    assert main(["simulate", str(HOLLAND), "--n", "8", "--duration", "0.5", "--out", str(tmp_path), "--plot"]) == 0
+    printed = capsys.readouterr().out
+    assert "predator:" in printed and "prey: the flock's centre reached it at t = nan s" in printed
+    summary = json.loads((tmp_path / "params.json").read_text())["summary"]
+    assert summary["prey_reach_time"] is None                 # never: nan is stored as null
+    assert 0 <= summary["predator_captures"] <= 8 and summary["predator_distance_min"] >= 0
+    assert "collided_boids" not in summary                     # holland has no obstacles
+    assert (tmp_path / "traces.png").stat().st_size > 10_000
+    with np.load(tmp_path / "trajectory.npz") as saved:
+        assert saved["predator"].shape == saved["prey"].shape == (saved["pos"].shape[0], 3)
+
+
+def test_the_simulate_summary_counts_obstacle_collisions_over_the_whole_run():
+    import numpy as np
+
+    from simcore.obstacle_spec import Obstacle
+    from simcore.simulate import Observations
+    from sweeps.single import summarize
+
+    # two boids along x past a sphere of radius 2 at the origin, at heights 0 and 2.3 (body radius 0.5):
+    # both overlap at x = 0, the first also at x = +-2; the deepest gap is 0 - 2 - 0.5
+    x = np.arange(-10.0, 11.0, 2.0)
+    pos = np.zeros((len(x), 2, 3))
+    pos[:, :, 0] = x[:, None]
+    pos[:, 1, 1] = 2.3
+    vel = np.zeros_like(pos)
+    vel[..., 0] = 2.0
+    blank = np.zeros((len(x), 2), np.int32)
+    obs = Observations(times=np.arange(len(x)) * 1.0, pos=pos, vel=vel, visible=blank, binocular=blank,
+                       leader=blank.astype(bool), triggers=np.zeros((0, 2), np.int64), pattern=np.zeros(2, np.uint32),
+                       final=None, dt=1.0, record_every=1)
+    sphere = Obstacle(kind="sphere", centre=(0.0, 0.0, 0.0), radius=2.0)
+    summary = summarize(obs, (sphere,), 0.5)
+    assert summary["collided_boids"] == 2 and summary["clearance_min"] == -2.5
+    assert summary["final_polarization"] == 1.0 and "predator_captures" not in summary
