@@ -12,6 +12,8 @@
 * ``leader``     bool (R, N)        leaders at each record (change of leadership)
 * ``triggers``   int64 (E, 2)       trigger events (step, boid), in order
 * ``final``      :class:`~simcore.state.State` after the last step
+* ``predator``, ``prey`` float64 (R, 3) the predator's and the prey's recorded positions, or None for a
+  model without that agent
 
 ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
 result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
@@ -54,6 +56,8 @@ class Observations:
     final: State
     dt: float
     record_every: int
+    predator: np.ndarray | None = None
+    prey: np.ndarray | None = None
 
     @property
     def n(self) -> int:

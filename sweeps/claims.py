@@ -56,7 +56,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
-from analysis.observables.summary import summary_columns
+from analysis.observables.summary import ENCOUNTER_FAMILIES, summary_columns
 from simcore.schema import ConfigError, build, read_toml, resolve_path, suggest, to_dict
 
 from .claim_schema import (COMMON, DIRECTIONS, ID, KEYS, KINDS, METHODS, REQUIRED, Claim, ClaimsFile,  # noqa: F401
@@ -122,7 +122,7 @@ def sweep_columns(axes, sample, leadership: bool) -> Columns:
                 row.update({name: values[level] for name, values in columns})
             rows.append(row)
         design = pd.DataFrame(rows) if rows else None
-    metrics = frozenset(summary_columns(leadership=leadership))
+    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES))
     off = {} if leadership else {m: "leadership metrics are computed only with run.leadership_metrics = true "
                                     "(or leadership.x swept)" for m in LEADERSHIP_METRIC_NAMES}
     return Columns(tuple(factors), frozenset(numeric), metrics, off, design)

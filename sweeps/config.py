@@ -23,6 +23,9 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     warmup = 3.0                    # seconds excluded from window summaries
     group_radius = "auto"           # "auto" = the model's perception range, or a number
     fragmentation_cohesion = 0.5    # cohesion below this counts as fragmented
+    capture_radius = 1.0            # predator metrics: a boid this close to the predator is captured
+    predator_near = 10.0            # predator metrics: the predator is near within this of the flock centre
+    prey_reach = 5.0                # prey metrics: the prey is reached within this distance
     keep = "metrics"                # or "trajectories" (positions and velocities per run)
     trajectory_every = 6            # steps between stored trajectory frames when keep = "trajectories"
     leadership_metrics = "auto"     # trigger rate, follow response...: "auto" = when leadership.x is swept or > 0
@@ -90,7 +93,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from analysis.observables.summary import MetricSettings
+from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
@@ -127,6 +130,9 @@ class RunTable:
     warmup: float = WARMUP_S
     group_radius: Any = field(default="auto", metadata={"expected": '"auto" or a number > 0'})
     fragmentation_cohesion: float = FRAGMENTATION_COHESION
+    capture_radius: float = ENCOUNTER_SETTINGS["capture_radius"]
+    predator_near: float = ENCOUNTER_SETTINGS["predator_near"]
+    prey_reach: float = ENCOUNTER_SETTINGS["prey_reach"]
 
     def __post_init__(self):
         radius = self.group_radius
@@ -142,7 +148,8 @@ class RunTable:
     def metrics(self, leadership: bool) -> MetricSettings:
         radius = None if self.group_radius == "auto" else float(self.group_radius)
         return MetricSettings(warmup=self.warmup, group_radius=radius,
-                              fragmentation_cohesion=self.fragmentation_cohesion, leadership=leadership)
+                              fragmentation_cohesion=self.fragmentation_cohesion, leadership=leadership,
+                              **{key: getattr(self, key) for key in ENCOUNTER_SETTINGS})
 
 
 @dataclass(frozen=True)
@@ -253,6 +260,14 @@ def check_name(name: str, what: str) -> None:
                                   "characters, no '/', '\\', control characters or leading '.')")
 
 
+def check_no_encounter_settings(run: RunTable) -> None:
+    """ConfigError for a calibration file's ``[run]`` that sets an obstacle, predator or prey metric
+    setting: those metrics are not calibration targets, so the setting would do nothing."""
+    for key in encounter_settings(run.metrics(leadership=False)):
+        raise ConfigError(f"run.{key}", "sets an obstacle, predator or prey metric, and those are not calibration "
+                                        "targets: leave it out of a calibration file")
+
+
 def check_window(warmup: float, run, where: str = "") -> None:
     """A run of ``run`` (a preset's RunSettings) records something to summarise: ``record_interval <=
     duration`` and a record at or after ``warmup`` (< duration). ``where`` is appended to messages."""
@@ -349,8 +364,9 @@ class SweepConfig:
     def analysis_record(self) -> dict:
         """The metric and storage settings as stored in ``model.json`` (``analysis``)."""
         m, s = self.metrics, self.storage
-        return {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
-                "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
+        record = {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
+                  "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
+        return record | encounter_settings(m)
 
 
 def _axis_points(axis: AxisTable, where: str, n_keys: int) -> list:

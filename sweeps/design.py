@@ -25,7 +25,7 @@ import copy
 import itertools
 from dataclasses import dataclass
 
-from analysis.observables.summary import MetricSettings
+from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 
@@ -131,7 +131,8 @@ def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
     analysis = model_record["analysis"]
     metrics = MetricSettings(warmup=analysis["warmup"], group_radius=analysis.get("group_radius"),
                              fragmentation_cohesion=analysis["fragmentation_cohesion"],
-                             leadership=bool(analysis.get("leadership", False)))
+                             leadership=bool(analysis.get("leadership", False)),
+                             **{key: analysis.get(key, default) for key, default in ENCOUNTER_SETTINGS.items()})
     return preset, metrics.resolve(preset.model)
 
 

@@ -4,7 +4,8 @@
 * ``run_id(resolved_preset, metrics, storage, seed)``: the first 20 hex digits of the SHA-256 of the
   canonical JSON of everything that determines a run's results: the resolved preset (model, initial
   conditions, run settings), the metric settings (warm-up, group radius resolved for the run,
-  fragmentation threshold, leadership metrics when on) and what is stored (keep, trajectory_every), the
+  fragmentation threshold, leadership metrics when on, the obstacle/predator/prey metric settings
+  that differ from their defaults) and what is stored (keep, trajectory_every), the
   seed and ``simcore.MODEL_VERSION``. Run seeds are :func:`sweeps.seeds.run_seed`.
 """
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 
+from analysis.observables.summary import encounter_settings
 from simcore import MODEL_VERSION
 
 
@@ -30,5 +32,6 @@ def run_id(resolved_preset: dict, metrics, storage, seed: int) -> str:
                 "trajectory_every": storage.trajectory_every}
     if metrics.leadership:  # added later: absent when off, so earlier run ids stay valid
         settings["leadership"] = True
+    settings.update(encounter_settings(metrics))  # likewise: only those that differ from their defaults
     spec = {"model_version": MODEL_VERSION, "preset": resolved_preset, "analysis": settings, "seed": seed}
     return hashlib.sha256(canonical(spec).encode()).hexdigest()[:20]

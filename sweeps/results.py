@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.observables.summary import summary_columns
+from analysis.observables.summary import ENCOUNTER_FAMILIES, summary_columns
 from simcore.params import canonical_key
 
 from .store import ResultsStore
@@ -71,7 +71,7 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
     """The summary columns (analysis.observables.summary.summary_columns) the runs table holds."""
-    known = set(summary_columns(leadership=True))
+    known = set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES))
     return [c for c in runs.columns if c in known]
 
 

@@ -2,9 +2,12 @@
 
 ``run_single(preset, seed, out_dir=None, record_every=None) -> (summary, written paths, observations)``
 simulates and returns a summary dict (final polarization, mean speed, mean visible neighbours, binocular
-share, wall time); when ``out_dir`` is given it writes there atomically:
+share, wall time; boids that collided and the least clearance, predator captures and nearest approach,
+the time the flock's centre reached the prey, when the run has obstacles, a predator, prey); when
+``out_dir`` is given it writes there atomically:
 
-* ``trajectory.npz``: times (R,), pos and vel (R, N, 3), visible and binocular (R, N), pattern (N,);
+* ``trajectory.npz``: times (R,), pos and vel (R, N, 3), visible and binocular (R, N), pattern (N,), and
+  ``predator`` / ``prey`` (R, 3) when the model has them;
 * ``params.json``: the resolved preset, seed, record interval, the summary and the provenance stamp;
 * with ``tracks = "csv"`` or ``"parquet"``: ``tracks.csv`` / ``tracks.parquet``, the records as long-format
   tracks (:func:`analysis.observables.tracks.tracks_frame`: flock, id, t, x, y, z, vx, vy, vz, pattern, in
@@ -19,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.observables.encounters import (CAPTURE_RADIUS, PREDATOR_NEAR, PREY_REACH, obstacle_metrics,
+                                             predator_metrics, prey_metrics)
 from analysis.observables.metrics import mean_speed, polarization
 from analysis.observables.tracks import TRACKS_SIDECAR, tracks_frame
 from simcore import Observations, Preset, simulate_preset
@@ -27,10 +32,12 @@ from .files import atomic_path, write_csv, write_json, write_parquet
 from .provenance import stamp
 
 
-def summarize(obs: Observations) -> dict:
+def summarize(obs: Observations, obstacles=(), body_radius: float = 0.5) -> dict:
+    """The printed summary; with obstacles (and the boids' body radius), a predator or prey in the run,
+    also their metrics over the whole run (docs/metrics.md, default settings, no warm-up)."""
     visible = obs.visible[-1]
     seen = visible.sum()
-    return {
+    out = {
         "n": int(obs.n),
         "time_s": float(obs.times[-1]),
         "final_polarization": float(polarization(obs.vel[-1])),
@@ -38,13 +45,25 @@ def summarize(obs: Observations) -> dict:
         "final_mean_visible": float(visible.mean()),
         "final_binocular_share": float(obs.binocular[-1].sum() / seen) if seen else 0.0,
     }
+    if obstacles:
+        scalars = obstacle_metrics(obs.pos, obs.times, obstacles, body_radius, 0.0)[1]
+        out.update(collided_boids=int(scalars["collided_boids"]), clearance_min=scalars["clearance_min"])
+    if obs.predator is not None:
+        ones = np.ones(len(obs.times))   # groups and spacing are not summarised here
+        scalars = predator_metrics(obs.pos, obs.predator, obs.times, ones, ones, CAPTURE_RADIUS, PREDATOR_NEAR, 0.0)[1]
+        out.update(predator_captures=int(scalars["predator_captures"]),
+                   predator_distance_min=scalars["predator_distance_min"])
+    if obs.prey is not None:
+        out["prey_reach_time"] = prey_metrics(obs.pos, obs.prey, obs.times, PREY_REACH)[1]["prey_reach_time"]
+    return out
 
 
 def save_trajectory(obs: Observations, path: Path) -> None:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as handle:
+            agents = {name: getattr(obs, name) for name in ("predator", "prey") if getattr(obs, name) is not None}
             np.savez_compressed(handle, times=obs.times, pos=obs.pos, vel=obs.vel, visible=obs.visible,
-                                binocular=obs.binocular, pattern=obs.pattern)
+                                binocular=obs.binocular, pattern=obs.pattern, **agents)
 
 
 def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, description: str) -> list[Path]:
@@ -64,7 +83,7 @@ def run_single(preset: Preset, seed, out_dir=None, record_every: int | None = No
     """Simulate and write the trajectory and parameters; returns (summary, written paths, observations)."""
     started = time.perf_counter()
     obs = simulate_preset(preset, seed, record_every)
-    summary = summarize(obs)
+    summary = summarize(obs, preset.model.world.obstacles, preset.model.perception.body_radius)
     summary["wall_s"] = time.perf_counter() - started
     written = []
     if out_dir is not None:

@@ -203,3 +203,104 @@ def hash4(key: int, stream: int, step: int, index: int) -> int:
 
 def uniform01(key: int, stream: int, step: int, index: int) -> float:
     return (hash4(key, stream, step, index) >> 11) / 2.0 ** 53
+
+
+# ------------------------------------------------------------------------- obstacles, predator, prey
+
+def fold(d, box):
+    return d if box is None else d - box * np.floor(d / box + 0.5)
+
+
+def centre(frame: np.ndarray, box) -> np.ndarray:
+    """Mean position of one record, the flock unwrapped around boid 0 in a periodic box."""
+    return (frame[0] + fold(frame - frame[0], box)).mean(axis=0)
+
+
+def first_time(times, hits) -> float:
+    for t, hit in zip(times, hits):
+        if hit:
+            return float(t)
+    return np.nan
+
+
+def obstacle_metrics(pos, times, obstacles, body_radius, warmup):
+    """(series, scalars) of docs/metrics.md's obstacle metrics, boid by boid and record by record."""
+    from reference_obstacles import signed_distance
+
+    n_records, n = pos.shape[:2]
+    gap = np.array([[min(float(signed_distance(o, pos[r, i])[0]) for o in obstacles) - body_radius
+                     for i in range(n)] for r in range(n_records)])
+    hit = gap < 0
+    series = {"collisions": hit.sum(axis=1).astype(float), "collision_fraction": hit.sum(axis=1) / n,
+              "clearance": gap.min(axis=1)}
+    collided, events, lowest, previous = set(), 0, np.inf, None
+    for r in range(n_records):
+        if times[r] < warmup:
+            continue
+        for i in range(n):
+            if hit[r, i]:
+                collided.add(i)
+                if previous is None or not hit[previous, i]:
+                    events += 1
+            lowest = min(lowest, gap[r, i])
+        previous = r
+    return series, {"collided_boids": float(len(collided)), "collision_events": float(events),
+                    "clearance_min": lowest if previous is not None else np.nan}
+
+
+def predator_metrics(pos, predator, times, capture_radius, near_distance, group_radius, warmup, box=None):
+    """(series, scalars) of docs/metrics.md's predator metrics, with nearest neighbours and groups
+    computed here (``components``)."""
+    n_records, n = pos.shape[:2]
+    distance = np.array([[np.linalg.norm(fold(pos[r, i] - predator[r], box)) for i in range(n)]
+                         for r in range(n_records)])
+    near = np.array([np.linalg.norm(fold(centre(pos[r], box) - predator[r], box)) <= near_distance
+                     for r in range(n_records)])
+    gyration = []
+    for r in range(n_records):
+        points = pos[r, 0] + fold(pos[r] - pos[r, 0], box)
+        c = points.mean(axis=0)
+        gyration.append(np.sqrt(np.mean([np.sum((p - c) ** 2) for p in points])))
+    nn = np.array([np.mean([min(np.linalg.norm(fold(pos[r, j] - pos[r, i], box)) for j in range(n) if j != i)
+                            for i in range(n)]) for r in range(n_records)])
+    groups = np.array([components(pos[r], group_radius, box).max() + 1 for r in range(n_records)], dtype=float)
+    series = {"predator_distance": distance.min(axis=1), "predator_near": near.astype(float),
+              "predator_in_capture": (distance <= capture_radius).sum(axis=1).astype(float),
+              "flock_gyration_radius": np.array(gyration)}
+    window = [r for r in range(n_records) if times[r] >= warmup]
+    near_records = [r for r in window if near[r]]
+    before = [r for r in window if not near_records or r < near_records[0]]
+
+    def mean(values, records):
+        picked = [values[r] for r in records]
+        return float(np.mean(picked)) if picked else np.nan
+
+    def ratio(values):
+        top, bottom = mean(values, near_records), mean(values, before)
+        return top / bottom if bottom and not np.isnan(bottom) else np.nan
+
+    remerge = np.nan
+    if near_records:
+        leave = next((r for r in window if r > near_records[0] and not near[r]), None)
+        if leave is not None:
+            whole = next((r for r in window if r >= leave and groups[r] == 1), None)
+            remerge = np.nan if whole is None else float(times[whole] - times[leave])
+    captured = {i for r in window for i in range(n) if distance[r, i] <= capture_radius}
+    scalars = {"predator_captures": float(len(captured)),
+               "predator_distance_min": min(distance[r].min() for r in window) if window else np.nan,
+               "flash_nn_ratio": ratio(nn), "flash_gyration_ratio": ratio(series["flock_gyration_radius"]),
+               "groups_before_predator": mean(groups, before), "groups_near_predator": mean(groups, near_records),
+               "groups_near_predator_max": max(groups[r] for r in near_records) if near_records else np.nan,
+               "remerge_time": remerge}
+    return series, scalars
+
+
+def prey_metrics(pos, prey, times, reach, box=None):
+    """(series, scalars) of docs/metrics.md's prey metrics."""
+    n_records, n = pos.shape[:2]
+    gap = np.array([np.linalg.norm(fold(centre(pos[r], box) - prey[r], box)) for r in range(n_records)])
+    within = np.array([[np.linalg.norm(fold(pos[r, i] - prey[r], box)) <= reach for i in range(n)]
+                       for r in range(n_records)])
+    series = {"prey_distance": gap, "prey_within_fraction": within.sum(axis=1) / n}
+    return series, {"prey_reach_time": first_time(times, gap <= reach),
+                    "prey_first_reach_time": first_time(times, within.any(axis=1))}

@@ -78,7 +78,7 @@ against the key's allowed range at both ends, and ``n_sim`` runs of the largest 
 allow must fit in memory (:mod:`analysis.calibration.feasibility`), so a prior reaching outside the
 model's range is refused before anything is written, naming ``parameters.<name>.prior`` (or
 ``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a record to summarise
-(:func:`sweeps.config.check_window`). Errors are
+(:func:`sweeps.config.check_window`), and it sets no encounter metric setting (no such targets). Errors are
 :class:`ConfigError` whose ``key`` is the dotted key in this file.
 """
 from __future__ import annotations
@@ -99,7 +99,7 @@ from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
                             suggest)
-from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
+from sweeps.config import ModelTable, RunTable, check_name, check_no_encounter_settings, check_window, model_data
 from sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
@@ -249,6 +249,7 @@ def _model_and_run(table: CalibrationFile, base: Path) -> tuple[Path, dict, Pres
     except ConfigError as err:
         raise ConfigError(origin.get(err.key, err.key), err.detail) from None
     check_window(table.run.warmup, preset.run)
+    check_no_encounter_settings(table.run)
     return preset_path, preset_data, preset
 
 

@@ -3,18 +3,21 @@ simulation into numbers.
 
 :class:`MetricSettings` says how records become a row: the warm-up excluded from window means, the
 group radius linking boids (None: the model's perception range), the cohesion below which the flock
-counts as fragmented, whether the leadership metrics are computed, and the two values a model fixes,
-the periodic box side and the escape duration. :meth:`MetricSettings.resolve` fills those in from a
-model; a configuration file sets only the first four (its ``[run]`` table).
+counts as fragmented, whether the leadership metrics are computed, the capture radius, predator "near"
+distance and prey reach of the encounter metrics (:mod:`analysis.observables.encounters`), and the values
+a model fixes: the periodic box side, the escape duration, the obstacles and the body radius.
+:meth:`MetricSettings.resolve` fills those in from a model; a configuration file sets the others (its
+``[run]`` table).
 
 ``summarize_run(obs, settings) -> dict`` is the row: for every per-record metric of
 :data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
 ``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`); :func:`summary_columns` lists them
-in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
-(plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
-The row is a pure function of the observations and the settings. Observations with a ``present`` mask
+(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then the obstacle, predator and prey
+columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
+observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the
+row together with the per-record series (plus ``leaders``, the number of leaders per record, with
+leadership on). ``settings`` must be resolved. The row is a pure function of the observations and the settings. Observations with a ``present`` mask
 (an :class:`~analysis.observables.observed.ObservedFlock`: measured tracks, or a run seen through an
 observation model) are measured record by record over the individuals present
 (:func:`~analysis.observables.observed.present_metrics`), and their series and row add ``tracked``
@@ -34,13 +37,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_within
+from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
+from .encounters import CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, encounter_columns, encounter_metrics
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .observed import present_metrics
 
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
+ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
+# the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
+ENCOUNTER_SETTINGS = {"capture_radius": CAPTURE_RADIUS, "predator_near": PREDATOR_NEAR, "prey_reach": PREY_REACH}
 
 
 class NonFiniteState(RuntimeError):
@@ -57,8 +64,15 @@ class MetricSettings:
     leadership: bool = False
     box: float | None = None                   # periodic box side; None: no periodic box
     escape_duration: float | None = None       # the model's leadership.duration (set by resolve)
+    capture_radius: float = CAPTURE_RADIUS     # predator captures: boids this close to it
+    predator_near: float = PREDATOR_NEAR       # the predator is near: this close to the flock centre
+    prey_reach: float = PREY_REACH             # the prey is reached: the flock centre this close
+    obstacles: tuple = ()                      # the model's world.obstacles (set by resolve)
+    body_radius: float | None = None           # the model's perception.body_radius (set by resolve)
 
     def __post_init__(self):
+        for key in ENCOUNTER_SETTINGS:
+            check_positive(key, getattr(self, key))
         check_non_negative("warmup", self.warmup)
         if self.group_radius is not None:
             _finite("group_radius", self.group_radius)
@@ -67,20 +81,33 @@ class MetricSettings:
         check_within("fragmentation_cohesion", self.fragmentation_cohesion, 0.0, 1.0, lo_open=True)
 
     def resolve(self, model) -> "MetricSettings":
-        """These settings for ``model``: the group radius (when None), box and escape duration filled in."""
+        """These settings for ``model``: the group radius (when None), box, escape duration, obstacles and
+        body radius filled in."""
         radius = default_group_radius(model) if self.group_radius is None else self.group_radius
         return dataclasses.replace(self, group_radius=radius, box=world_box(model),
-                                   escape_duration=float(model.leadership.duration))
+                                   escape_duration=float(model.leadership.duration),
+                                   obstacles=tuple(model.world.obstacles),
+                                   body_radius=float(model.perception.body_radius))
 
     @property
     def resolved(self) -> bool:
         return self.group_radius is not None and self.escape_duration is not None
 
 
-def summary_columns(leadership: bool = True) -> tuple[str, ...]:
-    """The columns of :func:`summarize_run`'s row, in order (with or without the leadership scalars)."""
+def summary_columns(leadership: bool = True, encounters: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
+    scalars, then the columns of the given encounter families (``ENCOUNTER_FAMILIES`` for all; a row has
+    a family's columns only when its run has obstacles, a predator or prey, see
+    :mod:`analysis.observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
-    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ())
+    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()) + encounter_columns(encounters)
+
+
+def encounter_settings(settings: MetricSettings) -> dict:
+    """The encounter settings (``ENCOUNTER_SETTINGS``) that differ from their defaults: what run
+    identity and a sweep's ``model.json`` record, so run ids of earlier sweeps stay valid."""
+    return {key: getattr(settings, key) for key, default in ENCOUNTER_SETTINGS.items()
+            if getattr(settings, key) != default}
 
 
 class RunMetrics(NamedTuple):
@@ -105,6 +132,10 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    if getattr(obs, "present", None) is None:
+        extra_series, extra_row = encounter_metrics(obs, settings, series)
+        series.update(extra_series)
+        row.update(extra_row)
     return RunMetrics(series, row)
 
 
@@ -125,9 +156,10 @@ def every_nth(obs, k: int):
     if k == 1:
         return obs
     pick = slice(None, None, k)
+    agents = {name: getattr(obs, name)[pick] for name in ("predator", "prey") if getattr(obs, name, None) is not None}
     return dataclasses.replace(obs, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
                                visible=obs.visible[pick], binocular=obs.binocular[pick], leader=obs.leader[pick],
-                               record_every=obs.record_every * k)
+                               record_every=obs.record_every * k, **agents)
 
 
 def default_group_radius(model) -> float:

@@ -29,8 +29,9 @@ Functions:
     cell the mean over its runs vs t, with a band of +-1 sd where at least 3 runs have a value at that t,
     min-max where fewer; one colour per cell; one legend for the figure.
 ``thumbnails_figure(items, path, ncols=3)``
-    ``items``: (title, pos (R, N, 3), pattern (N,) or None); a grid of 3-D trace thumbnails drawn with
-    ``analysis.reports.traces.draw_traces``, with one figure legend for the pattern colours.
+    ``items``: (title, pos (R, N, 3), pattern (N,) or None[, {"obstacles", "predator", "prey"}]); a grid of
+    3-D trace thumbnails drawn with ``analysis.reports.traces.draw_traces`` (obstacles and agent paths
+    too), with one figure legend for the pattern colours.
 ``effect_sizes_figure(tests, path)``
     ``tests``: columns ``metric, factor, epsilon2`` (and ``p_holm``); heatmap of epsilon^2, metrics as
     rows and factors as columns, annotated, significant cells (``p_holm < 0.05``) marked with ``*`` and
@@ -333,11 +334,13 @@ def timeseries_figure(ts: pd.DataFrame, cells: dict[str, list[str]], metrics: li
 
 # -- 4. trace thumbnails ------------------------------------------------------------------------------
 
-def thumbnails_figure(items: list[tuple[str, np.ndarray, np.ndarray | None]], path, ncols: int = 3,
+def thumbnails_figure(items: list[tuple], path, ncols: int = 3,
                       color_by: str = "auto", wrap_jump: float | None = None, title: str = "") -> Path:
-    """A grid of 3-D trace thumbnails; ``items`` are (title, pos (R, N, 3), pattern (N,) or None)."""
-    checked = []
-    for name, pos, pattern in items:
+    """A grid of 3-D trace thumbnails; ``items`` are (title, pos (R, N, 3), pattern (N,) or None), or
+    the same with a fourth element, a dict of ``draw_traces``' ``obstacles``, ``predator``, ``prey``."""
+    checked, scenes = [], []
+    for name, pos, pattern, *extra in items:
+        scenes.append(extra[0] if extra else {})
         pos = np.asarray(pos, dtype=float)
         if pos.ndim != 3 or pos.shape[2] != 3:
             raise ValueError(f"thumbnails_figure: item {name!r}: pos must be (R, N, 3), got {pos.shape}")
@@ -356,7 +359,7 @@ def thumbnails_figure(items: list[tuple[str, np.ndarray, np.ndarray | None]], pa
     for k, (name, pos, pattern) in enumerate(checked):
         mode = "boid" if pattern is None and color_by == "pattern" else color_by
         ax = fig.add_subplot(nrows, ncols, k + 1, projection="3d")
-        draw_traces(ax, pos, pattern, mode, wrap_jump, str(name))
+        draw_traces(ax, pos, pattern, mode, wrap_jump, str(name), **scenes[k])
         if ax.get_legend() is not None:
             ax.get_legend().remove()
         legend.update(boid_colours(pos.shape[1], pattern, mode)[1] or {})

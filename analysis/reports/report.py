@@ -301,7 +301,8 @@ def _thumbnails(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
                        "final_polarization_resimulated": final, "final_polarization_in_table": stored,
                        "identical": final == stored})
         pattern = obs.pattern if len(np.unique(obs.pattern)) > 1 else None
-        items.append((f"{name}: cohesion {row.get('cohesion_mean', float('nan')):.2f}", obs.pos, pattern))
+        scene = {"obstacles": preset.model.world.obstacles, "predator": obs.predator, "prey": obs.prey}
+        items.append((f"{name}: cohesion {row.get('cohesion_mean', float('nan')):.2f}", obs.pos, pattern, scene))
     ctx.blocks.append(Heading("Showcase runs"))
     ctx.blocks.append(Para("Each run is re-simulated from its seed and resolved parameters; the table below "
                            "checks that the re-simulation reproduces the stored final polarization bit for bit."))

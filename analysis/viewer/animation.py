@@ -2,7 +2,8 @@
 
 ``write_animation(track, path, color_by="auto", fps=20, speed=1, rotate=False, trail_s=1, size=(640, 480),
 dpi=100, title=None, progress=False) -> Animation`` draws the run with matplotlib's 3-D axes (the world's
-y axis up): boids as arrows along their heading, trails of the last ``trail_s`` seconds, a time stamp
+y axis up): boids as arrows along their heading, extra agents (prey, predators) as large markers of
+their colour with a legend, trails of the last ``trail_s`` seconds (agents' thicker), a time stamp
 with the frame's polarization and number of groups, and optionally a camera turning slowly about the
 vertical (``rotate``: 6 degrees per second of video).
 
@@ -28,7 +29,7 @@ import numpy as np
 
 from sweeps.files import atomic_path
 
-from .encode import COLOR_MODES, TABLE_1_HEX, default_color_by
+from .encode import COLOR_MODES, TABLE_1_HEX, check_agents, default_color_by
 from .observables import frame_observables
 from .track import Track
 
@@ -184,6 +185,20 @@ class _Drawing:
         self.trails = Line3DCollection([], linewidths=0.6, alpha=0.45)
         self.ax.add_collection3d(self.trails, autolim=False)
         self.quiver = None
+        self.agents = check_agents(track.agents, track.frames)
+        self.agent_trails, self.agent_marks = [], []
+        for agent in self.agents:
+            trail = Line3DCollection([], linewidths=1.8, colors=agent["color"])
+            trail.set_gid(f"agent-trail:{agent['kind']}")
+            self.ax.add_collection3d(trail, autolim=False)
+            self.agent_trails.append(trail)
+            self.agent_marks.append(None)
+        if self.agents:
+            from matplotlib.lines import Line2D
+
+            self.ax.legend(handles=[Line2D([], [], color=a["color"], marker="o", markeredgecolor="black",
+                                           linewidth=1.8, label=a["label"]) for a in self.agents],
+                           loc="upper right", fontsize=7)
 
     def draw(self, k: int, f: int) -> None:
         track, ax = self.track, self.ax
@@ -206,6 +221,14 @@ class _Drawing:
         segments, boid = _trail_segments(track.pos, f, self.trail, track.wrap_jump)
         self.trails.set_segments(segments[:, :, swap])
         self.trails.set_color(colours[boid])
+        for a, (agent, trail) in enumerate(zip(self.agents, self.agent_trails)):
+            trail.set_segments(_trail_segments(agent["pos"], f, self.trail, track.wrap_jump)[0][:, :, swap])
+            if self.agent_marks[a] is not None:
+                self.agent_marks[a].remove()
+            q = agent["pos"][f][:, swap]
+            self.agent_marks[a] = ax.scatter(q[:, 0], q[:, 1], q[:, 2], s=60 * agent["size"], color=agent["color"],
+                                             edgecolors="black", linewidths=0.5, depthshade=False)
+            self.agent_marks[a].set_gid(f"agent:{agent['kind']}")
         metrics = self.obs["metrics"]
         self.stamp.set_text(f"t = {track.times[f]:6.2f} s   polarization {metrics['polarization'][f]:.2f}"
                             f"   groups {metrics['n_groups'][f]:.0f}   (colour: {self.mode})")

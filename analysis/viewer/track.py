@@ -17,8 +17,9 @@ Constructors: :func:`from_observations` (a simulator ``Observations``, optionall
 sweep's ``trajectories/<run_id>.npz``), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
 of these). :meth:`Track.every` keeps every k-th frame.
 
-Scene objects of a model are read by :func:`scene_of` (obstacles, when the model has them);
-extra agents of a run by :func:`agents_of` (prey and predators, when the observations record them).
+Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
+by :func:`agents_of` (prey and predators, when the observations record them) or, from a saved
+trajectory's ``predator`` / ``prey`` arrays, by :func:`agent_tracks`.
 """
 from __future__ import annotations
 
@@ -127,32 +128,68 @@ def world_of(model) -> dict:
     return out
 
 
-def scene_of(model) -> tuple:
-    """Scene objects (obstacles) of a model, as :mod:`analysis.viewer.encode` dicts. The simulator has
-    no obstacles yet; when it does, this reads ``model.obstacles`` (each with an ``as_scene()`` dict)."""
-    return tuple(obstacle.as_scene() for obstacle in getattr(model, "obstacles", ()))
+def obstacle_scene(obstacle, around=None) -> dict:
+    """One :class:`simcore.obstacle_spec.Obstacle` as a scene object of :mod:`analysis.viewer.encode`.
+
+    A plane is drawn as a square patch centred on the foot of the middle of ``around`` (positions
+    (..., 3), e.g. the run's) on the plane, 2.2 times as wide as their farthest in-plane offset from it
+    (at least 100 units without positions); a cylinder as the segment between its cap centres."""
+    label = {"label": obstacle.kind}
+    if obstacle.kind == "sphere":
+        return {"type": "sphere", "center": list(obstacle.centre), "radius": obstacle.radius, **label}
+    if obstacle.kind == "box":
+        return {"type": "box", "center": list(obstacle.centre), "size": [2.0 * h for h in obstacle.half_extents],
+                **label}
+    if obstacle.kind == "cylinder":
+        centre, axis = np.asarray(obstacle.centre), np.asarray(obstacle.axis)
+        half = obstacle.length / 2.0
+        return {"type": "cylinder", "a": list(centre - half * axis), "b": list(centre + half * axis),
+                "radius": obstacle.radius, "caps": "flat", **label}
+    normal, point = np.asarray(obstacle.normal), np.asarray(obstacle.centre, dtype=np.float64)
+    size = 100.0
+    if around is not None and np.size(around):
+        points = np.asarray(around, dtype=np.float64).reshape(-1, 3)
+        middle = points.mean(axis=0)
+        point = middle - np.dot(middle - point, normal) * normal
+        offsets = points - point
+        in_plane = offsets - np.outer(offsets @ normal, normal)
+        size = 2.2 * max(float(np.linalg.norm(in_plane, axis=1).max()), 5.0)
+    return {"type": "plane", "point": list(point), "normal": list(normal), "size": size, **label}
+
+
+def scene_of(model, around=None) -> tuple:
+    """Scene objects of a model: its ``world.obstacles`` (:func:`obstacle_scene`; ``around`` the run's
+    positions, for the size of plane patches)."""
+    return tuple(obstacle_scene(obstacle, around) for obstacle in model.world.obstacles)
+
+
+def agent_tracks(predator=None, prey=None) -> tuple:
+    """Agents of :mod:`analysis.viewer.encode` for recorded predator and prey positions (F, 3) (None:
+    that agent is absent); their headings are finite differences of the positions."""
+    return tuple({"kind": kind, "label": kind, "pos": np.asarray(track, dtype=np.float64)[:, None, :]}
+                 for kind, track in (("predator", predator), ("prey", prey)) if track is not None)
 
 
 def agents_of(obs) -> tuple:
-    """Extra agents (prey, predators) recorded by the simulator, as :mod:`analysis.viewer.encode` dicts
-    with their (F, M, 3) tracks; () when the observations record none."""
-    return tuple(getattr(obs, "agents", ()) or ())
+    """Extra agents (prey, predators) recorded by the simulator (``obs.predator``, ``obs.prey``), as
+    :mod:`analysis.viewer.encode` dicts with their (F, 1, 3) tracks; () when the observations record none."""
+    return agent_tracks(getattr(obs, "predator", None), getattr(obs, "prey", None))
 
 
-def _preset_meta(preset) -> dict:
+def _preset_meta(preset, around=None) -> dict:
     from .observables import metric_settings  # the viewer's one door to the observables layer
 
     model = preset.model
     radius, box = metric_settings(model)
     return {"params": flat_params(preset.to_dict()), "group_radius": radius, "box": box,
-            "world": world_of(model), "scene": scene_of(model)}
+            "world": world_of(model), "scene": scene_of(model, around)}
 
 
 def from_observations(obs, preset=None, title: str | None = None, info: dict | None = None,
                       scene=(), agents=(), group_radius: float | None = None) -> Track:
     """A Track of simulator observations; with ``preset`` the panel shows its parameters and the metrics
     use its group radius and world."""
-    meta = _preset_meta(preset) if preset is not None else {}
+    meta = _preset_meta(preset, obs.pos) if preset is not None else {}
     if group_radius is not None:
         meta["group_radius"] = float(group_radius)
     leader = obs.leader if obs.leader is not None and obs.leader.any() else None
@@ -174,7 +211,7 @@ def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Trac
                  leader=None if leader is None else np.asarray(leader, dtype=bool), **meta)
 
 
-def _sweep_meta(path: Path, run_id: str) -> dict:
+def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
     """Parameters of a sweep trajectory ``<results>/trajectories/<run_id>.npz`` from its results store."""
     store = ResultsStore(path.parent.parent)
     record = store.model()
@@ -183,7 +220,7 @@ def _sweep_meta(path: Path, run_id: str) -> dict:
         return {}
     row = design[design["run_id"] == run_id].iloc[0].to_dict()
     preset, metrics = rebuild(record, row)
-    meta = _preset_meta(preset)
+    meta = _preset_meta(preset, around)
     meta["group_radius"] = float(metrics.group_radius)
     meta["info"] = {"run id": run_id, "replicate": int(row["replicate"]), "seed": int(row["seed"])}
     meta["title"] = f"{path.parent.parent.name}: run {run_id}"
@@ -205,18 +242,19 @@ def from_npz(path) -> Track:
     params_path = path.with_name("params.json")
     if params_path.is_file():
         saved = json.loads(params_path.read_text())
-        meta.update(_preset_meta(preset_from_dict(saved["preset"])))
+        meta.update(_preset_meta(preset_from_dict(saved["preset"]), arrays["pos"]))
         meta["title"] = f"{saved['preset'].get('name', path.stem)}: seed {saved.get('seed')}"
         meta["info"] = {"source": str(path), "seed": saved.get("seed")}
     elif path.parent.name == "trajectories":
-        meta.update(_sweep_meta(path, path.stem))
+        meta.update(_sweep_meta(path, path.stem, arrays["pos"]))
         meta["info"] = {**meta.get("info", {}), "source": str(path)}
     if "seed" in arrays and "seed" not in meta["info"]:
         meta["info"]["seed"] = int(arrays["seed"])
     return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
                  vel=arrays["vel"].astype(np.float64), pattern=arrays.get("pattern"),
                  leader=arrays.get("leader"), visible=arrays.get("visible"),
-                 binocular=arrays.get("binocular"), **meta)
+                 binocular=arrays.get("binocular"), agents=agent_tracks(arrays.get("predator"), arrays.get("prey")),
+                 **meta)
 
 
 def as_track(source, preset=None, **options) -> Track:

@@ -176,7 +176,7 @@ def test_the_other_models_claims_of_docs_claims_md_resolve():
     levels = [["prioritized", "weighted_sum"], [0.0, 1.0], [False, True], [0.0, 0.5, 1.0]]
     design = pd.DataFrame([dict(zip(factors, combo)) for combo in itertools.product(*levels)])
     columns = Columns(tuple(factors), frozenset({"steering.global_weight", "random_force.magnitude"}),
-                      frozenset({"obstacle_collisions_final", "migratory_progress_mean", "n_groups_mean",
+                      frozenset({"collided_boids", "migratory_progress_mean", "n_groups_mean",
                                  "n_groups_final", "polarization_mean"}), {}, design)
     tables = [build(ClaimTable, claim, f"claims[{k}]") for k, claim in enumerate(tomllib.loads(block)["claims"])]
     claims = load_claims(tables, (), ROOT, columns)

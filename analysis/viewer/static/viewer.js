@@ -172,7 +172,7 @@ function addGrid() {
 const TRAIL_POINTS = 24;  // at most this many stored frames per trail (longer trails skip frames)
 
 function makeTrails() {
-  const count = N * TRAIL_POINTS * 2;
+  const count = (N + agentData.reduce((sum, ag) => sum + ag.m, 0)) * TRAIL_POINTS * 2;  // boids and agents
   const geo = new THREE.BufferGeometry();
   geo.setAttribute("position", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
   geo.setAttribute("color", new THREE.BufferAttribute(new Float32Array(count * 3), 3).setUsage(THREE.DynamicDrawUsage));
@@ -299,6 +299,30 @@ function colourBoids(f) {
   boids.instanceColor.needsUpdate = true;
 }
 
+// One trail: instance i of the stored stream p (count per frame), back from the interpolated frame
+// (f, a) over `points` stored frames `step` apart, fading from colour col to the background; writes
+// segments into P, C from vertex offset v and returns the next offset.
+function addTrail(P, C, v, p, h, count, i, col, f, a, step, points, jump2) {
+  sample(p, h, count, i, f, a);
+  let px = tmp.v.x, py = tmp.v.y, pz = tmp.v.z;
+  for (let s = 0; s < points; s++) {
+    const g = f - s * step;  // the segment runs from the newer point back to stored frame g
+    if (g < 0) break;
+    const j = (g * count + i) * 3;
+    const qx = p[j], qy = p[j + 1], qz = p[j + 2];
+    const dx = qx - px, dy = qy - py, dz = qz - pz;
+    if (dx * dx + dy * dy + dz * dz > jump2) break;  // a boundary wrap: the trail stops there
+    const fade = 0.3 + 0.7 * (1 - s / points), fade2 = 0.3 + 0.7 * (1 - (s + 1) / points);
+    P[v] = px; P[v + 1] = py; P[v + 2] = pz;
+    C[v] = BG.r + (col.r - BG.r) * fade; C[v + 1] = BG.g + (col.g - BG.g) * fade; C[v + 2] = BG.b + (col.b - BG.b) * fade;
+    P[v + 3] = qx; P[v + 4] = qy; P[v + 5] = qz;
+    C[v + 3] = BG.r + (col.r - BG.r) * fade2; C[v + 4] = BG.g + (col.g - BG.g) * fade2; C[v + 5] = BG.b + (col.b - BG.b) * fade2;
+    v += 6;
+    px = qx; py = qy; pz = qz;
+  }
+  return v;
+}
+
 function drawTrails(f, a) {
   const k = Math.min(F - 1, Math.round(S.trailS / DTF));
   const geo = trails.geometry;
@@ -308,25 +332,10 @@ function drawTrails(f, a) {
   const step = Math.ceil(k / TRAIL_POINTS), points = Math.ceil(k / step);
   const jump2 = DATA.wrap_jump === null ? Infinity : DATA.wrap_jump * DATA.wrap_jump;
   let v = 0;
-  for (let i = 0; i < N; i++) {
-    const col = boidColour(i, f);
-    sample(pos, heading, N, i, f, a);
-    let px = tmp.v.x, py = tmp.v.y, pz = tmp.v.z;
-    for (let s = 0; s < points; s++) {
-      const g = f - s * step;  // the segment runs from the newer point back to stored frame g
-      if (g < 0) break;
-      const j = (g * N + i) * 3;
-      const qx = pos[j], qy = pos[j + 1], qz = pos[j + 2];
-      const dx = qx - px, dy = qy - py, dz = qz - pz;
-      if (dx * dx + dy * dy + dz * dz > jump2) break;  // a boundary wrap: the trail stops there
-      const fade = 0.3 + 0.7 * (1 - s / points), fade2 = 0.3 + 0.7 * (1 - (s + 1) / points);
-      P[v] = px; P[v + 1] = py; P[v + 2] = pz;
-      C[v] = BG.r + (col.r - BG.r) * fade; C[v + 1] = BG.g + (col.g - BG.g) * fade; C[v + 2] = BG.b + (col.b - BG.b) * fade;
-      P[v + 3] = qx; P[v + 4] = qy; P[v + 5] = qz;
-      C[v + 3] = BG.r + (col.r - BG.r) * fade2; C[v + 4] = BG.g + (col.g - BG.g) * fade2; C[v + 5] = BG.b + (col.b - BG.b) * fade2;
-      v += 6;
-      px = qx; py = qy; pz = qz;
-    }
+  for (let i = 0; i < N; i++) v = addTrail(P, C, v, pos, heading, N, i, boidColour(i, f), f, a, step, points, jump2);
+  for (const ag of agentData) {  // prey and predators: trails in their own colour
+    const col = new THREE.Color(ag.color);
+    for (let i = 0; i < ag.m; i++) v = addTrail(P, C, v, ag.pos, ag.heading, ag.m, i, col, f, a, step, points, jump2);
   }
   geo.setDrawRange(0, v / 3);
   geo.attributes.position.needsUpdate = true;
@@ -457,6 +466,7 @@ async function start() {
     setSpeed: (x) => { S.speed = x; },
     boidMatrix: (i) => { const m = new THREE.Matrix4(); boids.getMatrixAt(i, m); return m.elements.slice(); },
     sceneNames: () => scene.children.map((c) => c.name).filter(Boolean),
+    trailVertices: () => (trails.visible ? trails.geometry.drawRange.count : 0),
   };
   document.body.dataset.ready = "1";
   requestAnimationFrame(tick);
