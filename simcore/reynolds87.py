@@ -22,7 +22,9 @@ direction and an infinite weight), with w_j = |d_j|^-k:
    f_i . d_j > 0);
 2. allocation (``ALLOC_*``): ``priority`` adds requests while the running vector sum stays within
    ``max_accel``; the request that would carry |sum| past it is added scaled by the s in (0, 1] with
-   |a + s r| = max_accel, and the rest are dropped; ``priority_magnitude`` does the same with the sum of
+   |a + s r| = max_accel, and the rest are dropped (the budget counts as reached from ``FULL`` = 1 - 1e-12
+   of it, so a request of exactly max_accel fills it whatever the last bit of its direction's rounding:
+   otherwise a next request pointing back into the budget ball could still be added in part); ``priority_magnitude`` does the same with the sum of
    the requests' magnitudes (Reynolds' accumulator); ``weighted_sum`` adds all and truncates to
    ``max_accel``.
 
@@ -76,6 +78,7 @@ R = IntEnum("R", list(R_SLOTS), start=0)
 RI = IntEnum("RI", list(RI_SLOTS), start=0)
 ALLOC_PRIORITY, ALLOC_PRIORITY_MAGNITUDE, ALLOC_WEIGHTED_SUM = range(3)
 WHO_ALL, WHO_FRONT = range(2)
+FULL = 1.0 - 1e-12  # the budget counts as reached from this share of max_accel (of its square, vector sum)
 assert ALLOCATIONS == ("priority", "priority_magnitude", "weighted_sum")
 assert MIGRATION_WHO == ("all", "front")
 
@@ -113,13 +116,13 @@ def allocate(ax, ay, az, used, full, rx, ry, rz, limit, mode):
     if mode == ALLOC_PRIORITY_MAGNITUDE:
         size = math.sqrt(rx * rx + ry * ry + rz * rz)
         if used + size <= limit:
-            return ax + rx, ay + ry, az + rz, used + size, used + size >= limit
+            return ax + rx, ay + ry, az + rz, used + size, used + size >= limit * FULL
         s = (limit - used) / size
         return ax + s * rx, ay + s * ry, az + s * rz, limit, True
     nx, ny, nz = ax + rx, ay + ry, az + rz
     n2 = nx * nx + ny * ny + nz * nz
     if n2 <= limit * limit:
-        return nx, ny, nz, used, n2 >= limit * limit
+        return nx, ny, nz, used, n2 >= limit * limit * FULL
     s = crossing_scale(ax, ay, az, rx, ry, rz, limit)
     return ax + s * rx, ay + s * ry, az + s * rz, used, True
 

@@ -11,7 +11,9 @@ model; a configuration file sets only the first four (its ``[run]`` table).
 :data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
 ``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`); :func:`summary_columns` lists them
+(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then, when the model has a migratory
+urge (``settings.migration``, its direction), the migration scalars
+(:data:`~analysis.observables.migration.MIGRATION_METRIC_NAMES`); :func:`summary_columns` lists them
 in that order. ``measure_run(obs, settings)`` gives the row together with the per-record series
 (plus ``leaders``, the number of leaders per record, with leadership on). ``settings`` must be resolved.
 The row is a pure function of the observations and the settings. Observations with a ``present`` mask
@@ -37,6 +39,7 @@ import numpy as np
 from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_within
 
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
+from .migration import MIGRATION_METRIC_NAMES, migration_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .observed import present_metrics
 
@@ -57,6 +60,7 @@ class MetricSettings:
     leadership: bool = False
     box: float | None = None                   # periodic box side; None: no periodic box
     escape_duration: float | None = None       # the model's leadership.duration (set by resolve)
+    migration: tuple[float, float, float] | None = None  # the model's migration direction (set by resolve)
 
     def __post_init__(self):
         check_non_negative("warmup", self.warmup)
@@ -70,17 +74,29 @@ class MetricSettings:
         """These settings for ``model``: the group radius (when None), box and escape duration filled in."""
         radius = default_group_radius(model) if self.group_radius is None else self.group_radius
         return dataclasses.replace(self, group_radius=radius, box=world_box(model),
-                                   escape_duration=float(model.leadership.duration))
+                                   escape_duration=float(model.leadership.duration),
+                                   migration=migration_direction(model))
 
     @property
     def resolved(self) -> bool:
         return self.group_radius is not None and self.escape_duration is not None
 
 
-def summary_columns(leadership: bool = True) -> tuple[str, ...]:
-    """The columns of :func:`summarize_run`'s row, in order (with or without the leadership scalars)."""
+def summary_columns(leadership: bool = True, migration: bool = False) -> tuple[str, ...]:
+    """The columns of :func:`summarize_run`'s row, in order (with or without the leadership scalars and
+    the migration scalars)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
-    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ())
+    columns += tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()
+    return columns + (MIGRATION_METRIC_NAMES if migration else ())
+
+
+def migration_direction(model) -> tuple[float, float, float] | None:
+    """The migratory urge's unit direction when the model has one (reynolds87 with migration_weight > 0)
+    in an open world, else None (then no migration metrics)."""
+    rey = getattr(model, "reynolds", None)
+    if model.dynamics != "reynolds87" or rey is None or not rey.migrates or model.world.boundary != "open":
+        return None
+    return tuple(float(x) for x in rey.migration_direction)
 
 
 class RunMetrics(NamedTuple):
@@ -105,6 +121,8 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    if settings.migration is not None:
+        row.update(migration_metrics(obs.pos, obs.vel, obs.times, settings.migration, settings.warmup))
     return RunMetrics(series, row)
 
 
