@@ -100,9 +100,11 @@ def test_kernel_matches_twin(keys, seed):
 
 
 @pytest.mark.parametrize("kind", list(OBSTACLES))
-@pytest.mark.parametrize("allocation", ["priority", "weighted_sum"])
-def test_kernel_matches_twin_with_obstacles(kind, allocation):
-    model = reynolds_model(radius=3.0, obstacles=(OBSTACLES[kind],), allocation=allocation, lookahead=8.0)
+@pytest.mark.parametrize("allocation, order", [("priority", "synchronous"), ("weighted_sum", "synchronous"),
+                                               ("priority_magnitude", "sequential")])
+def test_kernel_matches_twin_with_obstacles(kind, allocation, order):
+    model = reynolds_model(radius=3.0, obstacles=(OBSTACLES[kind],), allocation=allocation, lookahead=8.0,
+                           order=order)
     state = heading_state(11)
     ahead = [np.any(ref.avoidance(model.world.obstacles, state.pos[i], state.fwd[i], state.up[i], 0.5, 8.0, 1.0))
              for i in range(state.n)]
