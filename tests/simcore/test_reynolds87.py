@@ -26,6 +26,7 @@ from simcore.schema import ConfigError
 
 FIELDS = ("pos", "vel", "fwd", "up", "side", "acc")
 N_STEPS = 6
+QUICK = {("priority", "sphere"), ("priority", "plane"), ("weighted_sum", "box")}  # other obstacle cases: slow
 OBSTACLE_TOLERANCE = {"pos": 1e-8, "vel": 5e-7, "fwd": 2e-7, "up": 2e-7, "side": 2e-7, "acc": 2e-5}
 DT = 1 / 60
 
@@ -62,6 +63,8 @@ CASES = [
     ("box-sync-weighted", dict(boundary="periodic_box", allocation="weighted_sum", radius=3.0), 3),
     ("wrap-seq-priority-grid", dict(boundary="sphere_wrap", order="sequential", search="grid", radius=2.0), 4),
     ("open-sync-falloff1-tight", dict(falloff_exponent=1.0, max_accel=4.0), 5),
+    ("open-sync-falloff1.5", dict(falloff_exponent=1.5), 8),
+    ("box-seq-falloff0", dict(falloff_exponent=0.0, boundary="periodic_box", order="sequential", radius=3.0), 9),
     ("migration-all", dict(migration_weight=5.0, migration_direction=(1.0, 2.0, -0.5)), 6),
     ("migration-front-seq", dict(migration_weight=5.0, migration_direction=(0.0, 0.0, 3.0), migration_who="front",
                                  order="sequential"), 7),
@@ -99,9 +102,14 @@ def test_kernel_matches_twin(keys, seed):
         assert (sizes < max_accel * (1 - 1e-9)).sum() >= 5          # and not reached
 
 
-@pytest.mark.parametrize("kind", list(OBSTACLES))
-@pytest.mark.parametrize("allocation, order", [("priority", "synchronous"), ("weighted_sum", "synchronous"),
-                                               ("priority_magnitude", "sequential")])
+OBSTACLE_CASES = [pytest.param(kind, allocation, order, id=f"{allocation}-{order}-{kind}",
+                               marks=() if (allocation, kind) in QUICK else pytest.mark.slow)
+                  for allocation, order in [("priority", "synchronous"), ("weighted_sum", "synchronous"),
+                                            ("priority_magnitude", "sequential")]
+                  for kind in OBSTACLES]
+
+
+@pytest.mark.parametrize("kind, allocation, order", OBSTACLE_CASES)
 def test_kernel_matches_twin_with_obstacles(kind, allocation, order):
     model = reynolds_model(radius=3.0, obstacles=(OBSTACLES[kind],), allocation=allocation, lookahead=8.0,
                            order=order)
