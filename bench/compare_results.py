@@ -44,7 +44,7 @@ def compare_sweep(old: Path, new: Path) -> str:
     if missing_ts:
         return f"time-series columns missing from the new folder: {missing_ts}"
     pd.testing.assert_frame_equal(ta, tb[list(ta.columns)], check_exact=True)
-    metrics = [c for c in keep if c in set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES))]
+    metrics = [c for c in keep if c in set(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))]
     added = [c for c in b.columns if c not in a.columns] + [f"series:{c}" for c in tb.columns if c not in ta.columns]
     return (f"identical: {len(a)} runs, same run ids, {len(metrics)} metric columns and {len(keep)} columns "
             f"in all bit for bit, {len(ta)} time-series rows bit for bit"

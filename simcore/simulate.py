@@ -22,7 +22,8 @@ Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step o
 over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
 use numba's thread count and smaller ones one thread, and sequential runs are always serial (boid i
 waits for boid i - 1). Every boid is computed by the same code either way: results are bit-identical
-for any thread count.
+for any thread count. The ``reynolds87`` dynamics runs in its own compiled loop
+(:mod:`simcore.reynolds87`), one thread per run (``threads`` does not apply), batches in parallel.
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from . import kernel
+from . import kernel, reynolds87
 from .layout import pack
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
@@ -143,7 +144,11 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
     rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
     args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
             n_steps, record_every, *rec)
-    if threads == 1:
+    if model.dynamics == "reynolds87":
+        _notice_compile(reynolds87.run_reynolds)
+        reynolds87.run_reynolds(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, fp, ip, *reynolds87.pack_reynolds(model),
+                                n_steps, record_every, *rec[:3])
+    elif threads == 1:
         _notice_compile(kernel.run_model)
         kernel.run_model(*args)
     else:
@@ -188,8 +193,13 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
-    _notice_compile(kernel.run_batch)
-    kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
+    if model.dynamics == "reynolds87":
+        _notice_compile(reynolds87.run_reynolds_batch)
+        reynolds87.run_reynolds_batch(*(stacked[f] for f in ("pos", "vel", "fwd", "up", "side", "acc")), fp, ip,
+                                      *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
+    else:
+        _notice_compile(kernel.run_batch)
+        kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
                           record_every) for b in range(len(states))]

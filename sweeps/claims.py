@@ -122,7 +122,7 @@ def sweep_columns(axes, sample, leadership: bool) -> Columns:
                 row.update({name: values[level] for name, values in columns})
             rows.append(row)
         design = pd.DataFrame(rows) if rows else None
-    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES))
+    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES, migration=True))
     off = {} if leadership else {m: "leadership metrics are computed only with run.leadership_metrics = true "
                                     "(or leadership.x swept)" for m in LEADERSHIP_METRIC_NAMES}
     return Columns(tuple(factors), frozenset(numeric), metrics, off, design)

@@ -71,7 +71,7 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
     """The summary columns (analysis.observables.summary.summary_columns) the runs table holds."""
-    known = set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES))
+    known = set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES, migration=True))
     return [c for c in runs.columns if c in known]
 
 

@@ -304,3 +304,19 @@ def prey_metrics(pos, prey, times, reach, box=None):
     series = {"prey_distance": gap, "prey_within_fraction": within.sum(axis=1) / n}
     return series, {"prey_reach_time": first_time(times, gap <= reach),
                     "prey_first_reach_time": first_time(times, within.any(axis=1))}
+# -------------------------------------------------------------------------------------------- migration
+
+def migration_metrics(pos, vel, times, direction, warmup: float) -> dict:
+    """Migratory progress and efficiency (docs/metrics.md), by loops over the records in the window."""
+    kept = [r for r in range(len(times)) if times[r] >= warmup]
+    if len(kept) < 2:
+        return {"migratory_progress": float("nan"), "migratory_efficiency": float("nan")}
+    first, last = kept[0], kept[-1]
+    g = np.asarray(direction, dtype=float)
+    centre_first = sum(pos[first][i] for i in range(pos.shape[1])) / pos.shape[1]
+    centre_last = sum(pos[last][i] for i in range(pos.shape[1])) / pos.shape[1]
+    progress = float(np.dot(centre_last - centre_first, g) / (times[last] - times[first]))
+    speeds = [np.mean([np.sqrt(np.dot(v, v)) for v in vel[r]]) for r in kept]
+    speed = float(np.mean(speeds))
+    return {"migratory_progress": progress,
+            "migratory_efficiency": progress / speed if speed > 0 else float("nan")}

@@ -201,6 +201,8 @@ CHOICES = {
     "world.update_order": params.UPDATE_ORDERS,
     "patterns.separation_weight": params.SEPARATION_WEIGHTS,
     "leadership.front_gate": params.FRONT_GATES,
+    "reynolds.allocation": params.ALLOCATIONS,
+    "reynolds.migration_who": params.MIGRATION_WHO,
 }
 
 

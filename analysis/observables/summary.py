@@ -13,7 +13,9 @@ a model fixes: the periodic box side, the escape duration, the obstacles and the
 :data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
 ``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then the obstacle, predator and prey
+(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then, when the model has a migratory
+urge (``settings.migration``, its direction), the migration scalars
+(:data:`~analysis.observables.migration.MIGRATION_METRIC_NAMES`), then the obstacle, predator and prey
 columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
 observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the
 row together with the per-record series (plus ``leaders``, the number of leaders per record, with
@@ -41,6 +43,7 @@ from simcore.schema import ConfigError, check_finite as _finite, check_non_negat
 
 from .encounters import CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, encounter_columns, encounter_metrics
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
+from .migration import MIGRATION_METRIC_NAMES, migration_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .observed import present_metrics
 
@@ -69,6 +72,7 @@ class MetricSettings:
     prey_reach: float = PREY_REACH             # the prey is reached: the flock centre this close
     obstacles: tuple = ()                      # the model's world.obstacles (set by resolve)
     body_radius: float | None = None           # the model's perception.body_radius (set by resolve)
+    migration: tuple[float, float, float] | None = None  # the model's migration direction (set by resolve)
 
     def __post_init__(self):
         for key in ENCOUNTER_SETTINGS:
@@ -87,20 +91,24 @@ class MetricSettings:
         return dataclasses.replace(self, group_radius=radius, box=world_box(model),
                                    escape_duration=float(model.leadership.duration),
                                    obstacles=tuple(model.world.obstacles),
-                                   body_radius=float(model.perception.body_radius))
+                                   body_radius=model_body_radius(model),
+                                   migration=migration_direction(model))
 
     @property
     def resolved(self) -> bool:
         return self.group_radius is not None and self.escape_duration is not None
 
 
-def summary_columns(leadership: bool = True, encounters: tuple[str, ...] = ()) -> tuple[str, ...]:
+def summary_columns(leadership: bool = True, migration: bool = False,
+                    encounters: tuple[str, ...] = ()) -> tuple[str, ...]:
     """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
-    scalars, then the columns of the given encounter families (``ENCOUNTER_FAMILIES`` for all; a row has
-    a family's columns only when its run has obstacles, a predator or prey, see
-    :mod:`analysis.observables.encounters`)."""
+    scalars, the migration scalars, then the columns of the given encounter families
+    (``ENCOUNTER_FAMILIES`` for all; a row has a family's columns only when its run has obstacles, a
+    predator or prey, see :mod:`analysis.observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
-    return columns + (tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()) + encounter_columns(encounters)
+    columns += tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()
+    columns += MIGRATION_METRIC_NAMES if migration else ()
+    return columns + encounter_columns(encounters)
 
 
 def encounter_settings(settings: MetricSettings) -> dict:
@@ -108,6 +116,23 @@ def encounter_settings(settings: MetricSettings) -> dict:
     identity and a sweep's ``model.json`` record, so run ids of earlier sweeps stay valid."""
     return {key: getattr(settings, key) for key, default in ENCOUNTER_SETTINGS.items()
             if getattr(settings, key) != default}
+
+
+def model_body_radius(model) -> float:
+    """The body radius obstacle collisions are measured with: ``reynolds.body_radius`` for reynolds87,
+    else ``perception.body_radius``."""
+    if model.dynamics == "reynolds87":
+        return float(model.reynolds.body_radius)
+    return float(model.perception.body_radius)
+
+
+def migration_direction(model) -> tuple[float, float, float] | None:
+    """The migratory urge's unit direction when the model has one (reynolds87 with migration_weight > 0)
+    in an open world, else None (then no migration metrics)."""
+    rey = getattr(model, "reynolds", None)
+    if model.dynamics != "reynolds87" or rey is None or not rey.migrates or model.world.boundary != "open":
+        return None
+    return tuple(float(x) for x in rey.migration_direction)
 
 
 class RunMetrics(NamedTuple):
@@ -132,6 +157,8 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    if settings.migration is not None:
+        row.update(migration_metrics(obs.pos, obs.vel, obs.times, settings.migration, settings.warmup))
     if getattr(obs, "present", None) is None:
         extra_series, extra_row = encounter_metrics(obs, settings, series)
         series.update(extra_series)
