@@ -18,19 +18,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
+from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
 from .obstacle_spec import Obstacle, canonical_obstacles
+from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
-DYNAMICS = ("opensteer", "hartman_benes")
-OBSTACLE_DYNAMICS: tuple[str, ...] = ()  # the dynamics whose kernels read world.obstacles
+DYNAMICS = ("opensteer", "hartman_benes", "boidspp")
+OBSTACLE_DYNAMICS: tuple[str, ...] = ("boidspp",)  # the dynamics whose kernels read world.obstacles
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
-SEPARATION_WEIGHTS = ("similarity", "dissimilarity", "uniform")
 
 KEY_ALIASES = {"n": "init.n"}  # the one alias table of preset keys
 RUN_SHORTHANDS = {"n": "init.n", "duration": "run.duration", "dt": "run.dt",
@@ -164,55 +165,6 @@ class World:
 
 
 @dataclass(frozen=True)
-class PatternEntry:
-    """One pattern of the set: a bit string (most significant bit first) and its share of the flock."""
-
-    bits: str
-    fraction: float
-
-    def __post_init__(self):
-        if not (1 <= len(self.bits) <= 32) or set(self.bits) - {"0", "1"}:
-            raise ConfigError("bits", f"got {self.bits!r}; must be a string of 1 to 32 characters 0/1")
-        _within("fraction", self.fraction, 0.0, 1.0)
-
-    @property
-    def value(self) -> int:
-        return int(self.bits, 2)
-
-
-HOLLAND_TABLE_1 = (
-    PatternEntry("00000000", 0.35),
-    PatternEntry("00111010", 0.35),
-    PatternEntry("11000101", 0.15),
-    PatternEntry("11111111", 0.15),
-)
-
-
-@dataclass(frozen=True)
-class Patterns:
-    """Holland's pattern recognition (docs/model.md, patterns)."""
-
-    enabled: bool = False
-    separation_weight: str = "similarity"
-    set: tuple[PatternEntry, ...] = HOLLAND_TABLE_1
-
-    def __post_init__(self):
-        _choice("patterns.separation_weight", self.separation_weight, SEPARATION_WEIGHTS)
-        if not self.set:
-            raise ConfigError("patterns.set", "must name at least one pattern")
-        lengths = {len(p.bits) for p in self.set}
-        if len(lengths) != 1:
-            raise ConfigError("patterns.set", f"all patterns must have the same length, got {sorted(lengths)}")
-        total = math.fsum(p.fraction for p in self.set)
-        if abs(total - 1.0) > 1e-9:
-            raise ConfigError("patterns.set", f"fractions sum to {total!r}; they must sum to 1")
-
-    @property
-    def n_bits(self) -> int:
-        return len(self.set[0].bits)
-
-
-@dataclass(frozen=True)
 class Gains:
     """Hartman-Benes raw velocity update (docs/model.md, Hartman-Benes), gains per frame (= per step):
     v' = v + (S s + K k) / dt + M m, with s = sum_j (p_i - p_j) / |p_i - p_j|^falloff."""
@@ -272,9 +224,12 @@ class ModelParams:
     patterns: Patterns = field(default_factory=Patterns)
     gains: Gains = field(default_factory=Gains)
     leadership: Leadership = field(default_factory=Leadership)
+    boidspp: BoidsPP = field(default_factory=BoidsPP)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
+        if self.dynamics == "boidspp":
+            check_boidspp(self)
         if self.world.obstacles and self.dynamics not in OBSTACLE_DYNAMICS:
             raise ConfigError("world.obstacles", f"dynamics {self.dynamics!r} does not avoid obstacles; obstacles "
                                                  f"are read by dynamics {OBSTACLE_DYNAMICS}")
@@ -446,10 +401,14 @@ def model_dict(model: ModelParams) -> dict:
     never changes the identity of runs that do not use it."""
     out = to_dict(model)
     out["perception"] = model.perception.resolved()
-    if model.dynamics == "hartman_benes":
+    if model.dynamics != "opensteer":
         del out["steering"]
-    else:
+    if model.dynamics != "hartman_benes":
         del out["gains"]
+    if model.dynamics == "boidspp":
+        out["boidspp"] = boidspp_dict(model.boidspp, to_dict)
+    else:
+        del out["boidspp"]
     if not model.leadership.enabled:
         del out["leadership"]
     if model.world.obstacles:
