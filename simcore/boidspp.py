@@ -18,7 +18,8 @@ One step s (time s dt):
 3. captures: boids within the capture radius of a present predator get their first capture step;
 4. each boid perceives and computes its new velocity (:func:`boid_velocity`): within ``avoid_radius`` of
    the predator it flees and skips the rules and the prey; else the blends alignment, cohesion,
-   separation, then the prey seek; then the random kick (steps that are multiples of ``every``), the
+   separation (alignment and cohesion over the neighbours, or with scope ``flock`` over every other
+   boid, from sums over the flock taken once at the start of the step), then the prey seek; then the random kick (steps that are multiples of ``every``), the
    obstacle fan avoidance, and the clamp to [min_speed, max_speed];
 5. the agents move, steered by the flock of time t: the predator toward (hunting) or away from
    (leaving) the mean offset to the boids, the prey straight to its target (a new one on arrival);
@@ -40,7 +41,7 @@ import numpy as np
 
 from . import grid as cells
 from .boidspp_layout import (B, BI, COUNTERS, PHASE_HUNTING, PHASE_LEAVING, PHASE_WAITING, PRED_POS, PRED_VEL,
-                             PREY_POS, PREY_TARGET, PREY_VEL, SEP_INVERSE_SQUARE)
+                             PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE)
 from .dynamics import apply_boundary, rebuild_frame
 from .jit import inline, kernel
 from .kernel import count_both_eyes, prepare_search
@@ -169,9 +170,47 @@ def blend(s, tx, ty, tz, vx, vy, vz):
 
 
 @inline
-def rules(m, nbrs, vel, vx, vy, vz, fp, bp, bi):
-    """The three blends in order (alignment, cohesion, separation) over boid i's m neighbours; a rule
-    with no neighbour leaves v as it is."""
+def flock_sums(pos, vel, sums):
+    """sums[0] = sum of the positions, sums[1] = sum of the velocities, in boid order (state of time t)."""
+    for c in range(3):
+        sums[0, c] = 0.0
+        sums[1, c] = 0.0
+    for j in range(pos.shape[0]):
+        for c in range(3):
+            sums[0, c] += pos[j, c]
+            sums[1, c] += vel[j, c]
+
+
+@inline
+def flock_targets(i, pos, vel, sums, fp, ip):
+    """(mean velocity, mean offset) of the other boids of the flock, from the sums of time t; in a periodic
+    box the offsets are minimum images summed in boid order (returns n_others = 0 for a lone boid)."""
+    n_others = pos.shape[0] - 1
+    if n_others == 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
+    ax = (sums[1, 0] - vel[i, 0]) / n_others
+    ay = (sums[1, 1] - vel[i, 1]) / n_others
+    az = (sums[1, 2] - vel[i, 2]) / n_others
+    if ip[I.BOUNDARY] == BOUNDARY_PERIODIC:
+        cx = cy = cz = 0.0
+        for j in range(pos.shape[0]):
+            if j != i:
+                dx, dy, dz = offset_to(pos[j, 0], pos[j, 1], pos[j, 2], pos[i, 0], pos[i, 1], pos[i, 2], True,
+                                       fp[F.BOX])
+                cx += dx
+                cy += dy
+                cz += dz
+        return ax, ay, az, cx / n_others, cy / n_others, cz / n_others, n_others
+    cx = (sums[0, 0] - pos[i, 0]) / n_others - pos[i, 0]
+    cy = (sums[0, 1] - pos[i, 1]) / n_others - pos[i, 1]
+    cz = (sums[0, 2] - pos[i, 2]) / n_others - pos[i, 2]
+    return ax, ay, az, cx, cy, cz, n_others
+
+
+@inline
+def rules(i, m, nbrs, pos, vel, sums, vx, vy, vz, fp, ip, bp, bi):
+    """The three blends in order (alignment, cohesion, separation) over boid i's m neighbours (or, for a
+    rule whose scope is the flock, every other boid); a rule with nobody to follow leaves v as it is."""
     ax = ay = az = cx = cy = cz = sx = sy = sz = 0.0
     na = nc = ns = 0
     sep_r2 = bp[B.SEP_R] * bp[B.SEP_R]
@@ -202,9 +241,19 @@ def rules(m, nbrs, vel, vx, vy, vz, fp, bp, bi):
                 sz += vel[j, 2] / dist
             ns += 1
     if na > 0:
-        vx, vy, vz = blend(bp[B.ALI_S], ax / na, ay / na, az / na, vx, vy, vz)
+        ax, ay, az = ax / na, ay / na, az / na
     if nc > 0:
-        vx, vy, vz = blend(bp[B.COH_S], cx / nc, cy / nc, cz / nc, vx, vy, vz)
+        cx, cy, cz = cx / nc, cy / nc, cz / nc
+    if bi[BI.ALI_SCOPE] == SCOPE_FLOCK or bi[BI.COH_SCOPE] == SCOPE_FLOCK:
+        fax, fay, faz, fcx, fcy, fcz, others = flock_targets(i, pos, vel, sums, fp, ip)
+        if bi[BI.ALI_SCOPE] == SCOPE_FLOCK:
+            ax, ay, az, na = fax, fay, faz, others
+        if bi[BI.COH_SCOPE] == SCOPE_FLOCK:
+            cx, cy, cz, nc = fcx, fcy, fcz, others
+    if na > 0:
+        vx, vy, vz = blend(bp[B.ALI_S], ax, ay, az, vx, vy, vz)
+    if nc > 0:
+        vx, vy, vz = blend(bp[B.COH_S], cx, cy, cz, vx, vy, vz)
     if ns > 0:
         tx, ty, tz = sx / ns, sy / ns, sz / ns
         if inverse_square:
@@ -229,7 +278,7 @@ def clamp_speed(vx, vy, vz, fx, fy, fz, lo, hi):
 
 
 @inline
-def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, fp, ip, bp, bi, key, table, kinds, fan):
+def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, ip, bp, bi, key, table, kinds, fan):
     """Boid i's new velocity from the state it perceives (step 4 of the module docstring)."""
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
     box = fp[F.BOX]
@@ -250,7 +299,7 @@ def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, fp, ip, bp,
                 tx, ty, tz = fwd[i, 0] * max_speed, fwd[i, 1] * max_speed, fwd[i, 2] * max_speed
             vx, vy, vz = blend(bp[B.PRED_FLEE_S], tx, ty, tz, vx, vy, vz)
     if not flee:
-        vx, vy, vz = rules(m, nbrs, vel, vx, vy, vz, fp, bp, bi)
+        vx, vy, vz = rules(i, m, nbrs, pos, vel, sums, vx, vy, vz, fp, ip, bp, bi)
         if bi[BI.PREY_ON] != 0:
             dx, dy, dz = offset_to(agents[PREY_POS, 0], agents[PREY_POS, 1], agents[PREY_POS, 2], px, py, pz,
                                    periodic, box)
@@ -317,6 +366,8 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
     nbrs = new_neighbours(n)
     grid = cells.new_grid(n)
     new_vel = np.zeros((n, 3))
+    sums = np.zeros((2, 3))
+    flock_scope = bi[BI.ALI_SCOPE] == SCOPE_FLOCK or bi[BI.COH_SCOPE] == SCOPE_FLOCK
     sequential = ip[I.ORDER] == ORDER_SEQUENTIAL
     r = 0
     for step in range(n_steps + 1):
@@ -334,13 +385,15 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
             break
         mark_captures(step, pos, agents, fp, ip, bp, bi, capture_step)
         qx, qy, qz, yx, yy, yz = agent_velocities(pos, agents, fp, ip, bp, bi)
+        if flock_scope:
+            flock_sums(pos, vel, sums)
         for i in range(n):
             m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
             if recording:
                 rec_visible[r, i] = m
                 rec_binocular[r, i] = count_both_eyes(m, nbrs)
-            vx, vy, vz = boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, fp, ip, bp, bi, key,
-                                       table, kinds, fan)
+            vx, vy, vz = boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, ip, bp, bi,
+                                       key, table, kinds, fan)
             if sequential:
                 move_boid(i, vx, vy, vz, pos, vel, fwd, up, side, acc, fp, ip)
                 if use_grid:

@@ -19,7 +19,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from .boidspp_params import SEPARATION_FORMS
+from .boidspp_params import SCOPES, SEPARATION_FORMS
 from .obstacle_avoidance import golden_fan
 from .obstacle_spec import pack_obstacles
 from .params import ModelParams
@@ -61,6 +61,8 @@ B_SLOTS = {
 
 BI_SLOTS = {
     "SEP_FORM": lambda m, dt: SEPARATION_FORMS.index(m.boidspp.separation.form),
+    "ALI_SCOPE": lambda m, dt: SCOPES.index(m.boidspp.alignment.scope),
+    "COH_SCOPE": lambda m, dt: SCOPES.index(m.boidspp.cohesion.scope),
     "RF_EVERY": lambda m, dt: m.boidspp.random_force.every,
     "PREY_ON": lambda m, dt: int(m.boidspp.prey.enabled),
     "PRED_ON": lambda m, dt: int(m.boidspp.predator.enabled),
@@ -71,7 +73,9 @@ BI_SLOTS = {
 B = IntEnum("B", list(B_SLOTS), start=0)
 BI = IntEnum("BI", list(BI_SLOTS), start=0)
 SEP_INVERSE_SQUARE, SEP_VELOCITY_OVER_DISTANCE = range(2)
+SCOPE_NEIGHBOURS, SCOPE_FLOCK = range(2)
 assert SEPARATION_FORMS == ("inverse_square", "velocity_over_distance")
+assert SCOPES == ("neighbours", "flock")
 
 PRED_POS, PRED_VEL, PREY_POS, PREY_VEL, PREY_TARGET, COUNTERS, AGENT_ROWS = range(7)
 PHASE_WAITING, PHASE_HUNTING, PHASE_LEAVING = 0.0, 1.0, 2.0

@@ -16,16 +16,19 @@ from dataclasses import dataclass, field
 from .schema import ConfigError, check_choice, check_non_negative, check_positive, check_within
 
 SEPARATION_FORMS = ("inverse_square", "velocity_over_distance")
+SCOPES = ("neighbours", "flock")
 
 
 @dataclass(frozen=True)
 class Blend:
-    """One blended rule: v <- S target + (1 - S) v."""
+    """One blended rule: v <- S target + (1 - S) v, over the perceived neighbours or the whole flock."""
 
     blend: float = 0.5
+    scope: str = "neighbours"
 
     def __post_init__(self):
         check_within("blend", self.blend, 0.0, 1.0)
+        check_choice("scope", self.scope, SCOPES)
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,9 @@ One step s, in order:
   gets capture step s.
 * R3 per boid, from the state of time t: within avoid_radius of an appeared predator it flees
   v <- S_f (max_speed away) + (1 - S_f) v and skips the rules and the prey; else the blends in order
-  alignment (mean neighbour velocity), cohesion (mean offset), separation (inverse square: mean of
+  alignment (mean neighbour velocity; scope flock: (sum of all v - v_i)/(N - 1), sums taken at the
+  start of the step), cohesion (mean offset; scope flock: (sum of all p - p_i)/(N - 1) - p_i, or in a
+  periodic box the mean minimum-image offset to every other boid's current position), separation (inverse square: mean of
   (p_i - p_j)/|p_i - p_j|^2 over neighbours with 0 < |d| < radius, scaled to max_speed; literal: mean of
   v_j/|d|), each only when it has neighbours, then the prey seek v += prey.weight dt unit(prey - p);
   then the random kick on steps s % every == 0 (uniforms of stream RANDOM_FORCE at (s, 2i), (s, 2i+1));
@@ -98,13 +100,33 @@ def with_length(v, length) -> np.ndarray:
     return np.zeros(3) if n == 0.0 else v * (length / n)
 
 
-def rule_blends(i, v, pos, vel, model, box) -> np.ndarray:
+def flock_sums(pos, vel) -> tuple[np.ndarray, np.ndarray]:
+    """Sums of the positions and of the velocities over the flock, in boid order."""
+    sp, sv = np.zeros(3), np.zeros(3)
+    for j in range(len(pos)):
+        sp, sv = sp + pos[j], sv + vel[j]
+    return sp, sv
+
+
+def rule_blends(i, v, pos, vel, sums, model, box) -> np.ndarray:
     table = model.boidspp
-    nbrs = [j for j in range(len(pos)) if j != i
+    n = len(pos)
+    nbrs = [j for j in range(n) if j != i
             and dot3(offset(pos[i], pos[j], box), offset(pos[i], pos[j], box)) < model.perception.radius ** 2]
-    if nbrs:
+    if table.alignment.scope == "flock":
+        if n > 1:
+            v = table.alignment.blend * ((sums[1] - vel[i]) / (n - 1)) + (1.0 - table.alignment.blend) * v
+    elif nbrs:
         mean_v = sum((vel[j] for j in nbrs), np.zeros(3)) / len(nbrs)
         v = table.alignment.blend * mean_v + (1.0 - table.alignment.blend) * v
+    if table.cohesion.scope == "flock":
+        if n > 1:
+            if box is None:
+                centre = (sums[0] - pos[i]) / (n - 1) - pos[i]
+            else:  # minimum images of the current positions
+                centre = sum((offset(pos[i], pos[j], box) for j in range(n) if j != i), np.zeros(3)) / (n - 1)
+            v = table.cohesion.blend * centre + (1.0 - table.cohesion.blend) * v
+    elif nbrs:
         centre = sum((offset(pos[i], pos[j], box) for j in nbrs), np.zeros(3)) / len(nbrs)
         v = table.cohesion.blend * centre + (1.0 - table.cohesion.blend) * v
     close = [j for j in nbrs if 0.0 < norm3(offset(pos[i], pos[j], box)) < table.separation.radius]
@@ -136,7 +158,7 @@ def avoidance(i, state, model) -> np.ndarray | None:
     return None if ray == -1 else direction
 
 
-def new_velocity(i, step, state, agents: Agents, model, dt, key, box) -> np.ndarray:
+def new_velocity(i, step, state, agents: Agents, sums, model, dt, key, box) -> np.ndarray:
     """R3."""
     table = model.boidspp
     max_speed = model.vehicle.max_speed
@@ -150,7 +172,7 @@ def new_velocity(i, step, state, agents: Agents, model, dt, key, box) -> np.ndar
             target = with_length(away, max_speed) if norm3(away) > 0 else state["fwd"][i] * max_speed
             v = table.predator.flee_blend * target + (1.0 - table.predator.flee_blend) * v
     if not flee:
-        v = rule_blends(i, v, pos, vel, model, box)
+        v = rule_blends(i, v, pos, vel, sums, model, box)
         if table.prey.enabled:
             v = v + with_length(offset(pos[i], agents.prey, box), table.prey.weight * dt)
     kick = table.random_force
@@ -208,12 +230,13 @@ def step(state: dict, agents: Agents, capture: np.ndarray, model, dt, step_index
     if table.prey.enabled:
         gap = agents.target - agents.prey
         prey_v = with_length(gap, min(table.prey.speed, norm3(gap) / dt))
+    sums = flock_sums(state["pos"], state["vel"])
     sequential = model.world.update_order == "sequential"
     if sequential:
         for i in range(n):
-            move(i, new_velocity(i, step_index, state, agents, model, dt, key, box), state, model, dt)
+            move(i, new_velocity(i, step_index, state, agents, sums, model, dt, key, box), state, model, dt)
     else:
-        new = [new_velocity(i, step_index, state, agents, model, dt, key, box) for i in range(n)]
+        new = [new_velocity(i, step_index, state, agents, sums, model, dt, key, box) for i in range(n)]
         for i in range(n):
             move(i, new[i], state, model, dt)
     if table.predator.enabled and agents.phase != WAITING:

@@ -47,11 +47,18 @@ CASES = [
     ("rules-literal-sync", {"separation": {"form": "velocity_over_distance", "radius": 2.5}}, {}),
     ("rules-seq", {"alignment": {"blend": 0.3}, "cohesion": {"blend": 0.1}}, {"order": "sequential"}),
     ("rules-box-sync", {"separation": {"radius": 1.5}}, {"boundary": "periodic_box", "radius": 3.0}),
+    ("rules-flock-seq", {"alignment": {"scope": "flock"}, "cohesion": {"scope": "flock", "blend": 0.2}},
+     {"order": "sequential"}),
+    ("rules-flock-box-seq", {"cohesion": {"scope": "flock"}}, {"boundary": "periodic_box", "order": "sequential"}),
+    ("rules-flock-align-sync", {"alignment": {"scope": "flock"}, "separation": {"form": "velocity_over_distance"}},
+     {}),
     ("random-force-wrap", {"random_force": {"every": 2, "magnitude": 3.0}, "min_speed": 0.5},
      {"boundary": "sphere_wrap"}),
-    ("obstacles-sync", {"avoid": {"rays": 32, "lookahead": 4.0, "weight": 80.0}}, {"obstacles": SPHERES}),
-    ("obstacles-seq-literal", {"avoid": {"rays": 16, "lookahead": 3.0}, "separation": {"form": "velocity_over_distance"}},
-     {"obstacles": SPHERES, "order": "sequential"}),
+    pytest.param("obstacles-sync", {"avoid": {"rays": 32, "lookahead": 4.0, "weight": 80.0}}, {"obstacles": SPHERES},
+                 marks=pytest.mark.slow),
+    pytest.param("obstacles-seq-literal", {"avoid": {"rays": 16, "lookahead": 3.0},
+                                           "separation": {"form": "velocity_over_distance"}},
+                 {"obstacles": SPHERES, "order": "sequential"}, marks=pytest.mark.slow),
     ("prey", {"prey": {"enabled": True, "speed": 30.0, "target_radius": 0.5, "arrive_radius": 0.4,
                        "weight": 20.0}}, {}),
     ("predator", {"predator": {"enabled": True, "start_s": 2 * DT, "leave_s": 4 * DT, "start_distance": 1.0,
@@ -68,7 +75,7 @@ def state_for(model, seed):
     return flock_state(seed, N, ball_radius=4.0)
 
 
-@pytest.mark.parametrize("case, table, world", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("case, table, world", CASES)
 def test_kernel_agrees_with_the_twin(case, table, world):
     model = model_of(table, **world)
     state = state_for(model, seed=11)
