@@ -41,13 +41,15 @@ def _simulate(spec: RunSpec):
 
 
 def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
-    """Positions and velocities every ``trajectory_every`` steps."""
+    """Positions and velocities every ``trajectory_every`` steps (and the Boids++ agents' positions)."""
     pick = slice(None, None, spec.storage.trajectory_every // obs.record_every)
     path = Path(out_dir) / "trajectories" / f"{spec.run_id}.npz"
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as handle:
             np.savez_compressed(handle, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
-                                pattern=obs.pattern, seed=spec.seed)
+                                pattern=obs.pattern, seed=spec.seed,
+                                **{name: getattr(obs, name)[pick] for name in ("predator", "prey")
+                                   if getattr(obs, name, None) is not None})
 
 
 def base_row(spec: RunSpec) -> dict:

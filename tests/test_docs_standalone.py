@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from simcore import params
+from simcore import boidspp_params, params
 from simcore.params import InitParams, ModelParams, RunSettings
 from paths import ROOT
 
@@ -201,6 +201,9 @@ CHOICES = {
     "world.update_order": params.UPDATE_ORDERS,
     "patterns.separation_weight": params.SEPARATION_WEIGHTS,
     "leadership.front_gate": params.FRONT_GATES,
+    "boidspp.separation.form": boidspp_params.SEPARATION_FORMS,
+    "boidspp.alignment.scope": boidspp_params.SCOPES,
+    "boidspp.cohesion.scope": boidspp_params.SCOPES,
 }
 
 

@@ -133,10 +133,28 @@ def scene_of(model) -> tuple:
     return tuple(obstacle.as_scene() for obstacle in getattr(model, "obstacles", ()))
 
 
+def recorded_agents(predator=None, prey=None) -> tuple:
+    """Viewer agents (:mod:`analysis.viewer.encode` dicts) of recorded (F, 3) predator and prey positions.
+    Frames before an agent appears (NaN) show it where it first appears; an agent never present is left out."""
+    out = []
+    for kind, pos in (("predator", predator), ("prey", prey)):
+        if pos is None:
+            continue
+        pos = np.asarray(pos, dtype=np.float64)
+        present = np.flatnonzero(np.isfinite(pos).all(axis=1))
+        if len(present) == 0:
+            continue
+        pos = pos.copy()
+        pos[:present[0]] = pos[present[0]]
+        label = kind if present[0] == 0 else f"{kind} (from frame {present[0]})"
+        out.append({"kind": kind, "label": label, "pos": pos})
+    return tuple(out)
+
+
 def agents_of(obs) -> tuple:
     """Extra agents (prey, predators) recorded by the simulator, as :mod:`analysis.viewer.encode` dicts
     with their (F, M, 3) tracks; () when the observations record none."""
-    return tuple(getattr(obs, "agents", ()) or ())
+    return recorded_agents(getattr(obs, "predator", None), getattr(obs, "prey", None))
 
 
 def _preset_meta(preset) -> dict:
@@ -216,7 +234,8 @@ def from_npz(path) -> Track:
     return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
                  vel=arrays["vel"].astype(np.float64), pattern=arrays.get("pattern"),
                  leader=arrays.get("leader"), visible=arrays.get("visible"),
-                 binocular=arrays.get("binocular"), **meta)
+                 binocular=arrays.get("binocular"), agents=recorded_agents(arrays.get("predator"), arrays.get("prey")),
+                 **meta)
 
 
 def as_track(source, preset=None, **options) -> Track:
