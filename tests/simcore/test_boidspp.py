@@ -197,3 +197,47 @@ def test_bad_tables_name_the_key(table, extra, key):
     with pytest.raises(ConfigError) as err:
         build(ModelParams, data)
     assert err.value.key == key
+
+
+def lone_boid(x=0.0, speed=5.0):
+    from simcore.state import State, frame_from_forward
+
+    fwd = np.array([[1.0, 0.0, 0.0]])
+    up, side = frame_from_forward(fwd)
+    return State(pos=np.array([[x, 0.3, 0.0]]), vel=fwd * speed, fwd=fwd, up=up, side=side, acc=np.zeros((1, 3)),
+                 pattern=np.zeros(1, np.uint32))
+
+
+def test_a_boid_heading_for_a_sphere_goes_round_it_only_with_avoidance():
+    from simcore.obstacle_spec import pack_obstacles
+    from simcore.obstacles import clearances
+
+    ball = (Obstacle(kind="sphere", centre=(12.0, 0.0, 0.0), radius=2.0),)
+    table, kinds = pack_obstacles(ball)
+    clearance = {}
+    for weight in (60.0, 0.0):
+        model = model_of({"avoid": {"weight": weight}, "min_speed": 5.0}, obstacles=ball)
+        model = model.__class__(**{**model.__dict__, "vehicle": Vehicle(max_speed=5.0)})
+        obs = advance(model, lone_boid(), 240, DT, key=KEY)
+        clearance[weight] = clearances(table, kinds, obs.pos[:, 0]).min()
+        assert obs.pos[-1, 0, 0] > 14.0  # it got past the sphere either way
+    assert clearance[60.0] > 0.5 and clearance[0.0] < 0.0
+
+
+def test_the_flock_follows_the_prey_and_the_predator_closes_in():
+    """The prey seek pulls the flock's centre toward the prey; a hunting predator closes the gap to the
+    flock's centre at least at its speed less the speed cap (the flock's centre moves at most that fast)."""
+    model = model_of({"prey": {"enabled": True, "weight": 20.0, "target_radius": 20.0},
+                      "predator": {"enabled": True, "start_distance": 30.0, "speed": 12.0, "avoid_radius": 0.0},
+                      "alignment": {"blend": 0.1}, "cohesion": {"blend": 0.02}, "separation": {"blend": 0.1},
+                      "min_speed": 2.0}, radius=5.0)
+    obs = simulate(model, InitParams(n=10, radius=3.0, speed=4.0), 5, 4.0, DT, record_every=60)
+    prey_gap = np.linalg.norm(obs.pos.mean(axis=1) - obs.prey, axis=1)
+    pred_gap = np.linalg.norm(obs.pos.mean(axis=1) - obs.predator, axis=1)
+    assert prey_gap[-1] < 0.3 * prey_gap[0]
+    blind = model_of({"prey": {"enabled": True, "weight": 0.0, "target_radius": 20.0}, "min_speed": 2.0,
+                      "alignment": {"blend": 0.1}, "cohesion": {"blend": 0.02}, "separation": {"blend": 0.1}}, radius=5.0)
+    ignored = simulate(blind, InitParams(n=10, radius=3.0, speed=4.0), 5, 4.0, DT, record_every=60)
+    assert np.linalg.norm(ignored.pos.mean(axis=1) - ignored.prey, axis=1)[-1] > 0.3 * prey_gap[0]
+    assert pred_gap[0] == pytest.approx(30.0, abs=1e-9)
+    assert pred_gap[2] <= 30.0 - 2.0 * (12.0 - 9.0) + 1e-9
