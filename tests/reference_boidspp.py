@@ -19,9 +19,9 @@ One step s, in order:
   v <- S_f (max_speed away) + (1 - S_f) v and skips the rules and the prey; else the blends in order
   alignment (mean neighbour velocity; scope flock: (sum of all v - v_i)/(N - 1), sums taken at the
   start of the step), cohesion (mean offset; scope flock: (sum of all p - p_i)/(N - 1) - p_i, or in a
-  periodic box the mean minimum-image offset to every other boid's current position), separation (inverse square: mean of
-  (p_i - p_j)/|p_i - p_j|^2 over neighbours with 0 < |d| < radius, scaled to max_speed; literal: mean of
-  v_j/|d|), each only when it has neighbours, then the prey seek v += prey.weight dt unit(prey - p);
+  periodic box the mean minimum-image offset to every other boid's current position), separation
+  (inverse square: mean of (p_i - p_j)/|p_i - p_j|^2 over neighbours with 0 < |d| < radius, scaled to
+  max_speed; literal: mean of v_j/|d|), each only when it has neighbours, then the prey seek v += prey.weight dt unit(prey - p);
   then the random kick on steps s % every == 0 (uniforms of stream RANDOM_FORCE at (s, 2i), (s, 2i+1));
   then the fan avoidance v += avoid.weight dt d when the forward ray is blocked (d: the fan ray, or the
   outward normal when the body overlaps); then the speed clamp to [min_speed, max_speed] (a stopped

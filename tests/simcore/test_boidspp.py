@@ -30,11 +30,11 @@ KEY = 0x1234_5678_9ABC_DEF0
 
 
 def model_of(boidspp=None, boundary="open", order="synchronous", obstacles=(), radius=3.5, box_size=7.0,
-             sphere_radius=4.0):
+             sphere_radius=4.0, max_speed=9.0):
     return ModelParams(name="t", dynamics="boidspp", perception=Perception(kind="sphere", radius=radius),
-                       vehicle=Vehicle(max_speed=9.0),
-                       world=World(boundary=boundary, box_size=box_size, sphere_radius=sphere_radius, update_order=order,
-                                   obstacles=obstacles),
+                       vehicle=Vehicle(max_speed=max_speed),
+                       world=World(boundary=boundary, box_size=box_size, sphere_radius=sphere_radius,
+                                   update_order=order, obstacles=obstacles),
                        boidspp=build(BoidsPP, boidspp or {}, "boidspp"))
 
 
@@ -115,7 +115,8 @@ def assert_exercised(case, model, state, got, agents):
         assert agents.drawn > 2, "the prey must reach a target"
     if case.startswith("predator"):
         start = got.predator[0] if not math.isnan(got.predator[0, 0]) else got.predator[2]
-        near = np.linalg.norm(got.pos[2 if case == "predator" else 0] - start, axis=1) < model.boidspp.predator.avoid_radius
+        at_start = got.pos[2 if case == "predator" else 0]
+        near = np.linalg.norm(at_start - start, axis=1) < model.boidspp.predator.avoid_radius
         assert 0 < near.sum() < N, "some boids must flee and some not"
     if case == "predator":
         assert np.isnan(got.predator[:2]).all() and not np.isnan(got.predator[2:]).any()
@@ -216,8 +217,7 @@ def test_a_boid_heading_for_a_sphere_goes_round_it_only_with_avoidance():
     table, kinds = pack_obstacles(ball)
     clearance = {}
     for weight in (60.0, 0.0):
-        model = model_of({"avoid": {"weight": weight}, "min_speed": 5.0}, obstacles=ball)
-        model = model.__class__(**{**model.__dict__, "vehicle": Vehicle(max_speed=5.0)})
+        model = model_of({"avoid": {"weight": weight}, "min_speed": 5.0}, obstacles=ball, max_speed=5.0)
         obs = advance(model, lone_boid(), 240, DT, key=KEY)
         clearance[weight] = clearances(table, kinds, obs.pos[:, 0]).min()
         assert obs.pos[-1, 0, 0] > 14.0  # it got past the sphere either way
@@ -236,7 +236,8 @@ def test_the_flock_follows_the_prey_and_the_predator_closes_in():
     pred_gap = np.linalg.norm(obs.pos.mean(axis=1) - obs.predator, axis=1)
     assert prey_gap[-1] < 0.3 * prey_gap[0]
     blind = model_of({"prey": {"enabled": True, "weight": 0.0, "target_radius": 20.0}, "min_speed": 2.0,
-                      "alignment": {"blend": 0.1}, "cohesion": {"blend": 0.02}, "separation": {"blend": 0.1}}, radius=5.0)
+                      "alignment": {"blend": 0.1}, "cohesion": {"blend": 0.02}, "separation": {"blend": 0.1}},
+                     radius=5.0)
     ignored = simulate(blind, InitParams(n=10, radius=3.0, speed=4.0), 5, 4.0, DT, record_every=60)
     assert np.linalg.norm(ignored.pos.mean(axis=1) - ignored.prey, axis=1)[-1] > 0.3 * prey_gap[0]
     assert pred_gap[0] == pytest.approx(30.0, abs=1e-9)
