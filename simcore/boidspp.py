@@ -3,8 +3,8 @@
 ``run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
 record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step)`` advances the state
 in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
-``rec_binocular`` (R, N) as in :mod:`simcore.kernel`, ``rec_agents`` float64 (R, 2, 3) (predator and
-prey positions, NaN while absent) and ``capture_step`` int64 (N,): the first step at which each boid was
+``rec_binocular`` (R, N) as in :mod:`simcore.kernel`, ``rec_agents`` float64 (R, 2, 3) (predator
+and prey positions, NaN while absent) and ``capture_step`` int64 (N,): the first step at which each boid was
 within the predator's capture radius (-1: never; only when a radius is set). ``agents`` is the state's
 agent array (:mod:`simcore.boidspp_layout`); ``fp``/``ip`` the shared slots (perception, world, dt,
 max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles and ``fan`` the ray fan.
@@ -19,8 +19,9 @@ One step s (time s dt):
 4. each boid perceives and computes its new velocity (:func:`boid_velocity`): within ``avoid_radius`` of
    the predator it flees and skips the rules and the prey; else the blends alignment, cohesion,
    separation (alignment and cohesion over the neighbours, or with scope ``flock`` over every other
-   boid, from sums over the flock taken once at the start of the step), then the prey seek; then the random kick (steps that are multiples of ``every``), the
-   obstacle fan avoidance, and the clamp to [min_speed, max_speed];
+   boid, from sums over the flock taken once at the start of the step), then the prey seek; then the
+   random kick (steps that are multiples of ``every``), the obstacle fan avoidance, and the clamp to
+   [min_speed, max_speed];
 5. the agents move, steered by the flock of time t: the predator toward (hunting) or away from
    (leaving) the mean offset to the boids, the prey straight to its target (a new one on arrival);
 6. the boids move: p += v dt, frame rebuilt with the realised acceleration (v - v_old)/dt, boundary.
