@@ -22,8 +22,9 @@ One step s (time s dt):
    boid, from sums over the flock taken once at the start of the step), then the prey seek; then the
    random kick (steps that are multiples of ``every``), the obstacle fan avoidance, and the clamp to
    [min_speed, max_speed];
-5. the agents move, steered by the flock of time t: the predator toward (hunting) or away from
-   (leaving) the mean offset to the boids, the prey straight to its target (a new one on arrival);
+5. the agents move, steered by the flock of time t: the predator toward (hunting) the mean offset to
+   the boids (or, with ``target = "nearest"``, the offset to the nearest boid), or away from (leaving)
+   the mean offset, the prey straight to its target (a new one on arrival);
 6. the boids move: p += v dt, frame rebuilt with the realised acceleration (v - v_old)/dt, boundary.
 
 Synchronous order computes every velocity from the state at time t, then moves all; sequential order
@@ -42,7 +43,7 @@ import numpy as np
 
 from . import grid as cells
 from .boidspp_layout import (B, BI, COUNTERS, PHASE_HUNTING, PHASE_LEAVING, PHASE_WAITING, PRED_POS, PRED_VEL,
-                             PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE)
+                             PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE, TARGET_NEAREST)
 from .dynamics import apply_boundary, rebuild_frame
 from .jit import inline, kernel
 from .kernel import count_both_eyes, prepare_search
@@ -81,6 +82,19 @@ def flock_offset(pos, x, y, z, periodic, box):
         sz += dz
     n = pos.shape[0]
     return sx / n, sy / n, sz / n
+
+
+@inline
+def nearest_offset(pos, x, y, z, periodic, box):
+    """Offset from (x, y, z) to the nearest boid (minimum image; the lower index on ties)."""
+    bx = by = bz = 0.0
+    best = math.inf
+    for j in range(pos.shape[0]):
+        dx, dy, dz = offset_to(pos[j, 0], pos[j, 1], pos[j, 2], x, y, z, periodic, box)
+        dd = dx * dx + dy * dy + dz * dz
+        if dd < best:
+            best, bx, by, bz = dd, dx, dy, dz
+    return bx, by, bz
 
 
 @inline
@@ -125,8 +139,11 @@ def agent_velocities(pos, agents, fp, ip, bp, bi):
     phase = agents[COUNTERS, 1]
     qx = qy = qz = 0.0
     if bi[BI.PRED_ON] != 0 and phase != PHASE_WAITING:
-        ox, oy, oz = flock_offset(pos, agents[PRED_POS, 0], agents[PRED_POS, 1], agents[PRED_POS, 2], periodic,
-                                  box)
+        px, py, pz = agents[PRED_POS, 0], agents[PRED_POS, 1], agents[PRED_POS, 2]
+        if phase == PHASE_HUNTING and bi[BI.PRED_TARGET] == TARGET_NEAREST:
+            ox, oy, oz = nearest_offset(pos, px, py, pz, periodic, box)
+        else:
+            ox, oy, oz = flock_offset(pos, px, py, pz, periodic, box)
         sign = 1.0 if phase == PHASE_HUNTING else -1.0
         qx, qy, qz = scaled(sign * ox, sign * oy, sign * oz, bp[B.PRED_SPEED])
     yx = yy = yz = 0.0

@@ -19,7 +19,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from .boidspp_params import SCOPES, SEPARATION_FORMS
+from .boidspp_params import PREDATOR_TARGETS, SCOPES, SEPARATION_FORMS
 from .obstacle_avoidance import golden_fan
 from .obstacle_spec import pack_obstacles
 from .params import ModelParams
@@ -66,6 +66,7 @@ BI_SLOTS = {
     "RF_EVERY": lambda m, dt: m.boidspp.random_force.every,
     "PREY_ON": lambda m, dt: int(m.boidspp.prey.enabled),
     "PRED_ON": lambda m, dt: int(m.boidspp.predator.enabled),
+    "PRED_TARGET": lambda m, dt: PREDATOR_TARGETS.index(m.boidspp.predator.target),
     "PRED_START": lambda m, dt: _step_of(m.boidspp.predator.start_s, dt),
     "PRED_LEAVE": lambda m, dt: _step_of(m.boidspp.predator.leave_s, dt),
 }
@@ -74,6 +75,8 @@ B = IntEnum("B", list(B_SLOTS), start=0)
 BI = IntEnum("BI", list(BI_SLOTS), start=0)
 SEP_INVERSE_SQUARE, SEP_VELOCITY_OVER_DISTANCE = range(2)
 SCOPE_NEIGHBOURS, SCOPE_FLOCK = range(2)
+TARGET_CENTRE, TARGET_NEAREST = range(2)
+assert PREDATOR_TARGETS == ("centre", "nearest")
 assert SEPARATION_FORMS == ("inverse_square", "velocity_over_distance")
 assert SCOPES == ("neighbours", "flock")
 

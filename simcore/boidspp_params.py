@@ -17,6 +17,7 @@ from .schema import ConfigError, check_choice, check_non_negative, check_positiv
 
 SEPARATION_FORMS = ("inverse_square", "velocity_over_distance")
 SCOPES = ("neighbours", "flock")
+PREDATOR_TARGETS = ("centre", "nearest")
 
 
 @dataclass(frozen=True)
@@ -106,14 +107,15 @@ class Prey:
 @dataclass(frozen=True)
 class Predator:
     """A predator present from ``start_s`` to ``leave_s`` seconds: it appears ``start_distance`` from the
-    flock centre in a random direction, seeks the centre at ``speed``, and after ``leave_s`` flies
-    straight away from it, ignored by the boids. Boids within ``avoid_radius`` of a present predator
+    flock centre in a random direction, seeks the centre (``target = "centre"``) or the nearest boid
+    (``"nearest"``) at ``speed``, and after ``leave_s`` flies straight away from the centre. Boids within ``avoid_radius`` of a present predator
     flee (v <- S away + (1 - S) v with S = ``flee_blend``, away = max_speed times the unit vector from
     the predator) and skip the rules. A boid within ``capture_radius`` (None: off) is recorded as
     captured (record only)."""
 
     enabled: bool = False
     speed: float = 12.0
+    target: str = "centre"
     avoid_radius: float = 10.0
     flee_blend: float = 0.5
     start_s: float = 0.0
@@ -123,6 +125,7 @@ class Predator:
 
     def __post_init__(self):
         check_positive("speed", self.speed)
+        check_choice("target", self.target, PREDATOR_TARGETS)
         check_non_negative("avoid_radius", self.avoid_radius)
         check_within("flee_blend", self.flee_blend, 0.0, 1.0)
         check_non_negative("start_s", self.start_s)

@@ -26,7 +26,8 @@ One step s, in order:
   then the fan avoidance v += avoid.weight dt d when the forward ray is blocked (d: the fan ray, or the
   outward normal when the body overlaps); then the speed clamp to [min_speed, max_speed] (a stopped
   boid: min_speed along f).
-* R4 agents' velocities from the boids of time t: predator +-speed unit(mean offset to the boids);
+* R4 agents' velocities from the boids of time t: predator +-speed unit(mean offset to the boids) (a
+  hunting predator with target "nearest": speed unit(offset to the nearest boid, lower index on ties));
   prey min(speed, dist/dt) unit(target - p).
 * R5 boids move: acc = (v' - v)/dt, p += v' dt, banking frame (docs/model.md section 1), boundary;
   synchronous order moves all after all decided, sequential moves each at once.
@@ -224,7 +225,11 @@ def step(state: dict, agents: Agents, capture: np.ndarray, model, dt, step_index
             if capture[i] < 0 and norm3(offset(agents.pred, state["pos"][i], box)) < radius:
                 capture[i] = step_index
     pred_v = prey_v = np.zeros(3)
-    if table.predator.enabled and agents.phase != WAITING:
+    if table.predator.enabled and agents.phase == HUNTING and table.predator.target == "nearest":
+        gaps = [offset(agents.pred, p, box) for p in state["pos"]]
+        nearest = min(range(n), key=lambda j: (dot3(gaps[j], gaps[j]), j))
+        pred_v = with_length(gaps[nearest], table.predator.speed)
+    elif table.predator.enabled and agents.phase != WAITING:
         sign = 1.0 if agents.phase == HUNTING else -1.0
         pred_v = with_length(sign * mean_offset(state["pos"], agents.pred, box), table.predator.speed)
     if table.prey.enabled:

@@ -204,6 +204,7 @@ CHOICES = {
     "boidspp.separation.form": boidspp_params.SEPARATION_FORMS,
     "boidspp.alignment.scope": boidspp_params.SCOPES,
     "boidspp.cohesion.scope": boidspp_params.SCOPES,
+    "boidspp.predator.target": boidspp_params.PREDATOR_TARGETS,
 }
 
 

@@ -63,6 +63,8 @@ CASES = [
                        "weight": 20.0}}, {}),
     ("predator", {"predator": {"enabled": True, "start_s": 2 * DT, "leave_s": 4 * DT, "start_distance": 1.0,
                                "avoid_radius": 3.0, "capture_radius": 2.0, "flee_blend": 0.7}}, {}),
+    ("predator-nearest", {"predator": {"enabled": True, "target": "nearest", "start_distance": 2.0, "speed": 40.0,
+                                       "avoid_radius": 2.0, "capture_radius": 1.5}}, {}),
     ("predator-prey-box-seq", {"predator": {"enabled": True, "start_distance": 0.5, "avoid_radius": 2.0},
                                "prey": {"enabled": True, "target_radius": 2.0}},
      {"boundary": "periodic_box", "order": "sequential", "radius": 3.0}),
@@ -120,6 +122,11 @@ def assert_exercised(case, model, state, got, agents):
         assert 0 < near.sum() < N, "some boids must flee and some not"
     if case == "predator":
         assert np.isnan(got.predator[:2]).all() and not np.isnan(got.predator[2:]).any()
+    if case == "predator-nearest":  # it heads for the boid nearest to it, not for the flock's centre
+        step = got.predator[1] - got.predator[0]
+        gaps = got.pos[0] - got.predator[0]
+        nearest = gaps[np.argmin(np.linalg.norm(gaps, axis=1))]
+        np.testing.assert_allclose(step / np.linalg.norm(step), nearest / np.linalg.norm(nearest), atol=1e-12)
 
 
 def test_fleeing_boids_skip_the_rules():
