@@ -77,7 +77,8 @@ def state_for(model, seed):
     return flock_state(seed, N, ball_radius=4.0)
 
 
-@pytest.mark.parametrize("case, table, world", CASES)
+@pytest.mark.parametrize("case, table, world", CASES,
+                         ids=[c.values[0] if hasattr(c, "values") else c[0] for c in CASES])
 def test_kernel_agrees_with_the_twin(case, table, world):
     model = model_of(table, **world)
     state = state_for(model, seed=11)
