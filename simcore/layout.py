@@ -117,7 +117,7 @@ SEARCH_AUTO, SEARCH_GRID, SEARCH_ALL_PAIRS = range(3)
 BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
 ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
 SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
-DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES, DYNAMICS_REYNOLDS87 = range(3)
+DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES, DYNAMICS_REYNOLDS87, DYNAMICS_BOIDSPP = range(4)
 GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
 
 assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular", "topological")
@@ -125,7 +125,7 @@ assert SEARCHES == ("auto", "grid", "all_pairs")
 assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
 assert UPDATE_ORDERS == ("synchronous", "sequential")
 assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
-assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87")
+assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87", "boidspp")
 assert FRONT_GATES == ("positive", "weighted", "none")
 
 

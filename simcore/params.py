@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
+from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
 from .obstacle_spec import Obstacle, canonical_obstacles
 from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
 from .reynolds_params import ALLOCATIONS, MIGRATION_WHO, Reynolds  # noqa: F401
@@ -27,8 +28,8 @@ from .schema import (ConfigError, apply_overrides, build, check_choice as _choic
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
-DYNAMICS = ("opensteer", "hartman_benes", "reynolds87")
-OBSTACLE_DYNAMICS: tuple[str, ...] = ("reynolds87",)  # the dynamics whose kernels read world.obstacles
+DYNAMICS = ("opensteer", "hartman_benes", "reynolds87", "boidspp")
+OBSTACLE_DYNAMICS: tuple[str, ...] = ("reynolds87", "boidspp")  # the dynamics whose kernels read world.obstacles
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
@@ -225,11 +226,14 @@ class ModelParams:
     gains: Gains = field(default_factory=Gains)
     leadership: Leadership = field(default_factory=Leadership)
     reynolds: Reynolds = field(default_factory=Reynolds)
+    boidspp: BoidsPP = field(default_factory=BoidsPP)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
         if self.dynamics == "reynolds87":
             _check_reynolds(self)
+        if self.dynamics == "boidspp":
+            check_boidspp(self)
         if self.world.obstacles and self.dynamics not in OBSTACLE_DYNAMICS:
             raise ConfigError("world.obstacles", f"dynamics {self.dynamics!r} does not avoid obstacles; obstacles "
                                                  f"are read by dynamics {OBSTACLE_DYNAMICS}")
@@ -415,7 +419,14 @@ def model_dict(model: ModelParams) -> dict:
         out["reynolds"] = model.reynolds.canonical()
     else:
         del out["reynolds"]
-        del out["steering" if model.dynamics == "hartman_benes" else "gains"]
+        if model.dynamics != "opensteer":
+            del out["steering"]
+        if model.dynamics != "hartman_benes":
+            del out["gains"]
+    if model.dynamics == "boidspp":
+        out["boidspp"] = boidspp_dict(model.boidspp, to_dict)
+    else:
+        del out["boidspp"]
     if not model.leadership.enabled:
         del out["leadership"]
     if model.world.obstacles:

@@ -12,9 +12,12 @@
 * ``leader``     bool (R, N)        leaders at each record (change of leadership)
 * ``triggers``   int64 (E, 2)       trigger events (step, boid), in order
 * ``final``      :class:`~simcore.state.State` after the last step
-* ``predator``, ``prey`` float64 (R, 3) the predator's and the prey's recorded positions, or None for a
-  model without that agent
+* ``predator``, ``prey`` float64 (R, 3) or None: the Boids++ agents' recorded positions (NaN while the
+  predator has not appeared); None when the model has no such agent
+* ``captures``   int64 (C, 2) or None: first captures (step, boid) by the Boids++ predator, by step then
+  boid; None unless ``boidspp.predator.capture_radius`` is set
 
+Dynamics ``boidspp`` runs its own compiled loop (:mod:`simcore.boidspp`), one thread per run.
 ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
 result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
 
@@ -34,7 +37,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from . import kernel, reynolds87
+from . import boidspp, kernel, reynolds87
+from .boidspp_layout import pack_boidspp
 from .layout import pack
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
@@ -59,6 +63,7 @@ class Observations:
     record_every: int
     predator: np.ndarray | None = None
     prey: np.ndarray | None = None
+    captures: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -129,7 +134,41 @@ def _thread_count(model: ModelParams, n: int, threads) -> int:
         threads = numba.get_num_threads() if n >= THREADED_MIN_N else 1
     if isinstance(threads, bool) or int(threads) != threads or threads < 1:
         raise ValueError(f"threads: got {threads!r}; must be an integer >= 1 (or None: automatic)")
-    return 1 if model.world.update_order == "sequential" else int(threads)
+    return 1 if model.world.update_order == "sequential" or model.dynamics == "boidspp" else int(threads)
+
+
+def _boidspp_records(model: ModelParams, n_records: int, n: int, lead: tuple = ()):
+    """(rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step) of a Boids++ run."""
+    return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
+            np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32),
+            np.full(lead + (n_records, 2, 3), np.nan), np.full(lead + (n,), -1, np.int64))
+
+
+def _boidspp_observations(model: ModelParams, times, rec, final: State, dt: float,
+                          record_every: int) -> Observations:
+    pos, vel, visible, binocular, agents, capture_step = rec
+    table = model.boidspp
+    captures = None
+    if table.predator.enabled and table.predator.capture_radius is not None:
+        boids = np.flatnonzero(capture_step >= 0)
+        order = np.lexsort((boids, capture_step[boids]))
+        captures = np.stack([capture_step[boids][order], boids[order]], axis=1).astype(np.int64)
+    return Observations(times, pos, vel, visible, binocular, np.zeros(visible.shape, np.bool_),
+                        np.zeros((0, 2), np.int64), pattern=final.pattern.copy(), final=final, dt=dt,
+                        record_every=record_every,
+                        predator=agents[:, 0].copy() if table.predator.enabled else None,
+                        prey=agents[:, 1].copy() if table.prey.enabled else None, captures=captures)
+
+
+def _advance_boidspp(model: ModelParams, s: State, n_steps: int, dt: float, record_every: int,
+                     key) -> Observations:
+    fp, ip = pack(model, dt)
+    rec = _boidspp_records(model, n_steps // record_every + 1, s.n)
+    _notice_compile(boidspp.run_boidspp)
+    boidspp.run_boidspp(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip, *pack_boidspp(model, dt),
+                        np.uint64(key), n_steps, record_every, *rec)
+    times = np.arange(len(rec[0])) * (record_every * dt)
+    return _boidspp_observations(model, times, rec, s, dt, record_every)
 
 
 def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
@@ -139,6 +178,8 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
     record_every = _check_record_every(record_every)
     threads = _thread_count(model, state.n, threads)
     s = state.copy()
+    if model.dynamics == "boidspp":
+        return _advance_boidspp(model, s, n_steps, dt, record_every, key)
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
@@ -192,6 +233,16 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     stacked = {f: np.stack([getattr(s, f) for s in states]) for f in FIELDS}
     fp, ip = pack(model, dt)
     n_records = n_steps // record_every + 1
+    times = np.arange(n_records) * (record_every * dt)
+    if model.dynamics == "boidspp":
+        agents = np.stack([s.agents for s in states])
+        rec = _boidspp_records(model, n_records, init.n, (len(states),))
+        _notice_compile(boidspp.run_boidspp_batch)
+        boidspp.run_boidspp_batch(*(stacked[f] for f in FIELDS[:6]), agents, fp, ip, *pack_boidspp(model, dt), keys,
+                                  n_steps, record_every, *rec)
+        return [_boidspp_observations(model, times, tuple(r[b] for r in rec),
+                                      State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)
+                for b in range(len(states))]
     rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
     if model.dynamics == "reynolds87":
         _notice_compile(reynolds87.run_reynolds_batch)

@@ -2,8 +2,9 @@
 
 :class:`State` holds, for N boids: ``pos``, ``vel``, ``fwd``, ``up``, ``side``, ``acc`` (float64 (N, 3);
 ``side`` = normalize(fwd x up), kept with the frame), ``pattern`` (uint32 (N,)) and the leadership
-``clock`` (float64 (N,), seconds since the last trigger, +inf at start) and ``escape`` (float64 (N, 3)).
-No per-boid objects.
+``clock`` (float64 (N,), seconds since the last trigger, +inf at start) and ``escape`` (float64 (N, 3)),
+and the Boids++ ``agents`` (float64 (6, 3): predator and prey, :mod:`simcore.boidspp_layout`; NaN
+positions until the kernel places them, untouched by the other dynamics). No per-boid objects.
 
 :func:`initial_state` draws it from the run's init generator (``numpy.random.Generator``): positions
 uniform in a ball (radius ``InitParams.ball_radius``, centred at the origin), headings uniform on the
@@ -17,10 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .boidspp_layout import new_agents
 from .params import InitParams, Patterns
 
 
-FIELDS = ("pos", "vel", "fwd", "up", "side", "acc", "pattern", "clock", "escape")
+FIELDS = ("pos", "vel", "fwd", "up", "side", "acc", "pattern", "clock", "escape")  # the shared kernels' arguments
 
 
 @dataclass(frozen=True)
@@ -34,9 +36,12 @@ class State:
     pattern: np.ndarray
     clock: np.ndarray | None = None
     escape: np.ndarray | None = None
+    agents: np.ndarray | None = None
 
     def __post_init__(self):
         n = self.pos.shape[0]
+        if self.agents is None:
+            object.__setattr__(self, "agents", new_agents())
         if self.clock is None:
             object.__setattr__(self, "clock", np.full(n, np.inf))
         if self.escape is None:
@@ -47,7 +52,7 @@ class State:
         return self.pos.shape[0]
 
     def copy(self) -> "State":
-        return State(*(np.array(getattr(self, f), copy=True) for f in FIELDS))
+        return State(*(np.array(getattr(self, f), copy=True) for f in FIELDS), agents=self.agents.copy())
 
 
 def pattern_counts(patterns: Patterns, n: int) -> np.ndarray:

@@ -7,7 +7,8 @@ the time the flock's centre reached the prey, when the run has obstacles, a pred
 ``out_dir`` is given it writes there atomically:
 
 * ``trajectory.npz``: times (R,), pos and vel (R, N, 3), visible and binocular (R, N), pattern (N,), and
-  ``predator`` / ``prey`` (R, 3) when the model has them;
+  for a Boids++ run with a predator or prey their positions ``predator``, ``prey`` (R, 3) (NaN while
+  absent);
 * ``params.json``: the resolved preset, seed, record interval, the summary and the provenance stamp;
 * with ``tracks = "csv"`` or ``"parquet"``: ``tracks.csv`` / ``tracks.parquet``, the records as long-format
   tracks (:func:`analysis.observables.tracks.tracks_frame`: flock, id, t, x, y, z, vx, vy, vz, pattern, in
@@ -58,12 +59,16 @@ def summarize(obs: Observations, obstacles=(), body_radius: float = 0.5) -> dict
     return out
 
 
+def agent_arrays(obs: Observations, pick=slice(None)) -> dict:
+    """The recorded agents of a run (``predator``, ``prey``: (R, 3) positions), those it has."""
+    return {name: getattr(obs, name)[pick] for name in ("predator", "prey") if getattr(obs, name, None) is not None}
+
+
 def save_trajectory(obs: Observations, path: Path) -> None:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as handle:
-            agents = {name: getattr(obs, name) for name in ("predator", "prey") if getattr(obs, name) is not None}
             np.savez_compressed(handle, times=obs.times, pos=obs.pos, vel=obs.vel, visible=obs.visible,
-                                binocular=obs.binocular, pattern=obs.pattern, **agents)
+                                binocular=obs.binocular, pattern=obs.pattern, **agent_arrays(obs))
 
 
 def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, description: str) -> list[Path]:

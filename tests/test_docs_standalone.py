@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from simcore import params
+from simcore import boidspp_params, params
 from simcore.params import InitParams, ModelParams, RunSettings
 from paths import ROOT
 
@@ -203,6 +203,10 @@ CHOICES = {
     "leadership.front_gate": params.FRONT_GATES,
     "reynolds.allocation": params.ALLOCATIONS,
     "reynolds.migration_who": params.MIGRATION_WHO,
+    "boidspp.separation.form": boidspp_params.SEPARATION_FORMS,
+    "boidspp.alignment.scope": boidspp_params.SCOPES,
+    "boidspp.cohesion.scope": boidspp_params.SCOPES,
+    "boidspp.predator.target": boidspp_params.PREDATOR_TARGETS,
 }
 
 

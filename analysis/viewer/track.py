@@ -19,7 +19,7 @@ of these). :meth:`Track.every` keeps every k-th frame.
 
 Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
 by :func:`agents_of` (prey and predators, when the observations record them) or, from a saved
-trajectory's ``predator`` / ``prey`` arrays, by :func:`agent_tracks`.
+trajectory's ``predator`` / ``prey`` arrays, by :func:`recorded_agents`.
 """
 from __future__ import annotations
 
@@ -163,17 +163,28 @@ def scene_of(model, around=None) -> tuple:
     return tuple(obstacle_scene(obstacle, around) for obstacle in model.world.obstacles)
 
 
-def agent_tracks(predator=None, prey=None) -> tuple:
-    """Agents of :mod:`analysis.viewer.encode` for recorded predator and prey positions (F, 3) (None:
-    that agent is absent); their headings are finite differences of the positions."""
-    return tuple({"kind": kind, "label": kind, "pos": np.asarray(track, dtype=np.float64)[:, None, :]}
-                 for kind, track in (("predator", predator), ("prey", prey)) if track is not None)
+def recorded_agents(predator=None, prey=None) -> tuple:
+    """Viewer agents (:mod:`analysis.viewer.encode` dicts) of recorded (F, 3) predator and prey positions.
+    Frames before an agent appears (NaN) show it where it first appears; an agent never present is left out."""
+    out = []
+    for kind, pos in (("predator", predator), ("prey", prey)):
+        if pos is None:
+            continue
+        pos = np.asarray(pos, dtype=np.float64)
+        present = np.flatnonzero(np.isfinite(pos).all(axis=1))
+        if len(present) == 0:
+            continue
+        pos = pos.copy()
+        pos[:present[0]] = pos[present[0]]
+        label = kind if present[0] == 0 else f"{kind} (from frame {present[0]})"
+        out.append({"kind": kind, "label": label, "pos": pos[:, None, :]})
+    return tuple(out)
 
 
 def agents_of(obs) -> tuple:
     """Extra agents (prey, predators) recorded by the simulator (``obs.predator``, ``obs.prey``), as
     :mod:`analysis.viewer.encode` dicts with their (F, 1, 3) tracks; () when the observations record none."""
-    return agent_tracks(getattr(obs, "predator", None), getattr(obs, "prey", None))
+    return recorded_agents(getattr(obs, "predator", None), getattr(obs, "prey", None))
 
 
 def _preset_meta(preset, around=None) -> dict:
@@ -253,7 +264,7 @@ def from_npz(path) -> Track:
     return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
                  vel=arrays["vel"].astype(np.float64), pattern=arrays.get("pattern"),
                  leader=arrays.get("leader"), visible=arrays.get("visible"),
-                 binocular=arrays.get("binocular"), agents=agent_tracks(arrays.get("predator"), arrays.get("prey")),
+                 binocular=arrays.get("binocular"), agents=recorded_agents(arrays.get("predator"), arrays.get("prey")),
                  **meta)
 
 

@@ -445,3 +445,15 @@ def test_leadership_metrics_are_switched_on_when_leadership_is_swept_or_on():
     with pytest.raises(ConfigError) as info:
         load(configs / "smoke.toml", ["run.leadership_metrics=sometimes"])
     assert info.value.key == "run.leadership_metrics"
+
+
+def test_boidspp_random_force_sweep_expands_with_its_claim_and_a_plain_flock():
+    config = load_sweep(SHIPPED / "boidspp_random_force.toml")
+    specs = expand(config)
+    assert len(specs) == 75 == 5 * 3 * 5
+    assert len({s.run_id for s in specs}) == 75
+    table = specs[-1].preset.model.boidspp
+    assert specs[-1].preset.model.dynamics == "boidspp" and not table.predator.enabled and not table.prey.enabled
+    assert {(s.preset.model.boidspp.random_force.magnitude, s.preset.model.boidspp.random_force.every)
+            for s in specs} == {(m, e) for m in (0, 1, 2, 4, 8) for e in (5, 20, 60)}
+    assert [c.id for c in config.claims] == ["e"]
