@@ -187,7 +187,7 @@ def predator_metrics(pos: np.ndarray, predator: np.ndarray, times: np.ndarray, n
     nn = np.asarray(nn_distance, dtype=np.float64)
     scalars = {
         "predator_captures": float(caught[window].any(axis=0).sum()),
-        "predator_distance_min": float(series["predator_distance"][window].min()) if window.any() else float("nan"),
+        "predator_distance_min": _present_min(series["predator_distance"][window]),
         "flash_nn_ratio": _ratio(_window_mean(nn, near_w), _window_mean(nn, before)),
         "flash_gyration_ratio": _ratio(_window_mean(gyration, near_w), _window_mean(gyration, before)),
         "groups_before_predator": _window_mean(groups, before),
@@ -196,6 +196,12 @@ def predator_metrics(pos: np.ndarray, predator: np.ndarray, times: np.ndarray, n
         "remerge_time": remerge_time(times[window], near[window], groups[window]),
     }
     return series, scalars
+
+
+def _present_min(values: np.ndarray) -> float:
+    """The smallest value over the records where the agent is present (not NaN); NaN if it never is."""
+    present = values[np.isfinite(values)]
+    return float(present.min()) if present.size else float("nan")
 
 
 def prey_metrics(pos: np.ndarray, prey: np.ndarray, times: np.ndarray, reach: float,

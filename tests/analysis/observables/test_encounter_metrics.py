@@ -173,6 +173,20 @@ def test_captures_count_distinct_boids_within_the_capture_radius():
     assert measure_run(observations(pos, predator=predator), settings(capture_radius=0.4)).row["predator_captures"] == 0
 
 
+def test_a_predator_that_appears_later_is_measured_only_while_present():
+    """The simulator records the predator as NaN until it appears: its nearest approach is over the
+    records where it is present, and no record before counts as near or as a capture."""
+    boids = np.array([[0.0, 0, 0], [5.0, 0, 0], [10.0, 0, 0]])
+    pos = np.repeat(boids[None], 4, axis=0)
+    predator = np.array([[np.nan] * 3, [np.nan] * 3, [5, 3, 0], [5, 2, 0]])
+    run = measure_run(observations(pos, predator=predator), settings(capture_radius=0.6, predator_near=100.0))
+    assert run.row["predator_distance_min"] == 2.0
+    np.testing.assert_array_equal(run.series["predator_near"], [0, 0, 1, 1])
+    assert run.row["predator_captures"] == 0
+    never = measure_run(observations(pos, predator=np.full((4, 3), np.nan)), settings())
+    assert math.isnan(never.row["predator_distance_min"])
+
+
 def test_predator_metrics_match_the_numpy_twin_in_an_open_world_and_a_periodic_box():
     rng = np.random.default_rng(7)
     n_records, n = 9, 12
