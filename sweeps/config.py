@@ -84,9 +84,11 @@ and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with ca
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any, Literal
 
 from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
@@ -315,6 +317,7 @@ class Storage:
 
 @dataclass(frozen=True)
 class SweepConfig:
+    """A sweep, validated: its model, design, replicates, metric and storage settings (module docstring)."""
     name: str
     description: str
     seed: int
@@ -337,6 +340,27 @@ class SweepConfig:
         block = self.sample or self.design
         return [key for key, _, _ in block.bounds] if block else []
     claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
+    text: str | None = field(default=None, repr=False, compare=False, hash=False)  # the file's text, if read from one
+
+    @classmethod
+    def from_toml(cls, path: str | Path, overrides: Sequence[str] = (), replicates: int | None = None) -> SweepConfig:
+        """Read and validate the sweep file ``path`` (:func:`load_sweep`), with ``key=value`` ``overrides``
+        of its keys (as ``flocksweep run --set``) and ``replicates`` replacing the file's; it keeps the
+        file's text, which running it stores as ``sweep.toml``."""
+        return load_sweep(path, overrides, replicates)
+
+    @classmethod
+    def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
+        """Validate a sweep given as a dict of a sweep file's tables (:func:`sweep_from_dict`); relative
+        paths start from ``base`` (default: the working directory). Running it stores :meth:`to_toml`."""
+        return sweep_from_dict(data, Path.cwd() if base is None else Path(base))
+
+    def to_toml(self) -> str:
+        """The sweep as TOML text that reads back as the same sweep (same design, same run ids), runnable
+        from any folder: the preset path absolute, ``include_claims`` written out (:mod:`sweeps.sweep_toml`)."""
+        from .sweep_toml import sweep_toml
+
+        return sweep_toml(self)
 
     @property
     def factors(self) -> tuple[str, ...]:
@@ -448,7 +472,8 @@ def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig
     data = read_config(path, "sweep file", model_overrides(overrides))
     if replicates is not None:
         data["replicates"] = replicates
-    return sweep_from_dict(data, path.resolve().parent)
+    config = sweep_from_dict(data, path.resolve().parent)
+    return dataclasses.replace(config, text=path.read_text(encoding="utf-8"))
 
 
 def describe(config: SweepConfig) -> dict[str, Any]:

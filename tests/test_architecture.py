@@ -153,3 +153,24 @@ def test_packaging_installs_every_subpackage():
                 for p in (ROOT / package).rglob("__init__.py")}
     assert expected <= found, sorted(expected - found)
     assert "analysis.observables" in found and "analysis.calibration" in found
+
+
+def test_the_public_api_loads_its_layers_only_when_used():
+    """``import simcore, sweeps, analysis, analysis.observables`` loads neither the reports, the
+    calibration nor the sweep runner; the public names of ``sweeps`` and ``analysis`` then resolve to
+    the functions of their home modules."""
+    import subprocess
+    import sys
+
+    code = ("import sys, simcore, sweeps, analysis, analysis.observables\n"
+            "heavy = sorted(m for m in sys.modules if m.startswith(('analysis.reports', 'analysis.calibration', "
+            "'analysis.viewer', 'sweeps.runner', 'matplotlib', 'arviz')))\n"
+            "print(heavy)\n"
+            "from analysis import report, calibrate, Calibration, summary_simulator\n"
+            "from sweeps import Sweep, run_sweep, load_results\n"
+            "print(report.__module__, calibrate.__module__, Calibration.__module__, summary_simulator.__module__,"
+            " Sweep.__module__, run_sweep.__module__, load_results.__module__)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0] == "[]"
+    assert out[1].split() == ["analysis.reports.report", "analysis.calibration.run", "analysis.calibration.config",
+                              "analysis.calibration.summaries", "sweeps.config", "sweeps.api", "sweeps.results"]
