@@ -8,6 +8,7 @@
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
+    flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
@@ -219,6 +220,19 @@ def cmd_status(args) -> int:
     if len(info["failures"]) > 50:
         print(f"  ... and {len(info['failures']) - 50} more")
     return 0
+
+
+def _add_export(sub) -> None:
+    from sweeps.export import DESCRIPTION, add_arguments
+
+    add_arguments(sub.add_parser("export", help="a sweep's runs (and time series) as CSV or Parquet",
+                                 description=DESCRIPTION))
+
+
+def cmd_export(args) -> int:
+    from sweeps.export import run
+
+    return run(args)
 
 
 def _add_report(sub) -> None:
@@ -439,6 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_run(sub)
     _add_status(sub)
+    _add_export(sub)
     _add_report(sub)
     _add_calibrate(sub)
     _add_targets(sub)
@@ -448,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
+COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "export": cmd_export, "report": cmd_report,
             "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
             "view": cmd_view, "measure": cmd_measure}
 
