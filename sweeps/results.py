@@ -36,6 +36,7 @@ import pyarrow.fs
 
 from analysis.observables.summary import summary_columns
 from simcore.params import canonical_key, preset_from_dict
+from simcore.schema import ConfigError
 
 from .store import ResultsStore
 
@@ -118,7 +119,10 @@ def fixed_settings(store: ResultsStore) -> dict:
     if not record.get("preset"):
         return {}
     swept = {canonical_key(k) for k in record.get("swept_keys", [])}
-    preset = flat_settings(preset_from_dict(record["preset"]).to_dict())
+    try:
+        preset = flat_settings(preset_from_dict(record["preset"]).to_dict())
+    except ConfigError:   # e.g. an init.from_file that moved since: the stored keys, without defaults
+        preset = flat_settings(record["preset"])
     fixed = {k: v for k, v in preset.items() if k not in swept and not any(k.startswith(f"{s}.") for s in swept)}
     fixed.update(flat_settings(record.get("analysis", {}), "analysis."))
     return fixed

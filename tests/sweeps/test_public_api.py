@@ -154,3 +154,18 @@ def test_export_without_a_results_directory_or_a_format_is_an_input_error(tmp_pa
     with pytest.raises(SystemExit) as raised:
         main(["export", str(tmp_path)])
     assert raised.value.code == 2
+
+
+def test_fixed_columns_of_a_preset_that_no_longer_validates_are_its_stored_keys(stored, tmp_path):
+    """A stored preset whose init file has moved since still gives its fixed settings (as stored)."""
+    import shutil
+
+    sweep, out = stored
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    record = json.loads((copy / "model.json").read_text())
+    record["preset"]["init"]["from_file"] = str(tmp_path / "moved.npz")
+    (copy / "model.json").write_text(json.dumps(record))
+    results = load_results(copy, with_fixed=True)
+    assert (results.runs["init.from_file"] == str(tmp_path / "moved.npz")).all()
+    assert (results.runs["perception.range"] == 18).all() and "perception.field_deg" not in results.fixed
