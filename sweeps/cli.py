@@ -33,6 +33,7 @@ command imports what it needs when it runs, so ``flocksweep simulate`` does not 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from pathlib import Path
@@ -222,19 +223,6 @@ def cmd_status(args) -> int:
     return 0
 
 
-def _add_export(sub) -> None:
-    from sweeps.export import DESCRIPTION, add_arguments
-
-    add_arguments(sub.add_parser("export", help="a sweep's runs (and time series) as CSV or Parquet",
-                                 description=DESCRIPTION))
-
-
-def cmd_export(args) -> int:
-    from sweeps.export import run
-
-    return run(args)
-
-
 def _add_report(sub) -> None:
     p = sub.add_parser("report", help="statistics, figures and tested claims from a results directory",
                        description="Write a self-contained HTML report, the same as Markdown with figures, "
@@ -421,30 +409,20 @@ def cmd_sbc(args) -> int:
     return 0
 
 
-def _add_view(sub) -> None:
-    from analysis.viewer.command import DESCRIPTION, add_arguments
-
-    add_arguments(sub.add_parser("view", help="interactive 3-D viewer page (and GIF/MP4) of a run",
-                                 description=DESCRIPTION))
-
-
-def cmd_view(args) -> int:
-    from analysis.viewer.command import run
-
-    return run(args)
+# Commands whose arguments and code live in their own module (DESCRIPTION, add_arguments(parser), run(args)),
+# loaded when the parser is built (arguments) and when the command runs.
+DELEGATED = {"export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
+             "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
+             "measure": ("analysis.reports.measure_command", "flock metrics of measured tracks (tables and a report)")}
 
 
-def _add_measure(sub) -> None:
-    from analysis.reports.measure_command import DESCRIPTION, add_arguments
-
-    add_arguments(sub.add_parser("measure", help="flock metrics of measured tracks (tables and a report)",
-                                 description=DESCRIPTION))
+def _add_delegated(sub, name: str) -> None:
+    module = importlib.import_module(DELEGATED[name][0])
+    module.add_arguments(sub.add_parser(name, help=DELEGATED[name][1], description=module.DESCRIPTION))
 
 
-def cmd_measure(args) -> int:
-    from analysis.reports.measure_command import run
-
-    return run(args)
+def cmd_delegated(args) -> int:
+    return importlib.import_module(DELEGATED[args.command][0]).run(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -453,19 +431,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_run(sub)
     _add_status(sub)
-    _add_export(sub)
+    _add_delegated(sub, "export")
     _add_report(sub)
     _add_calibrate(sub)
     _add_targets(sub)
     _add_sbc(sub)
-    _add_view(sub)
-    _add_measure(sub)
+    _add_delegated(sub, "view")
+    _add_delegated(sub, "measure")
     return parser
 
 
-COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "export": cmd_export, "report": cmd_report,
+COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
             "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
-            "view": cmd_view, "measure": cmd_measure}
+            **{name: cmd_delegated for name in DELEGATED}}
 
 
 def main(argv=None) -> int:

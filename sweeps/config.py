@@ -84,23 +84,22 @@ and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with ca
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
-from collections.abc import Sequence
 from typing import Any, Literal
 
 from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from analysis.observables.summary import MetricSettings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
-from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
+from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
 
 from .claims import ClaimTable, load_claims, sweep_columns
 from .model_set import flat_changes, model_overrides
 from .points import canonical_axis_key, parse_bounds, parse_points
 from .sensitivity import DesignTable, SensitivityDesign
+from .sweep_toml import sweep_toml
 
 NAME_MAX = 100
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
@@ -316,8 +315,8 @@ class Storage:
 
 
 @dataclass(frozen=True)
-class SweepConfig:
-    """A sweep, validated: its model, design, replicates, metric and storage settings (module docstring)."""
+class SweepConfig(FileConfig, loader="load_sweep"):
+    """A validated sweep (module docstring); ``SweepConfig.from_toml(path, overrides)`` reads a file (and its text)."""
     name: str
     description: str
     seed: int
@@ -343,23 +342,13 @@ class SweepConfig:
     text: str | None = field(default=None, repr=False, compare=False, hash=False)  # the file's text, if read from one
 
     @classmethod
-    def from_toml(cls, path: str | Path, overrides: Sequence[str] = (), replicates: int | None = None) -> SweepConfig:
-        """Read and validate the sweep file ``path`` (:func:`load_sweep`), with ``key=value`` ``overrides``
-        of its keys (as ``flocksweep run --set``) and ``replicates`` replacing the file's; it keeps the
-        file's text, which running it stores as ``sweep.toml``."""
-        return load_sweep(path, overrides, replicates)
-
-    @classmethod
     def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
         """Validate a sweep given as a dict of a sweep file's tables (:func:`sweep_from_dict`); relative
         paths start from ``base`` (default: the working directory). Running it stores :meth:`to_toml`."""
         return sweep_from_dict(data, Path.cwd() if base is None else Path(base))
 
     def to_toml(self) -> str:
-        """The sweep as TOML text that reads back as the same sweep (same design, same run ids), runnable
-        from any folder: the preset path absolute, ``include_claims`` written out (:mod:`sweeps.sweep_toml`)."""
-        from .sweep_toml import sweep_toml
-
+        """TOML text that reads back as this sweep (same run ids), from any folder (:mod:`sweeps.sweep_toml`)."""
         return sweep_toml(self)
 
     @property
@@ -472,8 +461,7 @@ def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig
     data = read_config(path, "sweep file", model_overrides(overrides))
     if replicates is not None:
         data["replicates"] = replicates
-    config = sweep_from_dict(data, path.resolve().parent)
-    return dataclasses.replace(config, text=path.read_text(encoding="utf-8"))
+    return with_fields(sweep_from_dict(data, path.resolve().parent), text=path.read_text(encoding="utf-8"))
 
 
 def describe(config: SweepConfig) -> dict[str, Any]:

@@ -20,9 +20,11 @@ def test_the_docs_site_builds_without_warnings(tmp_path):
     assert not done.stderr.strip(), done.stderr[-5000:]
     api = {page: (out / "api" / f"{page}.html").read_text(encoding="utf-8") for page in ("simcore", "sweeps", "analysis")}
     for page, names in {"simcore": ["simcore.load_preset", "simcore.simulate_preset", "simcore.Preset"],
-                        "sweeps": ["sweeps.run_sweep", "sweeps.load_results", "sweeps.config.SweepConfig"],
+                        "sweeps": ["sweeps.run_sweep", "sweeps.load_results", "sweeps.config.SweepConfig",
+                                   "sweeps.config.SweepConfig.from_toml", "sweeps.config.SweepConfig.from_dict"],
                         "analysis": ["analysis.report", "analysis.calibrate", "analysis.summary_simulator",
-                                     "analysis.calibration.config.CalibrationConfig"]}.items():
+                                     "analysis.calibration.config.CalibrationConfig",
+                                     "analysis.calibration.config.CalibrationConfig.from_toml"]}.items():
         for name in names:
             assert f'id="{name}"' in api[page], name
     assert "NUMBA_NUM_THREADS" in api["analysis"]       # summary_simulator's thread use is documented

@@ -188,8 +188,7 @@ class Targets:
 
 
 @dataclass(frozen=True)
-class CalibrationConfig(FileConfig, loader="load_calibration"):
-    """A calibration file, validated (module docstring); ``CalibrationConfig.from_toml(path, overrides)`` reads one."""
+class CalibrationConfig(FileConfig, loader="load_calibration"):   # CalibrationConfig.from_toml(path, overrides)
     name: str
     description: str
     seed: int

@@ -57,7 +57,7 @@ def test_a_dict_built_sweep_stores_a_sweep_toml_that_reads_back_as_the_same_swee
 
 def test_a_file_built_sweep_stores_its_own_text(tmp_path):
     path = ROOT / "configs/sweeps/smoke.toml"
-    sweep = Sweep.from_toml(path, ["run.duration=1.0", "run.warmup=0.25"], replicates=1)
+    sweep = Sweep.from_toml(path, ["run.duration=1.0", "run.warmup=0.25", "replicates=1"])
     assert sweep.text == path.read_text() and sweep.replicates == 1
     result = run_sweep(sweep, tmp_path / "out", executor="serial", dry_run=True)
     assert len(result.plan.todo) == 4
