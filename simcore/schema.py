@@ -35,9 +35,11 @@ import difflib
 import functools
 import json
 import math
+import sys
 import tomllib
 import types
 import typing
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -366,3 +368,37 @@ def resolve_path(text, base, key: str, what: str, must_exist: bool = True) -> Pa
         return candidates[0]
     tried = ", ".join(str(p) for p in candidates)
     raise ConfigError(key, f"{what} not found: {text!r} (looked at {tried})")
+
+
+class FileConfig:
+    """Base of a validated config class read from a TOML file: ``Config.from_toml(path, overrides=())``
+    calls the loader function the class names in its module (``class C(FileConfig, loader="load_c")``)."""
+
+    _loader = ""
+
+    def __init_subclass__(cls, loader: str = "", **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls._loader = loader or cls._loader
+
+    @classmethod
+    def from_toml(cls, path, overrides: Sequence[str] = ()):
+        """Read the TOML file ``path``, apply ``key=value`` ``overrides`` of its keys, validate.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file; relative paths in it start from its folder.
+        overrides : sequence of str, optional
+            ``key=value`` changes of the file's keys (as the command line's ``--set``).
+
+        Returns
+        -------
+        FileConfig
+            The validated, frozen config, an instance of this class.
+
+        Raises
+        ------
+        ConfigError
+            Naming the dotted key, the bad value and what is allowed.
+        """
+        return getattr(sys.modules[cls.__module__], cls._loader)(path, overrides)

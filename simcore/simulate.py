@@ -50,6 +50,10 @@ THREADED_MIN_N = 2000  # synchronous runs with this many boids use all of numba'
 
 @dataclass(frozen=True)
 class Observations:
+    """What a run recorded, every ``record_every`` steps (R records of N boids; the module docstring lists
+    each array's dtype and shape): ``times``, ``pos``, ``vel``, ``visible``, ``binocular``, ``leader``,
+    ``triggers``, ``pattern``, the ``final`` state, ``dt`` and ``record_every``."""
+
     times: np.ndarray
     pos: np.ndarray
     vel: np.ndarray
@@ -208,7 +212,32 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
 
 def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
              record_every: int = 1, threads: int | None = None) -> Observations:
-    """Simulate one run from its seed (see module docstring)."""
+    """Simulate one run from its seed (see the module docstring).
+
+    Parameters
+    ----------
+    model : ModelParams
+        The validated model (``preset.model``).
+    init : InitParams
+        Initial conditions (``preset.init``): the initial state is drawn from the seed.
+    seed : int or tuple of int or numpy.random.SeedSequence
+        The run seed; the same seed always gives the same run, bit for bit.
+    duration : float
+        Simulated seconds; the run takes ``round(duration / dt)`` steps.
+    dt : float
+        Time step in seconds.
+    record_every : int, default 1
+        Record every this many steps (step 0 included).
+    threads : int, optional
+        Threads splitting each step's boids (default: numba's count from 2,000 boids, else 1); results
+        do not depend on it.
+
+    Returns
+    -------
+    Observations
+        The records (times, positions, velocities, perception counts, leaders, trigger events) and the
+        final state.
+    """
     n_steps = _n_steps(duration, dt)
     rng, loop_key = run_streams(seed)
     return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key, threads)
@@ -216,7 +245,24 @@ def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: fl
 
 def simulate_preset(preset: Preset, seed, record_every: int | None = None,
                     threads: int | None = None) -> Observations:
-    """``simulate`` with the model, initial conditions and run settings of a preset."""
+    """:func:`simulate` with the model, initial conditions and run settings of a preset.
+
+    Parameters
+    ----------
+    preset : Preset
+        From :func:`load_preset` (and :meth:`Preset.replace`).
+    seed : int or tuple of int or numpy.random.SeedSequence
+        The run seed.
+    record_every : int, optional
+        Steps between records (default: the preset's ``run.record_interval`` in steps).
+    threads : int, optional
+        As in :func:`simulate`.
+
+    Returns
+    -------
+    Observations
+        The run's records.
+    """
     run = preset.run
     every = run.record_every if record_every is None else record_every
     return simulate(preset.model, preset.init, seed, run.duration, run.dt, every, threads)
@@ -224,7 +270,31 @@ def simulate_preset(preset: Preset, seed, record_every: int | None = None,
 
 def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
                    record_every: int = 1) -> list[Observations]:
-    """Several runs of one (model, init), one per seed, in one threaded compiled call."""
+    """Several runs of one (model, init), one per seed, in one compiled call over numba's threads.
+
+    Run ``i`` is bit-identical to ``simulate(model, init, seeds[i], ...)`` whatever the other seeds and
+    the thread count; ``numba.set_num_threads`` (or ``NUMBA_NUM_THREADS``) limits the threads used.
+
+    Parameters
+    ----------
+    model : ModelParams
+        The model.
+    init : InitParams
+        Initial conditions.
+    seeds : sequence
+        One run seed per run.
+    duration : float
+        Simulated seconds.
+    dt : float
+        Time step in seconds.
+    record_every : int, default 1
+        Steps between records.
+
+    Returns
+    -------
+    list of Observations
+        One per seed, in order.
+    """
     record_every = _check_record_every(record_every)
     n_steps = _n_steps(duration, dt)
     streams = [run_streams(seed) for seed in seeds]

@@ -1,1 +1,46 @@
-"""sweeps: config-driven sweep runner and the flocksweep CLI."""
+"""sweeps: config-driven parameter sweeps of the simulator, their results folders and the flocksweep CLI.
+
+Python API (loaded on first use, so ``import sweeps`` loads nothing)::
+
+    from sweeps import Sweep, run_sweep, load_results
+    sweep = Sweep.from_toml("configs/sweeps/smoke.toml")          # or Sweep.from_dict({...})
+    result = run_sweep(sweep, "results/smoke", executor="local")  # resumable, one row per run
+    runs = load_results("results/smoke", with_fixed=True).runs    # pandas, fixed settings as columns
+
+* :class:`Sweep` (= :class:`sweeps.config.SweepConfig`): a validated sweep, ``Sweep.from_toml(path)``,
+  ``Sweep.from_dict(data)``, ``sweep.to_toml()``;
+* :func:`run_sweep`: run or resume it into a results folder (:mod:`sweeps.api`);
+* :func:`load_results`: a results folder as :class:`Results` (pandas runs table, lazy pyarrow time
+  series; :mod:`sweeps.results`);
+* :class:`ResultsStore`: the folder's files, :class:`SweepResult`: what a run of a sweep returns.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
+    from .api import run_sweep
+    from .config import SweepConfig, SweepConfig as Sweep
+    from .results import Results, load_results
+    from .runner import SweepResult
+    from .store import ResultsStore
+
+__all__ = ["Results", "ResultsStore", "Sweep", "SweepConfig", "SweepResult", "load_results", "run_sweep"]
+
+_HOMES = {"run_sweep": ("api", "run_sweep"), "Sweep": ("config", "SweepConfig"),
+          "SweepConfig": ("config", "SweepConfig"), "Results": ("results", "Results"),
+          "load_results": ("results", "load_results"), "SweepResult": ("runner", "SweepResult"),
+          "ResultsStore": ("store", "ResultsStore")}
+
+
+def __getattr__(name: str):
+    if name in _HOMES:
+        import importlib
+
+        module, attribute = _HOMES[name]
+        return getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)

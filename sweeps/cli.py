@@ -8,6 +8,7 @@
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
+    flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
     flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
@@ -32,6 +33,7 @@ command imports what it needs when it runs, so ``flocksweep simulate`` does not 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from pathlib import Path
@@ -415,30 +417,20 @@ def cmd_sbc(args) -> int:
     return 0
 
 
-def _add_view(sub) -> None:
-    from analysis.viewer.command import DESCRIPTION, add_arguments
-
-    add_arguments(sub.add_parser("view", help="interactive 3-D viewer page (and GIF/MP4) of a run",
-                                 description=DESCRIPTION))
-
-
-def cmd_view(args) -> int:
-    from analysis.viewer.command import run
-
-    return run(args)
+# Commands whose arguments and code live in their own module (DESCRIPTION, add_arguments(parser), run(args)),
+# loaded when the parser is built (arguments) and when the command runs.
+DELEGATED = {"export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
+             "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
+             "measure": ("analysis.reports.measure_command", "flock metrics of measured tracks (tables and a report)")}
 
 
-def _add_measure(sub) -> None:
-    from analysis.reports.measure_command import DESCRIPTION, add_arguments
-
-    add_arguments(sub.add_parser("measure", help="flock metrics of measured tracks (tables and a report)",
-                                 description=DESCRIPTION))
+def _add_delegated(sub, name: str) -> None:
+    module = importlib.import_module(DELEGATED[name][0])
+    module.add_arguments(sub.add_parser(name, help=DELEGATED[name][1], description=module.DESCRIPTION))
 
 
-def cmd_measure(args) -> int:
-    from analysis.reports.measure_command import run
-
-    return run(args)
+def cmd_delegated(args) -> int:
+    return importlib.import_module(DELEGATED[args.command][0]).run(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -447,18 +439,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(sub)
     _add_run(sub)
     _add_status(sub)
+    _add_delegated(sub, "export")
     _add_report(sub)
     _add_calibrate(sub)
     _add_targets(sub)
     _add_sbc(sub)
-    _add_view(sub)
-    _add_measure(sub)
+    _add_delegated(sub, "view")
+    _add_delegated(sub, "measure")
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
             "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
-            "view": cmd_view, "measure": cmd_measure}
+            **{name: cmd_delegated for name in DELEGATED}}
 
 
 def main(argv=None) -> int:

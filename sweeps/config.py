@@ -88,20 +88,21 @@ and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with ca
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
 from typing import Any, Literal
 
 from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
-from simcore.schema import (ConfigError, build, check_at_least, check_finite, read_config, resolve_path,
+from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
 
 from .claims import ClaimTable, load_claims, sweep_columns
 from .model_set import flat_changes, model_overrides
 from .points import canonical_axis_key, parse_bounds, parse_points
 from .sensitivity import DesignTable, SensitivityDesign
+from .sweep_toml import sweep_toml
 
 NAME_MAX = 100
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
@@ -329,7 +330,8 @@ class Storage:
 
 
 @dataclass(frozen=True)
-class SweepConfig:
+class SweepConfig(FileConfig, loader="load_sweep"):
+    """A validated sweep (module docstring); ``SweepConfig.from_toml(path, overrides)`` reads a file (and its text)."""
     name: str
     description: str
     seed: int
@@ -352,6 +354,17 @@ class SweepConfig:
         block = self.sample or self.design
         return [key for key, _, _ in block.bounds] if block else []
     claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
+    text: str | None = field(default=None, repr=False, compare=False, hash=False)  # the file's text, if read from one
+
+    @classmethod
+    def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
+        """Validate a sweep given as a dict of a sweep file's tables (:func:`sweep_from_dict`); relative
+        paths start from ``base`` (default: the working directory). Running it stores :meth:`to_toml`."""
+        return sweep_from_dict(data, Path.cwd() if base is None else Path(base))
+
+    def to_toml(self) -> str:
+        """TOML text that reads back as this sweep (same run ids), from any folder (:mod:`sweeps.sweep_toml`)."""
+        return sweep_toml(self)
 
     @property
     def factors(self) -> tuple[str, ...]:
@@ -464,7 +477,7 @@ def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig
     data = read_config(path, "sweep file", model_overrides(overrides))
     if replicates is not None:
         data["replicates"] = replicates
-    return sweep_from_dict(data, path.resolve().parent)
+    return with_fields(sweep_from_dict(data, path.resolve().parent), text=path.read_text(encoding="utf-8"))
 
 
 def describe(config: SweepConfig) -> dict[str, Any]:

@@ -220,11 +220,15 @@ class SweepResult:
     quarantined: list[Path] = field(default_factory=list)  # damaged files moved aside before computing
 
 
-def run_sweep(config: SweepConfig, sweep_text: str, out_dir, executor: str = "local", workers: int | None = None,
-              scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
+def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: str = "local",
+              workers: int | None = None, scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
               dry_run: bool = False, progress: bool = True, batch_size: int | None = None,
               specs: list[RunSpec] | None = None, yes: bool = False) -> SweepResult:
-    """Run the sweep (or the given subset ``specs`` of its design); see the module docstring."""
+    """Run the sweep (or the given subset ``specs`` of its design); see the module docstring. ``sweep_text``
+    is stored as ``sweep.toml``; None stores the text of the file the sweep was read from, or for a sweep
+    built in Python :meth:`SweepConfig.to_toml`. The public entry point is :func:`sweeps.run_sweep`."""
+    if sweep_text is None:
+        sweep_text = config.text if config.text is not None else config.to_toml()
     started = time.time()
     workers = workers or os.cpu_count() or 1
     if specs is None:

@@ -153,3 +153,26 @@ def test_packaging_installs_every_subpackage():
                 for p in (ROOT / package).rglob("__init__.py")}
     assert expected <= found, sorted(expected - found)
     assert "analysis.observables" in found and "analysis.calibration" in found
+
+
+def test_the_public_api_loads_its_layers_only_when_used():
+    """``import simcore, sweeps, analysis, analysis.observables`` loads neither the reports, the
+    calibration, the viewer nor the sweep runner; every public name of ``sweeps`` and ``analysis`` has a
+    home module (in its ``_HOMES`` table) that defines it."""
+    import importlib
+    import subprocess
+    import sys
+
+    code = ("import sys, simcore, sweeps, analysis, analysis.observables\n"
+            "print(sorted(m for m in sys.modules if m.startswith(('analysis.reports', 'analysis.calibration', "
+            "'analysis.viewer', 'sweeps.runner', 'sweeps.config', 'matplotlib', 'arviz'))))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    for package in ("sweeps", "analysis"):
+        module = importlib.import_module(package)
+        assert sorted(module.__all__) == sorted(module._HOMES), package
+        for name, (home, attribute) in module._HOMES.items():
+            path = ROOT / package / (home.replace(".", "/") + ".py")
+            tree = ast.parse(path.read_text())
+            defined = {node.name for node in tree.body if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+            assert attribute in defined, f"{package}.{name}: {attribute} is not defined in {path.name}"

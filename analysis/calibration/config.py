@@ -97,8 +97,8 @@ from analysis.observables.metrics import METRIC_NAMES
 from analysis.observables.observation import Observation
 from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
-from simcore.schema import (ConfigError, build, check_at_least, check_choice, get_dotted, read_config, resolve_path,
-                            suggest)
+from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_choice, get_dotted, read_config,
+                            resolve_path, suggest)
 from sweeps.config import ModelTable, RunTable, check_name, check_no_encounter_settings, check_window, model_data
 from sweeps.model_set import model_overrides
 
@@ -188,7 +188,7 @@ class Targets:
 
 
 @dataclass(frozen=True)
-class CalibrationConfig:
+class CalibrationConfig(FileConfig, loader="load_calibration"):   # CalibrationConfig.from_toml(path, overrides)
     name: str
     description: str
     seed: int

@@ -184,10 +184,35 @@ def resume_hint(config_path, out_dir) -> str:
 def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
               predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
               scheduler: str | None = None):
-    """Run ``config``'s method, write its outputs into ``out_dir`` (default ``results/calibration/<name>``)
-    and return the ArviZ ``InferenceData`` written as ``posterior.nc``: ``posterior`` (one variable per free
-    parameter, walkers as chains), ``sample_stats``, ``posterior_predictive``, ``observed_data``,
-    ``prior``; see the module docstring and :func:`run_calibration` for everything else."""
+    """Run a calibration and return its posterior (``flocksweep calibrate``; docs/calibration.md).
+
+    Parameters
+    ----------
+    config : CalibrationConfig
+        The calibration, e.g. ``Calibration.from_toml(path, ["method.steps=500"])``.
+    out_dir : str or pathlib.Path, optional
+        Where its outputs go (default ``results/calibration/<name>``): posterior.nc, posterior.csv,
+        convergence.json, figures, report.html.
+    resume : bool, default False
+        Continue the stored chain up to ``method.steps`` (an existing chain without it is an error).
+    progress : bool, default True
+        Show a progress bar.
+    predictive_draws : int, default 100
+        Posterior draws simulated for the posterior predictive check.
+    executor : {"serial", "local", "dask"}, default "serial"
+        Where the simulations run (:class:`sweeps.executors.Executor`); results do not depend on it.
+    workers : int, optional
+        Worker processes for ``local``/``dask``.
+    scheduler : str, optional
+        Dask scheduler address.
+
+    Returns
+    -------
+    arviz.InferenceData
+        As written to ``posterior.nc``: ``posterior`` (one variable per free parameter, walkers as
+        chains), ``sample_stats``, ``posterior_predictive``, ``observed_data``, ``prior``. Everything
+        else the run produced: :func:`run_calibration`.
+    """
     return run_calibration(config, out_dir, resume, progress, predictive_draws, executor, workers, scheduler).idata
 
 

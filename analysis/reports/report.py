@@ -375,6 +375,31 @@ def _leadership(ctx: Context) -> None:
 
 def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0,
                  claims_files=()) -> dict:
+    """Write a sweep's report (``flocksweep report``; docs/report.md): statistics, figures, tested claims.
+
+    Parameters
+    ----------
+    results_dir : str or pathlib.Path
+        The sweep's results directory.
+    out_dir : str or pathlib.Path, optional
+        Where the report goes (default ``results_dir/report``).
+    metrics : list of str, optional
+        Metric names (``cohesion``) or columns (``cohesion_final``); default: the standard set.
+    by : list of str, optional
+        Factors to analyse (default: every swept factor).
+    formats : tuple of str, default ("html", "md")
+        ``"html"`` (self-contained page) and/or ``"md"`` (Markdown with figure files).
+    seed : int, default 0
+        Seed of the bootstrap resampling and of the claims' power simulations.
+    claims_files : sequence of path, optional
+        Claims files (or sweep files) whose claims are tested too.
+
+    Returns
+    -------
+    dict
+        ``paths`` (format -> written file), ``tables`` (name -> DataFrame, also written as CSV), ``out``
+        (the report folder) and ``seconds``.
+    """
     started = time.perf_counter()
     results = load_results(results_dir)
     if results.ok.empty:
