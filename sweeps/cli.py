@@ -410,8 +410,7 @@ def cmd_sbc(args) -> int:
 def _add_view(sub) -> None:
     from analysis.viewer.command import DESCRIPTION, add_arguments
 
-    add_arguments(sub.add_parser("view", help="interactive 3-D viewer page (and GIF/MP4) of a run",
-                                 description=DESCRIPTION))
+    add_arguments(sub.add_parser("view", help=HELP["view"], description=DESCRIPTION))
 
 
 def cmd_view(args) -> int:
@@ -423,8 +422,7 @@ def cmd_view(args) -> int:
 def _add_measure(sub) -> None:
     from analysis.reports.measure_command import DESCRIPTION, add_arguments
 
-    add_arguments(sub.add_parser("measure", help="flock metrics of measured tracks (tables and a report)",
-                                 description=DESCRIPTION))
+    add_arguments(sub.add_parser("measure", help=HELP["measure"], description=DESCRIPTION))
 
 
 def cmd_measure(args) -> int:
@@ -433,18 +431,23 @@ def cmd_measure(args) -> int:
     return run(args)
 
 
-def build_parser() -> argparse.ArgumentParser:
+ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
+          "calibrate": _add_calibrate, "targets": _add_targets, "sbc": _add_sbc, "view": _add_view,
+          "measure": _add_measure}
+HELP = {"view": "interactive 3-D viewer page (and GIF/MP4) of a run",
+        "measure": "flock metrics of measured tracks (tables and a report)"}
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser; with ``command``, only that command's arguments are declared (the rest are listed
+    by name), so ``flocksweep simulate`` does not import the viewer's or the measure command's modules."""
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    _add_simulate(sub)
-    _add_run(sub)
-    _add_status(sub)
-    _add_report(sub)
-    _add_calibrate(sub)
-    _add_targets(sub)
-    _add_sbc(sub)
-    _add_view(sub)
-    _add_measure(sub)
+    for name, add in ADDERS.items():
+        if command is None or name == command or name not in HELP:
+            add(sub)
+        else:
+            sub.add_parser(name, help=HELP[name])
     return parser
 
 
@@ -453,8 +456,17 @@ COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "rep
             "view": cmd_view, "measure": cmd_measure}
 
 
+def _command_of(argv) -> str | None:
+    """The subcommand named on the command line (its first word not starting with '-'), else None."""
+    argv = sys.argv[1:] if argv is None else argv
+    for word in argv:
+        if not str(word).startswith("-"):
+            return word if word in COMMANDS else None
+    return None
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(_command_of(argv)).parse_args(argv)
     show_warnings()
     try:
         with signals_as_exceptions():
