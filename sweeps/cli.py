@@ -27,7 +27,10 @@ left missing because their worker processes died, 130 after Ctrl-C and 143 after
 saved, the way to resume printed). Every one of these is a single message on stderr, never a traceback.
 
 This module is the top of the import graph (docs/architecture.md): it may import every layer. Each
-command imports what it needs when it runs, so ``flocksweep simulate`` does not load the calibration.
+command imports what it needs when it runs, and the parser declares only the arguments of the command
+named on the command line (``view`` and ``measure`` take theirs from their own modules), so
+``flocksweep simulate`` loads neither the calibration, the reports, the viewer nor pandas
+(tests/sweeps/test_cli.py checks it).
 """
 from __future__ import annotations
 
