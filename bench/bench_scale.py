@@ -12,7 +12,8 @@
 * ``big``: 100,000 boids of ``opensteer`` (open world, constant density): seconds per step on all cores
   (threaded synchronous run), in a fresh process whose peak resident memory is reported.
 * ``startup``: a warm ``flocksweep simulate`` of a 3-boid, 1-step run as a new process (kernels cached),
-  median wall time; both ``python -m sweeps.cli`` and the installed ``flocksweep`` script when found.
+  median wall time; both ``python -m sweeps.cli`` and the installed ``flocksweep`` script when found,
+  interleaved with what any numba program pays (``import numba``; ``numba_floor``: one cached kernel called).
 * ``compile``: the same command with an empty numba cache (``NUMBA_CACHE_DIR`` set to a new temporary
   directory): the first compile of simcore's kernels, and whether the "compiling" notice was printed.
 
@@ -147,25 +148,42 @@ print(json.dumps({{"seconds_per_step": statistics.median(times), "threads": numb
     return r
 
 
-def _time_command(cmd, env, repeats: int) -> float:
-    times = []
+def _time_commands(cmds: dict, env, repeats: int, cwd=ROOT) -> dict:
+    """Median wall seconds of each command, the commands interleaved in every repeat (same load for all)."""
+    times = {name: [] for name in cmds}
     for _ in range(repeats):
-        start = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True, env=env, cwd=ROOT)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        for name, cmd in cmds.items():
+            start = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True, env=env, cwd=cwd)
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(values) for name, values in times.items()}
+
+
+NUMBA_FLOOR = """import numba
+@numba.njit(cache=True)
+def one(x):
+    return x + 1
+one(1)
+"""
 
 
 def startup(repeats: int) -> dict:
+    """The tiny simulate command against what any numba program pays: a bare interpreter, ``import numba``,
+    and ``numba_floor`` (import numba and call one kernel loaded from numba's cache: numba then sets up
+    its compiler target, which imports its numpy implementations and scipy.linalg for BLAS)."""
     env = _env()
     module = [sys.executable, "-m", "sweeps.cli", *TINY]
     subprocess.run(module, check=True, capture_output=True, env=env, cwd=ROOT)  # compile or load once
-    out = {"python_m_sweeps_cli": _time_command(module, env, repeats),
-           "bare_python": _time_command([sys.executable, "-c", "pass"], env, repeats),
-           "import_numba": _time_command([sys.executable, "-c", "import numba"], env, repeats)}
-    script = Path(sys.executable).parent / "flocksweep"
-    if script.exists():
-        out["flocksweep_script"] = _time_command([str(script), *TINY], env, repeats)
+    with tempfile.TemporaryDirectory(prefix="numba-floor-") as tmp:
+        floor = Path(tmp) / "floor.py"
+        floor.write_text(NUMBA_FLOOR)
+        subprocess.run([sys.executable, str(floor)], check=True, env=env, cwd=tmp)  # cache the kernel
+        cmds = {"python_m_sweeps_cli": module, "bare_python": [sys.executable, "-c", "pass"],
+                "import_numba": [sys.executable, "-c", "import numba"], "numba_floor": [sys.executable, str(floor)]}
+        script = Path(sys.executable).parent / "flocksweep"
+        if script.exists():
+            cmds["flocksweep_script"] = [str(script), *TINY]
+        out = _time_commands(cmds, env, repeats)
     for key, value in out.items():
         print(f"  {key}: {value:.2f} s", flush=True)
     return out
@@ -177,9 +195,9 @@ def compile_time() -> dict:
         done = subprocess.run([sys.executable, "-m", "sweeps.cli", *TINY], capture_output=True, text=True,
                               env=_env(cache_dir=cache), cwd=ROOT, check=True)
         seconds = time.perf_counter() - start
-    notice = "compiling" in done.stderr
-    print(f"  first compile (empty numba cache): {seconds:.1f} s, notice printed: {notice}", flush=True)
-    return {"seconds": seconds, "notice": notice}
+    notices = done.stderr.count("compiling")
+    print(f"  first compile (empty numba cache): {seconds:.1f} s, notice printed {notices} time(s)", flush=True)
+    return {"seconds": seconds, "notices": notices}
 
 
 def main() -> None:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 
 from .jit import inline, leaf
 from .grid import LAYOUT, SORTED, gather, runs
@@ -207,7 +208,8 @@ def perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
         if kind == PERCEPTION_BINOCULAR:
             m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
             if ip[I.OCCLUSION] != 0 and m > 1:
-                m = occlude(m, fp, nbrs)
+                m = occlude(np.int64(m), fp, nbrs)  # int64 from the start: typing the call with the
+                # literal 0 of the view phase's counter would compile occlude a second time
         elif kind == PERCEPTION_OPENSTEER:
             m = _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, nbrs)
         else:

@@ -28,7 +28,10 @@ left missing because their worker processes died, 130 after Ctrl-C and 143 after
 saved, the way to resume printed). Every one of these is a single message on stderr, never a traceback.
 
 This module is the top of the import graph (docs/architecture.md): it may import every layer. Each
-command imports what it needs when it runs, so ``flocksweep simulate`` does not load the calibration.
+command imports what it needs when it runs, and the parser declares only the arguments of the command
+named on the command line (``view`` and ``measure`` take theirs from their own modules), so
+``flocksweep simulate`` loads neither the calibration, the reports, the viewer nor pandas
+(tests/sweeps/test_cli.py checks it).
 """
 from __future__ import annotations
 
@@ -377,49 +380,11 @@ def cmd_targets(args) -> int:
     return 0
 
 
-def _add_sbc(sub) -> None:
-    p = sub.add_parser("sbc", help="simulation-based calibration check of a calibration's posterior",
-                       description="Talts et al. (2018): draw parameters from the prior, simulate a dataset at "
-                                   "each, fit it with the file's emcee settings and test the ranks of the truths "
-                                   "for uniformity. Finished datasets are kept: re-running resumes.")
-    p.add_argument("config", help="calibration TOML with method.kind = \"emcee\", e.g. configs/calibration/sbc_range.toml")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key of the calibration file")
-    p.add_argument("--datasets", type=int, default=50, help="synthetic datasets L (default 50)")
-    p.add_argument("--draws", type=int, default=49, help="posterior draws per dataset S (default 49)")
-    p.add_argument("--workers", type=int, default=1, help="datasets fitted at once in worker processes")
-    p.add_argument("--steps", type=int, help="chain length per dataset (default: method.steps)")
-    p.add_argument("--walkers", type=int, help="walkers per dataset (default: method.walkers)")
-    p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>/sbc)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def cmd_sbc(args) -> int:
-    from analysis.calibration.config import load_calibration
-    from analysis.calibration.sbc import run_sbc
-
-    for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--steps", args.steps)):
-        check_count(flag, value, 1)
-    check_workers(args.workers, "local")
-    check_count("--walkers", args.walkers, 2)
-    check_out("--out", args.out)
-    config = load_calibration(args.config, args.overrides)
-    if config.method.kind != "emcee":
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the emcee (BSL) posterior")
-    out = args.out or Path("results") / "calibration" / config.name / "sbc"
-    args.on_interrupt = lambda: (f"saved: {len(list((out / 'datasets').glob('*.json')))} datasets in {out}; "
-                                 "run the same command again to resume")
-    result = run_sbc(config, datasets=args.datasets, draws=args.draws, out_dir=args.out,
-                     progress=not args.no_progress, steps=args.steps, walkers=args.walkers, workers=args.workers)
-    print(result["table"].round(4).to_string())
-    print(f"  {result['verdict']}")
-    print(f"  wrote {result['out']}")
-    return 0
-
-
 # Commands whose arguments and code live in their own module (DESCRIPTION, add_arguments(parser), run(args)),
 # loaded when the parser is built (arguments) and when the command runs.
 DELEGATED = {"export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
+             "sbc": ("analysis.calibration.sbc_command",
+                     "simulation-based calibration check of a calibration's posterior"),
              "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
              "measure": ("analysis.reports.measure_command", "flock metrics of measured tracks (tables and a report)")}
 
@@ -433,29 +398,43 @@ def cmd_delegated(args) -> int:
     return importlib.import_module(DELEGATED[args.command][0]).run(args)
 
 
-def build_parser() -> argparse.ArgumentParser:
+ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
+          "calibrate": _add_calibrate, "targets": _add_targets}
+ORDER = ("simulate", "run", "status", "export", "report", "calibrate", "targets", "sbc", "view", "measure")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser; with ``command``, only that command's arguments are declared (the rest are listed
+    by name), so ``flocksweep simulate`` does not import the modules of the delegated commands (export, view,
+    measure)."""
     parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    _add_simulate(sub)
-    _add_run(sub)
-    _add_status(sub)
-    _add_delegated(sub, "export")
-    _add_report(sub)
-    _add_calibrate(sub)
-    _add_targets(sub)
-    _add_sbc(sub)
-    _add_delegated(sub, "view")
-    _add_delegated(sub, "measure")
+    for name in ORDER:
+        if name in ADDERS:
+            ADDERS[name](sub)
+        elif command is None or name == command:
+            _add_delegated(sub, name)
+        else:   # listed by name only: its module (and what it imports) is not loaded
+            sub.add_parser(name, help=DELEGATED[name][1])
     return parser
 
 
 COMMANDS = {"simulate": cmd_simulate, "run": cmd_run, "status": cmd_status, "report": cmd_report,
-            "calibrate": cmd_calibrate, "targets": cmd_targets, "sbc": cmd_sbc,
+            "calibrate": cmd_calibrate, "targets": cmd_targets,
             **{name: cmd_delegated for name in DELEGATED}}
 
 
+def _command_of(argv) -> str | None:
+    """The subcommand named on the command line (its first word not starting with '-'), else None."""
+    argv = sys.argv[1:] if argv is None else argv
+    for word in argv:
+        if not str(word).startswith("-"):
+            return word if word in COMMANDS else None
+    return None
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(_command_of(argv)).parse_args(argv)
     show_warnings()
     try:
         with signals_as_exceptions():

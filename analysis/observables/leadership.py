@@ -56,14 +56,16 @@ window, O(E N J L); the groups cost one neighbour-graph pass over the distinct t
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TYPE_CHECKING
 
 import numba as nb
 import numpy as np
-import pandas as pd
 
 from .groups import check_radius, kernel_box, neighbour_graph
 from .metrics import unit_headings
+
+if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
+    import pandas as pd
 
 LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
                            "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",
@@ -260,6 +262,7 @@ def follow_curve(obs_like, group_radius: float, escape_duration: float, box: flo
     """C(tau) for tau = 0, dr, ..., max_lag (see the module docstring), one row per lag:
     ``lag`` (s), ``corr`` (nan without a term), ``pairs`` ((event, follower) pairs averaged) and
     ``events`` (events with at least one such pair)."""
+    import pandas as pd
     inp = leadership_input(obs_like)
     ev = _events(inp, group_radius, escape_duration, box, max_lag)
     acc, pairs, events, _ = _follow(inp, ev)

@@ -38,21 +38,27 @@ import json
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Literal
+from typing import Literal, TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from simcore.schema import ConfigError, build, suggest
 
 from .validation import Issue, TrackError
 
+if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
+    import pandas as pd
+
 ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
 REQUIRED = ("id", "t", "x", "y")
 LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None}
-# CSV numbers read back exactly as written (pandas >= 3 does by default and deprecates the option)
-EXACT_FLOATS = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+
+
+def _exact_floats(pd) -> dict:
+    """read_csv options reading CSV numbers back exactly as written (pandas >= 3 does by default and
+    deprecates the option)."""
+    return {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
 
 
 @dataclass(frozen=True)
@@ -160,6 +166,7 @@ def file_format(path, fmt: str = "auto") -> str:
 
 def read_table(path, fmt: str = "auto") -> pd.DataFrame:
     """The raw table of a track file (see :func:`file_format`)."""
+    import pandas as pd
     path = Path(path)
     if not path.is_file():
         raise ConfigError(str(path), "no such track file")
@@ -167,7 +174,7 @@ def read_table(path, fmt: str = "auto") -> pd.DataFrame:
     try:
         if fmt == "parquet":
             return pd.read_parquet(path)
-        return pd.read_csv(path, sep=_delimiter(path), **EXACT_FLOATS)
+        return pd.read_csv(path, sep=_delimiter(path), **_exact_floats(pd))
     except Exception as err:  # noqa: BLE001 - an unreadable file is the user's input problem
         raise ConfigError(str(path), f"cannot read it as {fmt}: {err}") from None
 
@@ -193,6 +200,7 @@ class TrackTable:
 
 
 def _numeric(frame: pd.DataFrame, role: str, name: str, errors: list, allow_missing: bool) -> np.ndarray:
+    import pandas as pd
     raw = frame[name]
     values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
     bad = np.isnan(values) & raw.notna().to_numpy()
@@ -208,6 +216,7 @@ def _numeric(frame: pd.DataFrame, role: str, name: str, errors: list, allow_miss
 
 
 def _times(frame: pd.DataFrame, name: str, unit: str, errors: list) -> tuple[np.ndarray, str]:
+    import pandas as pd
     if unit != "datetime":
         return _numeric(frame, "t", name, errors, allow_missing=False) * TIME_UNITS[unit], ""
     stamps = pd.to_datetime(frame[name], errors="coerce")
@@ -243,6 +252,7 @@ def _present_roles(frame: pd.DataFrame, source: TrackSource, path: Path) -> dict
 
 def load_tracks(path, source: TrackSource) -> TrackTable:
     """Read ``path`` and convert it (see the module docstring); TrackError lists every bad cell."""
+    import pandas as pd
     path = Path(path)
     frame = read_table(path, source.format)
     roles = _present_roles(frame, source, path)
@@ -320,6 +330,7 @@ class RawFlock:
 
 
 def _sorted_ids(ids: np.ndarray) -> np.ndarray:
+    import pandas as pd
     unique = pd.unique(ids)
     try:
         return np.array(sorted(unique))
@@ -329,6 +340,7 @@ def _sorted_ids(ids: np.ndarray) -> np.ndarray:
 
 def raw_flocks(table: TrackTable) -> tuple[list[RawFlock], list[Issue]]:
     """The flocks of a table, in order of first appearance, and notes on rows that were out of order."""
+    import pandas as pd
     flocks, issues = [], []
     frame = table.frame
     for name, group in frame.groupby("flock", sort=False):
@@ -366,6 +378,7 @@ def tracks_frame(obs, flock: str) -> pd.DataFrame:
     """A simulator run's records as a long track table (flock, id, t, x, y, z, vx, vy, vz, pattern), in
     body lengths and seconds, one row per boid and record, record-major. Values are the simulator's own
     float64 numbers, so reading the table back gives them exactly."""
+    import pandas as pd
     n_records, n = obs.pos.shape[:2]
     return pd.DataFrame({
         "flock": flock,

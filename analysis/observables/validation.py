@@ -27,9 +27,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
+    import pandas as pd
 
 GAP_FACTOR = 1.5          # consecutive samples further apart than this many intervals make a gap
 SPEED_FACTOR = 10.0       # default max_speed: this many times the flock's median step speed
@@ -83,6 +86,7 @@ class TrackError(ValueError):
 
 
 def issues_table(issues, line_offset: int | None = None) -> pd.DataFrame:
+    import pandas as pd
     rows = [{"level": i.level, "check": i.check, "flock": i.flock, "id": i.id, "column": i.column,
              "rows": rows_text(i.rows, line_offset, limit=20).split(" ", 1)[-1] if i.rows else "",
              "detail": i.detail} for i in issues]

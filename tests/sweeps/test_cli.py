@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -77,3 +78,38 @@ def test_console_script_runs_in_a_fresh_process(tmp_path):
     png = tmp_path / "results" / "simulate" / "holland-seed0" / "traces.png"
     assert png.stat().st_size > 10_000
     assert str(Path("results/simulate/holland-seed0/traces.png")) in done.stdout
+
+
+HEAVY = ("pandas", "matplotlib", "pyarrow", "jinja2", "tqdm", "emcee", "SALib", "scipy.stats", "scipy.optimize",
+         "scipy.spatial", "scipy.sparse", "analysis.viewer", "analysis.reports", "analysis.calibration")
+
+
+def test_simulate_loads_only_what_it_needs(tmp_path):
+    """`flocksweep simulate` (no --plot, no --tracks) imports none of the table, plotting, report, viewer or
+    calibration libraries: a fresh process runs the command, then lists what it loaded. (numba itself
+    imports scipy.linalg for its BLAS bindings, so scipy's other subpackages are what is checked.)"""
+    code = ("import json, sys\nfrom sweeps.cli import main\n"
+            f"code = main(['simulate', {HOLLAND!r}, '--n', '3', '--duration', '0.016666666666666666'])\n"
+            "print(json.dumps([code, sorted(sys.modules)]))\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, env=env,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    status, modules = json.loads(done.stdout.strip().splitlines()[-1])
+    assert status == 0
+    assert "simcore.kernel" in modules                       # it did simulate
+    loaded = [m for m in modules if any(m == h or m.startswith(h + ".") for h in HEAVY)]
+    assert loaded == []
+
+
+def test_help_lists_every_command_and_each_command_declares_its_arguments(capsys):
+    from sweeps.cli import COMMANDS
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    listed = capsys.readouterr().out
+    assert all(name in listed for name in COMMANDS)
+    for name, option in (("view", "--animate"), ("measure", "--group-radius"), ("simulate", "--init-state")):
+        with pytest.raises(SystemExit):
+            main([name, "--help"])
+        assert option in capsys.readouterr().out
