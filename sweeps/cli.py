@@ -10,7 +10,8 @@
     flocksweep status DIR
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
-    flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
+    flocksweep calibrate CALIB.toml [--method emcee|optimize|emulator] [--set key=value ...] [--out DIR]
+                         [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
     flocksweep targets CALIB.toml --from-tracks [TRACKS]
@@ -264,7 +265,11 @@ def _add_calibrate(sub) -> None:
                                    "calibration TOML; writes the chain, posterior table, diagnostics and figures.")
     p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key of the calibration file, e.g. --set method.steps=500")
+                   help="override a key of the calibration file, e.g. --set method.steps=500 (a flat [method] "
+                        "table) or --set method.emcee.steps=500 (a [method.emcee] table)")
+    p.add_argument("--method", metavar="emcee|optimize|emulator",
+                   help="run this method with its [method.<name>] settings instead of the file's method.kind; "
+                        "its outputs go to results/calibration/<name>-<method> unless --out is given")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
     p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -284,8 +289,9 @@ def cmd_calibrate(args) -> int:
     check_out("--out", args.out)
     if args.scheduler is not None and args.executor != "dask":
         raise ConfigError("--scheduler", "only used with --executor dask")
-    config = load_calibration(args.config, args.overrides)
-    args.on_interrupt = lambda: resume_hint(args.config, args.out or Path("results") / "calibration" / config.name)
+    config = load_calibration(args.config, args.overrides, args.method)
+    command = f"{args.config} --method {args.method}" if args.method else args.config
+    args.on_interrupt = lambda: resume_hint(command, args.out or Path("results") / "calibration" / config.folder_name)
     result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
                              executor=args.executor, workers=args.workers, scheduler=args.scheduler)
     if result.optimum:

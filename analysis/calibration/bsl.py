@@ -4,7 +4,7 @@ Contract
 --------
 ``run_bsl(simulate_fn, observed, prior, *, walkers, steps, seed, path=None, resume=False,
 likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, executor=None,
-moves="stretch", meta=None) -> ChainResult``
+moves="stretch", meta=None, until_converged=False, check_every=50) -> ChainResult``
 
 * ``simulate_fn(theta, rng) -> (n_sim, k)`` summary table at ``theta`` (shape (d,)), using FRESH seeds
   drawn from the :class:`numpy.random.Generator` ``rng`` it is given (e.g. a
@@ -46,6 +46,8 @@ moves="stretch", meta=None) -> ChainResult``
   the noisy synthetic likelihood cannot keep a walker stuck. Rows already written keep the value they
   had; a walker that rejects its next proposal shows the re-evaluated value in the next row. This is
   the "noisy" (not pseudo-marginal exact) variant of BSL; 0 (default) never re-evaluates.
+* ``until_converged`` / ``check_every``: ``steps`` becomes a cap and the chain stops at the first
+  multiple of ``check_every`` rows where it is long enough (:func:`~analysis.calibration.mcmc.run_chain`).
 * ``progress(step, acceptance_fraction_mean, tau_estimate)`` is called after every ``progress_every``
   rows (default ``max(1, steps // 10)``) and after the last one; ``tau_estimate`` is the mean over
   parameters of emcee's integrated autocorrelation time of the second half of the rows so far (the
@@ -164,7 +166,7 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
             progress_every: int | None = None, executor=None, moves: str = "stretch",
-            meta: dict | None = None) -> ChainResult:
+            meta: dict | None = None, until_converged: bool = False, check_every: int = 50) -> ChainResult:
     """Run BSL-MCMC; see the module docstring for the full contract."""
     if likelihood not in METHODS:
         raise ValueError(f"likelihood: unknown method {likelihood!r}; allowed: {', '.join(METHODS)}")
@@ -179,4 +181,5 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
                      moves=moves,
                      progress=progress, progress_every=progress_every,
                      before_step=lambda t: logpost.begin(PHASE_PROPOSAL, t), refresh_every=reevaluate_every,
-                     refresh=lambda coords, t: logpost.evaluate_all(coords, PHASE_REEVALUATE, t))
+                     refresh=lambda coords, t: logpost.evaluate_all(coords, PHASE_REEVALUATE, t),
+                     until_converged=until_converged, check_every=check_every)

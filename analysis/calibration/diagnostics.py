@@ -20,6 +20,9 @@ Functions:
     sentences). ``burn`` defaults as in ``posterior_summary``. The autocorrelation time is estimated
     after the burn-in because the walkers' initial contraction from the prior would otherwise dominate
     the estimate (a chain that mixes well after 70 steps would look as if tau were twice its value).
+``long_enough(chain)``
+    the chain-length verdict of ``convergence`` alone (False for fewer than 4 rows): the rule a chain
+    run ``until_converged`` stops by.
 ``arviz_verdicts(diagnostics)``
     from ArviZ's per-parameter ``r_hat, ess_bulk, ess_tail`` (:func:`~.inference.arviz_diagnostics`):
     ``rhat_max``, ``ess_bulk_min``, ``ess_tail_min``, ``rhat_ok`` (max R-hat <= 1.01) and ``ess_ok``
@@ -203,6 +206,14 @@ def convergence(chain, acceptance, burn: int | None = None) -> dict:
         "acceptance": acc,
         "messages": messages,
     }
+
+
+def long_enough(chain) -> bool:
+    """``convergence(chain, nan)["long_enough"]``: at least 50 x the largest tau after the default burn-in."""
+    chain = np.asarray(chain, dtype=float)
+    if chain.ndim != 3 or chain.shape[0] < 4:
+        return False
+    return bool(convergence(chain, math.nan)["long_enough"])
 
 
 def arviz_verdicts(diagnostics: pd.DataFrame) -> dict:

@@ -195,7 +195,8 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
                     predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
                     scheduler: str | None = None) -> CalibrationRun:
     """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
-    folder = OutputFolder(Path(out_dir) if out_dir else Path("results") / "calibration" / config.name)
+    default = Path("results") / "calibration" / (config.folder_name or config.name)
+    folder = OutputFolder(Path(out_dir) if out_dir else default)
     chain_path = folder.path("chain.h5")
     if config.method.kind != "optimize" and chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
@@ -260,7 +261,8 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
                          walkers=settings.walkers, steps=settings.steps, seed=config.seed,
                          path=folder.path("chain.h5"), resume=resume, likelihood=settings.likelihood,
                          reevaluate_every=settings.reevaluate_every, moves=settings.moves, progress=bar.callback,
-                         executor=pool, meta=chain_meta(config))
+                         executor=pool, meta=chain_meta(config), until_converged=settings.until_converged,
+                         check_every=settings.check_every)
     return write_posterior(config, result, folder, pool, predictive_draws, started,
                            extra={"executor": pool.description})
 
