@@ -282,6 +282,7 @@ def _add_calibrate(sub) -> None:
 
 
 def cmd_calibrate(args) -> int:
+    from analysis.calibration.accounting import lines as cost_lines
     from analysis.calibration.config import load_calibration
     from analysis.calibration.run import resume_hint, run_calibration
 
@@ -303,6 +304,8 @@ def cmd_calibrate(args) -> int:
         print(result.summary.round(4).to_string())
     for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")
+    for line in cost_lines(result.report.get("accounting")):
+        print(f"  {line}")
     print(f"  wrote {result.out} (report: {result.paths['html']})")
     return 0
 
