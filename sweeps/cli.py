@@ -3,8 +3,8 @@
     flocksweep simulate MODEL.toml [--set key=value ...] [--seed S] [--n N] [--duration T] [--dt DT]
                         [--record-every STEPS] [--out DIR] [--tracks csv|parquet] [--plot]
                         [--color-by auto|boid|pattern]
-    flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
-                   [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
+    flocksweep run SWEEP.toml | --model MODEL.toml --axis KEY=VALUES ... [--name NAME]
+                   [--workers K] [--executor serial|local|dask] [--scheduler ADDR] [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
@@ -115,17 +115,27 @@ def cmd_simulate(args) -> int:
 
 
 def _add_run(sub) -> None:
-    p = sub.add_parser("run", help="run (or resume) a sweep from a sweep TOML",
-                       description="Run a parameter sweep. Finished runs are skipped (resume); results go "
-                                   "to results/<sweep name>/ unless --out is given.")
-    p.add_argument("sweep", help="sweep TOML, e.g. configs/sweeps/holland648.toml")
+    p = sub.add_parser("run", help="run (or resume) a sweep from a sweep TOML or --model with --axis",
+                       description="Run a parameter sweep. Finished runs are skipped (resume); results go to "
+                                   "results/<sweep name>/ unless --out is given. --model MODEL.toml --axis "
+                                   "KEY=VALUES ... instead of a file builds the sweep a file would and stores it, "
+                                   "resolved, as RESULTS/sweep.toml (rerun that file to reproduce it).")
+    p.add_argument("sweep", nargs="?", help="sweep TOML, e.g. configs/sweeps/holland648.toml")
+    p.add_argument("--model", help="instead of a sweep file: a model preset TOML, e.g. configs/models/holland.toml")
+    p.add_argument("--axis", action="append", default=[], metavar="KEY=VALUES",
+                   help="with --model, one axis of the grid (repeatable): KEY=V1,V2,... or "
+                        "KEY=linspace(START,STOP,NUM) or KEY=range(START,STOP,STEP), e.g. "
+                        "--axis perception.field_deg=30,90,180 --axis init.n=20,50")
+    p.add_argument("--name", help="with --model: the sweep's name (default <model>_<axis keys>)")
     p.add_argument("--workers", type=int, help="worker processes (default: all cores)")
     p.add_argument("--executor", choices=("serial", "local", "dask"), default="local",
                    help="local process pool (default), serial in this process, or dask")
     p.add_argument("--scheduler", metavar="ADDR", help="dask scheduler address; without it a LocalCluster starts")
     p.add_argument("--replicates", type=int, help="override the sweep's replicates")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key of the sweep file, e.g. --set run.duration=10 (repeatable)")
+                   help="override a key of the sweep (file or command line; repeatable): run.duration=10, "
+                        "seed=3, model.<preset key>=VALUE (a fixed model setting, e.g. "
+                        "model.perception.range=20; = model.set.<preset key>)")
     p.add_argument("--out", type=Path, help="results directory (default results/<sweep name>)")
     p.add_argument("--dry-run", action="store_true", help="print runs, done and estimated cost; run nothing")
     p.add_argument("--force", action="store_true", help="recompute every run, finished or not")
@@ -143,34 +153,23 @@ def _add_run(sub) -> None:
     p.add_argument("--yes", action="store_true", help=f"run a design of more than {100_000:,} runs")
 
 
-def _check_run_args(args) -> None:
-    check_workers(args.workers, args.executor)
-    check_count("--replicates", args.replicates, 1)
-    check_count("--batch-size", args.batch_size, 1)
-    check_count("--max-replicates", args.max_replicates, 1)
-    check_out("--out", args.out)
-    if args.scheduler is not None and args.executor != "dask":
-        raise ConfigError("--scheduler", "only applies with --executor dask")
-    if args.scheduler is not None and not args.scheduler.strip():
-        raise ConfigError("--scheduler", "got an empty address; expected tcp://HOST:PORT")
-
-
 def cmd_run(args) -> int:
-    from sweeps.config import load_sweep
+    from sweeps.command_line import check_run_args, sweep_from_args
     from sweeps.runner import resume_hint, run_sweep
 
-    _check_run_args(args)
+    check_run_args(args)
     until = parse_until_ci(args.until_ci) if args.until_ci else None
-    config = load_sweep(args.sweep, args.overrides, args.replicates)
+    config, args.sweep_text = sweep_from_args(args.sweep, args.model, args.axis, args.replicates, args.name,
+                                              args.overrides)
     out = args.out or Path("results") / config.name
-    args.on_interrupt = lambda: resume_hint(args.sweep, out)
+    args.on_interrupt = lambda: resume_hint(args.sweep or out / "sweep.toml", out)
     if args.until_ci and args.until_claims:
         raise ConfigError("--until-claims", "give either --until-ci or --until-claims, not both")
     if until:
         return run_until_ci_command(args, config, out, *until)
     if args.until_claims:
         return run_until_claims_command(args, config, out)
-    result = run_sweep(config, Path(args.sweep).read_text(encoding="utf-8"), out, args.executor, args.workers,
+    result = run_sweep(config, args.sweep_text, out, args.executor, args.workers,
                        args.scheduler, args.force, args.retry_failed, args.dry_run, not args.no_progress,
                        args.batch_size, yes=args.yes)
     plan = result.plan
