@@ -297,8 +297,9 @@ def cmd_calibrate(args) -> int:
     if result.optimum:
         opt = result.optimum
         print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))
+        se = float("nan") if opt["recheck_se"] is None else opt["recheck_se"]   # null: one batch
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
-              f"{opt['objective_recheck']:.4g} +- {opt['recheck_se']:.2g} re-checked with fresh seeds")
+              f"{opt['objective_recheck']:.4g} +- {se:.2g} re-checked with fresh seeds")
     else:
         print(result.summary.round(4).to_string())
     for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth

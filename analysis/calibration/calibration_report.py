@@ -121,6 +121,11 @@ def _emulator_blocks(outcome, folder) -> list:
     return blocks
 
 
+def _se(value) -> str:
+    """A re-check's standard error; None (JSON's null for nan) when one batch cannot give one."""
+    return "(no se: one batch)" if value is None or value != value else f"{value:.2g}"
+
+
 def _cost_blocks(block: dict | None) -> list:
     """The simulations this run made, by phase, and its likelihood evaluations and time."""
     if not block:
@@ -159,7 +164,7 @@ def calibration_report(config, outcome, folder) -> dict:
         optimum = pd.DataFrame([{"parameter": k, "optimum": v} for k, v in outcome.optimum["theta"].items()])
         blocks += [Heading("Optimum"), Table(optimum, "Optimum (optimum.json)"),
                    Para(f"Objective {outcome.optimum['objective_common_seeds']:.4g} with the search's common seeds, "
-                        f"{outcome.optimum['objective_recheck']:.4g} +- {outcome.optimum['recheck_se']:.2g} "
+                        f"{outcome.optimum['objective_recheck']:.4g} +- {_se(outcome.optimum['recheck_se'])} "
                         "re-checked with fresh seeds.")]
     if outcome.predictive is not None:
         blocks += [Heading("Posterior predictive check"),
