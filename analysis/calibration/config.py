@@ -57,7 +57,7 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     #           moves = "stretch" (emcee's default) | "de" (differential evolution + snooker)
     # optimize: algorithm = "differential_evolution" | "nelder_mead", objective = "loglik" (negative
     #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
-    # emcee:    ... until_converged = true (steps is then a cap; check_every = 50 steps)
+    # emcee:    ... until_converged = true (steps a cap: stop when 50 tau, R-hat, ESS hold; check_every = 50)
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
     #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps),

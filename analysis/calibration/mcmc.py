@@ -35,9 +35,10 @@ before_step=None, refresh_every=0, refresh=None, until_converged=False, check_ev
   multiple of ``refresh_every`` (0: never) - BSL's re-evaluation of the noisy likelihood.
 * ``until_converged``: ``steps`` is then a cap; after every row ``t`` that is a multiple of
   ``check_every`` (and before the first new row of a resume at such a row) the chain so far is judged by
-  the project's chain-length rule (:func:`~analysis.calibration.diagnostics.long_enough`: the rows after
-  the default burn-in are at least 50 x the largest integrated autocorrelation time estimated on them) and
-  the run stops at the first row where it holds. Stopping depends only on the rows, which are
+  the project's convergence verdicts that more steps can change
+  (:func:`~analysis.calibration.diagnostics.sampled_enough`: the rows after the default burn-in are at
+  least 50 x the largest integrated autocorrelation time estimated on them, and ArviZ's R-hat <= 1.01 and
+  bulk and tail ESS >= 400 with walkers as chains) and the run stops at the first row where they hold. Stopping depends only on the rows, which are
   bit-identical for the same arguments, so a resumed or repeated run stops at the same row.
 * ``progress(step, acceptance_fraction_mean, tau_estimate)`` after every ``progress_every`` rows
   (default ``max(1, steps // 10)``) and after the last; ``tau_estimate`` is :func:`progress_tau` of the
@@ -69,7 +70,7 @@ from sweeps.seeds import Tag, generator, seed_sequence
 
 from .chainfile import ChainFile, differences, stored_attrs
 from .checks import integer
-from .diagnostics import integrated_times, long_enough
+from .diagnostics import integrated_times, sampled_enough
 
 GROUP = "mcmc"
 MOVES = ("stretch", "de")
@@ -200,7 +201,7 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
     check_initial = start == 0
 
     def converged() -> bool:
-        return bool(check_every and t > 0 and t % check_every == 0 and long_enough(sampler.backend.get_chain()))
+        return bool(check_every and t > 0 and t % check_every == 0 and sampled_enough(sampler.backend.get_chain()))
 
     done = converged()
     while t < steps and not done:

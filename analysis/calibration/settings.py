@@ -45,7 +45,7 @@ class EmceeSettings(ChainSettings):
 
     kind: ClassVar[str] = "emcee"
     reevaluate_every: int = 0
-    until_converged: bool = False   # steps is then a cap: stop when the chain is >= 50 tau long
+    until_converged: bool = False   # steps is then a cap: stop at >= 50 tau, R-hat <= 1.01, ESS >= 400
     check_every: int = 50           # ... judged after every this many steps
 
     def __post_init__(self):

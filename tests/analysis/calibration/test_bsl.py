@@ -192,15 +192,15 @@ def gaussian_chain(steps, path=None, resume=False, **kw):
 
 
 @pytest.mark.slow
-def test_until_converged_stops_at_the_first_long_enough_check_and_is_resumable(tmp_path):
-    from analysis.calibration.diagnostics import long_enough
+def test_until_converged_stops_at_the_first_check_where_the_verdicts_hold_and_is_resumable(tmp_path):
+    from analysis.calibration.diagnostics import sampled_enough
 
     capped = gaussian_chain(5000, until_converged=True, check_every=20)
     stopped = capped.chain.shape[0]
     assert 100 <= stopped < 5000 and stopped % 20 == 0
-    # the rule holds at the stopping row and at no earlier check: the independent verdict on the prefixes
-    assert long_enough(capped.chain)
-    assert not any(long_enough(capped.chain[:t]) for t in range(20, stopped, 20))
+    # the verdicts (50 tau, R-hat, ESS) hold at the stopping row and at no earlier check: judged on the prefixes
+    assert sampled_enough(capped.chain)
+    assert not any(sampled_enough(capped.chain[:t]) for t in range(20, stopped, 20))
     # the same rows as a fixed-length chain of that many steps (stopping changes the length, nothing else)
     assert same(capped, gaussian_chain(stopped))
     # resumed from a shorter file it stops at the same row with the same chain; a stopped file runs nothing
