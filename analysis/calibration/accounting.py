@@ -6,6 +6,7 @@ Contract
 (simulated runs: rows a simulator returned) and ``evaluations`` (synthetic-likelihood or objective
 evaluations, each ``n_sim`` runs) under ``phase``, one of :data:`PHASES`:
 
+* ``observed``: SBC's synthetic observed datasets (one per dataset);
 * ``initial``: the emcee walkers' starting points (and their redraws);
 * ``search``: emcee's proposals, or the optimiser's evaluations (common seeds), or, for the emulator,
   none (the emulator's chain runs no simulation);
@@ -19,6 +20,9 @@ Only what this invocation ran is counted: a resumed chain's earlier steps are no
 from which step it went on), and the sweep runs an emulator was trained on are reported apart
 (``training_runs_reused``, run before, by the sweep).
 
+``total_simulations(blocks) -> dict``: the phase-wise sum of several blocks' ``simulations`` (SBC's
+datasets), ``total`` included.
+
 ``block(**extra) -> dict`` is the ``accounting`` entry of ``convergence.json`` / ``optimum.json``:
 ``simulations`` (per phase and ``total``), ``likelihood_evaluations`` (per phase and ``total``),
 ``wall_s``, ``cpu_s`` (this process's CPU time; worker processes' not included), ``simulations_per_s``,
@@ -28,7 +32,7 @@ from __future__ import annotations
 
 import time
 
-PHASES = ("initial", "search", "reevaluation", "predictive", "recheck", "confirmation", "refinement")
+PHASES = ("observed", "initial", "search", "reevaluation", "predictive", "recheck", "confirmation", "refinement")
 
 
 class Accounting:
@@ -55,6 +59,15 @@ class Accounting:
                 "likelihood_evaluations": {**evals, "total": sum(evals.values())},
                 "wall_s": wall, "cpu_s": time.process_time() - self.cpu_started,
                 "simulations_per_s": total / wall if wall > 0 else None, **extra}
+
+
+def total_simulations(blocks) -> dict:
+    """Phase-wise sum of the ``simulations`` of several accounting blocks (see the module docstring)."""
+    out = {}
+    for block in blocks:
+        for phase, count in block.items():
+            out[phase] = out.get(phase, 0) + int(count)
+    return out
 
 
 def lines(block: dict | None) -> list[str]:
