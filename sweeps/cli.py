@@ -260,8 +260,9 @@ def cmd_report(args) -> int:
 
 def _add_calibrate(sub) -> None:
     p = sub.add_parser("calibrate", help="fit model parameters to target flock statistics",
-                       description="Bayesian synthetic-likelihood MCMC (emcee) of the free parameters of a "
-                                   "calibration TOML; writes the chain, posterior table, diagnostics and figures.")
+                       description="Fit the free parameters of a calibration TOML with its method (emcee BSL, "
+                                   "optimize or emulator; --method picks another the file has settings for); "
+                                   "writes the posterior or optimum, diagnostics, figures and the cost.")
     p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of the calibration file, e.g. --set method.steps=500 (a flat [method] "

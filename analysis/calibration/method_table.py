@@ -48,8 +48,8 @@ class MethodChoice:
 
 def _switch_hint(owner: str) -> str:
     return (f"; the flat [method] keys are the settings of kind = {owner!r}: to run another method use "
-            f"flocksweep calibrate FILE --method NAME, and keep settings for several methods in "
-            f"[method.{owner}], [method.optimize], ... tables")
+            "flocksweep calibrate FILE --method NAME, and keep settings for several methods in "
+            "[method.emcee], [method.optimize], ... tables")
 
 
 def _checked(cls, data: dict, from_flat, kind: str, base: Path, dim: int, k: int) -> MethodSettings:
