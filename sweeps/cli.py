@@ -3,15 +3,16 @@
     flocksweep simulate MODEL.toml [--set key=value ...] [--seed S] [--n N] [--duration T] [--dt DT]
                         [--record-every STEPS] [--out DIR] [--tracks csv|parquet] [--plot]
                         [--color-by auto|boid|pattern]
-    flocksweep run SWEEP.toml [--workers K] [--executor serial|local|dask] [--scheduler ADDR]
-                   [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
+    flocksweep run SWEEP.toml | --model MODEL.toml --axis KEY=VALUES ... [--name NAME]
+                   [--workers K] [--executor serial|local|dask] [--scheduler ADDR] [--replicates R] [--set key=value ...] [--out DIR] [--dry-run] [--force]
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
     flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
-    flocksweep calibrate CALIB.toml [--set key=value ...] [--out DIR] [--resume] [--no-progress]
+    flocksweep calibrate CALIB.toml [--method emcee|optimize|emulator] [--set key=value ...] [--out DIR]
+                         [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
     flocksweep targets CALIB.toml --from-tracks [TRACKS]
@@ -127,17 +128,27 @@ def cmd_simulate(args) -> int:
 
 
 def _add_run(sub) -> None:
-    p = sub.add_parser("run", help="run (or resume) a sweep from a sweep TOML",
-                       description="Run a parameter sweep. Finished runs are skipped (resume); results go "
-                                   "to results/<sweep name>/ unless --out is given.")
-    p.add_argument("sweep", help="sweep TOML, e.g. configs/sweeps/holland648.toml")
+    p = sub.add_parser("run", help="run (or resume) a sweep from a sweep TOML or --model with --axis",
+                       description="Run a parameter sweep. Finished runs are skipped (resume); results go to "
+                                   "results/<sweep name>/ unless --out is given. --model MODEL.toml --axis "
+                                   "KEY=VALUES ... instead of a file builds the sweep a file would and stores it, "
+                                   "resolved, as RESULTS/sweep.toml (rerun that file to reproduce it).")
+    p.add_argument("sweep", nargs="?", help="sweep TOML, e.g. configs/sweeps/holland648.toml")
+    p.add_argument("--model", help="instead of a sweep file: a model preset TOML, e.g. configs/models/holland.toml")
+    p.add_argument("--axis", action="append", default=[], metavar="KEY=VALUES",
+                   help="with --model, one axis of the grid (repeatable): KEY=V1,V2,... or "
+                        "KEY=linspace(START,STOP,NUM) or KEY=range(START,STOP,STEP), e.g. "
+                        "--axis perception.field_deg=30,90,180 --axis init.n=20,50")
+    p.add_argument("--name", help="with --model: the sweep's name (default <model>_<axis keys>)")
     p.add_argument("--workers", type=int, help="worker processes (default: all cores)")
     p.add_argument("--executor", choices=("serial", "local", "dask"), default="local",
                    help="local process pool (default), serial in this process, or dask")
     p.add_argument("--scheduler", metavar="ADDR", help="dask scheduler address; without it a LocalCluster starts")
     p.add_argument("--replicates", type=int, help="override the sweep's replicates")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key of the sweep file, e.g. --set run.duration=10 (repeatable)")
+                   help="override a key of the sweep (file or command line; repeatable): run.duration=10, "
+                        "seed=3, model.<preset key>=VALUE (a fixed model setting, e.g. "
+                        "model.perception.range=20; = model.set.<preset key>)")
     p.add_argument("--out", type=Path, help="results directory (default results/<sweep name>)")
     p.add_argument("--dry-run", action="store_true", help="print runs, done and estimated cost; run nothing")
     p.add_argument("--force", action="store_true", help="recompute every run, finished or not")
@@ -155,34 +166,23 @@ def _add_run(sub) -> None:
     p.add_argument("--yes", action="store_true", help=f"run a design of more than {100_000:,} runs")
 
 
-def _check_run_args(args) -> None:
-    check_workers(args.workers, args.executor)
-    check_count("--replicates", args.replicates, 1)
-    check_count("--batch-size", args.batch_size, 1)
-    check_count("--max-replicates", args.max_replicates, 1)
-    check_out("--out", args.out)
-    if args.scheduler is not None and args.executor != "dask":
-        raise ConfigError("--scheduler", "only applies with --executor dask")
-    if args.scheduler is not None and not args.scheduler.strip():
-        raise ConfigError("--scheduler", "got an empty address; expected tcp://HOST:PORT")
-
-
 def cmd_run(args) -> int:
-    from sweeps.config import load_sweep
+    from sweeps.command_line import check_run_args, sweep_from_args
     from sweeps.runner import resume_hint, run_sweep
 
-    _check_run_args(args)
+    check_run_args(args)
     until = parse_until_ci(args.until_ci) if args.until_ci else None
-    config = load_sweep(args.sweep, args.overrides, args.replicates)
+    config, args.sweep_text = sweep_from_args(args.sweep, args.model, args.axis, args.replicates, args.name,
+                                              args.overrides)
     out = args.out or Path("results") / config.name
-    args.on_interrupt = lambda: resume_hint(args.sweep, out)
+    args.on_interrupt = lambda: resume_hint(args.sweep or out / "sweep.toml", out)
     if args.until_ci and args.until_claims:
         raise ConfigError("--until-claims", "give either --until-ci or --until-claims, not both")
     if until:
         return run_until_ci_command(args, config, out, *until)
     if args.until_claims:
         return run_until_claims_command(args, config, out)
-    result = run_sweep(config, Path(args.sweep).read_text(encoding="utf-8"), out, args.executor, args.workers,
+    result = run_sweep(config, args.sweep_text, out, args.executor, args.workers,
                        args.scheduler, args.force, args.retry_failed, args.dry_run, not args.no_progress,
                        args.batch_size, yes=args.yes)
     plan = result.plan
@@ -273,11 +273,16 @@ def cmd_report(args) -> int:
 
 def _add_calibrate(sub) -> None:
     p = sub.add_parser("calibrate", help="fit model parameters to target flock statistics",
-                       description="Bayesian synthetic-likelihood MCMC (emcee) of the free parameters of a "
-                                   "calibration TOML; writes the chain, posterior table, diagnostics and figures.")
+                       description="Fit the free parameters of a calibration TOML with its method (emcee BSL, "
+                                   "optimize or emulator; --method picks another the file has settings for); "
+                                   "writes the posterior or optimum, diagnostics, figures and the cost.")
     p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key of the calibration file, e.g. --set method.steps=500")
+                   help="override a key of the calibration file, e.g. --set method.steps=500 (a flat [method] "
+                        "table) or --set method.emcee.steps=500 (a [method.emcee] table)")
+    p.add_argument("--method", metavar="emcee|optimize|emulator",
+                   help="run this method with its [method.<name>] settings instead of the file's method.kind; "
+                        "its outputs go to results/calibration/<name>-<method> unless --out is given")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
     p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -290,6 +295,7 @@ def _add_calibrate(sub) -> None:
 
 
 def cmd_calibrate(args) -> int:
+    from analysis.calibration.accounting import lines as cost_lines
     from analysis.calibration.config import load_calibration
     from analysis.calibration.run import resume_hint, run_calibration
 
@@ -297,19 +303,23 @@ def cmd_calibrate(args) -> int:
     check_out("--out", args.out)
     if args.scheduler is not None and args.executor != "dask":
         raise ConfigError("--scheduler", "only used with --executor dask")
-    config = load_calibration(args.config, args.overrides)
-    args.on_interrupt = lambda: resume_hint(args.config, args.out or Path("results") / "calibration" / config.name)
+    config = load_calibration(args.config, args.overrides, args.method)
+    command = f"{args.config} --method {args.method}" if args.method else args.config
+    args.on_interrupt = lambda: resume_hint(command, args.out or Path("results") / "calibration" / config.folder_name)
     result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
                              executor=args.executor, workers=args.workers, scheduler=args.scheduler)
     if result.optimum:
         opt = result.optimum
         print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))
+        se = float("nan") if opt["recheck_se"] is None else opt["recheck_se"]   # null: one batch
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
-              f"{opt['objective_recheck']:.4g} +- {opt['recheck_se']:.2g} re-checked with fresh seeds")
+              f"{opt['objective_recheck']:.4g} +- {se:.2g} re-checked with fresh seeds")
     else:
         print(result.summary.round(4).to_string())
     for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")
+    for line in cost_lines(result.report.get("accounting")):
+        print(f"  {line}")
     print(f"  wrote {result.out} (report: {result.paths['html']})")
     return 0
 

@@ -7,7 +7,6 @@ rounds through :func:`sweeps.runner.run_until` and returns the command's exit st
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 from simcore.schema import ConfigError, suggest
 
@@ -54,7 +53,7 @@ def run_until_ci_command(args, config, out, metric: str, target: float) -> int:
         raise ConfigError("--until-ci", "cannot be combined with --dry-run (the rounds depend on the results)")
     print(f"{config.name}: adding replicates until the 95% CI half-width of {metric} <= {target:g} "
           f"(at most {args.max_replicates} per cell)")
-    result = run_until_ci(config, Path(args.sweep).read_text(), out, metric, target, args.max_replicates,
+    result = run_until_ci(config, args.sweep_text, out, metric, target, args.max_replicates,
                           executor=args.executor, workers=args.workers, scheduler=args.scheduler,
                           force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
                           batch_size=args.batch_size, yes=args.yes)
@@ -70,7 +69,7 @@ def run_until_claims_command(args, config, out) -> int:
     from sweeps.runner import run_until
 
     if not config.claims:
-        raise ConfigError("--until-claims", f"{args.sweep} declares no claims ([[claims]] or include_claims)")
+        raise ConfigError("--until-claims", f"{args.sweep or 'the sweep'} declares no claims ([[claims]] or include_claims)")
     if args.max_replicates < config.replicates:
         raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
     if args.dry_run:
@@ -78,7 +77,7 @@ def run_until_claims_command(args, config, out) -> int:
     print(f"{config.name}: adding replicates where a claim is undecided (at most {args.max_replicates} per cell); "
           f"claims {', '.join(c.id for c in config.claims)}")
     factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership).factors
-    result = run_until(config, Path(args.sweep).read_text(encoding="utf-8"), out,
+    result = run_until(config, args.sweep_text, out,
                        claims_rule(config.claims, factors), args.max_replicates, executor=args.executor,
                        workers=args.workers, scheduler=args.scheduler, force=args.force,
                        retry_failed=args.retry_failed, progress=not args.no_progress, batch_size=args.batch_size,

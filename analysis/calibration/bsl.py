@@ -4,7 +4,7 @@ Contract
 --------
 ``run_bsl(simulate_fn, observed, prior, *, walkers, steps, seed, path=None, resume=False,
 likelihood="gaussian", reevaluate_every=0, progress=None, progress_every=None, executor=None,
-moves="stretch", meta=None) -> ChainResult``
+moves="stretch", meta=None, until_converged=False, check_every=50, count=None) -> ChainResult``
 
 * ``simulate_fn(theta, rng) -> (n_sim, k)`` summary table at ``theta`` (shape (d,)), using FRESH seeds
   drawn from the :class:`numpy.random.Generator` ``rng`` it is given (e.g. a
@@ -46,6 +46,12 @@ moves="stretch", meta=None) -> ChainResult``
   the noisy synthetic likelihood cannot keep a walker stuck. Rows already written keep the value they
   had; a walker that rejects its next proposal shows the re-evaluated value in the next row. This is
   the "noisy" (not pseudo-marginal exact) variant of BSL; 0 (default) never re-evaluates.
+* ``count(phase, simulations, evaluations)`` (optional) is called in this process after each evaluation
+  that simulated (points outside the prior's support are not), with ``phase`` ``"initial"``,
+  ``"search"`` or ``"reevaluation"``, the rows ``simulate_fn`` returned and 1
+  (:class:`~analysis.calibration.accounting.Accounting.add`).
+* ``until_converged`` / ``check_every``: ``steps`` becomes a cap and the chain stops at the first
+  multiple of ``check_every`` rows where it is long enough (:func:`~analysis.calibration.mcmc.run_chain`).
 * ``progress(step, acceptance_fraction_mean, tau_estimate)`` is called after every ``progress_every``
   rows (default ``max(1, steps // 10)``) and after the last one; ``tau_estimate`` is the mean over
   parameters of emcee's integrated autocorrelation time of the second half of the rows so far (the
@@ -71,6 +77,7 @@ from .likelihood import METHODS, min_replicates, synthetic_loglik
 from .mcmc import ChainResult, run_chain
 
 PHASE_INITIAL, PHASE_PROPOSAL, PHASE_REEVALUATE = 0, 1, 2
+PHASE_NAMES = {PHASE_INITIAL: "initial", PHASE_PROPOSAL: "search", PHASE_REEVALUATE: "reevaluation"}
 MAX_INITIAL_ATTEMPTS = 100
 
 
@@ -88,8 +95,9 @@ class _LogPosterior:
     the current (phase, step) gets the seed key ``(seed, Tag.EVALUATION, phase, step, i)``. The points
     inside the prior's support are simulated through ``executor.map`` (one task each, in order)."""
 
-    def __init__(self, simulate_fn, observed, prior, seed: int, likelihood: str, executor=None):
+    def __init__(self, simulate_fn, observed, prior, seed: int, likelihood: str, executor=None, count=None):
         self.simulate_fn = simulate_fn
+        self.count = count
         self.observed = observed
         self.prior = prior
         self.seed = seed
@@ -124,6 +132,8 @@ class _LogPosterior:
         tasks = [(coords[j].copy(), (self.seed, Tag.EVALUATION, self.phase, self.step, int(indices[j])))
                  for j in inside]
         for j, sims in zip(inside, self._map(tasks)):
+            if self.count is not None:
+                self.count(PHASE_NAMES[self.phase], int(np.shape(sims)[0]), 1)
             out[j] = log_prior[j] + self._loglik(sims)
         return out
 
@@ -164,13 +174,14 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
             path: str | os.PathLike | None = None, resume: bool = False, likelihood: str = "gaussian",
             reevaluate_every: int = 0, progress: Callable | None = None,
             progress_every: int | None = None, executor=None, moves: str = "stretch",
-            meta: dict | None = None) -> ChainResult:
+            meta: dict | None = None, until_converged: bool = False, check_every: int = 50,
+            count: Callable | None = None) -> ChainResult:
     """Run BSL-MCMC; see the module docstring for the full contract."""
     if likelihood not in METHODS:
         raise ValueError(f"likelihood: unknown method {likelihood!r}; allowed: {', '.join(METHODS)}")
     seed = integer(seed, "seed", 0)
     reevaluate_every = integer(reevaluate_every, "reevaluate_every", 0)
-    logpost = _LogPosterior(simulate_fn, np.asarray(observed, dtype=float), prior, seed, likelihood, executor)
+    logpost = _LogPosterior(simulate_fn, np.asarray(observed, dtype=float), prior, seed, likelihood, executor, count)
     meta = {**(meta or {}), "bsl_seed": seed, "bsl_likelihood": likelihood,
             "bsl_reevaluate_every": reevaluate_every, "bsl_moves": moves}
     return run_chain(logpost, prior, walkers=walkers, steps=steps, seed=seed, initial=logpost.initial,
@@ -179,4 +190,5 @@ def run_bsl(simulate_fn: Callable, observed, prior, *, walkers: int, steps: int,
                      moves=moves,
                      progress=progress, progress_every=progress_every,
                      before_step=lambda t: logpost.begin(PHASE_PROPOSAL, t), refresh_every=reevaluate_every,
-                     refresh=lambda coords, t: logpost.evaluate_all(coords, PHASE_REEVALUATE, t))
+                     refresh=lambda coords, t: logpost.evaluate_all(coords, PHASE_REEVALUATE, t),
+                     until_converged=until_converged, check_every=check_every)

@@ -26,6 +26,8 @@ from analysis.reports.document import Figure, Heading, Para, Table, to_html, to_
 from analysis.reports.labels import parameter_label
 from simcore.schema import to_dict
 
+from .accounting import lines
+
 P_TAIL = 0.05
 
 
@@ -119,6 +121,25 @@ def _emulator_blocks(outcome, folder) -> list:
     return blocks
 
 
+def _se(value) -> str:
+    """A re-check's standard error; None (JSON's null for nan) when one batch cannot give one."""
+    return "(no se: one batch)" if value is None or value != value else f"{value:.2g}"
+
+
+def _cost_blocks(block: dict | None) -> list:
+    """The simulations this run made, by phase, and its likelihood evaluations and time."""
+    if not block:
+        return []
+    evaluations = block["likelihood_evaluations"]
+    rows = [{"phase": phase, "simulations": count, "likelihood evaluations": evaluations.get(phase, 0)}
+            for phase, count in block["simulations"].items() if phase != "total"]
+    rows.append({"phase": "total", "simulations": block["simulations"]["total"],
+                 "likelihood evaluations": block["likelihood_evaluations"]["total"]})
+    return [Heading("Cost"), Table(pd.DataFrame(rows), "Simulations run by this calibration, by phase "
+                                                       "(convergence.json / optimum.json: accounting)"),
+            Para(" ".join(lines(block)))]
+
+
 def calibration_report(config, outcome, folder) -> dict:
     """Write report.html and report.md (see the module docstring)."""
     report = outcome.report
@@ -143,7 +164,7 @@ def calibration_report(config, outcome, folder) -> dict:
         optimum = pd.DataFrame([{"parameter": k, "optimum": v} for k, v in outcome.optimum["theta"].items()])
         blocks += [Heading("Optimum"), Table(optimum, "Optimum (optimum.json)"),
                    Para(f"Objective {outcome.optimum['objective_common_seeds']:.4g} with the search's common seeds, "
-                        f"{outcome.optimum['objective_recheck']:.4g} +- {outcome.optimum['recheck_se']:.2g} "
+                        f"{outcome.optimum['objective_recheck']:.4g} +- {_se(outcome.optimum['recheck_se'])} "
                         "re-checked with fresh seeds.")]
     if outcome.predictive is not None:
         blocks += [Heading("Posterior predictive check"),
@@ -151,6 +172,7 @@ def calibration_report(config, outcome, folder) -> dict:
                                                            "two-sided tail probability)")]
         blocks += _figure(folder, "predictive.png", "Predictive distribution of each target, the observed value in red.")
     blocks += _emulator_blocks(outcome, folder)
+    blocks += _cost_blocks(report.get("accounting"))
     blocks += [Heading("Settings")] + _settings_tables(config)
     provenance = pd.DataFrame([{"item": "git revision", "value": report.get("git_revision")},
                                {"item": "model version", "value": report.get("model_version")},

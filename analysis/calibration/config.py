@@ -57,18 +57,21 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     #           moves = "stretch" (emcee's default) | "de" (differential evolution + snooker)
     # optimize: algorithm = "differential_evolution" | "nelder_mead", objective = "loglik" (negative
     #           synthetic log posterior) | "distance" (standardised distance), maxiter, popsize, recheck
+    # emcee:    ... until_converged = true (steps a cap: stop when 50 tau, R-hat, ESS hold; check_every = 50)
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
     #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps),
     #           refine = { rounds = R, runs_per_round = M } (sequential design: new sweep points where
     #           the posterior and the emulator's uncertainty are, until the confirmation passes)
+    # [method.emcee], [method.optimize], [method.emulator]: settings for several methods in one file;
+    # kind picks the default, --method another (analysis/calibration/method_table.py)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
 ``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
 
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
-preset the same way. ``[method]`` becomes typed settings per kind (:mod:`analysis.calibration.settings`:
+preset the same way. ``[method]`` (:mod:`analysis.calibration.method_table`) becomes typed settings per kind (:mod:`analysis.calibration.settings`:
 ``EmceeSettings``, ``OptimizeSettings`` or ``EmulatorSettings``; ``config.method.kind`` names it).
 
 Parameter keys are checked by setting each parameter to its prior mean (integer keys rounded) with
@@ -97,15 +100,15 @@ from analysis.observables.metrics import METRIC_NAMES
 from analysis.observables.observation import Observation
 from analysis.observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
-from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_choice, get_dotted, read_config,
-                            resolve_path, suggest)
+from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, read_config, resolve_path,
+                            suggest)
 from sweeps.config import ModelTable, RunTable, check_name, check_no_encounter_settings, check_window, model_data
 from sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
-from .likelihood import min_replicates
 from .priors import JointPrior, Normal, prior_from_dict
-from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
+from .method_table import chosen_kind, method_settings
+from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
 STAT_NAMES = tuple(METRIC_NAMES) + tuple(LEADERSHIP_METRIC_NAMES)
@@ -144,7 +147,8 @@ class CalibrationFile:
         metadata={"expected": "at least one [parameters.<name>] table with key and prior"})
     targets: TargetsTable = field(
         metadata={"expected": "a table: [targets] stats and mean/sd (or cov) or samples"})
-    method: dict = field(metadata={"expected": "a table: [method] kind = \"emcee\", \"optimize\" or \"emulator\""})
+    method: dict = field(metadata={"expected": "a table: [method] kind = \"emcee\", \"optimize\" or \"emulator\" "
+                                               "(and/or [method.emcee], [method.optimize], ... tables)"})
     description: str = ""
     seed: int = 0
     run: RunTable = field(default_factory=RunTable)
@@ -202,6 +206,8 @@ class CalibrationConfig(FileConfig, loader="load_calibration"):   # CalibrationC
     method: MethodSettings | None = None
     source: dict = field(default_factory=dict, repr=False, compare=False, hash=False)  # file as given (+ overrides)
     observation: Observation | None = None   # how the targets were measured; simulated runs are measured alike
+    folder_name: str = ""    # results/calibration/<folder_name>: the name, with -<kind> for another method than the file's
+    methods: tuple[str, ...] = ()   # the methods the file holds settings for
 
     @property
     def warmup(self) -> float:
@@ -429,39 +435,15 @@ def _read_samples(path: Path, stats, columns) -> np.ndarray:
     return observed
 
 
-def _method(table: dict, base: Path, dim: int, k: int) -> MethodSettings:
-    if "kind" not in table:
-        raise ConfigError("method.kind", f"missing required key; allowed: {', '.join(METHODS)}")
-    check_choice("method.kind", table["kind"], tuple(METHODS))
-    cls = METHODS[table["kind"]]
-    settings = build(cls, {key: value for key, value in table.items() if key != "kind"}, "method")
-    need = min_replicates(k, settings.likelihood)
-    if settings.n_sim < need:
-        raise ConfigError("method.n_sim", f"got {settings.n_sim}; the {settings.likelihood} synthetic likelihood "
-                                          f"needs at least {need} replicates for {k} stats (n_sim >= k + {need - k})")
-    changes = {}
-    if isinstance(settings, ChainSettings):
-        walkers = max(16, 2 * dim) if settings.walkers is None else settings.walkers
-        if walkers < 2 * dim:
-            raise ConfigError("method.walkers", f"got {walkers}; need at least 2 x {dim} parameters = {2 * dim}")
-        if walkers % 2:
-            raise ConfigError("method.walkers", f"got {walkers}; must be even")
-        changes["walkers"] = walkers
-    if isinstance(settings, EmulatorSettings):
-        changes["results"] = resolve_path(str(settings.results), base, "method.results", "results folder",
-                                          must_exist=False)
-    return dataclasses.replace(settings, **changes)
-
-
 # -------------------------------------------------------------------------------------------- public
 
-def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path
+def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path, kind: str
                       ) -> tuple[Targets, MetricSettings]:
     """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
     metrics = table.run.metrics(leadership=False)
     stats = _stats(table.targets)
     if table.observation is not None:
-        check_observation(table.observation, preset, table.run, stats, table.method.get("kind"))
+        check_observation(table.observation, preset, table.run, stats, kind)
     if table.targets.from_tracks is None:
         targets = _targets(table.targets, base)
     else:
@@ -476,25 +458,28 @@ def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: 
     return targets, metrics
 
 
-def calibration_from_dict(data: dict, base: Path) -> CalibrationConfig:
-    """Validated calibration from a parsed TOML dict; ``base`` is the folder relative paths start from."""
+def calibration_from_dict(data: dict, base: Path, method: str | None = None) -> CalibrationConfig:
+    """Validated calibration from a parsed TOML dict; ``base`` is the folder relative paths start from;
+    ``method`` picks one of the methods the file holds settings for (default: its ``method.kind``)."""
     table = build(CalibrationFile, data)
     base = Path(base)
     preset_path, preset_data, preset = _model_and_run(table, base)
     parameters, joint = _parameters(table, preset)
-    targets, metrics = _observed_targets(table, preset, parameters, base)
+    targets, metrics = _observed_targets(table, preset, parameters, base, chosen_kind(table.method, method))
     targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
-    method = _method(table.method, base, len(parameters), targets.k)
-    check_memory(preset, parameters, method.n_sim)
+    choice = method_settings(table.method, base, len(parameters), targets.k, method)
+    check_memory(preset, parameters, choice.settings.n_sim)
     return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=metrics, parameters=parameters, prior=joint,
-                             targets=targets, method=method, source=data, observation=table.observation)
+                             targets=targets, method=choice.settings, source=data, observation=table.observation,
+                             folder_name=table.name if choice.own else f"{table.name}-{choice.kind}",
+                             methods=choice.available)
 
 
-def load_calibration(path, overrides=()) -> CalibrationConfig:
+def load_calibration(path, overrides=(), method: str | None = None) -> CalibrationConfig:
     """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys; ``model.<preset
-    key>`` is short for ``model.set.<preset key>``), validate."""
+    key>`` is short for ``model.set.<preset key>``), pick ``method`` (default: the file's kind), validate."""
     path = Path(path)
     return calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
-                                 path.resolve().parent)
+                                 path.resolve().parent, method)

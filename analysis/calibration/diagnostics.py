@@ -20,6 +20,16 @@ Functions:
     sentences). ``burn`` defaults as in ``posterior_summary``. The autocorrelation time is estimated
     after the burn-in because the walkers' initial contraction from the prior would otherwise dominate
     the estimate (a chain that mixes well after 70 steps would look as if tau were twice its value).
+``long_enough(chain)``
+    the chain-length verdict of ``convergence`` alone (False for fewer than 4 rows).
+``sampled_enough(chain)``
+    the verdicts a longer chain can change, as ``convergence.json`` computes them: ``long_enough`` and,
+    on the rows after the default burn-in with walkers as chains, ArviZ's largest R-hat <= 1.01 and
+    smallest bulk and tail ESS >= 400 (:func:`chain_ess_rhat`): the rule a chain run
+    ``until_converged`` stops by. Acceptance is left out (more steps do not change it).
+``chain_ess_rhat(chain, names=None)``
+    ArviZ's ``r_hat``, ``ess_bulk``, ``ess_tail`` per parameter of a chain (steps, walkers, d), walkers
+    as chains (the numbers ``arviz.summary`` gives for the posterior.nc of that chain).
 ``arviz_verdicts(diagnostics)``
     from ArviZ's per-parameter ``r_hat, ess_bulk, ess_tail`` (:func:`~.inference.arviz_diagnostics`):
     ``rhat_max``, ``ess_bulk_min``, ``ess_tail_min``, ``rhat_ok`` (max R-hat <= 1.01) and ``ess_ok``
@@ -203,6 +213,37 @@ def convergence(chain, acceptance, burn: int | None = None) -> dict:
         "acceptance": acc,
         "messages": messages,
     }
+
+
+def long_enough(chain) -> bool:
+    """``convergence(chain, nan)["long_enough"]``: at least 50 x the largest tau after the default burn-in."""
+    chain = np.asarray(chain, dtype=float)
+    if chain.ndim != 3 or chain.shape[0] < 4:
+        return False
+    return bool(convergence(chain, math.nan)["long_enough"])
+
+
+def chain_ess_rhat(chain, names: Sequence[str] | None = None) -> pd.DataFrame:
+    """ArviZ's R-hat and bulk/tail ESS per parameter, walkers as chains (see the module docstring)."""
+    import arviz as az   # heavy: loaded when a verdict needs it
+
+    chain = _chain(chain)
+    names = _names(names, chain.shape[2])
+    data = az.convert_to_dataset({n: np.swapaxes(chain[:, :, j], 0, 1) for j, n in enumerate(names)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rhat, bulk, tail = az.rhat(data), az.ess(data, method="bulk"), az.ess(data, method="tail")
+    return pd.DataFrame({"r_hat": [float(rhat[n]) for n in names], "ess_bulk": [float(bulk[n]) for n in names],
+                         "ess_tail": [float(tail[n]) for n in names]}, index=pd.Index(names, name="parameter"))
+
+
+def sampled_enough(chain) -> bool:
+    """long_enough, R-hat and ESS verdicts all hold (see the module docstring)."""
+    if not long_enough(chain):
+        return False
+    chain = np.asarray(chain, dtype=float)
+    verdicts = arviz_verdicts(chain_ess_rhat(chain[default_burn(chain):]))
+    return bool(verdicts["rhat_ok"] and verdicts["ess_ok"])
 
 
 def arviz_verdicts(diagnostics: pd.DataFrame) -> dict:

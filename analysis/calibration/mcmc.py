@@ -4,7 +4,7 @@ Contract
 --------
 ``run_chain(log_prob, prior, *, walkers, steps, seed, initial, path=None, resume=False, meta=None,
 meta_defaults=None, needs="the same settings", moves="stretch", progress=None, progress_every=None,
-before_step=None, refresh_every=0, refresh=None) -> ChainResult``
+before_step=None, refresh_every=0, refresh=None, until_converged=False, check_every=CHECK_EVERY) -> ChainResult``
 
 * ``log_prob(coords (n, d)) -> (n,)`` is called vectorised (emcee's ``vectorize=True``: each
   half-ensemble's proposals arrive at once); ``prior`` gives the dimension ``prior.dim`` and the names.
@@ -33,6 +33,13 @@ before_step=None, refresh_every=0, refresh=None) -> ChainResult``
 * ``before_step(t)`` is called before row ``t`` (1-based) is computed; ``refresh(coords, t) -> (walkers,)``
   replaces the walkers' current log-probabilities before row ``t`` for every ``t`` that is a positive
   multiple of ``refresh_every`` (0: never) - BSL's re-evaluation of the noisy likelihood.
+* ``until_converged``: ``steps`` is then a cap; after every row ``t`` that is a multiple of
+  ``check_every`` (and before the first new row of a resume at such a row) the chain so far is judged by
+  the project's convergence verdicts that more steps can change
+  (:func:`~analysis.calibration.diagnostics.sampled_enough`: the rows after the default burn-in are at
+  least 50 x the largest integrated autocorrelation time estimated on them, and ArviZ's R-hat <= 1.01 and
+  bulk and tail ESS >= 400 with walkers as chains) and the run stops at the first row where they hold. Stopping depends only on the rows, which are
+  bit-identical for the same arguments, so a resumed or repeated run stops at the same row.
 * ``progress(step, acceptance_fraction_mean, tau_estimate)`` after every ``progress_every`` rows
   (default ``max(1, steps // 10)``) and after the last; ``tau_estimate`` is :func:`progress_tau` of the
   second half of the rows so far.
@@ -63,11 +70,12 @@ from sweeps.seeds import Tag, generator, seed_sequence
 
 from .chainfile import ChainFile, differences, stored_attrs
 from .checks import integer
-from .diagnostics import integrated_times
+from .diagnostics import integrated_times, sampled_enough
 
 GROUP = "mcmc"
 MOVES = ("stretch", "de")
 DE_SCALE = 0.7   # differential-evolution step: this fraction of ter Braak's 2.38 / sqrt(2 d)
+CHECK_EVERY = 50   # until_converged: the chain-length rule is checked after every this many rows
 
 
 class ChainMismatch(ConfigError):
@@ -143,10 +151,12 @@ def run_chain(log_prob: Callable, prior, *, walkers: int, steps: int, seed: int,
               path=None, resume: bool = False, meta: dict | None = None, meta_defaults: dict | None = None,
               needs: str = "the same settings", moves: str = "stretch", progress: Callable | None = None,
               progress_every: int | None = None, before_step: Callable | None = None, refresh_every: int = 0,
-              refresh: Callable | None = None) -> ChainResult:
+              refresh: Callable | None = None, until_converged: bool = False,
+              check_every: int = CHECK_EVERY) -> ChainResult:
     """Run (or resume) an emcee chain; see the module docstring for the full contract."""
     emcee_moves(moves)   # validates
     steps = integer(steps, "steps", 1)
+    check_every = integer(check_every, "check_every", 2) if until_converged else 0
     seed = integer(seed, "seed", 0)
     refresh_every = integer(refresh_every, "refresh_every", 0)
     ndim = int(prior.dim)
@@ -163,7 +173,7 @@ def run_chain(log_prob: Callable, prior, *, walkers: int, steps: int, seed: int,
         backend = open_chain(path, resume, meta, meta_defaults, needs)
     try:
         return _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, initial, every, progress,
-                    before_step, refresh_every, refresh, path)
+                    before_step, refresh_every, refresh, path, check_every)
     except BaseException:
         if created and backend is not None and _empty(path):
             os.unlink(path)   # nothing of ours is in it yet: a rerun starts cleanly
@@ -178,7 +188,7 @@ def _empty(path) -> bool:
 
 
 def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, initial, every, progress, before_step,
-         refresh_every, refresh, path) -> ChainResult:
+         refresh_every, refresh, path, check_every=0) -> ChainResult:
     sampler = _sampler(log_prob, walkers, ndim, backend, meta, moves)
     start = int(sampler.backend.iteration)
     if start == 0:
@@ -189,7 +199,12 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
         state = sampler.backend.get_last_sample()   # coords, log_prob, emcee's random state
     t = start
     check_initial = start == 0
-    while t < steps:
+
+    def converged() -> bool:
+        return bool(check_every and t > 0 and t % check_every == 0 and sampled_enough(sampler.backend.get_chain()))
+
+    done = converged()
+    while t < steps and not done:
         if refresh_every and t > 0 and t % refresh_every == 0:
             state = emcee.State(state.coords, log_prob=refresh(state.coords, t), random_state=state.random_state)
         stop = min(steps, (t // refresh_every + 1) * refresh_every) if refresh_every else steps
@@ -200,9 +215,12 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
                 before_step(t + 1)
             state = next(rows)
             t += 1
-            if progress is not None and (t % every == 0 or t == steps):
+            done = converged()
+            if progress is not None and (t % every == 0 or t == steps or done):
                 acceptance = float(np.mean(sampler.backend.accepted / float(t)))
                 progress(t, acceptance, progress_tau(sampler.backend.get_chain()[t // 2:]))
+            if done:
+                break
         rows.close()
     stored = sampler.backend
     names = getattr(prior, "names", None)

@@ -45,7 +45,10 @@ objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian",
   ``objective_crn``, ``objective_recheck``, ``recheck_se``, ``nfev`` (search evaluations as counted
   by scipy), ``success``, ``message``, ``summaries_at_optimum`` (k,) column means of the finite
   re-check rows, ``recheck_summaries`` (R, k) all re-check rows, ``recheck_batches`` (B,) batch
-  objective values, plus ``algorithm``, ``objective``, ``likelihood``, ``seed``, ``n_sim``.
+  objective values, plus ``algorithm``, ``objective``, ``likelihood``, ``seed``, ``n_sim``, and the
+  simulations run, counted in this process: ``search_evaluations`` (objective evaluations that
+  simulated: inside the prior's support, the final one at the optimum included; scipy's ``nfev`` also
+  counts those outside), ``search_simulations`` (their rows) and ``recheck_simulations``.
 
 Everything is a deterministic function of the arguments: the same call gives an identical result.
 """
@@ -88,6 +91,9 @@ class OptimizeResult:
     likelihood: str = "gaussian"
     seed: int | None = None
     n_sim: int | None = None
+    search_evaluations: int = 0         # objective evaluations that simulated (inside the support)
+    search_simulations: int = 0         # their runs: search_evaluations x n_sim
+    recheck_simulations: int = 0        # the fresh-seed re-check's runs
 
     @property
     def crn_gap_z(self) -> float:
@@ -125,6 +131,10 @@ class _Objective:
         self.seeds = list(seeds)
         self.objective = objective
         self.likelihood = likelihood
+        self.simulated = 0      # evaluations that simulated, counted where they are requested (this process)
+
+    def count_inside(self, thetas) -> None:
+        self.simulated += sum(math.isfinite(self.log_prior(t)) for t in thetas)
 
     def log_prior(self, theta) -> float:
         return float(self.prior.logpdf(np.asarray(theta, dtype=float)))
@@ -172,6 +182,7 @@ def _run_de(func, bounds, seed, maxiter, popsize, executor=None):
                          "use bounded priors (or explicit bounds) or algorithm='nelder_mead'")
     def block_map(_wrapped, thetas):   # scipy's wrapper only forwards to func; evaluate func itself
         thetas = [np.asarray(t, dtype=float) for t in thetas]
+        func.count_inside(thetas)
         return executor.map(func, thetas) if executor is not None else [func(t) for t in thetas]
 
     res = _opt.differential_evolution(func, bounds, maxiter=maxiter, popsize=popsize, polish=False,
@@ -196,6 +207,7 @@ def _run_nm(func, prior, bounds, maxiter):
     def penalised(theta):
         theta = np.asarray(theta, dtype=float)
         clipped = np.clip(theta, lo, hi)
+        func.count_inside([clipped])
         value = func(clipped)
         excess = float(np.sum(((theta - clipped) / scale) ** 2))
         if excess == 0.0 or not math.isfinite(value):
@@ -230,6 +242,7 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
         theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, executor)
     else:
         theta, nfev, success, message = _run_nm(func, prior, bounds, maxiter)
+    func.count_inside([theta])
     objective_crn = float(func(theta))
 
     n_batches = -(-recheck // n_sim)
@@ -256,4 +269,6 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
                           recheck_se=recheck_se, nfev=nfev, success=success, message=message,
                           summaries_at_optimum=means, recheck_summaries=rows, recheck_batches=values,
                           names=tuple(names) if names is not None else None, algorithm=algo,
-                          objective=objective, likelihood=likelihood, seed=seed, n_sim=n_sim)
+                          objective=objective, likelihood=likelihood, seed=seed, n_sim=n_sim,
+                          search_evaluations=func.simulated, search_simulations=func.simulated * n_sim,
+                          recheck_simulations=int(rows.shape[0]))

@@ -29,6 +29,7 @@ Contract
     on it starts from the refined design), and the next round refits on the grown training set.
     ``Refinement``: the last round's ``training``, ``surrogate``, ``result``, ``burn``, ``confirm``
     (its check) and ``rounds`` (a DataFrame, one row per round: training points and runs, runs added,
+    the confirmation's runs,
     posterior mean, sd and 90% interval per parameter, the confirmation's max |z| and min p, passed,
     wall seconds).
 
@@ -131,7 +132,7 @@ def select_points(surrogate: Surrogate, chain, burn: int, count: int, obs_cov, r
 def _round_row(r: int, training, result, burn: int, names, check: dict, added: int, started: float) -> dict:
     flat = result.chain[burn:].reshape(-1, result.chain.shape[-1])
     row = {"round": r, "training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
-           "runs_added": added}
+           "runs_added": added, "confirm_runs": int(len(check["summaries"]))}
     for j, name in enumerate(names):
         row.update({f"{name}_mean": float(flat[:, j].mean()), f"{name}_sd": float(flat[:, j].std(ddof=1)),
                     f"{name}_q5": float(np.quantile(flat[:, j], 0.05)),

@@ -85,6 +85,7 @@ from sweeps.files import atomic_path, json_ready
 from sweeps.seeds import Tag, generator
 from sweeps.store import OutputFolder
 
+from .accounting import Accounting
 from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
@@ -220,7 +221,8 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
                     predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
                     scheduler: str | None = None) -> CalibrationRun:
     """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
-    folder = OutputFolder(Path(out_dir) if out_dir else Path("results") / "calibration" / config.name)
+    default = Path("results") / "calibration" / (config.folder_name or config.name)
+    folder = OutputFolder(Path(out_dir) if out_dir else default)
     chain_path = folder.path("chain.h5")
     if config.method.kind != "optimize" and chain_path.exists() and not resume:
         raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
@@ -238,6 +240,7 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
 
 def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -> CalibrationRun:
     started = time.time()
+    cost = Accounting()
     settings = config.method
     result = run_optimize(seeded_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
                           seed=config.seed, n_sim=settings.n_sim, algorithm=settings.algorithm,
@@ -251,8 +254,12 @@ def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -
                "theta": dict(zip(config.names, map(float, result.theta))),
                "objective_common_seeds": float(result.objective_crn),
                "objective_recheck": float(result.objective_recheck), "recheck_se": float(result.recheck_se),
-               "evaluations": int(result.nfev), "success": bool(result.success), "message": str(result.message),
-               "wall_s": time.time() - started, "executor": pool.description, **folder.provenance()}
+               "optimizer_evaluations": int(result.nfev), "success": bool(result.success),
+               "message": str(result.message), "wall_s": time.time() - started, "executor": pool.description,
+               **folder.provenance()}
+    cost.add("search", result.search_simulations, result.search_evaluations)
+    cost.add("recheck", result.recheck_simulations, len(result.recheck_batches))
+    optimum["accounting"] = cost.block(optimizer_evaluations=int(result.nfev))
     folder.write_json("optimum.json", optimum)
     idata = optimum_inference_data(config, result.theta, result.recheck_summaries)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
@@ -280,14 +287,18 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
            pool: Executor) -> CalibrationRun:
     settings = config.method
     started = time.time()
+    cost = Accounting()
+    resumed_from = stored_steps(folder.path("chain.h5")) if resume else 0
     with _ProgressBar(settings.steps, config.name, progress) as bar:
         result = run_bsl(simulate_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
                          walkers=settings.walkers, steps=settings.steps, seed=config.seed,
                          path=folder.path("chain.h5"), resume=resume, likelihood=settings.likelihood,
                          reevaluate_every=settings.reevaluate_every, moves=settings.moves, progress=bar.callback,
-                         executor=pool, meta=chain_meta(config))
+                         executor=pool, meta=chain_meta(config), until_converged=settings.until_converged,
+                         check_every=settings.check_every, count=cost.add)
     return write_posterior(config, result, folder, pool, predictive_draws, started,
-                           extra={"executor": pool.description})
+                           extra={"executor": pool.description}, cost=cost,
+                           cost_extra={"resumed_from": resumed_from} if resumed_from else {})
 
 
 def _emulator_mcmc(config: CalibrationConfig, surrogate, path, resume: bool, progress: bool, label: str):
@@ -337,6 +348,7 @@ def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, pro
               predictive_draws: int, pool: Executor, sweep_executor: tuple) -> CalibrationRun:
     settings = config.method
     started = time.time()
+    cost = Accounting()
     if settings.refine.rounds:
         refinement, fit_s = _refined_rounds(config, folder, progress, sweep_executor)
         training, surrogate, result, check = (refinement.training, refinement.surrogate, refinement.result,
@@ -351,10 +363,11 @@ def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, pro
                                 f"{config.name} (emulator)")
     outcome = write_posterior(config, result, folder, pool, predictive_draws, started,
                               extra={"executor": pool.description, "emulator": _emulator_info(config, training, fit_s)},
-                              warnings=prior_outside_box(config.prior, surrogate))
+                              warnings=prior_outside_box(config.prior, surrogate), cost=cost)
     if settings.confirm and refinement is None:
         theta = posterior_median(result.chain, outcome.report["burn"])
         check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm, seed=config.seed)
+        cost.add("confirmation", len(check["summaries"]))
     if settings.confirm:
         _write_confirmation(folder, outcome, check, settings.confirm)
     if refinement is not None:
@@ -364,6 +377,10 @@ def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, pro
                                     "runs_per_round": settings.refine.runs_per_round,
                                     "runs_added": int(rounds["runs_added"].sum()),
                                     "passed": bool(rounds["passed"].iloc[-1]), "results": str(settings.results)}
+        cost.add("confirmation", int(rounds["confirm_runs"].sum()))
+        cost.add("refinement", int(rounds["runs_added"].sum()))
+    outcome.report["accounting"] = json_ready(cost.block(
+        training_runs_reused=int(training.count.sum()) - cost.simulations["refinement"]))
     outcome.report["wall_s"] = time.time() - started
     folder.write_json("convergence.json", outcome.report)
     return outcome
@@ -398,7 +415,8 @@ def confirm_messages(check: dict, z_limit: float = Z_LIMIT, p_limit: float = P_L
 
 def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, pool: Executor | None,
                     predictive_draws: int, started: float, extra: dict | None = None,
-                    warnings: list | None = None) -> CalibrationRun:
+                    warnings: list | None = None, cost: Accounting | None = None,
+                    cost_extra: dict | None = None) -> CalibrationRun:
     """From a chain (a ChainResult) to posterior.nc, posterior.csv, convergence.json, predictive.csv and
     the figures."""
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
@@ -407,6 +425,8 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
     predictive = posterior_predictive(config, draws, pool)
+    if cost is not None:
+        cost.add("predictive", len(predictive))
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
     idata = chain_inference_data(config, result, burn, predictive=predictive, predictive_source=source)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
@@ -431,6 +451,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
                          "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),
                          "walkers": int(result.chain.shape[1]), "burn": burn, **(extra or {}),
+                         **({"accounting": cost.block(**(cost_extra or {}))} if cost is not None else {}),
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,

@@ -35,7 +35,8 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
   locked while it runs): ``settings.json`` (everything
   the results depend on; a resume with other settings is refused, except a larger ``datasets``),
   ``datasets/<j:06d>.json`` per dataset, written atomically when that dataset is done (theta, y,
-  ranks, posterior draws, tau, thinning, acceptance, wall time), so an interrupted run resumes where it
+  ranks, posterior draws, tau, thinning, acceptance, wall time, the simulations it ran by phase:
+  :mod:`~analysis.calibration.accounting`), so an interrupted run resumes where it
   stopped (``resume=False`` refuses an existing folder with results). When all datasets are done:
   ``ranks.csv`` (one row per dataset), ``uniformity.csv`` and ``uniformity.md`` (chi-square test per
   parameter from :func:`~analysis.calibration.diagnostics.sbc_uniformity`, plus the ECDF band test),
@@ -80,6 +81,7 @@ from sweeps.files import json_ready
 from sweeps.seeds import SBCStream, Tag, seed_sequence
 from sweeps.store import OutputFolder
 
+from .accounting import Accounting
 from .bsl import run_bsl
 from .checks import integer
 from .diagnostics import integrated_times, sbc_ranks
@@ -206,18 +208,21 @@ def posterior_draws(chain, draws: int, rng: np.random.Generator) -> tuple[np.nda
 def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
     """Run SBC dataset ``j``: theta, y, BSL posterior, ranks. A JSON-ready record."""
     started = time.time()
+    cost = Accounting()
     theta = draw_theta(problem, j)
     y = draw_observed(problem, theta, j)
+    cost.add("observed", len(y))
     result = run_bsl(problem.simulate_fn, y, problem.prior, walkers=problem.walkers, steps=problem.steps,
                      seed=bsl_seed(problem.seed, j), likelihood=problem.likelihood,
-                     reevaluate_every=problem.reevaluate_every, moves=problem.moves)
+                     reevaluate_every=problem.reevaluate_every, moves=problem.moves, count=cost.add)
     sample, info = posterior_draws(result.chain, draws, generator(problem.seed, j, SBCStream.SELECT))
     ranks = sbc_ranks(theta[None, :], [sample], rng=generator(problem.seed, j, SBCStream.TIES))[0]
     return {"dataset": int(j), "theta": theta.tolist(), "observed": y.tolist(), "ranks": ranks.tolist(),
             "draws": sample.tolist(), "post_mean": sample.mean(axis=0).tolist(),
             "post_sd": sample.std(axis=0, ddof=1).tolist(), "acceptance": float(result.acceptance_fraction.mean()),
             "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), "bsl_seed":
-            bsl_seed(problem.seed, j), **info, "wall_s": time.time() - started}
+            bsl_seed(problem.seed, j), **info, "wall_s": time.time() - started,
+            "simulations": cost.block()["simulations"]}
 
 
 # -------------------------------------------------------------------------------------------- storage

@@ -27,6 +27,7 @@ from scipy import stats
 from sweeps.files import read_json, write_csv, write_json, write_text
 from sweeps.seeds import ECDF_BAND, Tag, generator
 
+from .accounting import total_simulations
 from .diagnostics import ecdf_counts, sbc_uniformity
 from .plots import ecdf_figure, sbc_figure
 
@@ -156,7 +157,9 @@ def write_report(out, names: Sequence[str], datasets: int, draws: int, bins: int
                "short_datasets": int(frame["short"].sum()), "tau_max_median": float(frame["tau_max"].median()),
                "tau_max_max": float(frame["tau_max"].max()), "acceptance_median":
                float(frame["acceptance"].median()), "dataset_wall_s_median": float(frame["wall_s"].median()),
-               "dataset_wall_s_total": float(frame["wall_s"].sum())}
+               "dataset_wall_s_total": float(frame["wall_s"].sum()),
+               "simulations": total_simulations(r["simulations"] for r in records if "simulations" in r),
+               "datasets_without_count": sum("simulations" not in r for r in records)}
     write_json(paths["summary"], summary)
     return {"out": out, "table": table, "ranks": frame, "calibrated": calibrated, "verdict": sentence,
             "paths": paths}

@@ -45,10 +45,13 @@ class EmceeSettings(ChainSettings):
 
     kind: ClassVar[str] = "emcee"
     reevaluate_every: int = 0
+    until_converged: bool = False   # steps is then a cap: stop at >= 50 tau, R-hat <= 1.01, ESS >= 400
+    check_every: int = 50           # ... judged after every this many steps
 
     def __post_init__(self):
         super().__post_init__()
         check_at_least("reevaluate_every", self.reevaluate_every, 0)
+        check_at_least("check_every", self.check_every, 2)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -174,3 +174,48 @@ def test_de_moves_are_seeded_resumable_and_recover_the_posterior(tmp_path):
         run(steps=310, path=path, resume=True)
     with pytest.raises(ValueError, match="moves"):
         run(steps=10, moves="gibbs")
+
+
+
+def gaussian_chain(steps, path=None, resume=False, **kw):
+    """run_chain on an exact standard normal log density: a cheap chain for the stopping rule."""
+    from analysis.calibration.mcmc import run_chain
+
+    prior = wide_prior()
+
+    def initial(rng, walkers):
+        coords = rng.normal(size=(walkers, 2))
+        return coords, -0.5 * np.sum(coords ** 2, axis=1)
+
+    return run_chain(lambda c: -0.5 * np.sum(np.atleast_2d(c) ** 2, axis=1), prior, walkers=8, steps=steps, seed=8,
+                     initial=initial, path=path, resume=resume, moves="de", **kw)
+
+
+@pytest.mark.slow
+def test_until_converged_stops_at_the_first_check_where_the_verdicts_hold_and_is_resumable(tmp_path):
+    from analysis.calibration.diagnostics import sampled_enough
+
+    capped = gaussian_chain(5000, until_converged=True, check_every=20)
+    stopped = capped.chain.shape[0]
+    assert 100 <= stopped < 5000 and stopped % 20 == 0
+    # the verdicts (50 tau, R-hat, ESS) hold at the stopping row and at no earlier check: judged on the prefixes
+    assert sampled_enough(capped.chain)
+    assert not any(sampled_enough(capped.chain[:t]) for t in range(20, stopped, 20))
+    # the same rows as a fixed-length chain of that many steps (stopping changes the length, nothing else)
+    assert same(capped, gaussian_chain(stopped))
+    # resumed from a shorter file it stops at the same row with the same chain; a stopped file runs nothing
+    part = tmp_path / "part.h5"
+    gaussian_chain(stopped // 2 - 3, path=part)
+    assert same(capped, gaussian_chain(5000, path=part, resume=True, until_converged=True, check_every=20))
+    assert same(capped, gaussian_chain(9000, path=part, resume=True, until_converged=True, check_every=20))
+    # a cap below the converged length is the length
+    assert gaussian_chain(stopped - 20, until_converged=True, check_every=20).chain.shape[0] == stopped - 20
+    with pytest.raises(ValueError, match="check_every"):
+        gaussian_chain(50, until_converged=True, check_every=1)
+
+
+def test_bsl_passes_the_stopping_rule_to_the_driver():
+    # tau cannot be judged on 8 rows: the rule never holds, the cap stands; check_every is validated
+    assert run(steps=8, seed=8, until_converged=True, check_every=4).chain.shape[0] == 8
+    with pytest.raises(ValueError, match="check_every"):
+        run(steps=8, seed=8, until_converged=True, check_every=0)

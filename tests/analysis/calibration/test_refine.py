@@ -142,5 +142,12 @@ def test_refinement_rounds_add_runs_to_the_sweep_until_confirmed(tmp_path):
             h5py.File(tmp_path / "cal" / "rounds" / f"chain_round{last}.h5", "r") as b:
         np.testing.assert_array_equal(a["mcmc/chain"][:], b["mcmc/chain"][:])
     assert outcome.report["confirm"]["passed"] == bool(rounds["passed"].iloc[-1])
+    # accounting: the refinement's runs are the rows the sweep gained (an independent count), every
+    # round confirmed with 16 real runs, one predictive run per draw; the training runs reported apart
+    cost = report["accounting"]["simulations"]
+    assert cost["refinement"] == len(runs) - len(before)
+    assert cost["confirmation"] == 16 * len(rounds) and cost["predictive"] == 8
+    assert cost["total"] == cost["refinement"] + cost["confirmation"] + cost["predictive"]
+    assert report["accounting"]["training_runs_reused"] == len(before)
     assert any(line.startswith("refinement:") for line in outcome.verdicts(config))
     assert "Refinement rounds" in (tmp_path / "cal" / "report.md").read_text()

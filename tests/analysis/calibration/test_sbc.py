@@ -195,3 +195,16 @@ def test_sbc_cli_runs_resumes_and_refuses_other_methods(tmp_path, capsys):
     assert main(["sbc", str(SBC_CONFIG), "--set", 'method.kind="optimize"', "--out", str(tmp_path / "x")]) == 2
     assert "config error: method." in capsys.readouterr().err
     assert main(["sbc", str(SBC_CONFIG), "--datasets", "0", "--out", str(tmp_path / "y")]) == 2
+
+
+def test_sbc_counts_the_simulations_of_every_dataset(tmp_path):
+    problem = toy(steps=20)
+    sbc.run_sbc(problem, datasets=3, draws=9, out_dir=tmp_path, progress=False)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    sims = summary["simulations"]
+    # the independent count: the toy simulator's calls, 10 rows each, and one observed row per dataset
+    assert sims["total"] == problem.simulate_fn.calls * 10 + problem.observe_fn.calls == sum(
+        count for phase, count in sims.items() if phase != "total")
+    assert sims["observed"] == 3 and sims["initial"] >= 3 * 8 * 10 and summary["datasets_without_count"] == 0
+    per_dataset = json.loads((tmp_path / "datasets" / "000000.json").read_text())["simulations"]
+    assert per_dataset["observed"] == 1 and per_dataset["total"] < sims["total"]
