@@ -14,7 +14,7 @@ import pytest
 
 from sweeps.config import load_sweep, sweep_from_dict
 from sweeps.design import expand, rebuild
-from sweeps.runner import design_table, model_record
+from sweeps.runner import design_table, model_record, run_sweep
 from paths import ROOT
 
 SWEEPS = ROOT / "configs" / "sweeps"
@@ -92,3 +92,39 @@ def test_a_list_valued_axis_survives_the_stored_sweep_text():
     again = sweep_from_dict(tomllib.loads(config.to_toml()), ROOT)
     assert [s.run_id for s in expand(again)] == [s.run_id for s in expand(config)]
     assert pd.Series([s.run_id for s in expand(config)]).nunique() == 6
+
+
+@pytest.mark.slow
+def test_a_shrunken_allocation_sweep_runs_and_its_claims_are_judged_from_the_stored_tables(tmp_path):
+    """reynolds87_allocation shrunk (N = 12, 8 s, 2 paired replicates, one budget): runs, its stored
+    tables give the claims their factors back (the obstacle list as text, the label as the level), both
+    claims reach a verdict, and a stored run rebuilt from its row resimulates to the same collisions."""
+    from analysis.observables.summary import summarize_run
+    from analysis.reports.claims.evaluate import evaluate
+    from analysis.reports.claims.load import claims_of
+    from simcore import simulate
+    from sweeps.results import load_results
+    from sweeps.store import ResultsStore
+
+    data = tomllib.loads((SWEEPS / "reynolds87_allocation.toml").read_text())
+    data["run"].update(n=12, duration=8.0)
+    data["replicates"] = 2
+    data["axes"][1]["values"] = [16.0]
+    config = sweep_from_dict(data, SWEEPS)
+    out = tmp_path / "alloc"
+    run_sweep(config, config.to_toml(), out, executor="serial", progress=False)
+    results = load_results(out)
+    assert len(results.ok) == 12 and set(results.ok["obstacles"]) == {"none", "sparse", "dense"}
+    claims, columns, skipped = claims_of(results)
+    assert [c.id for c in claims] == ["a", "b"] and not skipped
+    outcomes = evaluate(claims, results.ok, columns.factors, with_power=False)
+    verdicts = {o.claim.id: o.outcome.verdict for o in outcomes}
+    assert set(verdicts) == {"a", "b"}
+    assert all(v in ("supported", "not supported", "inconclusive", "partly supported") for v in verdicts.values())
+    row = results.ok[results.ok["obstacles"] == "dense"].iloc[0].to_dict()
+    preset, metrics = rebuild(ResultsStore(out).model(), row)
+    assert len(preset.model.world.obstacles) == 15
+    run = preset.run
+    obs = simulate(preset.model, preset.init, int(row["seed"]), run.duration, run.dt, run.record_every)
+    again = summarize_run(obs, metrics)
+    assert again["collided_boids"] == row["collided_boids"] and again["polarization_final"] == row["polarization_final"]
