@@ -15,6 +15,10 @@ Identity (:mod:`sweeps.identity`, :mod:`sweeps.seeds`): a run's seed derives fro
 grows, shrinks or is reordered; with ``common_random_numbers`` it derives from the sweep seed and the
 replicate only. The run id is a hash of everything that determines the run's results.
 
+Table columns (:func:`_columns`): an axis' name and every swept key with its resolved value; a value
+that is a list or table (an axis over ``world.obstacles``, best labelled) is stored as its canonical
+JSON text.
+
 Order: ``RunSpec.index`` = point index x replicates + replicate, with points in the order of the axes'
 nested loops (first axis outermost), the explicit points last. Results tables are sorted by it, whatever
 order runs finish in.
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import json
 from dataclasses import dataclass
 
 from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings
@@ -30,7 +35,7 @@ from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 
 from .config import Storage, SweepConfig, check_window
-from .identity import point_key, run_id
+from .identity import canonical, point_key, run_id
 from .seeds import Tag, generator, run_seed
 from .sensitivity import unique_rows
 
@@ -109,9 +114,24 @@ def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, obje
             cols.append((axis.name, "|".join(map(str, values))))
         elif axis.name != axis.keys[0]:
             cols.append((axis.name, get_dotted(resolved, axis.keys[0])))
-        cols += [(key, get_dotted(resolved, key)) for key in axis.keys]
+        cols += [(key, _cell(get_dotted(resolved, key))) for key in axis.keys]
     cols += [(key, get_dotted(resolved, key)) for key in config.block_keys]
     return cols
+
+
+def _cell(value):
+    """A swept value as a table cell: scalars as they are, a list or table (e.g. a ``world.obstacles``
+    list swept as a labelled axis) as its canonical JSON text, so every factor column is hashable and
+    groups, pairs and reads back like any other."""
+    return canonical(value) if isinstance(value, (list, tuple, dict)) else value
+
+
+def _uncell(value):
+    """The inverse of :func:`_cell`: the JSON text of a list or table back to the value (no preset key
+    takes a string that starts with ``[`` or ``{``)."""
+    if isinstance(value, str) and value[:1] in ("[", "{"):
+        return json.loads(value)
+    return value
 
 
 def _point_preset(base: Preset, overrides: list[tuple[str, object]], where: str) -> Preset:
@@ -126,7 +146,7 @@ def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
     changes = {}
     for key in model_record["swept_keys"]:
         value = row[key]
-        changes[key] = value.item() if hasattr(value, "item") else value
+        changes[key] = _uncell(value.item() if hasattr(value, "item") else value)
     preset = preset_from_dict(copy.deepcopy(model_record["preset"])).replace(changes)
     analysis = model_record["analysis"]
     metrics = MetricSettings(warmup=analysis["warmup"], group_radius=analysis.get("group_radius"),

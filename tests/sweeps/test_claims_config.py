@@ -158,27 +158,3 @@ def test_claims_are_stored_with_the_results_and_read_back(tmp_path):
     assert read_claims_file(CLAIMS / "hartman_benes.toml", table_columns(
         pd.DataFrame({"leadership.x": [0.0, 1.0]}), ["trigger_rate", "leaders_mean", "follow_corr_max",
                                                      "follow_corr_before", "n_groups_mean", "cohesion_mean"], ()))
-
-
-def test_the_other_models_claims_of_docs_claims_md_resolve():
-    """docs/claims.md declares findings of models to come (Reynolds 1987, Boids++) with the generic kinds
-    only: they validate against a design with those factors and metrics."""
-    import itertools
-    import re
-    import tomllib
-
-    from simcore.schema import build
-    from sweeps.claims import ClaimTable, Columns, load_claims
-
-    text = (ROOT / "docs" / "claims.md").read_text()
-    block = re.search(r"```toml\n(.*?)```", text[text.index("## Claims of other models"):], re.S).group(1)
-    factors = ["steering.allocation", "steering.global_weight", "predator.enabled", "random_force.magnitude"]
-    levels = [["prioritized", "weighted_sum"], [0.0, 1.0], [False, True], [0.0, 0.5, 1.0]]
-    design = pd.DataFrame([dict(zip(factors, combo)) for combo in itertools.product(*levels)])
-    columns = Columns(tuple(factors), frozenset({"steering.global_weight", "random_force.magnitude"}),
-                      frozenset({"collided_boids", "migratory_progress_mean", "n_groups_mean",
-                                 "n_groups_final", "polarization_mean"}), {}, design)
-    tables = [build(ClaimTable, claim, f"claims[{k}]") for k, claim in enumerate(tomllib.loads(block)["claims"])]
-    claims = load_claims(tables, (), ROOT, columns)
-    assert [c.id for c in claims] == ["a", "b", "c", "d"]
-    assert [leaf.kind for c in claims for leaf in c.test.leaves()] == ["compare", "sign", "compare", "sign", "trend"]
