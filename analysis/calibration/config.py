@@ -60,8 +60,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
     #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps),
-    #           refine = { rounds = R, runs_per_round = M } (sequential design: new sweep points where
-    #           the posterior and the emulator's uncertainty are, until the confirmation passes)
+    #           refine = { rounds, runs_per_round, max_emulator_share = 0.1 } (new sweep points until the
+    #           confirmation passes and the emulator's variance is <= that share of the likelihood's)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
 ``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
