@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.calibration.calibration_report import _share_lines
 from analysis.calibration.config import calibration_from_dict
 from analysis.calibration.emulated import emulated_logliks
 from analysis.calibration.refine import confirmation_passed, emulator_share, select_points
@@ -126,6 +127,15 @@ def test_confirmation_passes_only_within_the_limits():
     assert not confirmation_passed(check([np.nan, 0.1], [0.3, 0.5]))
 
 
+def test_the_verdict_reports_the_emulator_share_against_its_limit(tmp_path):
+    config = calibration_from_dict(calibration(tmp_path, rounds=2, max_emulator_share=0.1), ROOT)
+    settled = _share_lines(config, pd.DataFrame({"emulator_share": [0.6, 0.05]}))
+    assert len(settled) == 1 and "0.05 of the likelihood's" in settled[0] and "at most about 2 %" in settled[0]
+    unsettled = _share_lines(config, pd.DataFrame({"emulator_share": [0.6, 0.3]}))
+    assert "still 0.3" in unsettled[0] and "more rounds" in unsettled[0]
+    assert _share_lines(config, None) == [] and _share_lines(config, pd.DataFrame({"passed": [True]})) == []
+
+
 COARSE_SWEEP = """
 name = "coarse"
 seed = 8
@@ -197,4 +207,5 @@ def test_refinement_rounds_add_runs_to_the_sweep_until_confirmed(tmp_path):
         np.testing.assert_array_equal(a["mcmc/chain"][:], b["mcmc/chain"][:])
     assert outcome.report["confirm"]["passed"] == bool(rounds["passed"].iloc[-1])
     assert any(line.startswith("refinement:") for line in outcome.verdicts(config))
+    assert any("emulator's own variance" in line for line in outcome.verdicts(config))
     assert "Refinement rounds" in (tmp_path / "cal" / "report.md").read_text()
