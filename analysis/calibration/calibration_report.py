@@ -10,7 +10,8 @@ ArviZ's R-hat, bulk/tail ESS and MCSE), the trace, rank and corner plots, the po
 check, the emulator's training set, refinement rounds and confirmation, an optimisation's optimum,
 the provenance and the files.
 
-``verdict_lines(outcome) -> list[str]``: the same verdicts as plain sentences, for the console.
+``verdict_lines(outcome) -> list[str]``: the same verdicts as plain sentences, for the console (after a
+refinement, with the last round's emulator share against ``refine.max_emulator_share``).
 
 ``outcome`` is :class:`analysis.calibration.run.CalibrationRun`-like: ``report`` (the convergence.json
 dict), ``summary`` (posterior.csv's frame or None), ``predictive``, ``warnings``, and for the emulator
@@ -45,6 +46,19 @@ def _truth_lines(config, summary: pd.DataFrame | None) -> list[str]:
     return out
 
 
+def _share_lines(config, rounds) -> list[str]:
+    """The emulator's share of the likelihood variance in the last refinement round, against its limit."""
+    if rounds is None or not len(rounds) or "emulator_share" not in rounds:
+        return []
+    share, limit = float(rounds["emulator_share"].iloc[-1]), config.method.refine.max_emulator_share
+    if share <= limit:
+        return [f"  the emulator's own variance is {share:.2g} of the likelihood's over the posterior "
+                f"(limit {limit:g}): it widens the posterior by at most about "
+                f"{100 * (math.sqrt(1 + share) - 1):.0f} %"]
+    return [f"  the emulator's own variance is still {share:.2g} of the likelihood's over the posterior (limit "
+            f"{limit:g}): the posterior may be wider than the targets allow; more rounds would narrow it"]
+
+
 def verdict_lines(config, outcome) -> list[str]:
     """Plain sentences: convergence, warnings, confirmation, predictive tails, the truth."""
     report = outcome.report
@@ -65,6 +79,7 @@ def verdict_lines(config, outcome) -> list[str]:
         lines.append(f"refinement: {refine['rounds_run']} round(s), {refine['runs_added']} runs added to the sweep "
                      f"{refine['results']}; " + ("the confirmation passed" if refine["passed"] else
                                                   "the confirmation still fails after the last round"))
+        lines += _share_lines(config, outcome.refine)
     if outcome.predictive is not None:
         for stat, row in outcome.predictive.iterrows():
             if math.isfinite(row["p"]) and row["p"] < P_TAIL:

@@ -61,8 +61,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # emulator: results = "../../results/holland648_r5" (required: a sweep's results folder),
     #           surrogate = "gp" | "rbf", confirm (real runs at the posterior median, 0: none; >= 2),
     #           walkers, steps, moves (emcee on the surrogate: cheap, default 5000 steps),
-    #           refine = { rounds = R, runs_per_round = M } (sequential design: new sweep points where
-    #           the posterior and the emulator's uncertainty are, until the confirmation passes)
+    #           refine = { rounds, runs_per_round, max_emulator_share = 0.1 } (new sweep points until the
+    #           confirmation passes and the emulator's variance is <= that share of the likelihood's)
     # [method.emcee], [method.optimize], [method.emulator]: settings for several methods in one file;
     # kind picks the default, --method another (analysis/calibration/method_table.py)
 

@@ -1,6 +1,7 @@
 """The emulator's sequential design: after each fit, new sweep points where the posterior mass and the
 emulator's uncertainty are, added to the sweep through the sweep machinery, then a refit, until the
-confirmation at the posterior median passes or the rounds run out (``refine = { rounds, runs_per_round }``).
+confirmation at the posterior median passes AND the emulator's own uncertainty is a small share of the
+likelihood's, or the rounds run out (``refine = { rounds, runs_per_round, max_emulator_share }``).
 
 Shapes: d free parameters, k statistics, C candidate points, m points chosen.
 
@@ -19,11 +20,22 @@ Contract
     farthest from each other and the posterior median, greedily (space filling inside the posterior).
     Deterministic: no random numbers.
 
+``emulator_share(surrogate, chain, burn, obs_cov, candidates=1000) -> float``
+    How much the emulator's own uncertainty widens the likelihood over the posterior mass: over the same
+    posterior draws as ``select_points``, the mean of ``max_j mean_var_j(c) / (var_j(c) + obs_j)``,
+    the GP's variance of statistic j's mean against the exact synthetic likelihood's variance there
+    (run-to-run variance + the targets' variance; samples targets: run-to-run only). The emulated
+    likelihood's variance is the exact one times at most ``1 + share`` per statistic, so the emulated
+    posterior's sd exceeds the exact one by about ``sqrt(1 + share)`` at most (share 0.1: 5 %) where
+    the emulator is unbiased within its variance (which the confirmation checks).
+
 ``refine_emulator(config, fit_round, *, pool_kind, workers, scheduler, progress, log) -> Refinement``
     Runs the rounds: ``fit_round(r) -> (training, surrogate, chain result, burn)`` fits and samples
     round r (the caller's MCMC, into its own chain file); :func:`~.emulated.confirm` at the posterior
     median with round r's seeds (``generator(seed, Tag.CONFIRM)`` for round 0, ``(seed, Tag.CONFIRM, r)``
-    after); when it fails and rounds remain, ``select_points`` picks ``max(1, runs_per_round //
+    after) and ``emulator_share``; the rounds stop when the confirmation passes and the share is at most
+    ``refine.max_emulator_share`` (both), or after ``refine.rounds`` rounds of new runs; otherwise
+    ``select_points`` picks ``max(1, runs_per_round //
     replicates)`` points, :func:`sweeps.extend.add_points` runs them into the sweep's own results
     (``method.results``: same store, same run identities; the sweep keeps them, so a later calibration
     on it starts from the refined design), and the next round refits on the grown training set.
@@ -31,7 +43,7 @@ Contract
     (its check) and ``rounds`` (a DataFrame, one row per round: training points and runs, runs added,
     the confirmation's runs,
     posterior mean, sd and 90% interval per parameter, the confirmation's max |z| and min p, passed,
-    wall seconds).
+    emulator_share, wall seconds).
 
 ``confirmation_passed(check, z_limit=3, p_limit=0.01) -> bool``: every |z| <= z_limit (real against
 emulated mean at the posterior median) and every predictive p >= p_limit (targets against the real runs).
@@ -115,6 +127,16 @@ def _farthest_points(surrogate: Surrogate, candidates: np.ndarray, count: int, c
     return chosen
 
 
+def emulator_share(surrogate: Surrogate, chain, burn: int, obs_cov, candidates: int = 1000) -> float:
+    """The emulator's variance as a share of the exact likelihood's over the posterior (module docstring)."""
+    pool = _candidates(chain, burn, candidates)
+    with single_threaded_blas():
+        prediction = surrogate.predict(pool)
+    extra = np.zeros(surrogate.k) if obs_cov is None else np.diag(np.asarray(obs_cov, dtype=float))
+    share = prediction.mean_var / (prediction.var + extra[None, :])
+    return float(np.mean(np.max(share, axis=1)))
+
+
 def select_points(surrogate: Surrogate, chain, burn: int, count: int, obs_cov, replicates: int,
                   candidates: int = 1000) -> np.ndarray:
     """The next design points (see the module docstring)."""
@@ -129,7 +151,8 @@ def select_points(surrogate: Surrogate, chain, burn: int, count: int, obs_cov, r
     return pool[chosen]
 
 
-def _round_row(r: int, training, result, burn: int, names, check: dict, added: int, started: float) -> dict:
+def _round_row(r: int, training, result, burn: int, names, check: dict, share: float, added: int,
+               started: float) -> dict:
     flat = result.chain[burn:].reshape(-1, result.chain.shape[-1])
     row = {"round": r, "training_points": int(len(training.points)), "training_runs": int(training.count.sum()),
            "runs_added": added, "confirm_runs": int(len(check["summaries"]))}
@@ -140,7 +163,7 @@ def _round_row(r: int, training, result, burn: int, names, check: dict, added: i
     z = np.abs(check["comparison"]["z"].to_numpy(dtype=float))
     row.update(confirm_max_abs_z=float(np.nanmax(z)) if np.isfinite(z).any() else math.nan,
                confirm_min_p=float(np.nanmin(check["predictive"]["p"])), passed=confirmation_passed(check),
-               wall_s=time.time() - started)
+               emulator_share=share, wall_s=time.time() - started)
     return row
 
 
@@ -168,9 +191,10 @@ def refine_emulator(config, fit_round: Callable, *, pool_kind: str = "local",
         theta = posterior_median(result.chain, burn)
         check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm,
                         seed=config.seed, stream=(r,) if r else ())
-        passed = confirmation_passed(check)
+        share = emulator_share(surrogate, result.chain, burn, _obs_cov(config))
+        settled = confirmation_passed(check) and share <= settings.refine.max_emulator_share
         added = 0
-        last = passed or r >= settings.refine.rounds
+        last = settled or r >= settings.refine.rounds
         if not last:
             replicates = int(np.median(training.count))
             picks = select_points(surrogate, result.chain, burn, max(1, settings.refine.runs_per_round // replicates),
@@ -178,8 +202,8 @@ def refine_emulator(config, fit_round: Callable, *, pool_kind: str = "local",
             _, specs = add_points(settings.results, _as_sweep_points(picks, config, training),
                                         executor=pool_kind, workers=workers, scheduler=scheduler, progress=progress)
             added = len(specs)
-        rounds.append(_round_row(r, training, result, burn, config.names, check, added, started))
-        log(_round_message(rounds[-1], config.names, last))
+        rounds.append(_round_row(r, training, result, burn, config.names, check, share, added, started))
+        log(_round_message(rounds[-1], config.names, last, settings.refine.max_emulator_share))
         if last:
             return Refinement(training=training, surrogate=surrogate, result=result, burn=burn, confirm=check,
                               rounds=pd.DataFrame(rounds))
@@ -190,10 +214,10 @@ def _obs_cov(config):
     return None if config.targets.samples_path is not None else np.asarray(config.targets.cov, dtype=float)
 
 
-def _round_message(row: dict, names, last: bool) -> str:
+def _round_message(row: dict, names, last: bool, max_share: float) -> str:
     posterior = ", ".join(f"{n} {row[f'{n}_mean']:.4g} +- {row[f'{n}_sd']:.2g}" for n in names)
     verdict = "passed" if row["passed"] else "failed"
     then = "" if last else f"; {row['runs_added']} runs added to the sweep"
     return (f"refine round {row['round']}: {row['training_points']} training points; posterior {posterior}; "
-            f"confirmation {verdict} (max |z| {row['confirm_max_abs_z']:.2f}, min p {row['confirm_min_p']:.3g})"
-            f"{then}")
+            f"confirmation {verdict} (max |z| {row['confirm_max_abs_z']:.2f}, min p {row['confirm_min_p']:.3g}); "
+            f"emulator share {row['emulator_share']:.3g} (limit {max_share:g}){then}")

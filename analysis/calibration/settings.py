@@ -76,14 +76,19 @@ class OptimizeSettings(MethodSettings):
 class RefineSettings:
     """The emulator's sequential design (analysis.calibration.refine): at most ``rounds`` rounds of
     ``runs_per_round`` new sweep runs (``runs_per_round / replicates`` new points of the sweep's
-    replicates each); 0 rounds: none."""
+    replicates each); 0 rounds: none. The rounds stop once the confirmation passes and the emulator's
+    variance is at most ``max_emulator_share`` of the likelihood's over the posterior."""
 
     rounds: int = 0
     runs_per_round: int = 50
+    max_emulator_share: float = 0.1
 
     def __post_init__(self):
         check_at_least("rounds", self.rounds, 0)
         check_at_least("runs_per_round", self.runs_per_round, 1)
+        if not self.max_emulator_share > 0:
+            raise ConfigError("max_emulator_share", f"got {self.max_emulator_share}; expected a share > 0 "
+                                                    "(e.g. 0.1: the emulator adds at most 10 % to the variance)")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -4,6 +4,10 @@
   training data under the posterior gets them, the first at the posterior's centre, never twice the
   same), deterministically; the RBF fallback spreads them over the posterior draws;
 * ``confirmation_passed`` follows the |z| and p limits;
+* ``emulator_share`` drives the stopping rule: on a toy simulator with a known exact posterior, a
+  coarse design's emulated posterior is far wider than the exact one and its share large; refining
+  with ``select_points`` until the share is at most 0.1 brings the emulated sd within 10 % of the
+  exact sd and the mean within a quarter of it;
 * end to end on a coarse real sweep: the rounds add runs to the sweep's own store (same identities),
   the training set grows by exactly those points, each round is recorded, the last round's chain is
   ``chain.h5``, and the loop stops when the confirmation passes or the rounds run out.
@@ -17,8 +21,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.calibration.calibration_report import _share_lines
 from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.refine import confirmation_passed, select_points
+from analysis.calibration.emulated import emulated_logliks
+from analysis.calibration.refine import confirmation_passed, emulator_share, select_points
 from analysis.calibration.run import run_calibration, summary_simulator
 from analysis.calibration.surrogates import build_surrogate
 from analysis.calibration.training import group_replicates
@@ -67,6 +73,50 @@ def test_rbf_refinement_spreads_points_over_the_posterior():
     assert np.ptp(picks) > 2.0                                     # the extremes of the posterior draws
 
 
+TOY_NOISE, TOY_OBS_SD, TOY_TRUTH, TOY_REPLICATES = 0.05, 0.02, 5.5, 8
+TOY_GRID = np.linspace(0.0, 10.0, 2001)
+
+
+def toy_runs(x: np.ndarray, rng) -> np.ndarray:
+    """A toy simulator: tanh((x - 5) / 2) plus Gaussian run-to-run noise, one row per run."""
+    return np.tanh((x - 5.0) / 2.0) + TOY_NOISE * rng.standard_normal(x.shape)
+
+
+def grid_moments(log_density: np.ndarray) -> tuple[float, float, np.ndarray]:
+    weights = np.exp(log_density - log_density.max())
+    weights /= weights.sum()
+    mean = float(weights @ TOY_GRID)
+    return mean, float(np.sqrt(weights @ (TOY_GRID - mean) ** 2)), weights
+
+
+@pytest.mark.slow
+def test_refining_until_the_emulator_share_is_small_reaches_the_exact_posterior_width():
+    observed = np.tanh((np.array([TOY_TRUTH]) - 5.0) / 2.0)
+    obs_cov = np.array([[TOY_OBS_SD ** 2]])
+    exact_mean, exact_sd, _ = grid_moments(-0.5 * (observed[0] - np.tanh((TOY_GRID - 5.0) / 2.0)) ** 2
+                                           / (TOY_NOISE ** 2 + TOY_OBS_SD ** 2))
+    rng = np.random.default_rng(0)
+    rows = np.repeat([0.0, 1.0, 2.0, 3.0, 3.5, 7.5, 8.0, 9.0, 10.0], TOY_REPLICATES)[:, None]
+    summaries = toy_runs(rows, rng)
+    history = []
+    for _ in range(6):
+        surrogate = build_surrogate(group_replicates(rows, summaries, ["a"], ["s"]), "gp")
+        mean, sd, weights = grid_moments(emulated_logliks(TOY_GRID[:, None], observed, surrogate, obs_cov))
+        draws = np.random.default_rng(1).choice(TOY_GRID, size=(400, 8), p=weights)[:, :, None]
+        share = emulator_share(surrogate, draws, 0, obs_cov)
+        history.append((share, mean, sd))
+        if share <= 0.1:
+            break
+        picks = np.repeat(select_points(surrogate, draws, 0, 2, obs_cov, TOY_REPLICATES)[:, 0], TOY_REPLICATES)
+        rows = np.vstack([rows, picks[:, None]])
+        summaries = np.vstack([summaries, toy_runs(picks[:, None], rng)])
+    first, last = history[0], history[-1]
+    assert first[0] > 1.0 and first[2] > 1.3 * exact_sd        # the gap: emulator variance dominates
+    assert last[0] <= 0.1 and len(history) > 1                  # the rule stopped the refinement
+    assert abs(last[2] / exact_sd - 1.0) < 0.1                  # sqrt(1.1) = 1.05 plus the variance estimate's error
+    assert abs(last[1] - exact_mean) < 0.25 * exact_sd
+
+
 def test_confirmation_passes_only_within_the_limits():
     def check(z, p):
         return {"comparison": pd.DataFrame({"z": z}), "predictive": pd.DataFrame({"p": p})}
@@ -75,6 +125,15 @@ def test_confirmation_passes_only_within_the_limits():
     assert not confirmation_passed(check([0.5, 3.1], [0.3, 0.5]))
     assert not confirmation_passed(check([0.5, 0.1], [0.3, 0.005]))
     assert not confirmation_passed(check([np.nan, 0.1], [0.3, 0.5]))
+
+
+def test_the_verdict_reports_the_emulator_share_against_its_limit(tmp_path):
+    config = calibration_from_dict(calibration(tmp_path, rounds=2, max_emulator_share=0.1), ROOT)
+    settled = _share_lines(config, pd.DataFrame({"emulator_share": [0.6, 0.05]}))
+    assert len(settled) == 1 and "0.05 of the likelihood's" in settled[0] and "at most about 2 %" in settled[0]
+    unsettled = _share_lines(config, pd.DataFrame({"emulator_share": [0.6, 0.3]}))
+    assert "still 0.3" in unsettled[0] and "more rounds" in unsettled[0]
+    assert _share_lines(config, None) == [] and _share_lines(config, pd.DataFrame({"passed": [True]})) == []
 
 
 COARSE_SWEEP = """
@@ -111,6 +170,9 @@ def test_refine_settings_are_validated(tmp_path):
         calibration_from_dict(calibration(tmp_path, rounds=1, runs_per_round=0), ROOT)
     with pytest.raises(ConfigError, match="method.refine.round"):
         calibration_from_dict(calibration(tmp_path, round=1), ROOT)
+    with pytest.raises(ConfigError, match="method.refine.max_emulator_share.*got 0"):
+        calibration_from_dict(calibration(tmp_path, rounds=1, max_emulator_share=0), ROOT)
+    assert calibration_from_dict(calibration(tmp_path, rounds=1), ROOT).method.refine.max_emulator_share == 0.1
 
 
 @pytest.mark.slow
@@ -129,7 +191,9 @@ def test_refinement_rounds_add_runs_to_the_sweep_until_confirmed(tmp_path):
     rounds = pd.read_csv(tmp_path / "cal" / "refine.csv")
     assert not rounds["passed"].iloc[0]                          # 3 coarse points: the first fit fails its check
     assert len(rounds) - 1 == (rounds["runs_added"] > 0).sum()   # every round but the last added runs
-    assert rounds["passed"].iloc[-1] or len(rounds) == 3          # stops when confirmed or out of rounds
+    settled = rounds["passed"] & (rounds["emulator_share"] <= 0.1)
+    assert not settled.iloc[:-1].any()                           # no round stopped too early ...
+    assert settled.iloc[-1] or len(rounds) == 3                  # ... nor late: settled, or out of rounds
     assert np.all(np.diff(rounds["training_points"]) == rounds["runs_added"].iloc[:-1].to_numpy() // 3)
     runs = load_results(results).runs
     assert len(runs) == len(before) + rounds["runs_added"].sum()
@@ -150,4 +214,5 @@ def test_refinement_rounds_add_runs_to_the_sweep_until_confirmed(tmp_path):
     assert cost["total"] == cost["refinement"] + cost["confirmation"] + cost["predictive"]
     assert report["accounting"]["training_runs_reused"] == len(before)
     assert any(line.startswith("refinement:") for line in outcome.verdicts(config))
+    assert any("emulator's own variance" in line for line in outcome.verdicts(config))
     assert "Refinement rounds" in (tmp_path / "cal" / "report.md").read_text()
