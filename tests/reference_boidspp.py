@@ -41,7 +41,7 @@ import math
 import numpy as np
 
 import reference_obstacles as ro
-from reference_hb import boundary, box_of, cross3, dot3, norm3, offset
+from reference_hb import banked_frame, boundary, box_of, dot3, norm3, offset
 from simcore.rng import STREAM_RANDOM_FORCE, STREAM_TARGETS, uniform01
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
@@ -197,20 +197,10 @@ def move(i, v, state, model, dt) -> None:
     v0 = state["vel"][i].copy()
     a = (v - v0) / dt
     p = state["pos"][i] + v * dt
-    up_old, side_old = state["up"][i], state["side"][i]
-    rate = min(max(3.0 * dt, 0.0), 1.0)
-    u = up_old + rate * (0.05 * a + np.array([0.0, 0.2, 0.0]) - up_old)
-    u = u / norm3(u) if norm3(u) > 0 else up_old.copy()
-    f = v / norm3(v) if norm3(v) > 0 else state["fwd"][i].copy()
-    side = cross3(f, u)
-    if norm3(side) > 1e-12:
-        side = side / norm3(side)
-    else:
-        side = side_old - dot3(side_old, f) * f
-        side = side / norm3(side)
+    f, up, side = banked_frame(i, v, a, state, dt)
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i], state["acc"][i], state["fwd"][i] = v, a, f
-    state["up"][i], state["side"][i] = cross3(side, f), side
+    state["up"][i], state["side"][i] = up, side
 
 
 def step(state: dict, agents: Agents, capture: np.ndarray, model, dt, step_index: int, key) -> None:

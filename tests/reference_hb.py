@@ -202,18 +202,9 @@ def escape(v, clock_i, direction, model, dt):
     return lead.gain * b * max(speed, slow_speed_of(model)) * d, cap
 
 
-# ---------------------------------------------------------------------------------------------------
-# motion (docs/model.md sections 5 and 1, decisions D2-D3)
-def move(i, s, k, mv, dv, cap, state, model, dt) -> None:
-    """One Hartman-Benes frame of boid i, in place in ``state``."""
-    g = model.gains
-    v0 = state["vel"][i].copy()
-    p = state["pos"][i] + dt * v0
-    v = v0 + (g.separation * s + g.cohesion * k) / dt + g.alignment * mv
-    v = clamp_length(v + dv, cap)
-    a = (v - v0) / dt
-
-    # banking frame (section 1)
+def banked_frame(i, v, a, state, dt):
+    """The frame of boid i rebuilt after a move (section 1: banking toward 0.05 a + 0.2 y, forward along the
+    new velocity ``v``, a stopped boid keeping its heading), from its frame in ``state``: (fwd, up, side)."""
     up_old, side_old = state["up"][i], state["side"][i]
     rate = min(max(3.0 * dt, 0.0), 1.0)
     u = up_old + rate * (0.05 * a + np.array([0.0, 0.2, 0.0]) - up_old)
@@ -228,7 +219,21 @@ def move(i, s, k, mv, dv, cap, state, model, dt) -> None:
     else:
         side = side_old - dot3(side_old, f) * f
         side = side / norm3(side) if norm3(side) > 0.0 else np.zeros(3)
-    u = cross3(side, f)
+    return f, cross3(side, f), side
+
+
+# ---------------------------------------------------------------------------------------------------
+# motion (docs/model.md sections 5 and 1, decisions D2-D3)
+def move(i, s, k, mv, dv, cap, state, model, dt) -> None:
+    """One Hartman-Benes frame of boid i, in place in ``state``."""
+    g = model.gains
+    v0 = state["vel"][i].copy()
+    p = state["pos"][i] + dt * v0
+    v = v0 + (g.separation * s + g.cohesion * k) / dt + g.alignment * mv
+    v = clamp_length(v + dv, cap)
+    a = (v - v0) / dt
+
+    f, u, side = banked_frame(i, v, a, state, dt)
 
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i] = v

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 import reference_obstacles as geo
-from reference_hb import boundary, box_of, cross3, dot3, neighbours, norm3, offset
+from reference_hb import banked_frame, boundary, box_of, dot3, neighbours, norm3, offset
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
 FULL = 1.0 - 1e-12  # the budget counts as reached from this share of max_accel (squares for the vector sum)
@@ -185,23 +185,13 @@ def move(i, a, state, model, dt) -> None:
         v = v * (rey.min_speed / speed) if speed > 0.0 else rey.min_speed * state["fwd"][i]
     p = state["pos"][i] + v * dt
     acc = (v - v0) / dt
-    up_old, side_old = state["up"][i], state["side"][i]
-    rate = min(max(3.0 * dt, 0.0), 1.0)
-    u = up_old + rate * (0.05 * acc + np.array([0.0, 0.2, 0.0]) - up_old)
-    u = u / norm3(u) if norm3(u) > 0.0 else up_old.copy()
-    f = v / norm3(v) if norm3(v) > 0.0 else state["fwd"][i].copy()
-    side = cross3(f, u)
-    if norm3(side) > 1e-12:
-        side = side / norm3(side)
-    else:
-        side = side_old - dot3(side_old, f) * f
-        side = side / norm3(side)
+    f, up, side = banked_frame(i, v, acc, state, dt)
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i] = v
     state["acc"][i] = acc
     state["fwd"][i] = f
     state["side"][i] = side
-    state["up"][i] = cross3(side, f)
+    state["up"][i] = up
 
 
 def step(state, model, dt) -> dict:
