@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .schema import ConfigError, check_choice, check_non_negative, check_positive, check_within
+from .schema import ConfigError, check_at_least, check_choice, check_non_negative, check_positive, check_within
 
 SEPARATION_FORMS = ("inverse_square", "velocity_over_distance")
 SCOPES = ("neighbours", "flock")
@@ -55,8 +55,7 @@ class RandomForce:
     magnitude: float = 0.0
 
     def __post_init__(self):
-        if self.every < 1:
-            raise ConfigError("every", f"got {self.every!r}; must be an integer >= 1 (steps)")
+        check_at_least("every", self.every, 1)
         check_non_negative("magnitude", self.magnitude)
 
 
@@ -70,8 +69,7 @@ class Avoid:
     body_radius: float = 0.5
 
     def __post_init__(self):
-        if self.rays < 1:
-            raise ConfigError("rays", f"got {self.rays!r}; must be an integer >= 1")
+        check_at_least("rays", self.rays, 1)
         check_non_negative("lookahead", self.lookahead)
         check_non_negative("weight", self.weight)
         check_positive("body_radius", self.body_radius)
