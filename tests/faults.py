@@ -48,6 +48,7 @@ class Trial:
     stderr: str = ""
     orphans: list = field(default_factory=list)
     elapsed_after_signal: float = 0.0
+    sent_at: float = 0.0         # wall-clock time (time.time()) the signal was sent
 
     @property
     def traceback(self) -> bool:
@@ -128,7 +129,7 @@ def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float
                 time.sleep(0.02)
             seen |= descendants(proc.pid)
             trial.hit = proc.poll() is None
-            sent = time.monotonic()
+            sent, trial.sent_at = time.monotonic(), time.time()
             if trial.hit:
                 if how == "sigint":
                     os.killpg(proc.pid, signal.SIGINT)
@@ -290,9 +291,29 @@ def calibration_ready(folder: Path):
     return lambda: (folder / "out" / "chain.h5").exists()
 
 
+def completed_before(kind: str, out: Path, when: float) -> bool:
+    """Whether the command had written its final result into ``out`` before the wall-clock time ``when``:
+    the sweep's manifest with its finish time, the calibration's convergence.json. A signal sent after
+    that reaches a process that is only exiting: the kernel drops a signal to a process already in
+    exit(), so it ends 0 although ``poll()`` said it was running a moment before. Such a trial did not
+    interrupt anything."""
+    import json
+
+    final = out / ("manifest.json" if kind == "sweep" else "convergence.json")
+    try:
+        written = final.stat().st_mtime
+        if kind == "sweep" and json.loads(final.read_text()).get("finished") is None:
+            return False
+    except (OSError, ValueError):
+        return False
+    return written <= when
+
+
 def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, window) -> tuple[Trial, object, str]:
     """Run the trial; when the command had finished before the signal (a busy machine ran it faster than
-    the window assumed), run it again in a fresh folder with the window halved (at most 3 attempts)."""
+    the window assumed; or it had written its final result and was exiting, see
+    :func:`completed_before`), run it again in a fresh folder with the window halved (at most 3
+    attempts)."""
     argv_of, ready_of, same = ((sweep_argv, sweep_ready, same_sweep) if kind == "sweep"
                                else (calibration_argv, calibration_ready, same_chain))
     for attempt in range(3):
@@ -300,6 +321,8 @@ def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, wi
         where.mkdir()
         argv = argv_of(where)
         trial = kill_trial(argv, where, ready_of(where), how, seed, (window[0] / 2 ** attempt, window[1] / 2 ** attempt))
+        if trial.hit and how != "worker" and completed_before(kind, where / "out", trial.sent_at):
+            trial.hit = False
         if trial.hit:
             break
     rerun = run_command(argv, where)

@@ -250,6 +250,23 @@ def test_a_killed_runner_frees_the_folder_at_once(tmp_path):
 
 # -- the kill battery ------------------------------------------------------------------------------------
 
+def test_a_signal_after_the_sweep_wrote_its_results_does_not_count_as_a_hit(tmp_path):
+    """The kill battery's guard against a false alarm: a signal sent when the runner had written its final
+    manifest reaches a process that is only exiting (the kernel drops it, exit 0)."""
+    import json
+
+    sweep = write_sweep(tmp_path, values="[6]")
+    out = tmp_path / "out"
+    started = time.time()
+    run(sweep, out)
+    assert not faults.completed_before("sweep", out, started - 1.0)
+    assert faults.completed_before("sweep", out, time.time() + 0.01)
+    manifest = json.loads((out / "manifest.json").read_text())
+    (out / "manifest.json").write_text(json.dumps({**manifest, "finished": None}))   # as while it runs
+    assert not faults.completed_before("sweep", out, time.time() + 0.01)
+    assert not faults.completed_before("sweep", tmp_path / "nowhere", time.time())
+
+
 @pytest.fixture(scope="module")
 def uninterrupted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("uninterrupted")
