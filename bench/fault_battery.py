@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]   # the checkout's packages before tests/'s same-named folders
 
 import faults  # noqa: E402  (tests/ holds the battery's cases and harness)
 from malformed import CASES, attempt  # noqa: E402

@@ -3,7 +3,11 @@
 * ``signals_as_exceptions()``: a context manager under which SIGINT raises :class:`KeyboardInterrupt` (as
   Python does by default) and SIGTERM raises :class:`Terminated` (a ``KeyboardInterrupt``), so one
   ``except KeyboardInterrupt`` / ``finally`` path saves what is finished, stops the workers and
-  releases the results folder after either. The previous handlers come back on exit.
+  releases the results folder after either. The previous handlers come back on exit. A handler's
+  exception can land anywhere, also in code that swallows it: a ``__del__`` method or a generator
+  finalised by the garbage collector (Python prints "Exception ignored in ..." and goes on). So the
+  handlers also record the signal, and a block that ends normally after one raises it on exit: an
+  interrupted command always ends as interrupted, at the latest when its work is done.
 * ``deferred()``: a context manager whose block is not interrupted by SIGINT or SIGTERM: a signal that
   arrives inside is held and delivered (to the handler in force before the block) when the block ends.
   Used around writes that must be whole (a results part with its time series, a chain step).
@@ -40,24 +44,33 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def _raise_terminated(signum, frame):
-    raise Terminated()
+def _exception(signum: int) -> KeyboardInterrupt:
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 @contextmanager
 def signals_as_exceptions():
-    """SIGINT -> KeyboardInterrupt, SIGTERM -> Terminated inside the block (main thread only)."""
+    """SIGINT -> KeyboardInterrupt, SIGTERM -> Terminated inside the block (main thread only); a signal
+    whose exception was swallowed inside is raised when the block ends."""
     if not _main_thread():
         yield
         return
+    received: list[int] = []
+
+    def handler(signum, frame):
+        received.append(signum)
+        raise _exception(signum)
+
     before = {sig: signal.getsignal(sig) for sig in HANDLED}
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, _raise_terminated)
+    for sig in HANDLED:
+        signal.signal(sig, handler)
     try:
         yield
     finally:
-        for sig, handler in before.items():
-            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+        for sig, previous in before.items():
+            signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+    if received:   # the block ended normally although a signal came: its exception was swallowed
+        raise _exception(received[0])
 
 
 @contextmanager

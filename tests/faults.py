@@ -293,13 +293,13 @@ def calibration_ready(folder: Path):
 
 def completed_before(kind: str, out: Path, when: float) -> bool:
     """Whether the command had written its final result into ``out`` before the wall-clock time ``when``:
-    the sweep's manifest with its finish time, the calibration's convergence.json. A signal sent after
+    the sweep's manifest with its finish time, the calibration's report.html. A signal sent after
     that reaches a process that is only exiting: the kernel drops a signal to a process already in
     exit(), so it ends 0 although ``poll()`` said it was running a moment before. Such a trial did not
     interrupt anything."""
     import json
 
-    final = out / ("manifest.json" if kind == "sweep" else "convergence.json")
+    final = out / ("manifest.json" if kind == "sweep" else "report.html")
     try:
         written = final.stat().st_mtime
         if kind == "sweep" and json.loads(final.read_text()).get("finished") is None:
