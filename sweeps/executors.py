@@ -51,7 +51,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
 
-from .interrupts import deferred
+from .interrupts import deferred, raise_if_received
 
 EXECUTORS = ("serial", "local", "dask")
 START_METHOD = "spawn"
@@ -293,6 +293,7 @@ class Executor:
 
     def _serial(self, fn, items, idle):
         for index, item in enumerate(items):
+            raise_if_received()
             if idle is not None:
                 yield None
             try:
@@ -311,6 +312,7 @@ class Executor:
         attempts = [0] * len(items)
         running: dict = {}
         while fresh or suspects or running:
+            raise_if_received()
             lost: list[int] = []
             if not self._submit(blob, items, fresh, suspects, running):
                 done, _ = wait(running, timeout=idle, return_when=FIRST_COMPLETED)
@@ -375,6 +377,7 @@ class Executor:
         pending = set(futures)
         try:
             while pending:
+                raise_if_received()
                 try:
                     done, pending = dask_wait(list(pending), timeout=idle, return_when="FIRST_COMPLETED")
                 except DaskTimeout:

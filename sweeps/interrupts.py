@@ -6,8 +6,9 @@
   releases the results folder after either. The previous handlers come back on exit. A handler's
   exception can land anywhere, also in code that swallows it: a ``__del__`` method or a generator
   finalised by the garbage collector (Python prints "Exception ignored in ..." and goes on). So the
-  handlers also record the signal, and a block that ends normally after one raises it on exit: an
-  interrupted command always ends as interrupted, at the latest when its work is done.
+  handlers also record the signal: ``raise_if_received()``, called by the executor at every turn of
+  its loops, raises it again, and a block that ends normally after one raises it on exit. An
+  interrupted command always ends as interrupted, as a rule at its next task.
 * ``deferred()``: a context manager whose block is not interrupted by SIGINT or SIGTERM: a signal that
   arrives inside is held and delivered (to the handler in force before the block) when the block ends.
   Used around writes that must be whole (a results part with its time series, a chain step).
@@ -48,6 +49,17 @@ def _exception(signum: int) -> KeyboardInterrupt:
     return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
+_received: list[list[int]] = []   # the signals each active signals_as_exceptions block received, innermost last
+
+
+def raise_if_received() -> None:
+    """Raise the interrupt that the innermost :func:`signals_as_exceptions` block received, if any: its
+    exception was swallowed on the way (a loop that goes on after an interrupt was not told of it).
+    Called where work goes on, never in clean-up paths."""
+    if _received and _received[-1]:
+        raise _exception(_received[-1][0])
+
+
 @contextmanager
 def signals_as_exceptions():
     """SIGINT -> KeyboardInterrupt, SIGTERM -> Terminated inside the block (main thread only); a signal
@@ -62,6 +74,7 @@ def signals_as_exceptions():
         raise _exception(signum)
 
     before = {sig: signal.getsignal(sig) for sig in HANDLED}
+    _received.append(received)
     for sig in HANDLED:
         signal.signal(sig, handler)
     try:
@@ -69,6 +82,7 @@ def signals_as_exceptions():
     finally:
         for sig, previous in before.items():
             signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+        _received.remove(received)
     if received:   # the block ended normally although a signal came: its exception was swallowed
         raise _exception(received[0])
 

@@ -7,6 +7,7 @@ import signal
 
 import pytest
 
+from sweeps.executors import Executor
 from sweeps.interrupts import Terminated, deferred, exit_status, signals_as_exceptions
 
 
@@ -33,29 +34,51 @@ def test_a_signal_inside_the_block_raises_and_the_handlers_come_back(sig, error)
     assert handlers() == before
 
 
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
-def test_a_signal_whose_exception_was_swallowed_is_raised_when_the_block_ends():
-    """A handler's exception raised inside a __del__ run by the garbage collector is printed and dropped
-    by Python; the command must still end as interrupted (this was an exit 0 after SIGINT)."""
+def swallowed_signal(sig) -> None:
+    """Deliver ``sig`` while the garbage collector runs a __del__: Python prints the handler's exception
+    ("Exception ignored in ...") and goes on, as when a Ctrl-C lands in a weakref callback."""
     swallowed = []
 
     class Finalised:
         def __del__(self):
             try:
-                os.kill(os.getpid(), signal.SIGTERM)
+                os.kill(os.getpid(), sig)
                 busy()
             finally:
                 swallowed.append(True)
 
+    cycle = Finalised()
+    cycle.me = cycle   # freed only by the collector
+    del cycle
+    gc.collect()
+    assert swallowed == [True]
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_signal_whose_exception_was_swallowed_is_raised_when_the_block_ends():
+    """The command must still end as interrupted (this was an exit 0 after SIGINT)."""
     with pytest.raises(Terminated):
         with signals_as_exceptions():
-            cycle = Finalised()
-            cycle.me = cycle   # freed only by the collector, where exceptions are ignored
-            del cycle
-            gc.collect()
-            assert swallowed == [True]
+            swallowed_signal(signal.SIGTERM)
             busy()   # the block goes on as if nothing had happened ...
     # ... and ends by raising the signal it received
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize("sig, error", [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, Terminated)])
+def test_a_swallowed_signal_stops_the_executor_at_its_next_task(sig, error):
+    ran = []
+
+    def task(x):
+        ran.append(x)
+        if x == 1:
+            swallowed_signal(sig)
+        return x
+
+    with pytest.raises(error):
+        with signals_as_exceptions(), Executor("serial", 1) as pool:
+            list(pool.as_completed(task, range(5)))
+    assert ran == [0, 1]
 
 
 def test_a_block_without_signals_ends_normally():
