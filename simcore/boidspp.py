@@ -379,7 +379,8 @@ def record(r, pos, vel, agents, rec_pos, rec_vel, rec_agents):
 
 @kernel
 def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-                record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step):
+                record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
+    nb.literally(kind)  # compiled for this perception kind only (simcore.perception.perceive)
     n = pos.shape[0]
     nbrs = new_neighbours(n)
     grid = cells.new_grid(n)
@@ -397,7 +398,7 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
         if step == n_steps:
             if recording:
                 for i in range(n):
-                    m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+                    m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
                     rec_visible[r, i] = m
                     rec_binocular[r, i] = count_both_eyes(m, nbrs)
             break
@@ -406,7 +407,7 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
         if flock_scope:
             flock_sums(pos, vel, sums)
         for i in range(n):
-            m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+            m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
             if recording:
                 rec_visible[r, i] = m
                 rec_binocular[r, i] = count_both_eyes(m, nbrs)
@@ -428,8 +429,9 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
 
 @nb.njit(cache=True, error_model="numpy", parallel=True)
 def run_boidspp_batch(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, keys, n_steps,
-                      record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step):
+                      record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
+    nb.literally(kind)
     for b in nb.prange(pos.shape[0]):
         run_boidspp(pos[b], vel[b], fwd[b], up[b], side[b], acc[b], agents[b], fp, ip, bp, bi, table, kinds, fan,
                     keys[b], n_steps, record_every, rec_pos[b], rec_vel[b], rec_visible[b], rec_binocular[b],
-                    rec_agents[b], capture_step[b])
+                    rec_agents[b], capture_step[b], kind)

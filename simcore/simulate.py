@@ -39,7 +39,8 @@ import numpy as np
 
 from . import boidspp, kernel, reynolds87
 from .boidspp_layout import pack_boidspp
-from .layout import pack
+from .jit import call_with_literal_kind
+from .layout import I, pack
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
@@ -92,6 +93,11 @@ def _notice_compile(dispatcher) -> None:
     if not cached:
         print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
               "this takes a minute or so) ...", file=sys.stderr, flush=True)
+
+
+def _kind(ip: np.ndarray) -> int:
+    """The perception kind a run loop is compiled for (``PERCEPTION_*``, see :mod:`simcore.jit`)."""
+    return int(ip[I.PERCEPTION])
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -169,8 +175,8 @@ def _advance_boidspp(model: ModelParams, s: State, n_steps: int, dt: float, reco
     fp, ip = pack(model, dt)
     rec = _boidspp_records(model, n_steps // record_every + 1, s.n)
     _notice_compile(boidspp.run_boidspp)
-    boidspp.run_boidspp(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip, *pack_boidspp(model, dt),
-                        np.uint64(key), n_steps, record_every, *rec)
+    call_with_literal_kind(boidspp.run_boidspp, s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip,
+                           *pack_boidspp(model, dt), np.uint64(key), n_steps, record_every, *rec, _kind(ip))
     times = np.arange(len(rec[0])) * (record_every * dt)
     return _boidspp_observations(model, times, rec, s, dt, record_every)
 
@@ -195,7 +201,7 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
                                 n_steps, record_every, *rec[:3])
     elif threads == 1:
         _notice_compile(kernel.run_model)
-        kernel.run_model(*args)
+        call_with_literal_kind(kernel.run_model, *args, _kind(ip))
     else:
         from .threaded import run_threaded
 
@@ -203,7 +209,7 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
         previous = numba.get_num_threads()
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         try:
-            run_threaded(*args, threads)
+            call_with_literal_kind(run_threaded, *args, threads, _kind(ip))
         finally:
             numba.set_num_threads(previous)
     times = np.arange(n_records) * (record_every * dt)
@@ -308,8 +314,8 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
         agents = np.stack([s.agents for s in states])
         rec = _boidspp_records(model, n_records, init.n, (len(states),))
         _notice_compile(boidspp.run_boidspp_batch)
-        boidspp.run_boidspp_batch(*(stacked[f] for f in FIELDS[:6]), agents, fp, ip, *pack_boidspp(model, dt), keys,
-                                  n_steps, record_every, *rec)
+        call_with_literal_kind(boidspp.run_boidspp_batch, *(stacked[f] for f in FIELDS[:6]), agents, fp, ip,
+                               *pack_boidspp(model, dt), keys, n_steps, record_every, *rec, _kind(ip))
         return [_boidspp_observations(model, times, tuple(r[b] for r in rec),
                                       State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)
                 for b in range(len(states))]
@@ -320,7 +326,8 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
                                       *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
     else:
         _notice_compile(kernel.run_batch)
-        kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
+        call_with_literal_kind(kernel.run_batch, *(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every,
+                               *rec, _kind(ip))
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
                           record_every) for b in range(len(states))]
