@@ -1,13 +1,14 @@
 """The compiled whole-run loop of the Boids++ dynamics (docs/model.md section 6).
 
 ``run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step)`` advances the state
-in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
+record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind)`` advances the
+state in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
 ``rec_binocular`` (R, N) as in :mod:`simcore.kernel`, ``rec_agents`` float64 (R, 2, 3) (predator
 and prey positions, NaN while absent) and ``capture_step`` int64 (N,): the first step at which each boid was
 within the predator's capture radius (-1: never; only when a radius is set). ``agents`` is the state's
 agent array (:mod:`simcore.boidspp_layout`); ``fp``/``ip`` the shared slots (perception, world, dt,
-max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles and ``fan`` the ray fan.
+max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles, ``fan`` the ray fan and
+``kind`` the perception kind, a compile-time literal (:mod:`simcore.jit`).
 
 One step s (time s dt):
 

@@ -1,6 +1,6 @@
 """The compiled whole-run loop: perception -> rules (-> leadership) -> dynamics, recorded every k steps.
 
-``run_model(state arrays..., fp, ip, key, n_steps, record_every, records...)`` advances the state in
+``run_model(state arrays..., fp, ip, key, n_steps, record_every, records..., kind)`` advances the state in
 place by ``n_steps`` steps and fills the records:
 
 * ``rec_pos``, ``rec_vel``  float64 (R, N, 3): state at steps 0, k, 2k, ... (R = n_steps // k + 1)
@@ -11,7 +11,8 @@ place by ``n_steps`` steps and fills the records:
 
 State: ``pos, vel, fwd, up, side, acc`` float64 (N, 3), ``pattern`` uint32 (N,), leadership ``clock``
 float64 (N,) and ``escape`` float64 (N, 3) (see :mod:`simcore.leadership`). ``key`` is the run's
-64-bit key for counter-based draws.
+64-bit key for counter-based draws. ``kind`` is the perception kind (``ip[I.PERCEPTION]``), a compile-time
+literal: the loop is compiled once per kind, with that kind's perception only (:mod:`simcore.jit`).
 
 Dynamics ``opensteer`` (OpenSteer steering and vehicle) or ``hartman_benes`` (raw velocity update).
 With ``synchronous`` order every boid perceives the state at time t, then all move; with

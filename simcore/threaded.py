@@ -1,6 +1,6 @@
 """One big synchronous run on several threads: the boids of a step are split into chunks run in parallel.
 
-``run_threaded(state arrays..., fp, ip, key, n_steps, record_every, records..., n_chunks)`` has the
+``run_threaded(state arrays..., fp, ip, key, n_steps, record_every, records..., n_chunks, kind)`` has the
 contract of :func:`simcore.kernel.run_model` for the synchronous update order. In a synchronous step
 every boid perceives the same state and writes only its own rows (steer, counts, trigger flag, and its
 own state when it moves), so the chunks are independent: each boid's numbers are computed by the same
