@@ -1,13 +1,14 @@
 """The compiled whole-run loop of the Boids++ dynamics (docs/model.md section 6).
 
 ``run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step)`` advances the state
-in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
+record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind)`` advances the
+state in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
 ``rec_binocular`` (R, N) as in :mod:`simcore.kernel`, ``rec_agents`` float64 (R, 2, 3) (predator
 and prey positions, NaN while absent) and ``capture_step`` int64 (N,): the first step at which each boid was
 within the predator's capture radius (-1: never; only when a radius is set). ``agents`` is the state's
 agent array (:mod:`simcore.boidspp_layout`); ``fp``/``ip`` the shared slots (perception, world, dt,
-max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles and ``fan`` the ray fan.
+max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles, ``fan`` the ray fan and
+``kind`` the perception kind, a compile-time literal (:mod:`simcore.jit`).
 
 One step s (time s dt):
 
@@ -379,7 +380,8 @@ def record(r, pos, vel, agents, rec_pos, rec_vel, rec_agents):
 
 @kernel
 def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-                record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step):
+                record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
+    nb.literally(kind)  # compiled for this perception kind only (simcore.perception.perceive)
     n = pos.shape[0]
     nbrs = new_neighbours(n)
     grid = cells.new_grid(n)
@@ -397,7 +399,7 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
         if step == n_steps:
             if recording:
                 for i in range(n):
-                    m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+                    m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
                     rec_visible[r, i] = m
                     rec_binocular[r, i] = count_both_eyes(m, nbrs)
             break
@@ -406,7 +408,7 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
         if flock_scope:
             flock_sums(pos, vel, sums)
         for i in range(n):
-            m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+            m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
             if recording:
                 rec_visible[r, i] = m
                 rec_binocular[r, i] = count_both_eyes(m, nbrs)
@@ -428,8 +430,9 @@ def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kin
 
 @nb.njit(cache=True, error_model="numpy", parallel=True)
 def run_boidspp_batch(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, keys, n_steps,
-                      record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step):
+                      record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
+    nb.literally(kind)
     for b in nb.prange(pos.shape[0]):
         run_boidspp(pos[b], vel[b], fwd[b], up[b], side[b], acc[b], agents[b], fp, ip, bp, bi, table, kinds, fan,
                     keys[b], n_steps, record_every, rec_pos[b], rec_vel[b], rec_visible[b], rec_binocular[b],
-                    rec_agents[b], capture_step[b])
+                    rec_agents[b], capture_step[b], kind)

@@ -12,6 +12,10 @@
 
 Each ``@leaf`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
 cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
+
+A run loop takes the perception kind as its last argument, ``kind``, made a compile-time literal with
+``numba.literally`` (:func:`simcore.perception.perceive`): it is compiled once per kind used, with that
+kind's perception only. Python calls it through :func:`call_with_literal_kind`.
 """
 from __future__ import annotations
 
@@ -19,4 +23,14 @@ import numba as nb
 
 kernel = nb.njit(cache=True, error_model="numpy")
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
-leaf = nb.njit(cache=True, error_model="numpy", _nrt=False)
+LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
+leaf = nb.njit(**LEAF_OPTIONS)
+
+
+def call_with_literal_kind(dispatcher, *args):
+    """``dispatcher(*args)`` for a run loop whose last argument is the literal perception kind: the
+    specialisation for that kind's value is compiled (or loaded from the cache) and called directly. A
+    plain call would give the same results, but numba would first type the whole loop for an int64 kind on
+    every call, only to be told to retry with the literal."""
+    argtypes = tuple(dispatcher.typeof_pyval(a) for a in args[:-1]) + (nb.types.literal(int(args[-1])),)
+    return dispatcher.compile(argtypes)(*args[:-1], int(args[-1]))

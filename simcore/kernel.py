@@ -1,6 +1,6 @@
 """The compiled whole-run loop: perception -> rules (-> leadership) -> dynamics, recorded every k steps.
 
-``run_model(state arrays..., fp, ip, key, n_steps, record_every, records...)`` advances the state in
+``run_model(state arrays..., fp, ip, key, n_steps, record_every, records..., kind)`` advances the state in
 place by ``n_steps`` steps and fills the records:
 
 * ``rec_pos``, ``rec_vel``  float64 (R, N, 3): state at steps 0, k, 2k, ... (R = n_steps // k + 1)
@@ -11,7 +11,8 @@ place by ``n_steps`` steps and fills the records:
 
 State: ``pos, vel, fwd, up, side, acc`` float64 (N, 3), ``pattern`` uint32 (N,), leadership ``clock``
 float64 (N,) and ``escape`` float64 (N, 3) (see :mod:`simcore.leadership`). ``key`` is the run's
-64-bit key for counter-based draws.
+64-bit key for counter-based draws. ``kind`` is the perception kind (``ip[I.PERCEPTION]``), a compile-time
+literal: the loop is compiled once per kind, with that kind's perception only (:mod:`simcore.jit`).
 
 Dynamics ``opensteer`` (OpenSteer steering and vehicle) or ``hartman_benes`` (raw velocity update).
 With ``synchronous`` order every boid perceives the state at time t, then all move; with
@@ -140,10 +141,10 @@ def move(i, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape):
 
 @inline
 def sense_range(lo, hi, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
-                fp, ip, key, nbrs, grid, use_grid):
+                fp, ip, key, nbrs, grid, use_grid, kind):
     """Synchronous order, boids lo..hi-1: perceive the state, store their steers and counts, mark triggers."""
     for i in range(lo, hi):
-        m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+        m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
         visible[i] = m
         binocular[i] = count_both_eyes(m, nbrs)
         triggered[i] = sense(i, step, m, nbrs, vel, fwd, pattern, clock, escape, steer, fp, ip, key)
@@ -166,11 +167,11 @@ def record_triggers(step, triggered, trig_step, trig_boid, n_trig):
 
 @inline
 def step_sequential(step, pos, vel, fwd, up, side, acc, pattern, clock, escape, steer, visible, binocular, fp, ip,
-                    key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig):
+                    key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig, kind):
     """Sequential order: boid i perceives, decides and moves before boid i + 1 perceives; a boid that moves
     is re-binned at once (the rest of the step searches all pairs if it leaves the grid's guarantee)."""
     for i in range(pos.shape[0]):
-        m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+        m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
         visible[i] = m
         binocular[i] = count_both_eyes(m, nbrs)
         if sense(i, step, m, nbrs, vel, fwd, pattern, clock, escape, steer, fp, ip, key):
@@ -190,10 +191,10 @@ def record_state(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
 
 
 @inline
-def record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular):
+def record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular, kind):
     """What every boid perceives in the final state (the last record, which does not move)."""
     for i in range(pos.shape[0]):
-        m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+        m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
         rec_visible[r, i] = m
         rec_binocular[r, i] = count_both_eyes(m, nbrs)
 
@@ -206,7 +207,8 @@ def tick(clock, dt):
 
 @kernel
 def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key, n_steps, record_every,
-              rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig):
+              rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig, kind):
+    nb.literally(kind)  # compiled for this perception kind only (simcore.perception.perceive)
     n = pos.shape[0]
     nbrs = new_neighbours(n)
     grid = cells.new_grid(n)
@@ -224,14 +226,14 @@ def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key,
         use_grid = prepare_search(grid, pos, fp, ip)
         if step == n_steps:
             if record:
-                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular)
+                record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular, kind)
             break
         if sequential:
             step_sequential(step, pos, vel, fwd, up, side, acc, pattern, clock, escape, steer, visible, binocular,
-                            fp, ip, key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig)
+                            fp, ip, key, nbrs, grid, use_grid, trig_step, trig_boid, n_trig, kind)
         else:
             sense_range(0, n, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
-                        triggered, fp, ip, key, nbrs, grid, use_grid)
+                        triggered, fp, ip, key, nbrs, grid, use_grid, kind)
             if leadership:
                 record_triggers(step, triggered, trig_step, trig_boid, n_trig)
             move_range(0, n, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
@@ -246,8 +248,9 @@ def run_model(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key,
 
 @nb.njit(cache=True, error_model="numpy", parallel=True)
 def run_batch(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, keys, n_steps, record_every,
-              rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig):
+              rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig, kind):
+    nb.literally(kind)
     for b in nb.prange(pos.shape[0]):
         run_model(pos[b], vel[b], fwd[b], up[b], side[b], acc[b], pattern[b], clock[b], escape[b], fp, ip,
                   keys[b], n_steps, record_every, rec_pos[b], rec_vel[b], rec_visible[b], rec_binocular[b],
-                  rec_leader[b], trig_step[b], trig_boid[b], n_trig[b])
+                  rec_leader[b], trig_step[b], trig_boid[b], n_trig[b], kind)

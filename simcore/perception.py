@@ -1,6 +1,6 @@
 """Perception kernels: who boid i sees (docs/model.md, "Perception"). Compiled with numba.
 
-``perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)`` fills the first ``m`` slots of the
+``perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)`` fills the first ``m`` slots of the
 neighbour buffers ``nbrs`` (:mod:`simcore.neighbours`) and returns ``m``:
 
 * ``nbrs.idx``   int64 (N,)    neighbour index j, ascending
@@ -16,6 +16,11 @@ The rest of ``nbrs`` is scratch. Kinds:
   phase (:mod:`simcore.occlusion`);
 * topological: the k nearest eligible boids (:mod:`simcore.topological`).
 
+Compilation. ``kind`` (``PERCEPTION_*``, the run's ``ip[I.PERCEPTION]``) is a compile-time literal in
+compiled callers, and each kind has its own perceiver (``perceive_sphere``, ``perceive_opensteer``,
+``perceive_binocular``, ``perceive_topological``), compiled as a leaf only when a caller asks for it: a
+holland run never compiles the kNN, an opensteer run neither the view phase nor occlusion.
+
 Search. With ``use_grid`` the candidates come from the cell lists of :mod:`simcore.grid` (built for this
 state with :func:`query_radius`), otherwise from all pairs. Every candidate gets the same exact test and
 the accepted ones are put in ascending index order, so both searches give bit-identical buffers, and the
@@ -25,9 +30,12 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
+from numba import types
+from numba.extending import overload
 
-from .jit import inline, leaf
+from .jit import LEAF_OPTIONS, call_with_literal_kind, inline, kernel
 from .grid import LAYOUT, SORTED, gather, runs
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
@@ -195,25 +203,70 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
     return m
 
 
-@leaf
-def perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
-    """Neighbours of boid i (see module docstring); returns their count m."""
+# The perceivers, one per kind, with a common signature (kind, i, pos, fwd, side, fp, ip, nbrs, grid,
+# use_grid). Each is compiled as a leaf (``LEAF_OPTIONS``) by numba's typing of ``perceive`` below, only
+# for a caller that asks for its kind; the unused ``kind`` argument is that literal.
+
+def perceive_sphere(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
-    box = fp[F.BOX]
-    kind = ip[I.PERCEPTION]
-    if kind == PERCEPTION_TOPOLOGICAL:
-        m = nearest(i, pos, fwd, fp, ip, periodic, box, nbrs, grid, use_grid)
-    else:
-        n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
-        if kind == PERCEPTION_BINOCULAR:
-            m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs)
-            if ip[I.OCCLUSION] != 0 and m > 1:
-                m = occlude(np.int64(m), fp, nbrs)  # int64 from the start: typing the call with the
-                # literal 0 of the view phase's counter would compile occlude a second time
-        elif kind == PERCEPTION_OPENSTEER:
-            m = _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, nbrs)
-        else:
-            m = _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, box, nbrs)
-        if use_grid:
-            sort_by_index(m, nbrs)
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    m = _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, fp[F.BOX], nbrs)
+    if use_grid:
+        sort_by_index(m, nbrs)
     return m
+
+
+def perceive_opensteer(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
+    periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    m = _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, fp[F.BOX], nbrs)
+    if use_grid:
+        sort_by_index(m, nbrs)
+    return m
+
+
+def perceive_binocular(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
+    periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, fp[F.BOX], nbrs)
+    if ip[I.OCCLUSION] != 0 and m > 1:
+        m = occlude(np.int64(m), fp, nbrs)  # int64 from the start: typing the call with the
+        # literal 0 of the view phase's counter would compile occlude a second time
+    if use_grid:
+        sort_by_index(m, nbrs)
+    return m
+
+
+def perceive_topological(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
+    return nearest(i, pos, fwd, fp, ip, ip[I.BOUNDARY] == BOUNDARY_PERIODIC, fp[F.BOX], nbrs, grid, use_grid)
+
+
+PERCEIVERS = {PERCEPTION_SPHERE: perceive_sphere, PERCEPTION_OPENSTEER: perceive_opensteer,
+              PERCEPTION_BINOCULAR: perceive_binocular, PERCEPTION_TOPOLOGICAL: perceive_topological}
+
+
+def perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
+    """Neighbours of boid i (see module docstring) by the perception ``kind`` (a ``PERCEPTION_*``, equal to
+    ``ip[I.PERCEPTION]``); returns their count m.
+
+    In compiled code ``kind`` must be a compile-time literal: a run loop's argument made literal with
+    ``numba.literally`` (:mod:`simcore.jit`), or a ``PERCEPTION_*`` constant. The call then compiles into a
+    call of that kind's perceiver alone, so a run compiles only the perception it uses. From Python it
+    runs the same compiled perceiver (through :func:`perceive_one`)."""
+    return call_with_literal_kind(perceive_one, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid, int(kind))
+
+
+@overload(perceive, jit_options=LEAF_OPTIONS, prefer_literal=True)
+def _perceiver_of_literal_kind(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
+    """numba's typing of ``perceive``: with a literal kind, that kind's perceiver; with a kind known only at
+    run time, no implementation (numba's typing error names ``perceive`` and the argument types)."""
+    if isinstance(kind, types.IntegerLiteral):
+        return PERCEIVERS.get(kind.literal_value)
+    return None
+
+
+@kernel
+def perceive_one(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid, kind):
+    """``perceive`` as a compiled function Python can call (tests, :mod:`simcore.probe`)."""
+    nb.literally(kind)
+    return perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)

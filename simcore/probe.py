@@ -12,7 +12,7 @@ import numpy as np
 
 from .grid import new_grid
 from .kernel import prepare_search
-from .layout import pack
+from .layout import I, pack
 from .neighbours import new_neighbours
 from .params import ModelParams
 from .perception import perceive
@@ -24,7 +24,7 @@ def _perceive(model: ModelParams, state: State, i: int, dt: float):
     fp, ip = pack(model, dt)
     nbrs, grid = new_neighbours(state.n), new_grid(state.n)
     use_grid = prepare_search(grid, state.pos, fp, ip)
-    m = perceive(i, state.pos, state.fwd, state.side, fp, ip, nbrs, grid, use_grid)
+    m = perceive(int(ip[I.PERCEPTION]), i, state.pos, state.fwd, state.side, fp, ip, nbrs, grid, use_grid)
     return fp, ip, nbrs, m, bool(use_grid)
 
 

@@ -46,7 +46,7 @@ from . import grid as cells
 from .dynamics import apply_boundary, rebuild_frame
 from .jit import inline, kernel
 from .kernel import prepare_search
-from .layout import ORDER_SEQUENTIAL, F, I
+from .layout import ORDER_SEQUENTIAL, PERCEPTION_SPHERE, F, I
 from .neighbours import new_neighbours
 from .obstacle_avoidance import steer_to_avoid
 from .obstacle_spec import pack_obstacles
@@ -248,11 +248,11 @@ def run_reynolds(pos, vel, fwd, up, side, acc, fp, ip, rp, ri, table, kinds, n_s
         if step == n_steps:
             if record:
                 for i in range(n):
-                    rec_visible[r, i] = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+                    rec_visible[r, i] = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
             break
         if sequential:
             for i in range(n):
-                m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+                m = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
                 visible[i] = m
                 ax, ay, az = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds)
                 move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp)
@@ -260,7 +260,7 @@ def run_reynolds(pos, vel, fwd, up, side, acc, fp, ip, rp, ri, table, kinds, n_s
                     use_grid = cells.rebin(grid, i, pos)
         else:
             for i in range(n):
-                m = perceive(i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
+                m = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
                 visible[i] = m
                 accel[i, 0], accel[i, 1], accel[i, 2] = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table,
                                                                    kinds)

@@ -32,14 +32,15 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numba
 import numpy as np
+from numba.core import event as numba_event
 
 from . import boidspp, kernel, reynolds87
 from .boidspp_layout import pack_boidspp
-from .layout import pack
+from .jit import call_with_literal_kind
+from .layout import I, pack
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
@@ -77,21 +78,42 @@ class Observations:
 _NOTICE_SHOWN = False
 
 
-def _notice_compile(dispatcher) -> None:
-    """Tell the user, once per process, when a kernel is about to be compiled rather than loaded from
-    numba's on-disk cache (the first run after installing or editing simcore)."""
-    global _NOTICE_SHOWN
-    if _NOTICE_SHOWN or dispatcher.signatures:
+class _CompileNotice(numba_event.Listener):
+    """Tells the user, once per process, when numba starts compiling a kernel rather than loading it from
+    its on-disk cache (the first run after installing or editing simcore, or of a perception kind or
+    dynamics not run before): numba signals only real compiles."""
+
+    def on_start(self, event) -> None:
+        global _NOTICE_SHOWN
+        if not _NOTICE_SHOWN:
+            _NOTICE_SHOWN = True
+            print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
+                  "this takes a minute or so) ...", file=sys.stderr, flush=True)
+
+    def on_end(self, event) -> None:
+        pass
+
+
+def _run_loop(dispatcher, *args, kind: int | None = None) -> None:
+    """Call a compiled run loop, with the compile notice; ``kind``: the perception kind of a loop compiled
+    per kind (its last argument, :func:`simcore.jit.call_with_literal_kind`)."""
+    if _NOTICE_SHOWN:
+        _call(dispatcher, args, kind)
         return
-    _NOTICE_SHOWN = True
-    try:
-        name = f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.py_func.__qualname__}-*.nbi"
-        cached = any(Path(dispatcher._cache.cache_path).glob(name))
-    except (AttributeError, OSError):
-        return
-    if not cached:
-        print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
-              "this takes a minute or so) ...", file=sys.stderr, flush=True)
+    with numba_event.install_listener("numba:compile", _CompileNotice()):
+        _call(dispatcher, args, kind)
+
+
+def _call(dispatcher, args, kind) -> None:
+    if kind is None:
+        dispatcher(*args)
+    else:
+        call_with_literal_kind(dispatcher, *args, kind)
+
+
+def _kind(ip: np.ndarray) -> int:
+    """The perception kind a run loop is compiled for (``PERCEPTION_*``, see :mod:`simcore.jit`)."""
+    return int(ip[I.PERCEPTION])
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -168,9 +190,8 @@ def _advance_boidspp(model: ModelParams, s: State, n_steps: int, dt: float, reco
                      key) -> Observations:
     fp, ip = pack(model, dt)
     rec = _boidspp_records(model, n_steps // record_every + 1, s.n)
-    _notice_compile(boidspp.run_boidspp)
-    boidspp.run_boidspp(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip, *pack_boidspp(model, dt),
-                        np.uint64(key), n_steps, record_every, *rec)
+    _run_loop(boidspp.run_boidspp, s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip,
+              *pack_boidspp(model, dt), np.uint64(key), n_steps, record_every, *rec, kind=_kind(ip))
     times = np.arange(len(rec[0])) * (record_every * dt)
     return _boidspp_observations(model, times, rec, s, dt, record_every)
 
@@ -190,20 +211,17 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
     args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
             n_steps, record_every, *rec)
     if model.dynamics == "reynolds87":
-        _notice_compile(reynolds87.run_reynolds)
-        reynolds87.run_reynolds(s.pos, s.vel, s.fwd, s.up, s.side, s.acc, fp, ip, *reynolds87.pack_reynolds(model),
-                                n_steps, record_every, *rec[:3])
+        _run_loop(reynolds87.run_reynolds, s.pos, s.vel, s.fwd, s.up, s.side, s.acc, fp, ip,
+                  *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
     elif threads == 1:
-        _notice_compile(kernel.run_model)
-        kernel.run_model(*args)
+        _run_loop(kernel.run_model, *args, kind=_kind(ip))
     else:
         from .threaded import run_threaded
 
-        _notice_compile(run_threaded)
         previous = numba.get_num_threads()
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         try:
-            run_threaded(*args, threads)
+            _run_loop(run_threaded, *args, threads, kind=_kind(ip))
         finally:
             numba.set_num_threads(previous)
     times = np.arange(n_records) * (record_every * dt)
@@ -307,20 +325,18 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     if model.dynamics == "boidspp":
         agents = np.stack([s.agents for s in states])
         rec = _boidspp_records(model, n_records, init.n, (len(states),))
-        _notice_compile(boidspp.run_boidspp_batch)
-        boidspp.run_boidspp_batch(*(stacked[f] for f in FIELDS[:6]), agents, fp, ip, *pack_boidspp(model, dt), keys,
-                                  n_steps, record_every, *rec)
+        _run_loop(boidspp.run_boidspp_batch, *(stacked[f] for f in FIELDS[:6]), agents, fp, ip,
+                  *pack_boidspp(model, dt), keys, n_steps, record_every, *rec, kind=_kind(ip))
         return [_boidspp_observations(model, times, tuple(r[b] for r in rec),
                                       State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)
                 for b in range(len(states))]
     rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
     if model.dynamics == "reynolds87":
-        _notice_compile(reynolds87.run_reynolds_batch)
-        reynolds87.run_reynolds_batch(*(stacked[f] for f in ("pos", "vel", "fwd", "up", "side", "acc")), fp, ip,
-                                      *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
+        _run_loop(reynolds87.run_reynolds_batch, *(stacked[f] for f in ("pos", "vel", "fwd", "up", "side", "acc")),
+                  fp, ip, *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
     else:
-        _notice_compile(kernel.run_batch)
-        kernel.run_batch(*(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec)
+        _run_loop(kernel.run_batch, *(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec,
+                  kind=_kind(ip))
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
                           record_every) for b in range(len(states))]

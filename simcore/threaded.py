@@ -1,6 +1,6 @@
 """One big synchronous run on several threads: the boids of a step are split into chunks run in parallel.
 
-``run_threaded(state arrays..., fp, ip, key, n_steps, record_every, records..., n_chunks)`` has the
+``run_threaded(state arrays..., fp, ip, key, n_steps, record_every, records..., n_chunks, kind)`` has the
 contract of :func:`simcore.kernel.run_model` for the synchronous update order. In a synchronous step
 every boid perceives the same state and writes only its own rows (steer, counts, trigger flag, and its
 own state when it moves), so the chunks are independent: each boid's numbers are computed by the same
@@ -36,9 +36,9 @@ def record_state_serial(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
 
 
 @kernel
-def record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular):
+def record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular, kind):
     record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_search(grid, pos, fp, ip), rec_visible,
-                      rec_binocular)
+                      rec_binocular, kind)
 
 
 @kernel
@@ -57,14 +57,14 @@ def finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_b
 @kernel
 def sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular, triggered,
                 fp, ip, key, idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot, head, nxt, prv,
-                bucket, shape, lo, hi, cell_side, start, order, spos, use_grid):
+                bucket, shape, lo, hi, cell_side, start, order, spos, use_grid, kind):
     """Chunk c of the perception phase (plain arrays in and out: parallel loops take no named tuples)."""
     nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], cpos[c], everyone, occ_f[c], occ_i[c], bits[c],
                       slot[c])
     grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos)
     n = pos.shape[0]
     sense_range(c * chunk, min(n, (c + 1) * chunk), step, pos, vel, fwd, side, pattern, clock, escape, steer,
-                visible, binocular, triggered, fp, ip, key, nbrs, grid, use_grid)
+                visible, binocular, triggered, fp, ip, key, nbrs, grid, use_grid, kind)
 
 
 @kernel
@@ -76,7 +76,9 @@ def move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, esc
 
 @nb.njit(cache=True, error_model="numpy", parallel=True)
 def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, key, n_steps, record_every,
-                 rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig, n_chunks):
+                 rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig, n_chunks,
+                 kind):
+    nb.literally(kind)  # compiled for this perception kind only (simcore.perception.perceive)
     n = pos.shape[0]
     chunk = (n + n_chunks - 1) // n_chunks
     # per-chunk neighbour buffers (Neighbours fields, one slab per chunk)
@@ -109,13 +111,13 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], cpos[0], everyone, occ_f[0], occ_i[0],
                                   bits[0], slot[0])
-                record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular)
+                record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular, kind)
             break
         use_grid = prepare_chunks(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
             sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
                         triggered, fp, ip, key, idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot,
-                        head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, use_grid)
+                        head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, use_grid, kind)
         for c in nb.prange(n_chunks):
             move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
         finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_boid, n_trig, clock, fp[F.DT],

@@ -255,14 +255,24 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, quarantined=quarantined)
 
 
+def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
+    """The first run of each (dynamics, perception kind): simcore compiles a run loop for each."""
+    first = {}
+    for spec in specs:
+        model = spec.preset.model
+        first.setdefault((model.dynamics, model.perception.kind), spec)
+    return list(first.values())
+
+
 def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
              scheduler: str | None, progress: bool, batch_size: int | None) -> list[RunSpec]:
     """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
     with their workers (not recorded)."""
-    try:
-        worker.warm_up(plan.todo[0])
-    except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
-        pass
+    for spec in _one_per_run_loop(plan.todo):
+        try:
+            worker.warm_up(spec)
+        except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
+            pass
     batches = make_batches(plan.todo, workers, batch_size)
     task = functools.partial(worker.execute_batch, out_dir=store.root)
     failures, lost = 0, []

@@ -1,6 +1,8 @@
-"""The first compile, in a fresh process with an empty numba cache: every simcore kernel is compiled for
-one signature only (a second signature is a whole second compile), and the notice that kernels are
-compiling is printed once, however many runs follow."""
+"""The first compile, in fresh processes with an empty numba cache: a run compiles only the perception
+kind it uses (a holland run never compiles the topological kNN, an opensteer run neither the binocular
+view phase nor occlusion), every simcore kernel is compiled for one signature only (a second signature is
+a whole second compile; the run loop once per perception kind), a second process loads everything from
+the cache, and the notice that kernels are compiling is printed once per process that compiles."""
 from __future__ import annotations
 
 import json
@@ -15,30 +17,52 @@ from paths import ROOT
 CODE = """
 import collections, json, sys
 from numba.core import event
-counts = collections.Counter()
+runs = []
 class Count(event.Listener):
     def on_start(self, ev):
         pass
     def on_end(self, ev):
         func = ev.data["dispatcher"].py_func
-        counts[f"{func.__module__}.{func.__qualname__}"] += 1
+        runs[-1][f"{func.__module__}.{func.__qualname__}"] += 1
 event.register("numba:compile", Count())
 from simcore import load_preset, simulate_preset
-for name in ("holland.toml", "opensteer.toml"):
+for name in sys.argv[2:]:
+    runs.append(collections.Counter())
     preset = load_preset(sys.argv[1] + "/configs/models/" + name, ["init.n=12", "run.duration=0.1"])
     simulate_preset(preset, 1)
-print(json.dumps({k: v for k, v in counts.items() if k.startswith("simcore.")}))
+print(json.dumps([{k: v for k, v in run.items() if k.startswith("simcore.")} for run in runs]))
 """
+
+RUN_LOOP = "simcore.kernel.run_model"
+PERCEIVERS = {kind: f"simcore.perception.perceive_{kind}" for kind in ("sphere", "opensteer", "binocular",
+                                                                        "topological")}
+NEAREST, OCCLUDE = "simcore.topological.nearest", "simcore.occlusion.occlude"
+
+
+def compiles(cache, *models) -> tuple[list[dict], str]:
+    """What each run compiled (qualified name -> count), in a fresh process, and its stderr."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-c", CODE, str(ROOT), *models], cwd=cache.parent, env=env,
+                          capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1]), done.stderr
 
 
 @pytest.mark.slow
-def test_each_kernel_compiles_once_and_the_notice_is_printed_once(tmp_path):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"),
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    done = subprocess.run([sys.executable, "-c", CODE, str(ROOT)], cwd=tmp_path, env=env, capture_output=True,
-                          text=True, timeout=1800)
-    assert done.returncode == 0, done.stderr
-    compiled = json.loads(done.stdout.strip().splitlines()[-1])
-    assert {"simcore.kernel.run_model", "simcore.perception.perceive", "simcore.occlusion.occlude"} <= set(compiled)
-    assert {name: count for name, count in compiled.items() if count != 1} == {}
-    assert done.stderr.count("compiling the simulation kernels") == 1
+def test_a_run_compiles_its_own_perception_kind_once_and_the_notice_is_printed_once(tmp_path):
+    cache = tmp_path / "cache"
+    (holland, opensteer), stderr = compiles(cache, "holland.toml", "opensteer.toml")
+    assert {RUN_LOOP, PERCEIVERS["binocular"], OCCLUDE} <= set(holland)
+    assert set(holland).isdisjoint({PERCEIVERS["sphere"], PERCEIVERS["opensteer"], PERCEIVERS["topological"],
+                                    NEAREST})
+    # the second kind adds its run loop and its perceiver, nothing else (the other leaves are shared)
+    assert opensteer == {RUN_LOOP: 1, PERCEIVERS["opensteer"]: 1}
+    assert {name: count for name, count in holland.items() if count != 1} == {}
+    assert stderr.count("compiling the simulation kernels") == 1
+
+    (holland, opensteer, topological), stderr = compiles(cache, "holland.toml", "opensteer.toml",
+                                                         "topological.toml")
+    assert holland == opensteer == {}, "a second process compiled again instead of loading numba's cache"
+    assert topological == {RUN_LOOP: 1, PERCEIVERS["topological"]: 1, NEAREST: 1}
+    assert stderr.count("compiling the simulation kernels") == 1  # a kind not compiled before: told too
