@@ -33,6 +33,7 @@ from .layout import F
 DISC = IntEnum("DISC", "RHO UX UY UZ", start=0)
 BINS = IntEnum("BINS", "FLAG SLOT START KEY", start=0)
 
+ALL_PAIRS_MAX = 80     # up to this many in-view neighbours, every pair is tested (no sort)
 GRID_3D_MIN = 256     # from this many in-view neighbours on, a 3-D grid of directions
 ROBUST = 1e-7         # margin of a "robust" containment, relative to 1 + rho_j
 NOT_HIDDEN, HIDDEN, ROBUSTLY_HIDDEN = 0, 1, 2
@@ -183,12 +184,32 @@ def _occlude_sorted(m, disc, bins, axis):
             q -= 1
 
 
+@inline
+def _occlude_all_pairs(m, disc, flags):
+    """Few neighbours: every pair gets the exact test of :func:`_hide`, without branches (so the compiler
+    can vectorise the inner loop); flags[k] is HIDDEN (1) or NOT_HIDDEN (0)."""
+    rho, ux, uy, uz = disc[DISC.RHO], disc[DISC.UX], disc[DISC.UY], disc[DISC.UZ]
+    for k in range(m):
+        rho_k, xk, yk, zk = rho[k], ux[k], uy[k], uz[k]
+        hidden = 0
+        for j in range(m):
+            gap = rho[j] - rho_k
+            dx = ux[j] - xk
+            dy = uy[j] - yk
+            dz = uz[j] - zk
+            dist2 = dx * dx + dy * dy + dz * dz
+            hidden |= (gap > 0.0) & (dist2 <= gap * gap)
+        flags[k] = hidden & (rho_k >= 0.0)
+
+
 @leaf
 def occlude(m, fp, nbrs):
     """Perspective phase on the m in-view neighbours of ``nbrs``; returns the number left (module docstring)."""
     disc, bins = nbrs.occ_f, nbrs.occ_i
     axis = _discs(m, fp, nbrs)
-    if m < GRID_3D_MIN:
+    if m <= ALL_PAIRS_MAX:
+        _occlude_all_pairs(m, disc, bins[BINS.FLAG])
+    elif m < GRID_3D_MIN:
         _sort_along(m, disc, bins, axis)
         _occlude_sorted(m, disc, bins, axis)
     else:
