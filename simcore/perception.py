@@ -161,6 +161,37 @@ def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, cos_half2, see
 
 
 @inline
+def _in_narrow_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half2):
+    """:func:`_in_eye` for an eye whose cos_half >= 0 (and not see_all), without branches: (in view for
+    sure, unsure). When unsure, :func:`_in_eye` decides (its square root); otherwise the answer is its."""
+    qx = dx - ex
+    qy = dy - ey
+    qz = dz - ez
+    along = ax * qx + ay * qy + az * qz
+    q2 = qx * qx + qy * qy + qz * qz
+    bound2 = cos_half2 * q2
+    along2 = along * along
+    candidate = (along >= 0.0) & (q2 > 0.0) & (q2 <= range2)
+    bounded = (bound2 > TINY) & (bound2 < HUGE)
+    sure_in = bounded & (along2 > bound2 * (1.0 + SURE))
+    sure_out = bounded & (along2 < bound2 * (1.0 - SURE))
+    return candidate & sure_in, candidate & ~(sure_in | sure_out)
+
+
+@inline
+def _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, arz, range2, cos_half, cos_half2,
+           see_all):
+    """Eye label of candidate j at offset d (0 for boid i itself or out of both views)."""
+    label = 0
+    if j != i:
+        if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, cos_half2, see_all):
+            label |= EYE_LEFT
+        if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, cos_half2, see_all):
+            label |= EYE_RIGHT
+    return label
+
+
+@inline
 def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
@@ -187,19 +218,31 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
             near[n_near] = c
             n_near += dx * dx + dy * dy + dz * dz <= reach2
     m = 0
-    for t in range(n_near):
-        c = near[t]
-        j = cand[c]
-        if j != i:
+    if not (cos_half >= 0.0 and not see_all):
+        for t in range(n_near):
+            c = near[t]
+            j = cand[c]
             dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
-            label = 0
-            if _in_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half, cos_half2, see_all):
-                label |= EYE_LEFT
-            if _in_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half, cos_half2, see_all):
-                label |= EYE_RIGHT
+            label = _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, arz, range2,
+                           cos_half, cos_half2, see_all)
             if label != 0:
                 store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
                 m += 1
+        return m
+    # each eye's field at most 180 degrees: branch-free unless a test is unsure (rare), since in view or
+    # not is a coin toss per candidate
+    for t in range(n_near):
+        c = near[t]
+        j = cand[c]
+        dx, dy, dz = offset_to(cpos[c, 0], cpos[c, 1], cpos[c, 2], px, py, pz, periodic, box)
+        in_l, unsure_l = _in_narrow_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half2)
+        in_r, unsure_r = _in_narrow_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half2)
+        label = (j != i) * (in_l * EYE_LEFT + in_r * EYE_RIGHT)
+        if unsure_l | unsure_r:
+            label = _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, arz, range2,
+                           cos_half, cos_half2, see_all)
+        store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)  # kept only when in view (m advances)
+        m += label != 0
     return m
 
 

@@ -15,7 +15,7 @@ import pytest
 from conftest import flock_state, make_model, state_from, unit_vectors
 from simcore import advance, load_preset, simulate
 from simcore.kernel import AUTO_MIN_SAVING
-from simcore.occlusion import GRID_3D_MIN
+from simcore.occlusion import ALL_PAIRS_MAX, GRID_3D_MIN
 from simcore.params import InitParams, Leadership, ModelParams, Perception, World
 from simcore.probe import perceived
 
@@ -120,11 +120,11 @@ def brute_force_hidden(state, i, n, body):
     return idx, ((gap > 0) & (s <= gap * gap)).any(axis=0)
 
 
-@pytest.mark.parametrize("n, body, min_hidden", [(700, 0.4, 50), (120, 0.7, 10)])
+@pytest.mark.parametrize("n, body, min_hidden", [(700, 0.4, 50), (120, 0.7, 10), (60, 1.0, 5)])
 def test_occlusion_hides_the_brute_force_set(n, body, min_hidden):
-    """Hundreds of in-view neighbours (the 3-D direction grid of the perspective phase) and fewer than
-    ``GRID_3D_MIN`` (the slots sorted along one axis): the hidden set is the brute-force one, checked pair
-    by pair in numpy."""
+    """Hundreds of in-view neighbours (the 3-D direction grid of the perspective phase), fewer than
+    ``GRID_3D_MIN`` (the slots sorted along one axis) and at most ``ALL_PAIRS_MAX`` (every pair tested
+    without branches): the hidden set is the brute-force one, checked pair by pair in numpy."""
     rng = np.random.default_rng(11)
     pos = rng.standard_normal((n, 3))
     pos *= (6.0 * rng.random(n) ** (1 / 3) / np.linalg.norm(pos, axis=1))[:, None]
@@ -136,6 +136,7 @@ def test_occlusion_hides_the_brute_force_set(n, body, min_hidden):
         idx, hidden = brute_force_hidden(state, i, n, body)
         assert got["idx"].tolist() == idx[~hidden].tolist(), f"boid {i}"
         assert (len(idx) >= GRID_3D_MIN) == (n > GRID_3D_MIN), "the intended path was exercised"
+        assert (len(idx) <= ALL_PAIRS_MAX) == (n <= ALL_PAIRS_MAX), "the intended path was exercised"
         assert hidden.sum() >= min_hidden, "real occlusion was exercised"
 
 
