@@ -247,6 +247,7 @@ class Executor:
     def _stop_pool(self, wait: bool) -> None:
         pool, self._pool = self._pool, None
         processes = list((getattr(pool, "_processes", None) or {}).values())
+        manager = getattr(pool, "_executor_manager_thread", None)
         if not wait:
             for process in processes:
                 if process.is_alive():
@@ -254,6 +255,8 @@ class Executor:
         pool.shutdown(wait=wait, cancel_futures=True)
         for process in processes:
             process.join(timeout=10)
+        if manager is not None:   # else, at exit, Python may wake it through a pipe it is closing:
+            manager.join(timeout=10)   # "Exception ignored ... OSError: [Errno 9] Bad file descriptor"
 
     @property
     def in_process(self) -> bool:

@@ -159,7 +159,7 @@ import os, queue, signal, threading, time
 import multiprocessing.util as util
 from sweeps.executors import Executor
 
-requests, done, spawned = queue.Queue(), queue.Queue(), []
+requests, done, spawned, sent = queue.Queue(), queue.Queue(), [], [0]
 
 def interrupter():
     # started before any worker, so SIGINT is not blocked in this thread (as in tqdm's monitor thread):
@@ -167,6 +167,7 @@ def interrupter():
     while True:
         requests.get()
         os.kill(os.getpid(), signal.SIGINT)
+        sent[0] += 1
         done.put(None)
 
 real_spawn = util.spawnv_passfds
@@ -203,6 +204,7 @@ if __name__ == "__main__":
     while not all(gone(pid) for pid in spawned) and time.monotonic() < deadline:
         time.sleep(0.05)
     print("workers gone" if all(gone(pid) for pid in spawned) else "workers left", flush=True)
+    print(f"spawned {len(spawned)}, interrupts sent {sent[0]}", flush=True)
 """
 
 
@@ -215,4 +217,5 @@ def test_a_ctrl_c_while_a_worker_starts_leaves_no_half_started_worker(tmp_path):
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120,
                           env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     assert done.stdout.split("\n")[:2] == ["interrupted", "workers gone"], done.stdout + done.stderr
+    assert done.stdout.split("\n")[2] == "spawned 1, interrupts sent 1", done.stdout   # the Ctrl-C came at the first
     assert "Traceback" not in done.stderr and "EOFError" not in done.stderr, done.stderr
