@@ -175,6 +175,18 @@ def connect(address: str):
                                    "scheduler) or check the address") from None
 
 
+def _restore_dask_scheduler(before) -> None:
+    """Put dask's global ``scheduler`` setting back: a client made dask's default sets it to
+    "dask.distributed", and left so after the client is gone, later dask users in this process (xarray
+    writing a calibration's posterior.nc) fail with "Requested dask.distributed scheduler but no Client"."""
+    import dask
+
+    if before is None:
+        dask.config.config.pop("scheduler", None)
+    else:
+        dask.config.set(scheduler=before)
+
+
 def check_scheduler(address: str) -> None:
     """Connect to the scheduler at ``address`` and leave (SchedulerUnreachable as :func:`connect`)."""
     connect(address).close()
@@ -213,8 +225,10 @@ class Executor:
                                          initializer=_init_worker, initargs=(threads,))
 
     def _start_dask(self) -> None:
+        import dask
         from dask.distributed import Client, LocalCluster
 
+        self._dask_scheduler = dask.config.get("scheduler", None)   # the client becomes dask's default
         if self.scheduler:
             self._client = connect(self.scheduler)
         else:
@@ -243,6 +257,8 @@ class Executor:
                 part.close(timeout=timeout)
             except Exception:  # noqa: BLE001 - dask may complain about workers still starting
                 pass
+        if "_dask_scheduler" in vars(self):   # set when a client was started
+            _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
 
     def _stop_pool(self, wait: bool) -> None:
         pool, self._pool = self._pool, None

@@ -155,7 +155,7 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path):
 
 
 INTERRUPTED_SPAWN = """
-import os, queue, signal, threading, time
+import os, queue, signal, sys, threading, time
 import multiprocessing.util as util
 from sweeps.executors import Executor
 
@@ -193,6 +193,12 @@ def gone(pid):
         return handle.read().split()[2] == "Z"
 
 if __name__ == "__main__":
+    # as a terminal's process: Ctrl-C raises. A test runner's process may pass SIGINT on ignored or blocked
+    # (seen under pytest-xdist in CI: "spawned 2, interrupts sent 2" and no interrupt); say what came in
+    states = [line.split()[:2] for line in open("/proc/self/status") if line.startswith(("SigBlk", "SigIgn"))]
+    print("inherited", *states, signal.getsignal(signal.SIGINT), file=sys.stderr, flush=True)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     threading.Thread(target=interrupter, daemon=True).start()
     util.spawnv_passfds = spawn_then_interrupt
     try:
