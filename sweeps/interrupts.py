@@ -82,7 +82,7 @@ def signals_as_exceptions():
     finally:
         for sig, previous in before.items():
             signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
-        _received.remove(received)
+        _received.pop()   # blocks nest: this one is the innermost
     if received:   # the block ended normally although a signal came: its exception was swallowed
         raise _exception(received[0])
 
