@@ -102,7 +102,10 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
     binocular = np.zeros(n, np.int32)
     triggered = np.zeros(n, np.bool_)
     leadership = ip[I.LEADERSHIP] != 0
-    r = 0
+    # int64 from the start: typed first as the literal 0, ``r`` would make numba compile every kernel it is
+    # passed to twice (once for Literal[int](0), once for int64); likewise the prange index, uint64 in the
+    # parallel body, is passed as int64
+    r = np.int64(0)
     for step in range(n_steps + 1):
         record = step % record_every == 0
         if record:
@@ -115,11 +118,11 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
             break
         use_grid = prepare_chunks(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
-            sense_chunk(c, chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
+            sense_chunk(np.int64(c), chunk, step, pos, vel, fwd, side, pattern, clock, escape, steer, visible, binocular,
                         triggered, fp, ip, key, idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot,
                         head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, use_grid, kind)
         for c in nb.prange(n_chunks):
-            move_chunk(c, chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
+            move_chunk(np.int64(c), chunk, steer, pos, vel, fwd, up, side, acc, fp, ip, clock, escape)
         finish_step_serial(step, r, record, leadership, triggered, trig_step, trig_boid, n_trig, clock, fp[F.DT],
                            visible, binocular, rec_visible, rec_binocular)
         if record:
