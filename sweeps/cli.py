@@ -8,6 +8,7 @@
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
+    flocksweep compile [MODEL.toml ...] [--jobs K] (sweeps/compile.py)
     flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
@@ -392,7 +393,8 @@ def cmd_targets(args) -> int:
 
 # Commands whose arguments and code live in their own module (DESCRIPTION, add_arguments(parser), run(args)),
 # loaded when the parser is built (arguments) and when the command runs.
-DELEGATED = {"export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
+DELEGATED = {"compile": ("sweeps.compile", "compile the simulation and metric kernels now, into numba's cache"),
+             "export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
              "sbc": ("analysis.calibration.sbc_command",
                      "simulation-based calibration check of a calibration's posterior"),
              "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
@@ -410,7 +412,7 @@ def cmd_delegated(args) -> int:
 
 ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
           "calibrate": _add_calibrate, "targets": _add_targets}
-ORDER = ("simulate", "run", "status", "export", "report", "calibrate", "targets", "sbc", "view", "measure")
+ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "sbc", "view", "measure")
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
