@@ -1,4 +1,5 @@
-"""Shared helpers for the simcore tests: model builders and hand-made states.
+"""Shared helpers for the simcore tests: model builders and hand-made states; and, for a run split over
+workers (``pytest -n K``), every kernel compiled once before the workers start.
 
 Only builders live here; every assertion is in the test modules.
 """
@@ -74,3 +75,25 @@ def flock_state(seed: int, n: int = 24, *, ball_radius: float = 4.0, box_size: f
     acc = rng.normal(scale=4.0, size=(n, 3))
     pattern = rng.choice(TABLE_1_VALUES, n)
     return state_from(pos, fwd, speed, acc, pattern)
+
+
+def pytest_sessionstart(session):
+    """``pytest -n K``: compile every kernel of the shipped presets into numba's cache once, in two processes,
+    before the workers start (xdist starts them after this hook), so that workers load kernels rather than
+    each compiling the same ones at the same time (``flocksweep compile``, sweeps/compile.py). Tests that
+    need an empty cache use their own. A failure here is only reported: the tests that need the kernel fail
+    with the real error."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    from sweeps.compile import compile_kernels
+
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    say = reporter.write_line if reporter is not None else print
+    say("compiling the kernels of the shipped presets before the workers start (flocksweep compile) ...")
+    try:
+        results = compile_kernels(jobs=2, report=say)
+    except Exception as err:  # noqa: BLE001 - reported; the tests show the real failure
+        say(f"  compile failed: {type(err).__name__}: {err}")
+        return
+    say(f"  {sum(r.compiled for r in results)} kernels compiled")
