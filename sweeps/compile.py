@@ -12,10 +12,12 @@ compile: their dynamics and perception kind (a run loop is compiled per percepti
 is one task, run in a spawned process, ``jobs`` at a time, the largest (binocular vision) first; groups
 share no run loop, so no two processes compile the same one (small per-boid pieces shared by several
 kinds may be compiled twice). A task runs, for each of its models, tiny simulations (5 boids, 2 steps)
-serially, as a batch of two runs and, in synchronous order, on two threads, then measures their metrics
-with and without the leadership metrics: every compiled path a sweep, a calibration or the test suite
-takes for that model. It counts the kernels numba compiled (rather than loaded from the cache). Results
-do not depend on it: a kernel compiled here is the one a run would have compiled itself.
+serially, as a batch of two runs and, in synchronous order, on two threads, and sends the runs back; the
+calling process measures their metrics, with and without the leadership metrics, as each task ends (the
+metric kernels are shared by every model, so they compile once, there). Together: every compiled path a
+sweep, a calibration or the test suite takes for those models. Each step counts the kernels numba
+compiled (rather than loaded from the cache). Results do not depend on it: a kernel compiled here is the
+one a run would have compiled itself.
 """
 from __future__ import annotations
 
@@ -92,7 +94,7 @@ def compile_kernels(paths=None, jobs: int = 2, report=print) -> list[GroupResult
     """Compile (or find in the cache) every kernel the models need, ``jobs`` groups at a time, and the metric
     kernels in this process as the groups' runs come back; ``report`` is called with one line per finished
     group and one for the metrics. Returns the groups' results in the order they started, then the
-    metrics' (key ("metrics", "all")."""
+    metrics' (key ``("metrics", "all")``)."""
     if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1:
         raise ValueError(f"jobs: got {jobs!r}; must be an integer >= 1")
     groups = group_models(shipped_models() if paths is None else paths)
@@ -112,9 +114,8 @@ def compile_kernels(paths=None, jobs: int = 2, report=print) -> list[GroupResult
             compiled_metrics += measure_all(runs)
             metric_seconds += time.perf_counter() - start
     report(f"  metrics: {compiled_metrics} kernels compiled in {metric_seconds:.1f} s")
-    metrics = GroupResult(("metrics", "all"), tuple(m for key, _ in groups for m in results[key].models),
-                          compiled_metrics,
-                          metric_seconds)
+    every_model = tuple(m for key, _ in groups for m in results[key].models)
+    metrics = GroupResult(("metrics", "all"), every_model, compiled_metrics, metric_seconds)
     return [results[key] for key, _ in groups] + [metrics]
 
 
