@@ -36,9 +36,9 @@ def record_state_serial(r, pos, vel, clock, fp, rec_pos, rec_vel, rec_leader):
 
 
 @kernel
-def record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular, kind):
-    record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_search(grid, pos, fp, ip), rec_visible,
-                      rec_binocular, kind)
+def record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular, kind):
+    """The final record's counts (the grid built by ``prepare_chunks``, whose compiled build is reused)."""
+    record_perception(r, pos, fwd, side, fp, ip, nbrs, grid, use_grid, rec_visible, rec_binocular, kind)
 
 
 @kernel
@@ -114,7 +114,8 @@ def run_threaded(pos, vel, fwd, up, side, acc, pattern, clock, escape, fp, ip, k
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], cpos[0], everyone, occ_f[0], occ_i[0],
                                   bits[0], slot[0])
-                record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, rec_visible, rec_binocular, kind)
+                record_final_serial(r, pos, fwd, side, fp, ip, nbrs, grid, prepare_chunks(grid, pos, fp, ip),
+                                    rec_visible, rec_binocular, kind)
             break
         use_grid = prepare_chunks(grid, pos, fp, ip)
         for c in nb.prange(n_chunks):
