@@ -1,8 +1,7 @@
-"""analysis: flock observables (below the sweep machinery), reports and calibration (above it).
+"""analysis: the layer above the sweeps (layer 4): the viewer, the reports and the calibration.
 
-See docs/architecture.md for the layers and what each may import. Importing ``analysis`` or
-``analysis.observables`` loads neither the reports nor the calibration: the names below load their
-layer on first use (module ``__getattr__``).
+See docs/architecture.md for the layers and what each may import. Importing ``analysis`` loads none of
+its subpackages: the names below load theirs on first use (module ``__getattr__``).
 
 Python API::
 

@@ -67,7 +67,7 @@ def emulator(path: str) -> None:
 def whole(path: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "sweeps.cli", "calibrate", path, "--out", tmp, "--no-progress"],
+        subprocess.run([sys.executable, "-m", "flocksweep.cli", "calibrate", path, "--out", tmp, "--no-progress"],
                        cwd=ROOT, check=True)
         print(f"{path}: whole calibration {time.perf_counter() - start:.0f} s")
 

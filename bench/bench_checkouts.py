@@ -2,7 +2,7 @@
 
     python bench/bench_checkouts.py OTHER_CHECKOUT [--repeats 5] -- run configs/sweeps/smoke.toml --workers 2
 
-Each repeat runs the command (as ``python -m sweeps.cli ...`` in a new process, with ``--out`` a fresh
+Each repeat runs the command (as ``python -m flocksweep.cli ...`` in a new process, with ``--out`` a fresh
 folder appended, and PYTHONPATH set to the checkout) once with this checkout and once with the other,
 in alternating order, so both see the same load on a shared machine. Prints the wall times, their
 medians and the ratio this / other.
@@ -25,7 +25,7 @@ def timed(checkout: Path, command: list[str]) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "PYTHONPATH": str(checkout)}
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "sweeps.cli", *command, "--out", str(Path(tmp) / "out"),
+        subprocess.run([sys.executable, "-m", "flocksweep.cli", *command, "--out", str(Path(tmp) / "out"),
                         "--no-progress"], cwd=HERE, env=env, check=True, stdout=subprocess.DEVNULL)
         return time.perf_counter() - start
 

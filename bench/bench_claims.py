@@ -25,7 +25,7 @@ METRICS = """
 import time, inspect
 import numpy as np
 from simcore import load_preset, simulate_preset
-from analysis.observables.metrics import frame_metrics
+from observables.metrics import frame_metrics
 preset = load_preset("{root}/configs/models/holland.toml", ["init.n=100", "run.duration=30"])
 runs = [simulate_preset(preset, seed=s) for s in range(4)]
 extra = {{"record_interval": 1.0}} if "record_interval" in inspect.signature(frame_metrics).parameters else {{}}

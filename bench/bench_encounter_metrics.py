@@ -4,7 +4,7 @@
 
 For N = 100 and 1,000 boids at normal random positions (sd 20) over ``--records`` records, with 10
 obstacles (7 spheres, a plane, a box, a cylinder) and a predator and prey at random positions: the
-median over repeats of :func:`~analysis.observables.encounters.obstacle_metrics`,
+median over repeats of :func:`~observables.encounters.obstacle_metrics`,
 ``predator_metrics``, ``prey_metrics`` and, for scale, ``frame_metrics`` (one call at N = 1,000).
 Prints a Markdown table (milliseconds per run).
 """
@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from analysis.observables.encounters import obstacle_metrics, predator_metrics, prey_metrics
-from analysis.observables.metrics import frame_metrics
+from observables.encounters import obstacle_metrics, predator_metrics, prey_metrics
+from observables.metrics import frame_metrics
 from simcore.obstacle_spec import Obstacle
 
 

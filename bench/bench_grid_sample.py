@@ -8,7 +8,7 @@ every ``--every``-th run (the sample shifts by one each repeat), timing with the
 (``time.process_time``, less disturbed by other jobs than wall time) the simulation and the metrics
 (``measure_run``) of each run. Prints, per checkout, the CPU seconds of both, their ratio to the first
 checkout (median over repeats) and the simulation time by flock size and range (a checkout older than
-``analysis.observables`` is timed on the simulation alone). Checkouts are
+``observables`` is timed on the simulation alone). Checkouts are
 interleaved, so they see the same load; an older checkout's kernels compile on its first repeat.
 """
 from __future__ import annotations
@@ -30,8 +30,8 @@ from sweeps.config import load_sweep
 from sweeps.design import expand
 from sweeps.worker import warm_up, _simulate
 try:
-    from analysis.observables.summary import every_nth, measure_run
-except ImportError:  # a checkout from before analysis.observables: simulation only
+    from observables.summary import every_nth, measure_run
+except ImportError:  # a checkout from before observables: simulation only
     measure_run = None
 specs = expand(load_sweep(sys.argv[1]))
 warm_up(specs[0])

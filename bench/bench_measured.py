@@ -22,8 +22,8 @@ import numpy as np
 from analysis.calibration.config import load_calibration
 from analysis.calibration.run import summary_simulator
 from analysis.calibration.simulator import SummarySimulator
-from analysis.observables.measured import measure_tracks, track_settings
-from analysis.observables.tracks import TrackSource, load_tracks, track_source, tracks_frame
+from observables.measured import measure_tracks, track_settings
+from observables.tracks import TrackSource, load_tracks, track_source, tracks_frame
 from simcore import load_preset, simulate_preset
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -27,7 +27,7 @@ def main() -> None:
     for _ in range(args.repeats):
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "sweeps.cli", "report", args.results, "--out", tmp],
+            subprocess.run([sys.executable, "-m", "flocksweep.cli", "report", args.results, "--out", tmp],
                            cwd=ROOT, check=True, capture_output=True)
             times.append(time.perf_counter() - start)
             print(f"report: {times[-1]:.1f} s", flush=True)

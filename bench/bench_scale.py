@@ -12,7 +12,7 @@
 * ``big``: 100,000 boids of ``opensteer`` (open world, constant density): seconds per step on all cores
   (threaded synchronous run), in a fresh process whose peak resident memory is reported.
 * ``startup``: a warm ``flocksweep simulate`` of a 3-boid, 1-step run as a new process (kernels cached),
-  median wall time; both ``python -m sweeps.cli`` and the installed ``flocksweep`` script when found,
+  median wall time; both ``python -m flocksweep.cli`` and the installed ``flocksweep`` script when found,
   interleaved with what any numba program pays (``import numba``; ``numba_floor``: one cached kernel called).
 * ``compile``: the same command with an empty numba cache (``NUMBA_CACHE_DIR`` set to a new temporary
   directory): the first compile of simcore's kernels, and whether the "compiling" notice was printed.
@@ -172,7 +172,7 @@ def startup(repeats: int) -> dict:
     and ``numba_floor`` (import numba and call one kernel loaded from numba's cache: numba then sets up
     its compiler target, which imports its numpy implementations and scipy.linalg for BLAS)."""
     env = _env()
-    module = [sys.executable, "-m", "sweeps.cli", *TINY]
+    module = [sys.executable, "-m", "flocksweep.cli", *TINY]
     subprocess.run(module, check=True, capture_output=True, env=env, cwd=ROOT)  # compile or load once
     with tempfile.TemporaryDirectory(prefix="numba-floor-") as tmp:
         floor = Path(tmp) / "floor.py"
@@ -192,7 +192,7 @@ def startup(repeats: int) -> dict:
 def compile_time() -> dict:
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
         start = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "sweeps.cli", *TINY], capture_output=True, text=True,
+        done = subprocess.run([sys.executable, "-m", "flocksweep.cli", *TINY], capture_output=True, text=True,
                               env=_env(cache_dir=cache), cwd=ROOT, check=True)
         seconds = time.perf_counter() - start
     notices = done.stderr.count("compiling")

@@ -3,7 +3,7 @@
 docs/model.md section 7. A run's seed (an int >= 0 or a tuple of ints) becomes a ``numpy.random.SeedSequence``;
 its first child seeds the ``Generator(PCG64)`` for initial conditions, its second child gives a 64-bit
 ``loop_key`` for draws made inside the compiled loop. Its third child (spawn key 2) is reserved for the
-observation model (``analysis.observables.observation``: missed detections and position noise).
+observation model (``observables.observation``: missed detections and position noise).
 
 In-loop draws are a pure function of ``(loop_key, stream, step, index)``: the 4-tuple is mixed with the
 SplitMix64 finaliser (Steele, Lea & Flood 2014) in a keyed chain, so a draw never depends on which

@@ -1,4 +1,4 @@
-"""sweeps: config-driven parameter sweeps of the simulator, their results folders and the flocksweep CLI.
+"""sweeps: config-driven parameter sweeps of the simulator and their results folders (layer 3).
 
 Python API (loaded on first use, so ``import sweeps`` loads nothing)::
 

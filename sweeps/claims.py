@@ -55,8 +55,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
-from analysis.observables.summary import ENCOUNTER_FAMILIES, summary_columns
+from observables.leadership import LEADERSHIP_METRIC_NAMES
+from observables.summary import ENCOUNTER_FAMILIES, summary_columns
 from simcore.schema import ConfigError, build, read_toml, resolve_path, suggest, to_dict
 
 from .claim_schema import (COMMON, DIRECTIONS, ID, KEYS, KINDS, METHODS, REQUIRED, Claim, ClaimsFile,  # noqa: F401

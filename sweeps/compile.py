@@ -30,7 +30,7 @@ from pathlib import Path
 
 from numba.core import event as numba_event
 
-from analysis.observables.summary import MetricSettings, measure_run
+from observables.summary import MetricSettings, measure_run
 from simcore import load_preset, simulate, simulate_batch
 
 DESCRIPTION = ("Compile every kernel the models need (default: every preset of configs/models) into numba's "

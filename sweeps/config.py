@@ -82,7 +82,7 @@ The file is read by the schema engine (:mod:`simcore.schema`) into the tables be
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
 :func:`model_data` applies them to the preset the same way for both. ``warmup``, ``group_radius`` and
 ``fragmentation_cohesion`` (and the leadership switch) become the run's
-:class:`~analysis.observables.summary.MetricSettings`; ``keep`` and ``trajectory_every`` what is stored
+:class:`~observables.summary.MetricSettings`; ``keep`` and ``trajectory_every`` what is stored
 (:class:`Storage`).
 """
 from __future__ import annotations
@@ -92,8 +92,8 @@ from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
 from typing import Any, Literal
 
-from analysis.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
+from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
+from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)

@@ -30,7 +30,7 @@ import itertools
 import json
 from dataclasses import dataclass
 
-from analysis.observables.summary import ENCOUNTER_SETTINGS, MetricSettings
+from observables.summary import ENCOUNTER_SETTINGS, MetricSettings
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 

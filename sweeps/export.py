@@ -16,7 +16,7 @@ BehaviorSpace users).
 
 Files go to ``RESULTS/export/`` unless ``out_dir``; each is written atomically (:mod:`sweeps.files`).
 CSV: comma-separated, a header row, missing values (NaN, a failed run's metrics) as empty fields,
-booleans as ``True``/``False``. ``sweeps/cli.py`` registers the command with :func:`add_arguments` and
+booleans as ``True``/``False``. ``flocksweep/cli.py`` registers the command with :func:`add_arguments` and
 :func:`run`.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """One clear message and a documented exit status for every failure the command line meets.
 
-The ``flocksweep`` command (:mod:`sweeps.cli`) turns an exception into one line on stderr and an exit
+The ``flocksweep`` command (:mod:`flocksweep.cli`) turns an exception into one line on stderr and an exit
 status with :func:`explain`; the statuses (docs/errors.md):
 
 ====  ===========================================================================================

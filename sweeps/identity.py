@@ -13,7 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 
-from analysis.observables.summary import encounter_settings
+from observables.summary import encounter_settings
 from simcore import MODEL_VERSION
 
 

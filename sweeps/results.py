@@ -34,7 +34,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.fs
 
-from analysis.observables.summary import ENCOUNTER_FAMILIES, summary_columns
+from observables.summary import ENCOUNTER_FAMILIES, summary_columns
 from simcore.params import canonical_key, preset_from_dict
 from simcore.schema import ConfigError
 
@@ -95,7 +95,7 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
 
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
-    """The summary columns (analysis.observables.summary.summary_columns) the runs table holds."""
+    """The summary columns (observables.summary.summary_columns) the runs table holds."""
     known = set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES, migration=True))
     return [c for c in runs.columns if c in known]
 

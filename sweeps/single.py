@@ -11,7 +11,7 @@ the time the flock's centre reached the prey, when the run has obstacles, a pred
   absent);
 * ``params.json``: the resolved preset, seed, record interval, the summary and the provenance stamp;
 * with ``tracks = "csv"`` or ``"parquet"``: ``tracks.csv`` / ``tracks.parquet``, the records as long-format
-  tracks (:func:`analysis.observables.tracks.tracks_frame`: flock, id, t, x, y, z, vx, vy, vz, pattern, in
+  tracks (:func:`observables.tracks.tracks_frame`: flock, id, t, x, y, z, vx, vy, vz, pattern, in
   body lengths and seconds), and the sidecar ``tracks.json`` saying so, for ``flocksweep measure``.
 
 The trace figure of ``--plot`` is drawn by the CLI (:mod:`analysis.reports.traces`).
@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.observables.encounters import (CAPTURE_RADIUS, PREDATOR_NEAR, PREY_REACH, obstacle_metrics,
+from observables.encounters import (CAPTURE_RADIUS, PREDATOR_NEAR, PREY_REACH, obstacle_metrics,
                                              predator_metrics, prey_metrics)
-from analysis.observables.metrics import mean_speed, polarization
-from analysis.observables.tracks import TRACKS_SIDECAR, tracks_frame
+from observables.metrics import mean_speed, polarization
+from observables.tracks import TRACKS_SIDECAR, tracks_frame
 from simcore import Observations, Preset, simulate_preset
 
 from .files import atomic_path, write_csv, write_json, write_parquet

@@ -8,7 +8,7 @@ run's failure: it is raised, and the runner stops.
 ``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric).
 
 A row is the run's identity and swept parameters, then ``status``, ``error``, ``sim_s``, ``wall_s``,
-then its summary (:func:`analysis.observables.summary.measure_run` of the records at the run's record
+then its summary (:func:`observables.summary.measure_run` of the records at the run's record
 interval). Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
 ``<out_dir>/trajectories/<run_id>.npz``; on a cluster ``out_dir`` must be on a shared file system.
 """
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.observables.summary import check_finite, every_nth, measure_run
+from observables.summary import check_finite, every_nth, measure_run
 from simcore import simulate
 
 from .design import RunSpec

@@ -1,6 +1,6 @@
 """Kill trials: a ``flocksweep`` command stopped at a random (seeded) moment, then run again.
 
-``kill_trial(argv, cwd, ready, how, seed, window)`` starts ``python -m sweeps.cli *argv`` in its own
+``kill_trial(argv, cwd, ready, how, seed, window)`` starts ``python -m flocksweep.cli *argv`` in its own
 session, waits until ``ready()`` (the command is computing), then after a delay drawn from ``window``
 (seconds after ``ready()``, ``random.Random(seed)``) stops it ``how``:
 
@@ -56,7 +56,7 @@ class Trial:
 
 
 def command(argv) -> list[str]:
-    return [sys.executable, "-m", "sweeps.cli", *map(str, argv)]
+    return [sys.executable, "-m", "flocksweep.cli", *map(str, argv)]
 
 
 def environment() -> dict:

@@ -443,13 +443,13 @@ class Refusal:
 
 
 def attempt(case: Case, folder) -> Refusal:
-    """Run ``case`` in the empty folder ``folder`` (as the working directory) with ``sweeps.cli.main``."""
+    """Run ``case`` in the empty folder ``folder`` (as the working directory) with ``flocksweep.cli.main``."""
     import contextlib
     import io
     import os
     import traceback
 
-    from sweeps.cli import main
+    from flocksweep.cli import main
 
     argv = materialise(case, folder)
     before = snapshot(folder)

@@ -1,7 +1,7 @@
 """Slow, plain numpy twins of the compiled analysis kernels and of ``simcore.rng.hash4``.
 
-Written from the definitions (docs/metrics.md, the docstrings of ``analysis.observables.metrics``,
-``analysis.observables.leadership`` and ``simcore.rng``), not from the kernels: whole-array numpy where
+Written from the definitions (docs/metrics.md, the docstrings of ``observables.metrics``,
+``observables.leadership`` and ``simcore.rng``), not from the kernels: whole-array numpy where
 it is the obvious formula, Python loops where the definition is a loop, Python integers for the hash.
 Not meant to be fast.
 """
@@ -152,7 +152,7 @@ def segregation(pos: np.ndarray, pattern: np.ndarray, radius: float, box: float 
 
 def follow(times, vel, pos, triggers, dt, record_every, radius, escape, box=None, max_lag=2.0):
     """(C(tau) for tau = 0, dr, ..., max_lag; the lag-0 correlation over the window before the trigger),
-    from the definition in analysis.observables.leadership's docstring."""
+    from the definition in observables.leadership's docstring."""
     interval = dt * record_every
     n_rec = len(times)
     window = int(np.floor(escape / interval + 1e-9))

@@ -34,7 +34,7 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     summary = "mean"                # each simulated run summarised by "mean" (window mean after warmup)
                                     # or "final" (last record)
     stats = ["cohesion", "polarization", "nn_distance"]   # per-record metric names or leadership
-                                                          # metric names (analysis.observables)
+                                                          # metric names (observables)
     mean = [0.9, 0.8, 2.5]          # observed values ...
     sd = [0.05, 0.05, 0.3]          # ... with their uncertainty (sd > 0), or cov = [[...], ...] (k x k,
                                     # symmetric positive definite); OR instead of mean/sd/cov:
@@ -46,7 +46,7 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
                                     # [observation] how they were measured (analysis/calibration/tracks_targets.py)
 
     [observation]                   # optional: how the targets were measured; every simulated run is then
-    interval = 0.2                  # measured alike (analysis.observables.observation: velocity_interval,
+    interval = 0.2                  # measured alike (observables.observation: velocity_interval,
                                     # max_gap, detection_probability, position_sd, projection)
 
     [method]
@@ -95,10 +95,10 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
-from analysis.observables.metrics import METRIC_NAMES
-from analysis.observables.observation import Observation
-from analysis.observables.summary import MetricSettings
+from observables.leadership import LEADERSHIP_METRIC_NAMES
+from observables.metrics import METRIC_NAMES
+from observables.observation import Observation
+from observables.summary import MetricSettings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, read_config, resolve_path,
                             suggest)

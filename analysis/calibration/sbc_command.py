@@ -1,6 +1,6 @@
 """``flocksweep sbc``: simulation-based calibration (Talts et al. 2018) of a calibration file's emcee posterior,
 as a command module of the CLI (``DESCRIPTION``, ``add_arguments(parser)``, ``run(args)``; see
-``sweeps/cli.py``, ``DELEGATED``). The work itself is :func:`analysis.calibration.sbc.run_sbc`.
+``flocksweep/cli.py``, ``DELEGATED``). The work itself is :func:`analysis.calibration.sbc.run_sbc`.
 """
 from __future__ import annotations
 

@@ -20,17 +20,17 @@ Contract
   key (so does a non-finite ``theta_j``). The run settings (duration, dt, record interval) are the
   preset's ``[run]`` table.
 * ``columns`` (k,) are per-run summary columns, in the output's column order: any of
-  :func:`analysis.observables.summary.summary_columns` (``<metric>_mean`` / ``<metric>_final``,
+  :func:`observables.summary.summary_columns` (``<metric>_mean`` / ``<metric>_final``,
   ``time_to_fragmentation``, ``fragmented`` and the leadership scalars). A row is
-  :func:`analysis.observables.summary.summarize_run` of the run with the metric settings ``warmup``,
+  :func:`observables.summary.summarize_run` of the run with the metric settings ``warmup``,
   ``group_radius`` and ``fragmentation_cohesion`` (leadership metrics when a leadership column is asked
   for; with ``leadership.x = 0`` there are no events, so ``trigger_rate`` is 0). Unknown columns raise
   ValueError at construction.
 * ``group_radius`` None (default) uses the perception range of the model *at theta*, as the sweeps do,
   so a free perception radius also moves the group radius. Pass a number to keep it fixed.
-* ``observation`` (an :class:`analysis.observables.observation.Observation`, default None): each run is
+* ``observation`` (an :class:`observables.observation.Observation`, default None): each run is
   recorded at the observation's sampling interval and measured as an observer measured the targets
-  (:func:`~analysis.observables.observation.observe_run`: projection, missed detections, position noise
+  (:func:`~observables.observation.observe_run`: projection, missed detections, position noise
   drawn from the run seed's observation stream, resampling, velocities by differencing) before
   ``summarize_run``. Without it nothing changes: rows are those of the bare runs, bit for bit.
 * ``seeds`` (n_sim,) are run seeds: ints >= 0, tuples of them, or ``numpy.random.SeedSequence``
@@ -56,10 +56,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
-from analysis.observables.metrics import FRAGMENTATION_COHESION
-from analysis.observables.observation import observe_run
-from analysis.observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
+from observables.leadership import LEADERSHIP_METRIC_NAMES
+from observables.metrics import FRAGMENTATION_COHESION
+from observables.observation import observe_run
+from observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, suggest
 from simcore.simulate import simulate_batch

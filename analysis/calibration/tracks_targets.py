@@ -22,7 +22,7 @@ A calibration file may take its targets from a track file instead of typed numbe
     body_length = 0.3             # metres: lengths in body lengths, the model's units
     warmup = 0.0                  # seconds skipped at the start of each measured flock
 
-The tracks are measured by :func:`analysis.observables.measured.measure_tracks` with the observation's
+The tracks are measured by :func:`observables.measured.measure_tracks` with the observation's
 interval, gap limit and velocity interval, the calibration's fragmentation threshold and a fixed group
 radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
 :class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
@@ -44,12 +44,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from analysis.observables.leadership import LEADERSHIP_METRIC_NAMES
-from analysis.observables.measured import Measurement, measure_tracks, track_settings
-from analysis.observables.observation import Observation
-from analysis.observables.summary import MetricSettings, default_group_radius
-from analysis.observables.tracks import TrackSource, load_tracks, track_source
-from analysis.observables.validation import TrackError
+from observables.leadership import LEADERSHIP_METRIC_NAMES
+from observables.measured import Measurement, measure_tracks, track_settings
+from observables.observation import Observation
+from observables.summary import MetricSettings, default_group_radius
+from observables.tracks import TrackSource, load_tracks, track_source
+from observables.validation import TrackError
 from simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
 
 UNOBSERVABLE = ("visible_mean", "binocular_share") + tuple(LEADERSHIP_METRIC_NAMES)

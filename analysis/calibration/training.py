@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.observables.metrics import FRAGMENTATION_COHESION
+from observables.metrics import FRAGMENTATION_COHESION
 from simcore.params import canonical_key, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 from sweeps.results import load_results

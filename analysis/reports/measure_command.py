@@ -10,7 +10,7 @@ Lengths given here (group radius, max speed) are in the analysis units: body len
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
 when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
 ``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
-``--out``. ``sweeps/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks exit
+``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks exit
 with status 2 after listing every problem (and writing ``validation.csv``).
 """
 from __future__ import annotations
@@ -18,11 +18,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from analysis.observables.measured import track_settings
-from analysis.observables.metrics import FRAGMENTATION_COHESION
-from analysis.observables.resample import RECORDED
-from analysis.observables.tracks import LENGTH_UNITS, ROLES, track_source
-from analysis.observables.validation import TrackError
+from observables.measured import track_settings
+from observables.metrics import FRAGMENTATION_COHESION
+from observables.resample import RECORDED
+from observables.tracks import LENGTH_UNITS, ROLES, track_source
+from observables.validation import TrackError
 from simcore.schema import ConfigError
 
 from .measured import measure_folder

@@ -2,8 +2,8 @@
 
 ``measure_folder(path, source, settings, out_dir, interval=None, max_gap=None, velocity_interval="auto",
 formats=("html", "md"), figures=True, progress=False) -> dict`` reads a track file
-(:func:`analysis.observables.tracks.load_tracks`), measures every flock
-(:func:`analysis.observables.measured.measure_tracks`) and writes into ``out_dir``, an
+(:func:`observables.tracks.load_tracks`), measures every flock
+(:func:`observables.measured.measure_tracks`) and writes into ``out_dir``, an
 :class:`sweeps.store.OutputFolder` (locked while it writes, every file atomic):
 
 * ``runs.parquet`` (and ``runs.csv``): one row per flock, the summary columns of a sweep's runs table;
@@ -17,7 +17,7 @@ formats=("html", "md"), figures=True, progress=False) -> dict`` reads a track fi
   ``report.md`` and a self-contained ``report.html``. ``figures=False`` leaves the figures out (large
   data sets: matplotlib takes seconds per figure); ``progress`` shows progress bars (flocks, figures).
 
-When the tracks have errors (:class:`~analysis.observables.validation.TrackError`), ``validation.csv`` is
+When the tracks have errors (:class:`~observables.validation.TrackError`), ``validation.csv`` is
 written all the same and the error is raised: nothing is measured from tracks that are not right.
 """
 from __future__ import annotations
@@ -29,11 +29,11 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from analysis.observables.measured import Measurement, measure_tracks, velocity_label
-from analysis.observables.resample import RECORDED
-from analysis.observables.summary import MetricSettings
-from analysis.observables.tracks import TrackSource, load_tracks, read_sidecar
-from analysis.observables.validation import TrackError, issues_table
+from observables.measured import Measurement, measure_tracks, velocity_label
+from observables.resample import RECORDED
+from observables.summary import MetricSettings
+from observables.tracks import TrackSource, load_tracks, read_sidecar
+from observables.validation import TrackError, issues_table
 from sweeps.files import write_parquet
 from sweeps.store import OutputFolder
 

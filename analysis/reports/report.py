@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.observables.metrics import polarization
+from observables.metrics import polarization
 from simcore import simulate
 from simcore.params import canonical_key
 from sweeps.design import rebuild

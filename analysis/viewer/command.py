@@ -10,7 +10,7 @@ A model preset is simulated (seed 0 unless ``--seed``); a sweep run is re-simula
 and seed and must reproduce its stored results bit for bit (:mod:`analysis.viewer.resimulate`), or
 nothing is written; a trajectory is shown as saved (with its ``params.json`` or its sweep's spec when
 found). Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
-showcase>.html``, or the trajectory's path with ``.html``. ``sweeps/cli.py`` registers the subcommand
+showcase>.html``, or the trajectory's path with ``.html``. ``flocksweep/cli.py`` registers the subcommand
 with :func:`add_arguments` and :func:`run`.
 """
 from __future__ import annotations

@@ -1,17 +1,17 @@
-"""Per-frame numbers the viewer shows: the one module of the viewer that imports the flock metrics.
+"""Per-frame numbers the viewer shows, from the flock metrics of the observables layer.
 
 ``frame_observables(track)`` returns, for every frame of a :class:`~analysis.viewer.track.Track`:
 
 * ``metrics``: {name: float64 (F,)} for :data:`PANEL_METRICS` (polarization, number of groups, mean
   nearest-neighbour distance, cohesion = largest group's share), with the definitions of
-  docs/metrics.md, from one pass of ``analysis.observables.groups.neighbour_graph`` (the graph the sweep's metrics
+  docs/metrics.md, from one pass of ``observables.groups.neighbour_graph`` (the graph the sweep's metrics
   use) with the track's group radius and periodic box: a sweep's time series at the same record agree
   to rounding (summation order);
 * ``labels``: int32 (F, N), each boid's group rank at that frame (0 = the largest group, 1 the next);
 * ``speed``: float64 (F, N), |v|;
 * ``group_radius`` used and whether it was ``assumed`` (the track did not say).
 
-``metric_settings(model)`` gives a model's (group radius, periodic box); ``group_labels(track)`` the
+``group_labels(track)`` gives the
 labels alone; ``record_metrics(obs, every, group_radius, model)`` the metric series of a sweep's record
 frames (for the re-simulation check of :mod:`analysis.viewer.resimulate`).
 """
@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.observables.groups import neighbour_graph
-from analysis.observables.metrics import frame_metrics, polarization
-from analysis.observables.summary import default_group_radius, world_box
+from observables.groups import neighbour_graph
+from observables.metrics import frame_metrics, polarization
+from observables.summary import world_box
 
-from .track import DEFAULT_GROUP_RADIUS, Track
+from .track import DEFAULT_GROUP_RADIUS, Track, metric_settings
 
 PANEL_METRICS = ("polarization", "n_groups", "nn_distance", "cohesion")
 
@@ -48,11 +48,6 @@ def frame_observables(track: Track) -> dict:
 def group_labels(track: Track) -> np.ndarray:
     """Group ranks (F, N) alone (for page size estimates)."""
     return neighbour_graph(track.pos, _radius(track)[0], track.box).labels
-
-
-def metric_settings(model) -> tuple[float, float | None]:
-    """(group radius, periodic box side or None) of a model, as the sweeps use them."""
-    return float(default_group_radius(model)), world_box(model)
 
 
 def record_metrics(obs, every: int, group_radius: float, model) -> dict:

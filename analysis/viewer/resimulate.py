@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.observables.summary import every_nth
+from observables.summary import every_nth
 from simcore import simulate
 from simcore.params import canonical_key
 from simcore.schema import parse_value

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from observables.summary import default_group_radius, world_box
 from simcore import Observations, preset_from_dict
 from sweeps.design import rebuild
 from sweeps.store import ResultsStore
@@ -187,9 +188,12 @@ def agents_of(obs) -> tuple:
     return recorded_agents(getattr(obs, "predator", None), getattr(obs, "prey", None))
 
 
-def _preset_meta(preset, around=None) -> dict:
-    from .observables import metric_settings  # the viewer's one door to the observables layer
+def metric_settings(model) -> tuple[float, float | None]:
+    """(group radius, periodic box side or None) of a model, as the sweeps use them."""
+    return float(default_group_radius(model)), world_box(model)
 
+
+def _preset_meta(preset, around=None) -> dict:
     model = preset.model
     radius, box = metric_settings(model)
     return {"params": flat_params(preset.to_dict()), "group_radius": radius, "box": box,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from analysis.calibration.config import calibration_from_dict
-from analysis.observables.summary import MetricSettings, summary_columns
+from observables.summary import MetricSettings, summary_columns
 from simcore import ConfigError, load_preset, preset_from_dict
 from simcore.params import KEY_ALIASES, canonical_key, read_toml
 from simcore.schema import build, resolve_path, set_dotted

@@ -18,7 +18,7 @@ from simcore import ConfigError, advance, load_preset, simulate_preset
 from simcore.params import preset_from_dict
 from simcore.rng import run_streams
 from simcore.state import State
-from sweeps.cli import main
+from flocksweep.cli import main
 
 OPENSTEER = ROOT / "configs" / "models" / "opensteer.toml"
 PATTERN = ROOT / "configs" / "models" / "holland_pattern.toml"

@@ -11,7 +11,7 @@ import pytest
 
 from paths import ROOT
 from simcore import load_preset
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.compile import CompileCounter, group_models, shipped_models
 
 MODELS = ROOT / "configs" / "models"
@@ -84,7 +84,7 @@ PROBE = textwrap.dedent("""
 def test_after_flocksweep_compile_a_new_process_compiles_nothing_for_any_shipped_preset():
     """Serial, batched and threaded runs of every shipped preset and their metrics: all loaded from numba's
     cache in a process that starts after the command (a second command finds nothing to compile)."""
-    first = subprocess.run([sys.executable, "-m", "sweeps.cli", "compile", "--jobs", "2"], cwd=ROOT,
+    first = subprocess.run([sys.executable, "-m", "flocksweep.cli", "compile", "--jobs", "2"], cwd=ROOT,
                            capture_output=True, text=True, timeout=1800)
     assert first.returncode == 0, first.stderr
     assert "metrics:" in first.stdout and "binocular perception" in first.stdout
@@ -92,7 +92,7 @@ def test_after_flocksweep_compile_a_new_process_compiles_nothing_for_any_shipped
                            text=True, timeout=600)
     assert probe.returncode == 0, probe.stderr
     assert probe.stdout.split() == ["0", "0"], probe.stdout
-    again = subprocess.run([sys.executable, "-m", "sweeps.cli", "compile", "--jobs", "2"], cwd=ROOT,
+    again = subprocess.run([sys.executable, "-m", "flocksweep.cli", "compile", "--jobs", "2"], cwd=ROOT,
                            capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
     assert "0 kernels compiled (none: all were cached)" in again.stdout

@@ -22,7 +22,7 @@ from pandas.testing import assert_frame_equal
 
 from paths import ROOT
 from sweeps import files, runner, store as store_module, worker
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import load_sweep
 from sweeps.files import WriteFailed
 from sweeps.runner import run_sweep, status

@@ -100,7 +100,7 @@ def test_a_run_with_a_predator_stores_its_metrics_series_and_track(tmp_path, mon
 
     import numpy as np
 
-    from analysis.observables.summary import every_nth, measure_run
+    from observables.summary import every_nth, measure_run
     from simcore import simulate
     from sweeps import worker
 
@@ -135,7 +135,7 @@ def test_simulate_prints_and_records_the_encounter_summary(tmp_path, monkeypatch
     import numpy as np
 
     from sweeps import single
-    from sweeps.cli import main
+    from flocksweep.cli import main
 
     def with_agents(preset, seed, record_every=None, threads=None):
         obs = real(preset, seed, record_every, threads)

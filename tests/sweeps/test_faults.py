@@ -26,7 +26,7 @@ from pandas.testing import assert_frame_equal
 import faults
 from paths import ROOT
 from sweeps import lock, runner, worker
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import load_sweep
 from sweeps.interrupts import Terminated
 from sweeps.runner import run_sweep, status

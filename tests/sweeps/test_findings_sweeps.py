@@ -99,7 +99,7 @@ def test_a_shrunken_allocation_sweep_runs_and_its_claims_are_judged_from_the_sto
     """reynolds87_allocation shrunk (N = 12, 8 s, 2 paired replicates, one budget): runs, its stored
     tables give the claims their factors back (the obstacle list as text, the label as the level), both
     claims reach a verdict, and a stored run rebuilt from its row resimulates to the same collisions."""
-    from analysis.observables.summary import summarize_run
+    from observables.summary import summarize_run
     from analysis.reports.claims.evaluate import evaluate
     from analysis.reports.claims.load import claims_of
     from simcore import simulate

@@ -14,7 +14,7 @@ import pytest
 from simcore import load_preset
 from simcore.schema import ConfigError
 from sweeps import ResultsStore, Sweep, load_results, run_sweep
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.design import expand
 from paths import ROOT
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from paths import ROOT
-from sweeps.cli import main
+from flocksweep.cli import main
 
 COURSE = str(ROOT / "configs/models/reynolds87_obstacles.toml")
 

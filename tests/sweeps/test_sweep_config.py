@@ -14,7 +14,7 @@ import pytest
 
 from simcore import ConfigError
 from sweeps import runner
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import load_sweep, sweep_from_dict
 from sweeps.design import expand
 from sweeps.runner import Plan, SweepResult, design_table, run_sweep

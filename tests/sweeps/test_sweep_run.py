@@ -18,10 +18,10 @@ import pandas as pd
 import pytest
 from pandas.testing import assert_frame_equal
 
-from analysis.observables.metrics import METRIC_NAMES
+from observables.metrics import METRIC_NAMES
 from simcore import simulate
 from sweeps import worker
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import load_sweep
 from sweeps.design import expand
 from sweeps.runner import run_sweep, status
@@ -251,7 +251,7 @@ def test_resume_after_sigkill_finishes_without_recomputing_or_duplicating(tmp_pa
     total = 32
     out = tmp_path / "killed"
     with open(tmp_path / "runner.log", "w") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "sweeps.cli", "run", str(sweep), "--out", str(out),
+        proc = subprocess.Popen([sys.executable, "-m", "flocksweep.cli", "run", str(sweep), "--out", str(out),
                                  "--executor", "serial", "--batch-size", "1", "--no-progress"],
                                 cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT)
         try:

@@ -8,7 +8,7 @@ import pytest
 
 import analysis.calibration.simulator as simulator_module
 from analysis.calibration.accounting import Accounting, lines
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 SHIPPED = str(ROOT / "configs/calibration/recover_holland.toml")

@@ -16,7 +16,7 @@ from analysis.calibration import calibrate, load_calibration_results, run_calibr
 from analysis.calibration.inference import arviz
 from analysis.calibration.run import summary_simulator
 from simcore import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.seeds import common_seeds
 from paths import ROOT
 

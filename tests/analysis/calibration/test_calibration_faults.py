@@ -20,7 +20,7 @@ from analysis.calibration.mcmc import ChainMismatch
 from analysis.calibration.priors import JointPrior, Uniform
 from paths import ROOT
 from simcore import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.files import WriteFailed
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -9,7 +9,7 @@ import pytest
 from analysis.calibration.config import load_calibration
 from analysis.calibration.settings import EmceeSettings, EmulatorSettings, OptimizeSettings
 from simcore.schema import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 from test_calibration_config import VALID, write

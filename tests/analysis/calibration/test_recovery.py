@@ -13,7 +13,7 @@ from analysis.calibration.config import calibration_from_dict
 from analysis.calibration.run import run_calibration
 from analysis.calibration.synthetic import synthetic_observation, truth_vector
 from simcore import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -29,7 +29,7 @@ from analysis.calibration.run import run_calibration, summary_simulator
 from analysis.calibration.surrogates import build_surrogate
 from analysis.calibration.training import group_replicates
 from simcore import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.results import load_results
 from sweeps.seeds import common_seeds
 from paths import ROOT

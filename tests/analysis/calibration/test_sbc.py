@@ -180,7 +180,7 @@ def test_shipped_config_data_model_matches_the_likelihood_and_runs(tmp_path):
 
 @pytest.mark.slow
 def test_sbc_cli_runs_resumes_and_refuses_other_methods(tmp_path, capsys):
-    from sweeps.cli import main
+    from flocksweep.cli import main
 
     args = ["sbc", str(SBC_CONFIG), "--datasets", "2", "--draws", "4", "--steps", "24", "--walkers", "4",
             "--out", str(tmp_path / "sbc"), "--no-progress"]

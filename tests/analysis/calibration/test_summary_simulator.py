@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator
-from analysis.observables.leadership import leadership_metrics
-from analysis.observables.metrics import frame_metrics, summarize
-from analysis.observables.summary import default_group_radius, world_box
+from observables.leadership import leadership_metrics
+from observables.metrics import frame_metrics, summarize
+from observables.summary import default_group_radius, world_box
 from simcore.params import read_toml
 from simcore.schema import ConfigError, set_dotted
 from simcore.simulate import simulate

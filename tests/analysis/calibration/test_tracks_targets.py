@@ -10,12 +10,12 @@ from analysis.calibration.config import load_calibration
 from analysis.calibration.emulated import observation_covariance
 from analysis.calibration.run import summary_simulator
 from analysis.calibration.simulator import SummarySimulator
-from analysis.observables.observation import observe_run
-from analysis.observables.summary import MetricSettings, summarize_run
-from analysis.observables.tracks import tracks_frame
+from observables.observation import observe_run
+from observables.summary import MetricSettings, summarize_run
+from observables.tracks import tracks_frame
 from simcore import load_preset, simulate
 from simcore.schema import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 PRESET = ROOT / "configs/models/holland.toml"
@@ -170,7 +170,7 @@ def test_the_simulator_without_observation_is_unchanged_and_with_it_deterministi
     for row, seed in zip(bare, (5, 6)):
         alone = summarize_run(simulate(preset.model, preset.init, seed, 3.0, preset.run.dt, 30), settings)
         assert np.array_equal(row, [alone[c] for c in columns])
-    from analysis.observables.observation import Observation
+    from observables.observation import Observation
     observation = Observation(interval=0.1, velocity_interval=0.2, detection_probability=0.9, position_sd=0.1)
     seen = SummarySimulator(data, ["steering.separation_weight"], columns, 2, 1.0, observation=observation)
     first = seen.simulate([12.0], [5, 6])

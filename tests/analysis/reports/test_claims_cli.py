@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 SWEEP = f"""

@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.observables.metrics import frame_metrics, summarize
-from analysis.observables.summary import summary_columns
-from sweeps.cli import main
+from observables.metrics import frame_metrics, summarize
+from observables.summary import summary_columns
+from flocksweep.cli import main
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from analysis.reports.report import ReportError, build_report, resolve_metrics
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import load_sweep, sweep_from_dict
 from sweeps.results import load_results
 from sweeps.runner import halfwidths, run_sweep, run_until_ci

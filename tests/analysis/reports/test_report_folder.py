@@ -10,7 +10,7 @@ import pytest
 from analysis.reports.report import REPORT_RECORD, build_report
 from paths import ROOT
 from simcore import ConfigError
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import sweep_from_dict
 from sweeps.runner import run_sweep
 

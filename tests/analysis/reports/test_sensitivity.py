@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.observables.summary import summary_columns
+from observables.summary import summary_columns
 from analysis.reports.report import build_report
 from analysis.reports.sensitivity import (ContinuousDesign, continuous_design, correlations, morris_indices,
                                           noise_share, partial_dependence, sample_outputs, smoother, sobol_indices)

@@ -6,7 +6,7 @@ import numpy as np
 
 from analysis.viewer.track import from_npz, from_observations, recorded_agents
 from simcore import load_preset, simulate_preset
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 PREDATOR = str(ROOT / "configs/models/boidspp_predator.toml")

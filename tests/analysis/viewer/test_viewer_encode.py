@@ -142,9 +142,9 @@ def test_page_is_self_contained_and_carries_the_data():
 
 
 def test_metrics_in_the_page_are_the_sweep_metrics():
-    """The panel's numbers follow the definitions of analysis.observables.metrics (to rounding), on a flock that
+    """The panel's numbers follow the definitions of observables.metrics (to rounding), on a flock that
     splits into several groups."""
-    from analysis.observables.metrics import frame_metrics
+    from observables.metrics import frame_metrics
 
     rng = np.random.default_rng(4)
     pos = np.cumsum(rng.normal(0, 0.4, (40, 25, 3)), axis=0) + rng.normal(0, 6, (1, 25, 3))

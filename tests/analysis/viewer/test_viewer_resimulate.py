@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.observables.summary import every_nth
+from observables.summary import every_nth
 from analysis.viewer.encode import decode_stream
 from analysis.viewer.resimulate import (NotReproduced, RunNotFound, parse_where, record_step_for, reproduce,
                                         select_run)
-from sweeps.cli import main
+from flocksweep.cli import main
 from sweeps.config import sweep_from_dict
 from sweeps.runner import run_sweep
 from paths import ROOT

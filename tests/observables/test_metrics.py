@@ -1,4 +1,4 @@
-"""Analytic cases for the flock metrics in analysis.observables.metrics."""
+"""Analytic cases for the flock metrics in observables.metrics."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.observables.metrics import mean_speed, polarization
+from observables.metrics import mean_speed, polarization
 
 
 def test_aligned_flock_has_polarization_one():
@@ -44,18 +44,18 @@ def test_time_series_shape_and_mean_speed():
 
 
 # ---------------------------------------------------------------------------------------------------
-# frame metrics: groups, milling, shape, segregation (analysis.observables.metrics.frame_metrics and its helpers)
+# frame metrics: groups, milling, shape, segregation (observables.metrics.frame_metrics and its helpers)
 
 
 import pytest  # noqa: E402
 from scipy.sparse.csgraph import connected_components  # noqa: E402
 
-from analysis.observables.groups import groups, neighbour_graph  # noqa: E402
-from analysis.observables.metrics import (  # noqa: E402
+from observables.groups import groups, neighbour_graph  # noqa: E402
+from observables.metrics import (  # noqa: E402
     METRIC_NAMES, aspect_heading, binocular_share, elongation, frame_metrics, group_shape, gyration_radius,
     milling, segregation, speed_cv, summarize, visible_mean,
 )
-from analysis.observables.summary import default_group_radius, observation_metrics, world_box  # noqa: E402
+from observables.summary import default_group_radius, observation_metrics, world_box  # noqa: E402
 from simcore import load_preset, simulate_preset  # noqa: E402
 from simcore.params import ModelParams, Perception, World  # noqa: E402
 from paths import ROOT

@@ -13,7 +13,7 @@ A track file (CSV, also gzipped, or Parquet) has one row per detection of one in
 
 A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
 cells are missed detections (reported, then left out); any other bad cell stops the reading with the row
-and column named (:class:`~analysis.observables.validation.TrackError`). Rows are numbered from 1 in
+and column named (:class:`~observables.validation.TrackError`). Rows are numbered from 1 in
 file order; in a CSV file row k is line k + 1 (the header is line 1).
 
 Units. Positions are converted to metres; with ``body_length`` (metres) they are then divided by it,

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.observables.measured import measure_tracks, track_settings
-from analysis.observables.metrics import METRIC_NAMES
-from analysis.observables.observation import Observation, observe_run
-from analysis.observables.summary import MetricSettings, measure_run, summarize_run, summary_columns
-from analysis.observables.tracks import TrackSource, load_tracks, tracks_frame
+from observables.measured import measure_tracks, track_settings
+from observables.metrics import METRIC_NAMES
+from observables.observation import Observation, observe_run
+from observables.summary import MetricSettings, measure_run, summarize_run, summary_columns
+from observables.tracks import TrackSource, load_tracks, tracks_frame
 from simcore import load_preset, simulate_preset
 from paths import ROOT
 

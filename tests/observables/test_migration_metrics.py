@@ -1,4 +1,4 @@
-"""Migratory progress and efficiency (analysis.observables.migration): analytic cases, the numpy twin, and
+"""Migratory progress and efficiency (observables.migration): analytic cases, the numpy twin, and
 when summarize_run adds them (a reynolds87 model with a migratory urge in an open world only)."""
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from analysis.observables.migration import migration_metrics
-from analysis.observables.summary import MetricSettings, summarize_run, summary_columns
+from observables.migration import migration_metrics
+from observables.summary import MetricSettings, summarize_run, summary_columns
 from simcore import InitParams, simulate
 from simcore.params import ModelParams, Perception, World
 from simcore.reynolds_params import Reynolds

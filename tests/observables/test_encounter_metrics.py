@@ -1,4 +1,4 @@
-"""Obstacle, predator and prey metrics (analysis.observables.encounters, docs/metrics.md) on hand-built
+"""Obstacle, predator and prey metrics (observables.encounters, docs/metrics.md) on hand-built
 observations with values worked out by hand, against the numpy twins of tests/reference_metrics.py,
 and in the run row (only when the run has obstacles, a predator or prey)."""
 from __future__ import annotations
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from analysis.observables.encounters import (PREDATOR_SCALARS, PREDATOR_SERIES, encounter_columns,
+from observables.encounters import (PREDATOR_SCALARS, PREDATOR_SERIES, encounter_columns,
                                              obstacle_metrics, predator_metrics, prey_metrics, remerge_time)
-from analysis.observables.metrics import METRIC_NAMES
-from analysis.observables.summary import (ENCOUNTER_FAMILIES, MetricSettings, encounter_settings, every_nth,
+from observables.metrics import METRIC_NAMES
+from observables.summary import (ENCOUNTER_FAMILIES, MetricSettings, encounter_settings, every_nth,
                                           measure_run, summary_columns)
 from simcore.obstacle_spec import Obstacle
 from simcore.schema import ConfigError

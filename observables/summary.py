@@ -4,25 +4,25 @@ simulation into numbers.
 :class:`MetricSettings` says how records become a row: the warm-up excluded from window means, the
 group radius linking boids (None: the model's perception range), the cohesion below which the flock
 counts as fragmented, whether the leadership metrics are computed, the capture radius, predator "near"
-distance and prey reach of the encounter metrics (:mod:`analysis.observables.encounters`), and the values
+distance and prey reach of the encounter metrics (:mod:`observables.encounters`), and the values
 a model fixes: the periodic box side, the escape duration, the obstacles and the body radius.
 :meth:`MetricSettings.resolve` fills those in from a model; a configuration file sets the others (its
 ``[run]`` table).
 
 ``summarize_run(obs, settings) -> dict`` is the row: for every per-record metric of
-:data:`~analysis.observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
-``time_to_fragmentation`` and ``fragmented`` (:func:`~analysis.observables.metrics.summarize`), then,
+:data:`~observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
+``time_to_fragmentation`` and ``fragmented`` (:func:`~observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~analysis.observables.leadership.LEADERSHIP_METRIC_NAMES`), then, when the model has a migratory
+(:data:`~observables.leadership.LEADERSHIP_METRIC_NAMES`), then, when the model has a migratory
 urge (``settings.migration``, its direction), the migration scalars
-(:data:`~analysis.observables.migration.MIGRATION_METRIC_NAMES`), then the obstacle, predator and prey
+(:data:`~observables.migration.MIGRATION_METRIC_NAMES`), then the obstacle, predator and prey
 columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
 observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the
 row together with the per-record series (plus ``leaders``, the number of leaders per record, with
 leadership on). ``settings`` must be resolved. The row is a pure function of the observations and the settings. Observations with a ``present`` mask
-(an :class:`~analysis.observables.observed.ObservedFlock`: measured tracks, or a run seen through an
+(an :class:`~observables.observed.ObservedFlock`: measured tracks, or a run seen through an
 observation model) are measured record by record over the individuals present
-(:func:`~analysis.observables.observed.present_metrics`), and their series and row add ``tracked``
+(:func:`~observables.observed.present_metrics`), and their series and row add ``tracked``
 (individuals present per record; ``tracked_mean``, ``tracked_final``).
 
 ``record_interval(obs)`` is the seconds between records (``overtake_rate`` needs it).
@@ -104,7 +104,7 @@ def summary_columns(leadership: bool = True, migration: bool = False,
     """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
     scalars, the migration scalars, then the columns of the given encounter families
     (``ENCOUNTER_FAMILIES`` for all; a row has a family's columns only when its run has obstacles, a
-    predator or prey, see :mod:`analysis.observables.encounters`)."""
+    predator or prey, see :mod:`observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
     columns += tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()
     columns += MIGRATION_METRIC_NAMES if migration else ()
@@ -209,7 +209,7 @@ def world_box(model) -> float | None:
 
 
 def observation_metrics(obs, model, group_radius: float | None = None) -> dict[str, np.ndarray]:
-    """:func:`~analysis.observables.metrics.frame_metrics` of a simulator ``Observations`` with the
+    """:func:`~observables.metrics.frame_metrics` of a simulator ``Observations`` with the
     model's perception range (or ``group_radius``) and periodic box."""
     s = MetricSettings(group_radius=group_radius).resolve(model)
     return frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, s.group_radius, s.box,
@@ -223,7 +223,7 @@ def record_interval(obs) -> float:
 
 
 def observation_leadership(obs, model, group_radius: float | None = None, max_lag: float = 2.0) -> dict[str, float]:
-    """:func:`~analysis.observables.leadership.leadership_metrics` of a simulator ``Observations`` with
+    """:func:`~observables.leadership.leadership_metrics` of a simulator ``Observations`` with
     the model's perception range as the group radius, its periodic box and its ``leadership.duration``
     as the escape length."""
     s = MetricSettings(group_radius=group_radius).resolve(model)

@@ -1,15 +1,15 @@
-"""Resampling raw samples onto records (analysis.observables.resample) and metrics over the individuals
-present (analysis.observables.observed)."""
+"""Resampling raw samples onto records (observables.resample) and metrics over the individuals
+present (observables.observed)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from analysis.observables.metrics import METRIC_NAMES, frame_metrics
-from analysis.observables.observed import ObservedFlock, present_metrics
-from analysis.observables.resample import record_grid, resample, velocity_steps
-from analysis.observables.summary import MetricSettings, measure_run
-from analysis.observables.tracks import RawFlock
+from observables.metrics import METRIC_NAMES, frame_metrics
+from observables.observed import ObservedFlock, present_metrics
+from observables.resample import record_grid, resample, velocity_steps
+from observables.summary import MetricSettings, measure_run
+from observables.tracks import RawFlock
 
 
 def raw_from(times_per_id, position, name="A", vel=None) -> RawFlock:

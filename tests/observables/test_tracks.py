@@ -1,4 +1,4 @@
-"""Reading and checking measured tracks (analysis.observables.tracks, analysis.observables.validation)."""
+"""Reading and checking measured tracks (observables.tracks, observables.validation)."""
 from __future__ import annotations
 
 import json
@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.observables.measured import measure_tracks, track_settings
-from analysis.observables.tracks import TrackSource, load_tracks, raw_flocks, track_source
-from analysis.observables.validation import TrackError, check_flock, infer_interval, issues_table
+from observables.measured import measure_tracks, track_settings
+from observables.tracks import TrackSource, load_tracks, raw_flocks, track_source
+from observables.validation import TrackError, check_flock, infer_interval, issues_table
 from simcore.schema import ConfigError
 
 

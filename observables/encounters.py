@@ -27,7 +27,7 @@ In a periodic box of side L every offset is a minimum image and the flock is unw
 (as ``milling`` does) for its centre and gyration radius.
 
 ``encounter_metrics(obs, settings, series) -> (series, scalars)`` is what
-:func:`analysis.observables.summary.measure_run` calls (``series``: the run's per-record metrics, for
+:func:`observables.summary.measure_run` calls (``series``: the run's per-record metrics, for
 ``nn_distance`` and ``n_groups``); :func:`encounter_columns` lists the row columns of each family.
 """
 from __future__ import annotations
@@ -234,7 +234,7 @@ def _agent(obs, name: str, n_records: int):
 def encounter_metrics(obs, settings, series: dict) -> tuple[dict, dict]:
     """(series, row columns) of every family the run has; empty dicts for a run with none.
 
-    ``settings`` is a resolved :class:`~analysis.observables.summary.MetricSettings` (obstacles, body
+    ``settings`` is a resolved :class:`~observables.summary.MetricSettings` (obstacles, body
     radius, capture radius, near distance, prey reach, warm-up, box); ``series`` the run's per-record
     metrics (``nn_distance`` and ``n_groups`` are read)."""
     pos, times = obs.pos, np.asarray(obs.times, dtype=np.float64)

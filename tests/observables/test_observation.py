@@ -1,4 +1,4 @@
-"""The observation model (analysis.observables.observation): validation, determinism, and the statistics
+"""The observation model (observables.observation): validation, determinism, and the statistics
 moving by the amounts it predicts under position noise, missed detections and jittered time stamps."""
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from analysis.observables.measured import track_settings
-from analysis.observables.metrics import frame_metrics
-from analysis.observables.observation import Observation, detect, observe_run, predicted_velocity_sd
-from analysis.observables.resample import resample
-from analysis.observables.summary import measure_run, summarize_run
-from analysis.observables.tracks import RawFlock
+from observables.measured import track_settings
+from observables.metrics import frame_metrics
+from observables.observation import Observation, detect, observe_run, predicted_velocity_sd
+from observables.resample import resample
+from observables.summary import measure_run, summarize_run
+from observables.tracks import RawFlock
 from simcore import load_preset, simulate
 from simcore.schema import ConfigError
 from simcore.simulate import Observations

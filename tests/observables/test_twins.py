@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from analysis.observables import kernels
-from analysis.observables.leadership import follow_curve, leadership_metrics
-from analysis.observables.metrics import frame_metrics, milling, segregation
+from observables import kernels
+from observables.leadership import follow_curve, leadership_metrics
+from observables.metrics import frame_metrics, milling, segregation
 from simcore.rng import hash4, uniform01
 
 RTOL, ATOL = 1e-9, 1e-12

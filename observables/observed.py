@@ -7,14 +7,14 @@ It quacks like a simulator ``Observations`` where the metrics look (``times``, `
 nobody measures what a bird perceives), and adds ``present`` (R, N) bool: individual i counts at record
 r when its position and velocity there are known. Missing entries of ``pos`` and ``vel`` are nan.
 
-``present_metrics(flock, group_radius, box=None)`` is :func:`~analysis.observables.metrics.frame_metrics`
+``present_metrics(flock, group_radius, box=None)`` is :func:`~observables.metrics.frame_metrics`
 record by record over the individuals present: at record r the metrics are those of the flock made of
 the ``present[r]`` individuals, in index order (so with everyone present it is exactly
 ``frame_metrics`` of the whole arrays). Records are batched into one compiled call per distinct set
 of present individuals (or per number of them, when patterns do not matter); a record with nobody
 present gets nan for every metric. ``overtake_rate`` compares consecutive records, so it is computed
 (with ``interval``, the grid's spacing) when every individual is present at every record, and is nan
-otherwise. :func:`analysis.observables.summary.measure_run` calls it for any
+otherwise. :func:`observables.summary.measure_run` calls it for any
 observations with a ``present`` mask, so measured and simulated flocks share one definition of every
 metric and of the summary row.
 

@@ -15,9 +15,9 @@ Shapes: ``pos``, ``vel`` float64 (..., N, 3); results drop the last two axes, so
   ``<name>_mean`` (over records at t >= warmup), ``<name>_final``, ``time_to_fragmentation`` and
   ``fragmented``.
 Tying the metrics to a model (group radius, periodic box) and a run to its summary row is
-:mod:`analysis.observables.summary`'s job.
+:mod:`observables.summary`'s job.
 
-Groups (:mod:`analysis.observables.groups`) are the connected components of the graph linking boids closer than the
+Groups (:mod:`observables.groups`) are the connected components of the graph linking boids closer than the
 group radius; in a periodic box every distance is a minimum image and a group's centroid and shape are
 taken from its unwrapped layout.
 """

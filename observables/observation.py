@@ -14,7 +14,7 @@ An :class:`Observation` (the ``[observation]`` table of a calibration file; the 
   vertical axis is y, so "xz" is its horizontal plane, a view from above.
 
 Measured tracks already carry their detection losses and noise: for them only ``interval``,
-``velocity_interval`` and ``max_gap`` act, through :func:`~analysis.observables.resample.resample`.
+``velocity_interval`` and ``max_gap`` act, through :func:`~observables.resample.resample`.
 A simulated run goes through :func:`observe_run`: its records at the sampling interval are projected,
 each sample is detected with ``detection_probability`` and gets position noise (:func:`detect`, giving
 the samples a tracker would have delivered), then the same :func:`resample` makes the records. So the

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis.observables.metrics import (aspect_heading, elongation_heading, frame_metrics, group_shape,
+from observables.metrics import (aspect_heading, elongation_heading, frame_metrics, group_shape,
                                           overtake_rate)
-from analysis.observables.summary import MetricSettings, summarize_run, summary_columns
+from observables.summary import MetricSettings, summarize_run, summary_columns
 from simcore import load_preset, simulate_preset
 from paths import ROOT
 

@@ -2,22 +2,22 @@
 
 ``measure_tracks(table, settings, interval=None, max_gap=None, velocity_interval=None, progress=False)
 -> Measurement``
-takes a read track file (:func:`~analysis.observables.tracks.load_tracks`) and, flock by flock:
+takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by flock:
 
-1. checks it (:func:`~analysis.observables.validation.check_flock`: duplicates, impossible speeds,
+1. checks it (:func:`~observables.validation.check_flock`: duplicates, impossible speeds,
    gaps); errors of every flock are collected and raised together as one
-   :class:`~analysis.observables.validation.TrackError`;
-2. resamples it onto its record grid (:func:`~analysis.observables.resample.resample`; ``interval``
-   None: each flock's own sampling interval, :func:`~analysis.observables.validation.infer_interval`;
+   :class:`~observables.validation.TrackError`;
+2. resamples it onto its record grid (:func:`~observables.resample.resample`; ``interval``
+   None: each flock's own sampling interval, :func:`~observables.validation.infer_interval`;
    ``velocity_interval`` None: differences over one interval);
-3. measures it with :func:`~analysis.observables.summary.measure_run`, the step every sweep and
+3. measures it with :func:`~observables.summary.measure_run`, the step every sweep and
    calibration uses (``settings``: :func:`track_settings`).
 
 ``Measurement.runs`` has one row per flock: ``run_id`` (the flock's name), ``flock``, ``status`` ("ok",
 or "failed" with the reason in ``error``: a flock too short for the velocity interval), ``individuals``,
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
 ``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
-:func:`~analysis.observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
+:func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
 ``Measurement.issues`` lists what the reading and the checks found (notes and warnings).
 """

@@ -1,5 +1,5 @@
 """The parts of ``flocksweep run`` that grow a sweep in rounds (``--until-ci``, ``--until-claims``) and
-the closing line on runs left missing by dead workers; argument parsing stays in :mod:`sweeps.cli`.
+the closing line on runs left missing by dead workers; argument parsing stays in :mod:`flocksweep.cli`.
 
 Each ``run_until_*_command(args, config, out)`` checks its flags (ConfigError naming the flag), runs the
 rounds through :func:`sweeps.runner.run_until` and returns the command's exit status.
@@ -10,7 +10,7 @@ import sys
 
 from simcore.schema import ConfigError, suggest
 
-from .failures import INCOMPLETE
+from sweeps.failures import INCOMPLETE
 
 
 def report_lost(args, result) -> int:
@@ -25,7 +25,7 @@ def report_lost(args, result) -> int:
 
 
 def parse_until_ci(text: str) -> tuple[str, float]:
-    from analysis.observables.summary import ENCOUNTER_FAMILIES, summary_columns
+    from observables.summary import ENCOUNTER_FAMILIES, summary_columns
 
     metric, _, value = text.partition("=")
     metric = metric.strip()

@@ -48,7 +48,7 @@ Per-run scalars of :func:`leadership_metrics` (LEADERSHIP_METRIC_NAMES):
   the run and whose leader moves at r0 count; nan when none does.
 
 :func:`follow_curve` gives C(tau) for every lag (a DataFrame: lag, corr, pairs, events) for figures.
-:func:`analysis.observables.summary.observation_leadership` ties the metrics to a model.
+:func:`observables.summary.observation_leadership` ties the metrics to a model.
 
 Cost: the correlation is one compiled pass (numba, ``cache=True``) over events x followers x lags x
 window, O(E N J L); the groups cost one neighbour-graph pass over the distinct trigger records.

@@ -33,7 +33,7 @@ This module is the top of the import graph (docs/architecture.md): it may import
 command imports what it needs when it runs, and the parser declares only the arguments of the command
 named on the command line (``view`` and ``measure`` take theirs from their own modules), so
 ``flocksweep simulate`` loads neither the calibration, the reports, the viewer nor pandas
-(tests/sweeps/test_cli.py checks it).
+(tests/flocksweep/test_cli.py checks it).
 """
 from __future__ import annotations
 
@@ -45,9 +45,9 @@ from pathlib import Path
 
 from simcore.schema import ConfigError, suggest
 
-from .failures import check_count, check_out, check_workers, explain, parse_numbers, show_warnings
-from .interrupts import ignored, signals_as_exceptions
-from .until_commands import parse_until_ci, report_lost, run_until_ci_command, run_until_claims_command
+from sweeps.failures import check_count, check_out, check_workers, explain, parse_numbers, show_warnings
+from sweeps.interrupts import ignored, signals_as_exceptions
+from flocksweep.until_commands import parse_until_ci, report_lost, run_until_ci_command, run_until_claims_command
 
 
 def _add_simulate(sub) -> None:
@@ -168,7 +168,7 @@ def _add_run(sub) -> None:
 
 
 def cmd_run(args) -> int:
-    from sweeps.command_line import check_run_args, sweep_from_args
+    from flocksweep.command_line import check_run_args, sweep_from_args
     from sweeps.runner import resume_hint, run_sweep
 
     check_run_args(args)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sweeps.cli import main
+from flocksweep.cli import main
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -71,7 +71,7 @@ def test_missing_model_file_is_reported(capsys, tmp_path):
 @pytest.mark.slow
 def test_console_script_runs_in_a_fresh_process(tmp_path):
     exe = shutil.which("flocksweep")
-    cmd = [exe] if exe else [sys.executable, "-m", "sweeps.cli"]
+    cmd = [exe] if exe else [sys.executable, "-m", "flocksweep.cli"]
     done = subprocess.run(cmd + ["simulate", HOLLAND, "--n", "8", "--duration", "0.5", "--plot"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -88,7 +88,7 @@ def test_simulate_loads_only_what_it_needs(tmp_path):
     """`flocksweep simulate` (no --plot, no --tracks) imports none of the table, plotting, report, viewer or
     calibration libraries: a fresh process runs the command, then lists what it loaded. (numba itself
     imports scipy.linalg for its BLAS bindings, so scipy's other subpackages are what is checked.)"""
-    code = ("import json, sys\nfrom sweeps.cli import main\n"
+    code = ("import json, sys\nfrom flocksweep.cli import main\n"
             f"code = main(['simulate', {HOLLAND!r}, '--n', '3', '--duration', '0.016666666666666666'])\n"
             "print(json.dumps([code, sorted(sys.modules)]))\n")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
@@ -103,7 +103,7 @@ def test_simulate_loads_only_what_it_needs(tmp_path):
 
 
 def test_help_lists_every_command_and_each_command_declares_its_arguments(capsys):
-    from sweeps.cli import COMMANDS
+    from flocksweep.cli import COMMANDS
 
     with pytest.raises(SystemExit):
         main(["--help"])

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.observables.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input,
+from observables.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input,
                                              leadership_metrics)
-from analysis.observables.summary import observation_leadership
+from observables.summary import observation_leadership
 from simcore import load_preset, simulate_preset
 from paths import ROOT
 

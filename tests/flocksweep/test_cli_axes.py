@@ -1,4 +1,4 @@
-"""Sweeps from the command line: ``flocksweep run --model M --axis KEY=VALUES ...`` (sweeps/command_line.py)
+"""Sweeps from the command line: ``flocksweep run --model M --axis KEY=VALUES ...`` (flocksweep/command_line.py)
 builds the sweep a file would, stores it resolved as RESULTS/sweep.toml, and that file reproduces it."""
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from simcore.schema import ConfigError
-from sweeps.cli import main
-from sweeps.command_line import parse_axis_flag
+from flocksweep.cli import main
+from flocksweep.command_line import parse_axis_flag
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
