@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .schema import ConfigError, check_at_least, check_choice, check_non_negative, check_positive, check_within
+from .schema import (ConfigError, check_at_least, check_choice, check_non_negative, check_positive, check_vector3,
+                     check_within)
 
 SEPARATION_FORMS = ("inverse_square", "velocity_over_distance")
 SCOPES = ("neighbours", "flock")
@@ -75,12 +76,6 @@ class Avoid:
         check_positive("body_radius", self.body_radius)
 
 
-def _point(key: str, value) -> tuple[float, float, float]:
-    if len(value) != 3 or not all(math.isfinite(v) for v in value):
-        raise ConfigError(key, f"got {list(value)!r}; must be a list of 3 finite numbers")
-    return tuple(float(v) for v in value)
-
-
 @dataclass(frozen=True)
 class Prey:
     """A prey agent flying at ``speed`` to random target points uniform in the ball of ``target_radius``
@@ -97,7 +92,7 @@ class Prey:
     def __post_init__(self):
         check_positive("speed", self.speed)
         check_non_negative("weight", self.weight)
-        object.__setattr__(self, "target_centre", _point("target_centre", self.target_centre))
+        object.__setattr__(self, "target_centre", check_vector3("target_centre", self.target_centre))
         check_positive("target_radius", self.target_radius)
         check_positive("arrive_radius", self.arrive_radius)
 

@@ -11,8 +11,9 @@ The file is a numpy ``.npz`` archive with, for N boids:
 * ``pattern`` integer (N,), optional: bit patterns, used in pattern mode (default: drawn from the seed).
 
 A trajectory written by ``flocksweep simulate --out`` (``pos``, ``vel`` of shape (R, N, 3)) is accepted
-too: its last record is used, so a run can be continued. Unit vectors must be unit to 1e-5 and up
-orthogonal to fwd to 1e-5 (single-precision frames pass); values are used as given, not renormalised, so
+too: its last record is used, so a run can be continued (its other arrays are ignored). Unit vectors must
+be unit to 1e-5 and up orthogonal to fwd to 1e-5 (:data:`simcore.schema.FILE_UNIT_TOLERANCE`:
+single-precision frames pass); values are used as given, not renormalised, so
 a state exported from another simulator is reproduced exactly. Every problem is a
 :class:`~simcore.schema.ConfigError` naming ``init.from_file``, the array and what is wrong.
 
@@ -30,10 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .schema import ConfigError
+from .schema import FILE_UNIT_TOLERANCE, ConfigError
 
 KEY = "init.from_file"
-UNIT_TOLERANCE = 1e-5
 
 
 def file_digest(path) -> str:
@@ -91,14 +91,16 @@ def _array(path, raw, name, shape_tail, n=None):
 
 def _check_unit(path, name, v):
     length = np.sqrt((v * v).sum(axis=1))
-    bad = np.flatnonzero(np.abs(length - 1.0) > UNIT_TOLERANCE)
+    bad = np.flatnonzero(np.abs(length - 1.0) > FILE_UNIT_TOLERANCE)
     if len(bad):
         raise ConfigError(KEY, f"{path}: '{name}' of boid {bad[0]} has length {length[bad[0]]!r}; expected unit "
-                               f"vectors (to {UNIT_TOLERANCE})")
+                               f"vectors (to {FILE_UNIT_TOLERANCE})")
 
 
 def _validate(path, raw) -> dict:
-    known = {"pos", "vel", "fwd", "speed", "up", "acc", "pattern", "times", "visible", "binocular", "seed"}
+    # a state's arrays, and the others of a trajectory file (sweeps.trajectory), whose last record is used
+    known = {"pos", "vel", "fwd", "speed", "up", "acc", "pattern", "times", "visible", "binocular", "leader", "seed",
+             "predator", "prey"}
     unknown = sorted(set(raw) - known)
     if unknown:
         raise ConfigError(KEY, f"{path}: unknown arrays {unknown}; allowed: pos, vel or fwd + speed, up, acc, "
@@ -132,7 +134,7 @@ def _validate(path, raw) -> dict:
         up = _array(path, raw, "up", (3,), n)
         _check_unit(path, "up", up)
         along = np.abs((fwd * up).sum(axis=1))
-        if (along > UNIT_TOLERANCE).any():
+        if (along > FILE_UNIT_TOLERANCE).any():
             raise ConfigError(KEY, f"{path}: 'up' of boid {int(np.argmax(along))} is not orthogonal to its heading "
                                    f"(|fwd . up| = {along.max()!r})")
     acc = _array(path, raw, "acc", (3,), n) if "acc" in raw else None

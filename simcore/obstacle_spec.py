@@ -19,8 +19,8 @@ cylinder   ``centre``, ``axis``, ``radius``, ``length`` capped solid cylinder: a
 
 ``normal`` and ``axis`` may point in any direction; they are divided by their length on load (a zero
 vector is an error), and a vector whose length is already within 1e-12 of 1 is kept as written, so
-loading the canonical form again gives the same bits. Radii, lengths and half extents must be finite
-and > 0. Every check raises :class:`~simcore.schema.ConfigError` naming the key; through
+loading the canonical form again gives the same bits (:func:`simcore.schema.unit_vector3`). Radii,
+lengths and half extents must be finite and > 0. Every check raises :class:`~simcore.schema.ConfigError` naming the key; through
 :func:`obstacles_from_dicts` (or ``schema.build`` on a dataclass with a ``tuple[Obstacle, ...]`` field
 ``obstacles`` under ``world``) the key reads like ``world.obstacles[2].radius``. A key of another kind
 (a ``radius`` on a box) is an error naming that key.
@@ -39,7 +39,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .schema import ConfigError, build, suggest
+from .schema import ConfigError, build, check_positive, check_vector3, suggest, unit_vector3
 
 OBSTACLE_KINDS = ("sphere", "plane", "box", "cylinder")
 KIND_SPHERE, KIND_PLANE, KIND_BOX, KIND_CYLINDER = range(4)
@@ -58,33 +58,6 @@ COLUMN_NAMES = ("centre_x", "centre_y", "centre_z", "radius", "normal_x", "norma
 (OBS_CX, OBS_CY, OBS_CZ, OBS_RADIUS, OBS_NX, OBS_NY, OBS_NZ, OBS_HX, OBS_HY, OBS_HZ,
  OBS_AX, OBS_AY, OBS_AZ, OBS_HALF_LENGTH, OBS_BOUND, OBSTACLE_COLUMNS) = range(len(COLUMN_NAMES) + 1)
 assert OBSTACLE_COLUMNS == len(COLUMN_NAMES)
-
-UNIT_TOLERANCE = 1e-12
-
-
-def _vector(key: str, value) -> tuple[float, float, float]:
-    if value is None or len(value) != 3:
-        raise ConfigError(key, f"got {list(value) if value is not None else value!r}; must be a list of 3 numbers")
-    if not all(math.isfinite(v) for v in value):
-        raise ConfigError(key, f"got {list(value)!r}; every component must be finite")
-    return tuple(float(v) for v in value)
-
-
-def _direction(key: str, value) -> tuple[float, float, float]:
-    """A non-zero vector divided by its length (kept as written when already unit within 1e-12)."""
-    vec = _vector(key, value)
-    length = math.hypot(*vec)
-    if length == 0.0:
-        raise ConfigError(key, f"got {list(vec)!r}; must be a non-zero vector (it is normalised on load)")
-    if abs(length - 1.0) <= UNIT_TOLERANCE:
-        return vec
-    return tuple(v / length for v in vec)
-
-
-def _positive(key: str, value) -> None:
-    if not (math.isfinite(value) and value > 0.0):
-        raise ConfigError(key, f"got {value!r}; must be a finite number > 0")
-
 
 @dataclass(frozen=True)
 class Obstacle:
@@ -111,17 +84,17 @@ class Obstacle:
         for name in wanted:
             if getattr(self, name) is None:
                 raise ConfigError(name, f"missing key; {article} {self.kind} needs: {', '.join(wanted)}")
-        object.__setattr__(self, "centre", _vector("centre", self.centre))
+        object.__setattr__(self, "centre", check_vector3("centre", self.centre))
         if self.radius is not None:
-            _positive("radius", self.radius)
+            check_positive("radius", self.radius)
         if self.length is not None:
-            _positive("length", self.length)
+            check_positive("length", self.length)
         if self.normal is not None:
-            object.__setattr__(self, "normal", _direction("normal", self.normal))
+            object.__setattr__(self, "normal", unit_vector3("normal", self.normal))
         if self.axis is not None:
-            object.__setattr__(self, "axis", _direction("axis", self.axis))
+            object.__setattr__(self, "axis", unit_vector3("axis", self.axis))
         if self.half_extents is not None:
-            half = _vector("half_extents", self.half_extents)
+            half = check_vector3("half_extents", self.half_extents)
             for i, value in enumerate(half):
                 if not value > 0.0:
                     raise ConfigError("half_extents", f"got {list(half)!r}; component {i} is {value!r}, every "

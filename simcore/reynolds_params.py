@@ -11,35 +11,19 @@ into an acceleration (units/s^2), so ``max_accel`` budgets them directly:
 * migration   w_m * (unit migration direction)          (w_m in units/s^2; 0 disables it)
 
 with w_j = |d_j|^-k, k = ``falloff_exponent``. ``migration_direction`` is divided by its length on load
-(kept as written when already unit within 1e-12, so the canonical form reloads to the same bits).
+(kept as written when already unit within 1e-12, so the canonical form reloads to the same bits:
+:func:`simcore.schema.unit_vector3`).
 :meth:`Reynolds.canonical` is the run-identity form: the migration keys only when the urge is on.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from .schema import ConfigError, check_choice, check_non_negative, check_positive, check_within, to_dict
+from .schema import (ConfigError, check_choice, check_non_negative, check_positive, check_within, to_dict,
+                     unit_vector3)
 
 ALLOCATIONS = ("priority", "priority_magnitude", "weighted_sum")
 MIGRATION_WHO = ("all", "front")
-UNIT_TOLERANCE = 1e-12
-
-
-def _unit(key: str, value) -> tuple[float, float, float]:
-    if value is None or len(value) != 3 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                   for v in value):
-        raise ConfigError(key, f"got {value!r}; must be a list of 3 numbers")
-    vec = tuple(float(v) for v in value)
-    if not all(math.isfinite(v) for v in vec):
-        raise ConfigError(key, f"got {list(vec)!r}; every component must be finite")
-    length = math.hypot(*vec)
-    if length == 0.0:
-        raise ConfigError(key, f"got {list(vec)!r}; must be a non-zero vector (it is normalised on load)")
-    if abs(length - 1.0) <= UNIT_TOLERANCE:
-        return vec
-    return tuple(v / length for v in vec)
-
 
 @dataclass(frozen=True)
 class Reynolds:
@@ -77,7 +61,7 @@ class Reynolds:
         check_non_negative("reynolds.avoid_margin", self.avoid_margin)
         check_positive("reynolds.body_radius", self.body_radius)
         object.__setattr__(self, "migration_direction",
-                           _unit("reynolds.migration_direction", self.migration_direction))
+                           unit_vector3("reynolds.migration_direction", self.migration_direction))
         check_choice("reynolds.migration_who", self.migration_who, MIGRATION_WHO)
 
     @property

@@ -26,6 +26,13 @@ is not UTF-8 or not TOML, or holds a date or time value (ours take numbers, stri
 tables; ``check_plain``), and an override giving a date, is a ConfigError naming the file or key. ``resolve_path`` finds a
 file a config names relative to the config, absolutely or relative to the working directory.
 ``suggest`` is the one did-you-mean. Nothing here knows about flocking.
+
+The ``check_*`` helpers raise ConfigError naming the key, the value and what is allowed.
+``check_vector3(key, value)`` is the one 3-vector check (a list of 3 finite numbers -> a float tuple) and
+``unit_vector3(key, value)`` the one direction (a non-zero 3-vector divided by its length; one already
+unit within :data:`UNIT_TOLERANCE` is kept as written, so a canonical form reloads to the same bits).
+:data:`FILE_UNIT_TOLERANCE` is the looser test of unit vectors read from data files (state files of
+``init.from_file``): vectors stored in single precision must pass.
 """
 from __future__ import annotations
 
@@ -35,6 +42,7 @@ import difflib
 import functools
 import json
 import math
+import numbers
 import sys
 import tomllib
 import types
@@ -99,6 +107,35 @@ def check_at_least(key: str, value: int, minimum: int) -> None:
 def check_finite(key: str, value: float) -> None:
     if not math.isfinite(value):
         raise ConfigError(key, f"got {value!r}; expected a finite number")
+
+
+# a configured direction this close to unit length is kept as written (not divided by its length)
+UNIT_TOLERANCE = 1e-12
+# unit vectors read from a file must be unit to this: float32 frames (epsilon 1.2e-7, a few roundings) pass
+FILE_UNIT_TOLERANCE = 1e-5
+
+
+def check_vector3(key: str, value) -> tuple[float, float, float]:
+    """``value`` (a list, tuple or array of 3 finite real numbers, not booleans) as a tuple of floats."""
+    items = None if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__iter__") else list(value)
+    if items is None or len(items) != 3 or \
+            not all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in items):
+        raise ConfigError(key, f"got {value if items is None else items!r}; must be a list of 3 numbers")
+    vec = tuple(float(v) for v in items)
+    if not all(math.isfinite(v) for v in vec):
+        raise ConfigError(key, f"got {list(vec)!r}; every component must be finite")
+    return vec
+
+
+def unit_vector3(key: str, value) -> tuple[float, float, float]:
+    """A non-zero 3-vector divided by its length (kept as written when unit within UNIT_TOLERANCE)."""
+    vec = check_vector3(key, value)
+    length = math.hypot(*vec)
+    if length == 0.0:
+        raise ConfigError(key, f"got {list(vec)!r}; must be a non-zero vector (it is normalised on load)")
+    if abs(length - 1.0) <= UNIT_TOLERANCE:
+        return vec
+    return tuple(v / length for v in vec)
 
 
 # ------------------------------------------------------------------------------------------ building
