@@ -107,19 +107,20 @@ def cmd_simulate(args) -> int:
         from analysis.reports.traces import plot_traces, wrap_distance
 
         title = (f"{preset.model.name}: N={obs.n}, {obs.times[-1]:g} s, seed {args.seed}, "
-                 f"final polarization {summary['final_polarization']:.2f}")
+                 f"final polarization {summary['polarization_final']:.2f}")
         written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
                                    wrap_distance(preset.model), title, preset.model.world.obstacles,
                                    obs.predator, obs.prey))
     print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s")
-    print(f"  final polarization     {summary['final_polarization']:.3f}")
-    print(f"  final mean speed       {summary['final_mean_speed']:.3f}")
-    print(f"  mean visible neighbours {summary['final_mean_visible']:.2f}"
-          f" (binocular share {summary['final_binocular_share']:.2f})")
+    print(f"  final polarization     {summary['polarization_final']:.3f}")
+    print(f"  final mean speed       {summary['speed_mean_final']:.3f}")
+    print(f"  mean visible neighbours {summary['visible_mean_final']:.2f}"
+          f" (binocular share {summary['binocular_share_final']:.2f})")
     if "collided_boids" in summary:
-        print(f"  obstacles: {summary['collided_boids']} boids collided, least clearance {summary['clearance_min']:.3f}")
+        print(f"  obstacles: {summary['collided_boids']:g} boids collided, least clearance "
+              f"{summary['clearance_min']:.3f}")
     if "predator_captures" in summary:
-        print(f"  predator: {summary['predator_captures']} boids captured, nearest approach "
+        print(f"  predator: {summary['predator_captures']:g} boids captured, nearest approach "
               f"{summary['predator_distance_min']:.2f}")
     if "prey_reach_time" in summary:
         print(f"  prey: the flock's centre reached it at t = {summary['prey_reach_time']:g} s (nan: never)")

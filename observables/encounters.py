@@ -29,6 +29,9 @@ In a periodic box of side L every offset is a minimum image and the flock is unw
 ``encounter_metrics(obs, settings, series) -> (series, scalars)`` is what
 :func:`observables.summary.measure_run` calls (``series``: the run's per-record metrics, for
 ``nn_distance`` and ``n_groups``); :func:`encounter_columns` lists the row columns of each family.
+``agent_positions(obs, pick)`` is the one way to take a run's recorded agents (``AGENTS``: the
+predator's and the prey's (R, 3) positions, those the run has), e.g. to keep every k-th record or to
+write them to a trajectory file.
 """
 from __future__ import annotations
 
@@ -46,6 +49,8 @@ PREY_SERIES = ("prey_distance", "prey_within_fraction")
 PREY_SCALARS = ("prey_reach_time", "prey_first_reach_time")
 FAMILIES = {"obstacles": (OBSTACLE_SERIES, OBSTACLE_SCALARS), "predator": (PREDATOR_SERIES, PREDATOR_SCALARS),
             "prey": (PREY_SERIES, PREY_SCALARS)}
+
+AGENTS = ("predator", "prey")  # the agents a run may record besides the boids: Observations attributes
 
 CAPTURE_RADIUS = 1.0   # a boid's and the predator's bodies (radius 0.5 each) touch
 PREDATOR_NEAR = 10.0   # the predator is near when this close to the flock centre
@@ -218,6 +223,11 @@ def prey_metrics(pos: np.ndarray, prey: np.ndarray, times: np.ndarray, reach: fl
 
 # ---------------------------------------------------------------------------------------------------
 # one run
+
+
+def agent_positions(obs, pick=slice(None)) -> dict:
+    """{name: positions[pick]} of the :data:`AGENTS` the observations record (those not None)."""
+    return {name: getattr(obs, name)[pick] for name in AGENTS if getattr(obs, name, None) is not None}
 
 
 def _agent(obs, name: str, n_records: int):

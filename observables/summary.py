@@ -41,7 +41,8 @@ import numpy as np
 
 from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
-from .encounters import CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, encounter_columns, encounter_metrics
+from .encounters import (CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, agent_positions, encounter_columns,
+                         encounter_metrics)
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
 from .migration import MIGRATION_METRIC_NAMES, migration_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
@@ -183,10 +184,9 @@ def every_nth(obs, k: int):
     if k == 1:
         return obs
     pick = slice(None, None, k)
-    agents = {name: getattr(obs, name)[pick] for name in ("predator", "prey") if getattr(obs, name, None) is not None}
     return dataclasses.replace(obs, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
                                visible=obs.visible[pick], binocular=obs.binocular[pick], leader=obs.leader[pick],
-                               record_every=obs.record_every * k, **agents)
+                               record_every=obs.record_every * k, **agent_positions(obs, pick))
 
 
 def default_group_radius(model) -> float:

@@ -10,7 +10,8 @@ run's failure: it is raised, and the runner stops.
 A row is the run's identity and swept parameters, then ``status``, ``error``, ``sim_s``, ``wall_s``,
 then its summary (:func:`observables.summary.measure_run` of the records at the run's record
 interval). Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
-``<out_dir>/trajectories/<run_id>.npz``; on a cluster ``out_dir`` must be on a shared file system.
+``<out_dir>/trajectories/<run_id>.npz`` (:mod:`sweeps.trajectory`, every ``trajectory_every`` steps);
+on a cluster ``out_dir`` must be on a shared file system.
 """
 from __future__ import annotations
 
@@ -20,14 +21,14 @@ import time
 import traceback
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from observables.summary import check_finite, every_nth, measure_run
 from simcore import simulate
 
 from .design import RunSpec
-from .files import WriteFailed, atomic_path
+from .files import WriteFailed
+from .trajectory import write_trajectory
 
 
 def _simulate(spec: RunSpec):
@@ -41,15 +42,9 @@ def _simulate(spec: RunSpec):
 
 
 def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
-    """Positions and velocities every ``trajectory_every`` steps (and the predator's and prey's positions
-    when the model has them)."""
-    pick = slice(None, None, spec.storage.trajectory_every // obs.record_every)
-    path = Path(out_dir) / "trajectories" / f"{spec.run_id}.npz"
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as handle:
-            agents = {name: getattr(obs, name)[pick] for name in ("predator", "prey") if getattr(obs, name) is not None}
-            np.savez_compressed(handle, times=obs.times[pick], pos=obs.pos[pick], vel=obs.vel[pick],
-                                pattern=obs.pattern, seed=spec.seed, **agents)
+    """The run's trajectory file, every ``trajectory_every`` steps."""
+    records = every_nth(obs, spec.storage.trajectory_every // obs.record_every)
+    write_trajectory(Path(out_dir) / "trajectories" / f"{spec.run_id}.npz", records, spec.seed)
 
 
 def base_row(spec: RunSpec) -> dict:

@@ -13,8 +13,9 @@ A :class:`Track` holds a run's recorded frames and what is known about it:
   :mod:`analysis.viewer.encode` (validated there).
 
 Constructors: :func:`from_observations` (a simulator ``Observations``, optionally with its preset),
-:func:`from_npz` (``trajectory.npz`` of ``flocksweep simulate --out`` with its ``params.json``, or a
-sweep's ``trajectories/<run_id>.npz``), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
+:func:`from_npz` (a trajectory file, :mod:`sweeps.trajectory`: ``trajectory.npz`` of ``flocksweep
+simulate --out`` with its ``params.json``, or a sweep's ``trajectories/<run_id>.npz`` with its results
+store for the parameters), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
 of these). :meth:`Track.every` keeps every k-th frame.
 
 Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
@@ -33,6 +34,7 @@ from observables.summary import default_group_radius, world_box
 from simcore import Observations, preset_from_dict
 from sweeps.design import rebuild
 from sweeps.store import ResultsStore
+from sweeps.trajectory import read_trajectory
 
 DEFAULT_GROUP_RADIUS = 20.0  # used, and said so in the page, when nothing tells the run's radius
 
@@ -243,16 +245,9 @@ def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
 
 
 def from_npz(path) -> Track:
-    """A Track of a saved trajectory (see the module docstring)."""
+    """A Track of a saved trajectory (:func:`sweeps.trajectory.read_trajectory`; see the module docstring)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such trajectory file")
-    with np.load(path) as data:
-        arrays = {key: data[key] for key in data.files}
-    missing = [key for key in ("times", "pos", "vel") if key not in arrays]
-    if missing:
-        raise ValueError(f"{path}: not a flocksweep trajectory (missing {', '.join(missing)}; "
-                         "expected times, pos, vel and optionally pattern, visible, binocular, leader)")
+    arrays = read_trajectory(path)
     meta: dict = {"title": path.stem, "info": {"source": str(path)}}
     params_path = path.with_name("params.json")
     if params_path.is_file():
@@ -263,12 +258,14 @@ def from_npz(path) -> Track:
     elif path.parent.name == "trajectories":
         meta.update(_sweep_meta(path, path.stem, arrays["pos"]))
         meta["info"] = {**meta.get("info", {}), "source": str(path)}
-    if "seed" in arrays and "seed" not in meta["info"]:
-        meta["info"]["seed"] = int(arrays["seed"])
+    if arrays["seed"] is not None and "seed" not in meta["info"]:
+        seed = arrays["seed"]
+        meta["info"]["seed"] = int(seed) if seed.ndim == 0 else [int(s) for s in seed]
+    leader = arrays["leader"]
     return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
-                 vel=arrays["vel"].astype(np.float64), pattern=arrays.get("pattern"),
-                 leader=arrays.get("leader"), visible=arrays.get("visible"),
-                 binocular=arrays.get("binocular"), agents=recorded_agents(arrays.get("predator"), arrays.get("prey")),
+                 vel=arrays["vel"].astype(np.float64), pattern=arrays["pattern"],
+                 leader=leader if leader is not None and leader.any() else None, visible=arrays["visible"],
+                 binocular=arrays["binocular"], agents=recorded_agents(arrays["predator"], arrays["prey"]),
                  **meta)
 
 

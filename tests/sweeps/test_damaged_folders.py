@@ -21,7 +21,7 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from paths import ROOT
-from sweeps import files, runner, store as store_module, worker
+from sweeps import files, runner, store as store_module, trajectory, worker
 from flocksweep.cli import main
 from sweeps.config import load_sweep
 from sweeps.files import WriteFailed
@@ -231,7 +231,7 @@ def test_a_full_disk_while_saving_trajectories_is_not_a_run_failure(tmp_path, mo
 
     def full(handle, **arrays):
         raise OSError(errno.ENOSPC, "No space left on device")
-    monkeypatch.setattr(worker.np, "savez_compressed", full)
+    monkeypatch.setattr(trajectory.np, "savez_compressed", full)
     with pytest.raises(WriteFailed) as info:
         run(sweep, out)
     assert info.value.errno == errno.ENOSPC and "/trajectories/" in info.value.filename

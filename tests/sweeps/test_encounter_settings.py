@@ -161,6 +161,7 @@ def test_the_simulate_summary_counts_obstacle_collisions_over_the_whole_run():
 
     from simcore.obstacle_spec import Obstacle
     from simcore.simulate import Observations
+    from observables.summary import MetricSettings
     from sweeps.single import summarize
 
     # two boids along x past a sphere of radius 2 at the origin, at heights 0 and 2.3 (body radius 0.5):
@@ -176,6 +177,8 @@ def test_the_simulate_summary_counts_obstacle_collisions_over_the_whole_run():
                        leader=blank.astype(bool), triggers=np.zeros((0, 2), np.int64), pattern=np.zeros(2, np.uint32),
                        final=None, dt=1.0, record_every=1)
     sphere = Obstacle(kind="sphere", centre=(0.0, 0.0, 0.0), radius=2.0)
-    summary = summarize(obs, (sphere,), 0.5)
+    settings = MetricSettings(warmup=0.0, group_radius=5.0, escape_duration=1.0, obstacles=(sphere,), body_radius=0.5)
+    summary = summarize(obs, settings)
     assert summary["collided_boids"] == 2 and summary["clearance_min"] == -2.5
-    assert summary["final_polarization"] == 1.0 and "predator_captures" not in summary
+    assert summary["polarization_final"] == 1.0 and "predator_captures" not in summary
+    assert summary["n"] == 2 and summary["time_s"] == 10.0
