@@ -23,6 +23,9 @@ tag                    entropy                      seeds
                                                     path, e.g. "d.faster"; :func:`named_generator`)
 =====================  ===========================  =================================================
 
+A stream's ``numpy.random.SeedSequence`` is :func:`simcore.rng.seed_sequence` of its entropy words
+(``seed_sequence((seed, Tag.MOVES))``), the same function that turns a run's seed into its sequence.
+
 Other seeds: a sweep run's seed is :func:`run_seed` (``[sweep seed, sha256(point) words, replicate]``,
 the top 63 bits); :func:`common_seeds` gives fixed seeds from one integer (``SeedSequence(seed)``) and
 :func:`seeds_for` fresh ones from a generator. Inside the simulator, counter-based draws use the run's
@@ -34,6 +37,8 @@ import hashlib
 from enum import IntEnum, unique
 
 import numpy as np
+
+from simcore.rng import seed_sequence
 
 SEED_BITS = 63
 
@@ -67,14 +72,10 @@ class SBCStream(IntEnum):
 ECDF_BAND = 0xECDF  # [seed, Tag.SBC, ECDF_BAND]: the simulated uniform ranks of SBC's ECDF band
 
 
-def seed_sequence(*words) -> np.random.SeedSequence:
-    """``SeedSequence([w0, w1, ...])`` of integer words >= 0 (``[seed, tag, ...]``)."""
-    return np.random.SeedSequence([int(w) for w in words])
-
-
 def generator(*words) -> np.random.Generator:
-    """``Generator(PCG64(seed_sequence(*words)))``."""
-    return np.random.Generator(np.random.PCG64(seed_sequence(*words)))
+    """``Generator(PCG64(SeedSequence([w0, w1, ...])))`` of integer words >= 0 (``[seed, tag, ...]``;
+    the sequence is :func:`simcore.rng.seed_sequence` of ``words``)."""
+    return np.random.Generator(np.random.PCG64(seed_sequence(words)))
 
 
 def _count(n, name: str) -> int:

@@ -10,7 +10,7 @@ before_step=None, refresh_every=0, refresh=None, until_converged=False, check_ev
   half-ensemble's proposals arrive at once); ``prior`` gives the dimension ``prior.dim`` and the names.
 * Seeds (:mod:`sweeps.seeds`): the initial walkers are ``initial(generator(seed, Tag.WALKERS), walkers)
   -> (coords (walkers, d), log_prob (walkers,))`` (the caller draws them from the prior and replaces the
-  unusable ones); emcee's move random state is ``RandomState(MT19937(seed_sequence(seed, Tag.MOVES)))``.
+  unusable ones); emcee's move random state is ``RandomState(MT19937(seed_sequence((seed, Tag.MOVES))))``.
   Nothing else here is random, so the same arguments give a bit-identical chain.
 * ``moves``: ``"stretch"`` (Goodman & Weare's stretch move, emcee's default) or ``"de"`` (differential
   evolution 90% with step ``DE_SCALE x 2.38 / sqrt(2 d)``, DE snooker 10%; ter Braak & Vrugt 2008),
@@ -63,10 +63,11 @@ import numpy as np
 
 from pathlib import Path
 
+from simcore.rng import seed_sequence
 from simcore.schema import ConfigError
 from sweeps.files import write_failed
 from sweeps.quarantine import quarantine
-from sweeps.seeds import Tag, generator, seed_sequence
+from sweeps.seeds import Tag, generator
 
 from .chainfile import ChainFile, differences, stored_attrs
 from .checks import integer
@@ -193,7 +194,7 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
     start = int(sampler.backend.iteration)
     if start == 0:
         coords, values = initial(generator(seed, Tag.WALKERS), walkers)
-        move_rs = np.random.RandomState(np.random.MT19937(seed_sequence(seed, Tag.MOVES)))
+        move_rs = np.random.RandomState(np.random.MT19937(seed_sequence((seed, Tag.MOVES))))
         state = emcee.State(coords, log_prob=values, random_state=move_rs.get_state())
     else:
         state = sampler.backend.get_last_sample()   # coords, log_prob, emcee's random state

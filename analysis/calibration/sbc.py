@@ -14,7 +14,7 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
 * ``config`` is a :class:`~analysis.calibration.config.CalibrationConfig` with method ``emcee`` (or an
   :class:`SBCProblem`, e.g. a cheap toy model in tests). ``steps`` / ``walkers`` override the config's.
 * For dataset ``j = 0..datasets-1``, every random number comes from ``(config.seed, j)`` only, through
-  ``seed_sequence(seed, Tag.SBC, j, stream)`` (:mod:`sweeps.seeds`, streams :class:`~sweeps.seeds.SBCStream`):
+  ``seed_sequence((seed, Tag.SBC, j, stream))`` (:mod:`sweeps.seeds`, streams :class:`~sweeps.seeds.SBCStream`):
     - stream 0: ``theta_j = prior.sample(rng, 1)[0]``, shape (d,);
     - stream 1: the observed data ``y_j``, shape (m, k) (m = rows of the config's targets, 1 for
       mean/sd targets), from the SAME data model the likelihood assumes: the summary simulator plus,
@@ -75,10 +75,12 @@ from typing import Callable, Sequence
 import numpy as np
 from tqdm import tqdm
 
+from simcore.rng import seed_sequence
 from simcore.schema import ConfigError
+from sweeps import seeds
 from sweeps.executors import Executor
 from sweeps.files import json_ready
-from sweeps.seeds import SBCStream, Tag, seed_sequence
+from sweeps.seeds import SBCStream, Tag
 from sweeps.store import OutputFolder
 
 from .accounting import Accounting
@@ -147,11 +149,12 @@ def _as_problem(source, steps=None, walkers=None) -> SBCProblem:
 
 def stream(seed: int, j: int, which: int) -> np.random.SeedSequence:
     """The seed sequence of stream ``which`` of dataset ``j`` (see the module docstring)."""
-    return seed_sequence(seed, Tag.SBC, j, which)
+    return seed_sequence((seed, Tag.SBC, j, which))
 
 
 def generator(seed: int, j: int, which: int) -> np.random.Generator:
-    return np.random.Generator(np.random.PCG64(stream(seed, j, which)))
+    """The generator of stream ``which`` of dataset ``j``: ``Generator(PCG64(stream(seed, j, which)))``."""
+    return seeds.generator(seed, Tag.SBC, j, which)
 
 
 def bsl_seed(seed: int, j: int) -> int:
