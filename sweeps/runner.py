@@ -46,6 +46,7 @@ from simcore import simulate
 from . import worker
 from .budget import check_sweep
 from .claims import with_claims
+from .confidence import ci_halfwidth
 from .config import SweepConfig, describe
 from .design import RunSpec, base_preset, expand
 from .executors import Executor, WorkerLost, check_scheduler
@@ -325,14 +326,12 @@ def resume_hint(sweep_path, out_dir) -> str:
 
 
 def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:
-    """Per design point: replicates with a value, and the Student-t CI half-width of the metric's mean."""
-    from scipy import stats  # imported here: scipy.stats takes most of a second to import
-
+    """Per design point: replicates with a value, and the Student-t CI half-width of the metric's mean
+    (:func:`sweeps.confidence.ci_halfwidth`: +inf for fewer than two replicates)."""
     ok = table[(table["status"] == "ok")].dropna(subset=[metric])
     grouped = ok.groupby("point_index")[metric]
     out = pd.DataFrame({"n": grouped.count(), "sd": grouped.std(ddof=1)})
-    t = stats.t.ppf(0.5 + confidence / 2, np.maximum(out["n"] - 1, 1))
-    out["halfwidth"] = np.where(out["n"] >= 2, t * out["sd"] / np.sqrt(out["n"]), np.inf)
+    out["halfwidth"] = ci_halfwidth(out["n"], out["sd"], confidence)
     return out
 
 

@@ -321,9 +321,10 @@ def _adequacy(ctx: Context) -> None:
         cells.insert(0, "metric", metric)
         summaries.append(cells)
         hw = cells["ci_halfwidth"]
+        bounded = hw[np.isfinite(hw)]   # a cell with n < 2 has no finite bound (+inf)
         rows.append({"metric": metric, "cells": len(cells), "replicates (median)": cells["n"].median(),
-                     "CI half-width median": hw.median(), "CI half-width max": hw.max(),
-                     "cells without CI (n < 2)": int(hw.isna().sum())})
+                     "CI half-width median": hw.median(), "CI half-width max": bounded.max(),
+                     "cells without CI (n < 2)": int((cells["n"] < 2).sum())})
     _save_table(ctx, "cell_summaries", pd.concat(summaries, ignore_index=True))
     ctx.blocks.append(Heading("Replicate adequacy"))
     ctx.blocks.append(Para("Half-width of the 95% Student-t confidence interval of each cell's mean over its "

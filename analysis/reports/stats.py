@@ -45,8 +45,9 @@ Functions:
   a), two-sided ``p``, ``cliffs_delta`` (of b against a: positive when the higher level gives larger
   values) and ``p_holm`` (Holm across the pairs of this factor).
 * ``cell_summary(runs, factors, metric, confidence=0.95)``: per cell (combination of levels) ``n,
-  n_missing, mean, sd, ci_halfwidth``; the half-width is Student-t, t_{(1+c)/2, n-1} sd / sqrt(n), NaN
-  when n < 2.
+  n_missing, mean, sd, ci_halfwidth``; the half-width is Student-t, t_{(1+c)/2, n-1} sd / sqrt(n), +inf
+  when n < 2 (no finite bound; :func:`sweeps.confidence.ci_halfwidth`, the rule ``--until-ci`` uses);
+  sd is NaN when n < 2.
 * ``factor_report(runs, factors, metrics, seed=0, confidence=0.95, n_resamples=1000)``: dict of
   DataFrames ``tests`` (factor_test for every (metric, factor), with ``p_holm`` across that whole
   family), ``main_effects`` and ``adjacent`` (long format, keyed by ``metric, factor``). With an int
@@ -63,6 +64,8 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 from scipy import stats
+
+from sweeps.confidence import ci_halfwidth
 
 __all__ = [
     "main_effect", "bootstrap_mean_ci", "factor_test", "two_way_test", "holm", "cliffs_delta",
@@ -325,7 +328,8 @@ def adjacent_comparisons(runs: pd.DataFrame, factor: str, metric: str) -> pd.Dat
 
 def cell_summary(runs: pd.DataFrame, factors, metric: str, confidence: float = 0.95) -> pd.DataFrame:
     """Per combination of the levels of ``factors`` (a name or a list): n, n_missing, mean, sd and the
-    Student-t half-width of the CI of the mean over the cell's runs (NaN when n < 2)."""
+    Student-t half-width of the CI of the mean over the cell's runs (+inf when n < 2,
+    :func:`sweeps.confidence.ci_halfwidth`)."""
     factors = [factors] if isinstance(factors, str) else list(factors)
     frame = runs[factors + [metric]]
     grouped = frame.groupby(factors, sort=True, dropna=True, observed=True)[metric]
@@ -334,11 +338,8 @@ def cell_summary(runs: pd.DataFrame, factors, metric: str, confidence: float = 0
     table["n_missing"] = table.pop("size").astype(int) - table["n"]
     n = table["n"].to_numpy(dtype=float)
     sd = table["sd"].to_numpy(dtype=float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = stats.t.ppf((1.0 + confidence) / 2.0, np.where(n >= 2, n - 1, np.nan))
-        half = t * sd / np.sqrt(n)
     table["sd"] = np.where(n >= 2, sd, np.nan)
-    table["ci_halfwidth"] = np.where(n >= 2, half, np.nan)
+    table["ci_halfwidth"] = ci_halfwidth(n, sd, confidence)
     if factors:
         order = sorted(range(len(table)), key=lambda i: tuple(_level_key(table[f].iat[i]) for f in factors))
         table = table.iloc[order].reset_index(drop=True)

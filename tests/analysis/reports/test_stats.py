@@ -271,7 +271,7 @@ def test_cell_summary_matches_hand_computation():
     assert cells["ci_halfwidth"].iloc[0] == pytest.approx(sps.t.ppf(0.95, 2) * sd / np.sqrt(3), rel=1e-12)
     assert cells["ci_halfwidth"].iloc[2] == pytest.approx(sps.t.ppf(0.95, 1) * np.sqrt(8) / np.sqrt(2),
                                                           rel=1e-12)
-    assert np.isnan(cells["ci_halfwidth"].iloc[1]) and np.isnan(cells["sd"].iloc[1])
+    assert cells["ci_halfwidth"].iloc[1] == np.inf and np.isnan(cells["sd"].iloc[1])   # n = 1: no finite bound
     assert cells["mean"].tolist() == pytest.approx([7 / 3, 3.0, 4.0])
 
 
