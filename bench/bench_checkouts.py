@@ -34,7 +34,7 @@ def main() -> None:
     argv = sys.argv[1:]
     split = argv.index("--") if "--" in argv else len(argv)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("other", type=Path, help="the other checkout (e.g. /work/main)")
+    parser.add_argument("other", type=Path, help="the other checkout (e.g. a git worktree of main)")
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args(argv[:split])
     command = argv[split + 1:]

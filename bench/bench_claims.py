@@ -1,7 +1,7 @@
 """What the claims cost: the per-record metrics with the leapfrog columns against another checkout's, and
 judging a sweep's claims with and without the power analysis.
 
-    python bench/bench_claims.py [--other /work/main] [--results results/holland648_r5] [--repeats 5]
+    python bench/bench_claims.py --other OTHER_CHECKOUT [--results results/holland648_r5] [--repeats 5]
 
 Metrics: ``frame_metrics`` of recorded runs (holland preset, N = 100, 30 s, records every 1 s; the
 simulations are done once, outside the timing), timed in a fresh process per checkout (PYTHONPATH set
@@ -65,7 +65,8 @@ def claims_seconds(results: str) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--other", type=Path, default=Path("/work/main"))
+    parser.add_argument("--other", type=Path, required=True,
+                        help="the other checkout (e.g. a git worktree of main: git worktree add ../main main)")
     parser.add_argument("--results", default="results/holland648_r5")
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()

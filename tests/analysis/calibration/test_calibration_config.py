@@ -15,7 +15,7 @@ from analysis.calibration.priors import TruncatedNormal, Uniform
 from simcore.schema import ConfigError
 from paths import ROOT
 
-PRESET = "/work/main/configs/models/holland.toml"
+PRESET = (ROOT / "configs/models/holland.toml").as_posix()   # this checkout's, found from this file
 
 VALID = f'''
 name = "recover_holland"
