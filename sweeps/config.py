@@ -96,11 +96,10 @@ from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
-                            set_dotted)
+                            set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns
 from .model_set import flat_changes, model_overrides
-from .points import canonical_axis_key, parse_bounds, parse_points
 from .sensitivity import DesignTable, SensitivityDesign
 from .sweep_toml import sweep_toml
 
@@ -261,14 +260,6 @@ def check_name(name: str, what: str) -> None:
                                   "characters, no '/', '\\', control characters or leading '.')")
 
 
-def check_no_encounter_settings(run: RunTable) -> None:
-    """ConfigError for a calibration file's ``[run]`` that sets an obstacle, predator or prey metric
-    setting: those metrics are not calibration targets, so the setting would do nothing."""
-    for key in encounter_settings(run.metrics(leadership=False)):
-        raise ConfigError(f"run.{key}", "sets an obstacle, predator or prey metric, and those are not calibration "
-                                        "targets: leave it out of a calibration file")
-
-
 def check_window(warmup: float, run, where: str = "") -> None:
     """A run of ``run`` (a preset's RunSettings) records something to summarise: ``record_interval <=
     duration`` and a record at or after ``warmup`` (< duration). ``where`` is appended to messages."""
@@ -380,6 +371,61 @@ class SweepConfig(FileConfig, loader="load_sweep"):
         record = {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
                   "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
         return record | encounter_settings(m)
+
+
+# ------------------------------------------------------------- keys and values given by name
+# swept keys, the bounds of a sampled or sensitivity block (key = [low, high]) and explicit [[points]]
+# (every swept key once): each parser returns canonical keys (simcore.params.canonical_key) and raises
+# ConfigError naming the table and key at fault
+
+def canonical_axis_key(key, where: str) -> str:
+    if not isinstance(key, str) or not key:
+        raise ConfigError(where, f"got {key!r}; expected a dotted preset key such as 'perception.field_deg'")
+    return canonical_key(key)
+
+
+def parse_bounds(bounds, where_table: str) -> tuple[tuple[str, float, float], ...]:
+    """A table of key = [low, high] -> ((canonical key, low, high), ...)."""
+    if not isinstance(bounds, dict) or not bounds:
+        raise ConfigError(where_table, "expected a table of key = [low, high]")
+    out = []
+    for key, pair in bounds.items():
+        where = f"{where_table}.{key}"
+        numbers = isinstance(pair, list) and len(pair) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pair)
+        if not numbers:
+            raise ConfigError(where, f"got {pair!r}; expected [low, high] (finite numbers)")
+        low, high = map(float, pair)
+        if not low < high:
+            raise ConfigError(where, f"got {pair!r}; low must be < high")
+        out.append((canonical_axis_key(key, where), low, high))
+    return tuple(out)
+
+
+def parse_points(points: tuple[dict, ...], axes: tuple, keys: list[str]) -> tuple[dict, ...]:
+    """``[[points]]``: each a table giving every swept key once (canonical keys); a labelled axis'
+    value must be one of its values (it takes that value's label)."""
+    out = []
+    for i, point in enumerate(points):
+        where = f"points[{i}]"
+        given = {}
+        for key, value in point.items():
+            canonical = canonical_axis_key(key, where)
+            if canonical not in keys:
+                raise ConfigError(f"{where}.{key}", f"not a swept key{suggest(canonical, keys)}; a point gives a "
+                                                    f"value to each swept key: {', '.join(keys)}")
+            given[canonical] = value
+        missing = [k for k in keys if k not in given]
+        if missing:
+            raise ConfigError(where, f"missing swept key(s) {', '.join(missing)}; a point gives a value to each "
+                                     f"swept key: {', '.join(keys)}")
+        for axis in axes:
+            if axis.labels and tuple(given[k] for k in axis.keys) not in axis.points:
+                raise ConfigError(f"{where}.{axis.keys[0]}", f"got {given[axis.keys[0]]!r}; axis {axis.name!r} is "
+                                                             f"labelled, so a point takes one of its values "
+                                                             f"{[p[0] if len(p) == 1 else list(p) for p in axis.points]}")
+        out.append(given)
+    return tuple(out)
 
 
 def _axis_points(axis: AxisTable, where: str, n_keys: int) -> list:

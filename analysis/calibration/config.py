@@ -81,8 +81,10 @@ against the key's allowed range at both ends, and ``n_sim`` runs of the largest 
 allow must fit in memory (:mod:`analysis.calibration.feasibility`), so a prior reaching outside the
 model's range is refused before anything is written, naming ``parameters.<name>.prior`` (or
 ``.bounds``). ``run.warmup`` and ``run.record_interval`` must leave a record to summarise
-(:func:`sweeps.config.check_window`), and it sets no encounter metric setting (no such targets). Errors are
-:class:`ConfigError` whose ``key`` is the dotted key in this file.
+(:func:`sweeps.config.check_window`); the obstacle, predator and prey metric settings of ``[run]``
+(``capture_radius``, ``predator_near``, ``prey_reach``) are refused, as those metrics are no targets
+(:func:`check_no_encounter_settings`). Errors are :class:`ConfigError` whose ``key`` is the dotted key in
+this file.
 """
 from __future__ import annotations
 
@@ -98,11 +100,11 @@ import pandas as pd
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.metrics import METRIC_NAMES
 from observables.observation import Observation
-from observables.summary import MetricSettings
+from observables.summary import MetricSettings, encounter_settings
 from simcore.params import Preset, canonical_key, preset_from_dict
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, read_config, resolve_path,
                             suggest)
-from sweeps.config import ModelTable, RunTable, check_name, check_no_encounter_settings, check_window, model_data
+from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
 from sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
@@ -192,7 +194,9 @@ class Targets:
 
 
 @dataclass(frozen=True)
-class CalibrationConfig(FileConfig, loader="load_calibration"):   # CalibrationConfig.from_toml(path, overrides)
+class CalibrationConfig(FileConfig, loader="load_calibration"):
+    """A calibration file, validated (module docstring); ``CalibrationConfig.from_toml(path, overrides)`` reads one."""
+
     name: str
     description: str
     seed: int
@@ -257,6 +261,14 @@ def _model_and_run(table: CalibrationFile, base: Path) -> tuple[Path, dict, Pres
     check_window(table.run.warmup, preset.run)
     check_no_encounter_settings(table.run)
     return preset_path, preset_data, preset
+
+
+def check_no_encounter_settings(run: RunTable) -> None:
+    """ConfigError for a calibration file's ``[run]`` that sets an obstacle, predator or prey metric
+    setting: those metrics are not calibration targets, so the setting would do nothing."""
+    for key in encounter_settings(run.metrics(leadership=False)):
+        raise ConfigError(f"run.{key}", "sets an obstacle, predator or prey metric, and those are not calibration "
+                                        "targets: leave it out of a calibration file")
 
 
 def _rekey_prior_error(err: ConfigError, name: str) -> ConfigError:
