@@ -242,46 +242,47 @@ def parse_until_ci(text: str) -> tuple[str, float]:
 
 
 def run_until_ci_command(args, config, out, metric: str, target: float) -> int:
-    from sweeps.runner import run_until_ci
+    from sweeps.runner import ci_rule
 
-    if args.max_replicates < config.replicates:
-        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
-    if args.dry_run:
-        raise ConfigError("--until-ci", "cannot be combined with --dry-run (the rounds depend on the results)")
+    _check_rounds(args, config, "--until-ci")
     print(f"{config.name}: adding replicates until the 95% CI half-width of {metric} <= {target:g} "
           f"(at most {args.max_replicates} per cell)")
-    result = run_until_ci(config, args.sweep_text, out, metric, target, args.max_replicates,
-                          executor=args.executor, workers=args.workers, scheduler=args.scheduler,
-                          force=args.force, retry_failed=args.retry_failed, progress=not args.no_progress,
-                          batch_size=args.batch_size, yes=args.yes)
-    table = result.table
-    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
-          f"({int((table['status'] == 'ok').sum())} ok)")
-    return report_lost(args, result)
+    return _run_rounds(args, config, out, ci_rule(metric, target), "")
 
 
 def run_until_claims_command(args, config, out) -> int:
     from analysis.reports.claims.until import claims_rule
     from sweeps.claims import sweep_columns
-    from sweeps.runner import run_until
 
     if not config.claims:
         raise ConfigError("--until-claims", f"{args.sweep or 'the sweep'} declares no claims ([[claims]] or include_claims)")
-    if args.max_replicates < config.replicates:
-        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
-    if args.dry_run:
-        raise ConfigError("--until-claims", "cannot be combined with --dry-run (the rounds depend on the results)")
+    _check_rounds(args, config, "--until-claims")
     print(f"{config.name}: adding replicates where a claim is undecided (at most {args.max_replicates} per cell); "
           f"claims {', '.join(c.id for c in config.claims)}")
     factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership).factors
-    result = run_until(config, args.sweep_text, out,
-                       claims_rule(config.claims, factors), args.max_replicates, executor=args.executor,
+    return _run_rounds(args, config, out, claims_rule(config.claims, factors),
+                       f"; `flocksweep report {out}` shows the claims' evidence")
+
+
+def _check_rounds(args, config, flag: str) -> None:
+    if args.max_replicates < config.replicates:
+        raise ConfigError("--max-replicates", f"got {args.max_replicates}; must be >= replicates ({config.replicates})")
+    if args.dry_run:
+        raise ConfigError(flag, "cannot be combined with --dry-run (the rounds depend on the results)")
+
+
+def _run_rounds(args, config, out, rule, note: str) -> int:
+    """:func:`sweeps.runner.run_until` with ``rule`` and the run's flags; prints the table's line (and
+    ``note``) and returns the exit status."""
+    from sweeps.runner import run_until
+
+    result = run_until(config, args.sweep_text, out, rule, args.max_replicates, executor=args.executor,
                        workers=args.workers, scheduler=args.scheduler, force=args.force,
                        retry_failed=args.retry_failed, progress=not args.no_progress, batch_size=args.batch_size,
                        yes=args.yes)
     table = result.table
     print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
-          f"({int((table['status'] == 'ok').sum())} ok); `flocksweep report {out}` shows the claims' evidence")
+          f"({int((table['status'] == 'ok').sum())} ok){note}")
     return report_lost(args, result)
 
 
