@@ -8,7 +8,7 @@ A track file (CSV, also gzipped, or Parquet) has one row per detection of one in
 * ``x``, ``y``: position, in ``units.length`` (m, cm, mm, km; or ``bl``: body lengths);
 * ``z``: third coordinate (optional; without it the tracks are 2-D, marked as such, with z = 0);
 * ``vx``, ``vy``, ``vz``: velocities in the same units per time unit (per second with timestamps), all of
-  them or none (optional);
+  them or none (optional; 2-D tracks have ``vx`` and ``vy`` only, and get vz = 0);
 * ``pattern``: an integer label per individual, constant over time (optional).
 
 A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
@@ -278,6 +278,8 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
             out[role] = values if scale == 1.0 else values * scale
     if "z" not in roles:
         out["z"] = np.zeros(len(frame))
+        if "vx" in roles:
+            out["vz"] = np.zeros(len(frame))
     if "pattern" in roles:
         pattern = _numeric(frame, "pattern", roles["pattern"], errors, allow_missing=False)
         if np.any(pattern != np.round(pattern)):

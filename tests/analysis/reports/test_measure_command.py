@@ -76,3 +76,14 @@ def test_the_shipped_synthetic_example_measures_with_its_glitch_reported(tmp_pat
     assert "SYNTHETIC" in report and len(list((out / "figures").glob("flock_F*.png"))) == 8
     assert "figures/metrics_over_time.png" in report and "Flock F8" in report
     assert (out / "figures/metrics_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_two_dimensional_tracks_with_velocities_measure(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    path.write_text("id,t,x,y,vx,vy\n1,0,0,0,1,0\n1,1,1,0,1,0\n2,0,0,1,1,0\n2,1,1,1,1,0\n")
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(out), "--no-figures"]) == 0
+    assert "2-D" in capsys.readouterr().out
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "dims"] == 2 and runs.loc[0, "polarization_mean"] == 1.0
+    assert runs.loc[0, "speed_mean_mean"] == 1.0 and runs.loc[0, "nn_distance_mean"] == 1.0
