@@ -5,7 +5,7 @@
 takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by flock:
 
 1. checks it (:func:`~observables.validation.check_flock`: duplicates, impossible speeds,
-   gaps); errors of every flock are collected and raised together as one
+   recorded velocities, gaps); errors of every flock are collected and raised together as one
    :class:`~observables.validation.TrackError`;
 2. resamples it onto its record grid (:func:`~observables.resample.resample`; ``interval``
    None: each flock's own sampling interval, :func:`~observables.validation.infer_interval`;
@@ -19,7 +19,9 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 ``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
-``Measurement.issues`` lists what the reading and the checks found (notes and warnings).
+``Measurement.issues`` lists what the reading and the checks found (notes and warnings, and an error per
+flock that could not be measured). When no flock could be measured, a
+:class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
 """
 from __future__ import annotations
 
@@ -113,6 +115,11 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
         frames.append(_measure_flock(flock, row, settings))
         rows.append(row)
         flocks.append(flock)
+    failed = [Issue("error", "not measured", row["error"], flock=row["flock"]) for row in rows if row["status"] != "ok"]
+    if not flocks:
+        raise TrackError(failed or [Issue("error", "not measured", "the tracks hold no flock")], table.path,
+                         table.line_offset)
+    issues += failed
     runs = pd.DataFrame(rows)
     for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final"):
         if column not in runs:

@@ -36,6 +36,7 @@ import dataclasses
 import gzip
 import json
 import math
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Literal, TYPE_CHECKING
@@ -231,23 +232,38 @@ def _times(frame: pd.DataFrame, name: str, unit: str, errors: list) -> tuple[np.
 
 
 def _present_roles(frame: pd.DataFrame, source: TrackSource, path: Path) -> dict:
+    """Role -> column name of the file; every missing required (or mapped) column in one TrackError."""
     columns = [str(c) for c in frame.columns]
-    roles = {}
+    roles, missing = {}, []
     for role in ROLES:
         name = source.column(role)
         if name in columns:
             roles[role] = name
         elif role in REQUIRED or role in source.columns:
             mapped = f" (mapped to {name!r})" if role in source.columns else ""
-            raise TrackError([Issue("error", "missing column", f"no column for role {role!r}{mapped}"
-                                    f"{suggest(name, columns)}; the file has: {', '.join(columns)}; map one with "
-                                    f"columns {role}=NAME", column=name)], path)
+            missing.append(Issue("error", "missing column", f"no column for role {role!r}{mapped}"
+                                 f"{suggest(name, columns)}; the file has: {', '.join(columns)}; map one with "
+                                 f"columns {role}=NAME", column=name))
     velocity = [r for r in ("vx", "vy", "vz") if r in roles]
     need = ["vx", "vy"] + (["vz"] if "z" in roles else [])
     if velocity and sorted(velocity) != sorted(need):
-        raise TrackError([Issue("error", "missing column", f"velocities need all of {need}, the file maps "
-                                f"{velocity}")], path)
+        missing.append(Issue("error", "missing column", f"velocities need all of {need}, the file maps {velocity}"))
+    if missing:
+        raise TrackError(missing, path)
     return roles
+
+
+def _unmapped(frame: pd.DataFrame, roles: dict) -> list[Issue]:
+    """A warning listing the file's columns that no role uses (they are not read)."""
+    used = set(roles.values())
+    left = [str(c) for c in frame.columns if str(c) not in used]
+    if not left:
+        return []
+    hints = [f"{name} (a {role}?)" for name in left for role in ROLES
+             if role not in roles and (re.split(r"[^a-z0-9]", name.lower())[0] == role or suggest(name, [role]))]
+    return [Issue("warning", "unmapped columns", f"{len(left)} column(s) not used: {', '.join(left)}"
+                  + (f"; perhaps {', '.join(hints)}" if hints else "") + "; map one with columns ROLE=NAME "
+                  f"(roles: {', '.join(ROLES)})")]
 
 
 def load_tracks(path, source: TrackSource) -> TrackTable:
@@ -292,7 +308,8 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
     table = pd.DataFrame(out)
     return _drop_undetected(TrackTable(frame=table, path=path, source=source, dims=3 if "z" in roles else 2,
                                        has_velocity="vx" in roles, has_pattern="pattern" in roles,
-                                       line_offset=line_offset, t_origin=origin))
+                                       line_offset=line_offset, t_origin=origin,
+                                       issues=tuple(_unmapped(frame, roles))))
 
 
 def _drop_undetected(table: TrackTable) -> TrackTable:

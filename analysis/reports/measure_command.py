@@ -10,8 +10,9 @@ Lengths given here (group radius, max speed) are in the analysis units: body len
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
 when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
 ``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
-``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks exit
-with status 2 after listing every problem (and writing ``validation.csv``).
+``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks, and
+tracks of which no flock could be measured, exit with status 2 after listing every problem (and writing
+``validation.csv``); warnings and flocks not measured are printed on stderr (the first 10).
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from observables.measured import track_settings
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.resample import RECORDED
 from observables.tracks import LENGTH_UNITS, ROLES, track_source
-from observables.validation import TrackError
+from observables.validation import TrackError, describe
 from simcore.schema import ConfigError
 
 from .measured import measure_folder
@@ -87,6 +88,18 @@ def _velocity_interval(text: str | None):
         raise ConfigError("--velocity-interval", f"got {text!r}; expected seconds or 'recorded'") from None
 
 
+SHOWN_WARNINGS = 10
+
+
+def _print_warnings(issues, line_offset, out: Path) -> None:
+    """The errors (flocks not measured) and warnings on stderr, the first SHOWN_WARNINGS of them."""
+    loud = [i for i in issues if i.level in ("error", "warning")]
+    for issue in loud[:SHOWN_WARNINGS]:
+        print(f"flocksweep: {describe(issue, line_offset)}", file=sys.stderr)
+    if len(loud) > SHOWN_WARNINGS:
+        print(f"flocksweep: ... and {len(loud) - SHOWN_WARNINGS} more in {out / 'validation.csv'}", file=sys.stderr)
+
+
 def run(args) -> int:
     units = _pairs(args.units, "--units", bare="length")
     if "length" in units and units["length"] not in LENGTH_UNITS:
@@ -118,8 +131,7 @@ def run(args) -> int:
     shown = runs[["flock", "individuals", "records", "tracked_mean", "polarization_mean", "nn_distance_mean",
                   "speed_mean_mean", "cohesion_mean"]]
     print(shown.head(20).round(4).to_string(index=False))
-    for name, error in runs.loc[runs["status"] == "failed", ["flock", "error"]].itertuples(index=False):
-        print(f"  flock {name} not measured: {error}")
+    _print_warnings(result["measurement"].issues, table.line_offset, out)
     for path in result["paths"].values():
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'runs.parquet'}, {result['out'] / 'timeseries.parquet'}, "

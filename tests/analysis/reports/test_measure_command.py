@@ -87,3 +87,17 @@ def test_two_dimensional_tracks_with_velocities_measure(tmp_path, capsys):
     runs = pd.read_parquet(out / "runs.parquet")
     assert runs.loc[0, "dims"] == 2 and runs.loc[0, "polarization_mean"] == 1.0
     assert runs.loc[0, "speed_mean_mean"] == 1.0 and runs.loc[0, "nn_distance_mean"] == 1.0
+
+
+def test_zero_padding_warns_and_no_measurable_flock_exits_2(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    rows = [f"{i},{k * 0.1:g},{k * 0.1:g},{i},{0 if k == 9 and i == 2 else 1},0" for i in (1, 2) for k in range(10)]
+    path.write_text("id,t,x,y,vx,vy\n" + "\n".join(rows) + "\n")
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(tmp_path / "a"), "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: velocity: flock 't', id 2, row 20 (line 21): 1 sample(s) at t = 0.9 s" in err
+    code = main(["measure", str(path), "--group-radius", "5", "--velocity-interval", "1.5", "--out",
+                 str(tmp_path / "b"), "--no-figures"])
+    err = capsys.readouterr().err
+    assert code == 2 and "not measured: flock 't'" in err and "too few" in err
+    assert pd.read_csv(tmp_path / "b" / "validation.csv")["check"].tolist() == ["not measured"]
