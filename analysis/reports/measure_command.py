@@ -1,7 +1,8 @@
 """``flocksweep measure``: the command line of :func:`analysis.reports.measured.measure_folder`.
 
-    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet] [--columns ROLE=NAME ...]
-                       [--units length=m|cm|mm|km|bl time=s|ms|min|h|datetime] [--body-length METRES]
+    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet|mat|idtracker|trex|trajr|movebank]
+                       [--fps HZ] [--body-length-px PX] [--layout KEY=VALUE ...] [--columns ROLE=NAME ...]
+                       [--units length=m|cm|mm|km|bl|px time=s|ms|min|h|datetime|frame] [--body-length METRES]
                        [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
                        [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
                        [--no-figures] [--no-progress]
@@ -22,6 +23,7 @@ from pathlib import Path
 from observables.measured import track_settings
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.resample import RECORDED
+from observables.track_formats import FORMATS
 from observables.tracks import LENGTH_UNITS, ROLES, track_source
 from observables.validation import TrackError, describe
 from simcore.schema import ConfigError
@@ -34,17 +36,26 @@ DESCRIPTION = ("Compute every flock metric from measured trajectories (long form
 
 
 def add_arguments(p) -> None:
-    p.add_argument("tracks", type=Path, help="track file: CSV (also .csv.gz) or Parquet, one row per detection")
+    p.add_argument("tracks", type=Path, help="track file or folder: long CSV (also .csv.gz) or Parquet, one row per "
+                                             "detection, or a tracker's or logger's file (--format)")
     p.add_argument("--group-radius", type=float, required=True, metavar="R",
                    help="individuals closer than R are linked into one group (analysis length units: body "
                         "lengths with --body-length, else metres); groups, cohesion and the shape metrics use it")
-    p.add_argument("--format", choices=("auto", "csv", "parquet"), default=None,
-                   help="file format (default: from the extension)")
+    p.add_argument("--format", choices=FORMATS, default=None,
+                   help="file format (default: detected from the file): long csv or parquet; mat (MATLAB, with "
+                        "--layout), idtracker (trajectories.npy/.npz), trex (a folder of per-individual exports), "
+                        "trajr (a folder of one CSV per individual), movebank (GPS, projected to metres)")
+    p.add_argument("--fps", type=float, metavar="HZ", help="frames per second, for times given as frame numbers")
+    p.add_argument("--body-length-px", type=float, metavar="PX",
+                   help="body length in pixels, for tracks in pixels (lengths become body lengths)")
+    p.add_argument("--layout", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="a .mat file's array: variable=NAME axes=individual,channel,sample channels=x,y,vx,vy "
+                        "[time=NAME]")
     p.add_argument("--columns", nargs="+", default=[], metavar="ROLE=NAME",
                    help=f"column map, e.g. id=bird t=time; roles: {', '.join(ROLES)}")
     p.add_argument("--units", nargs="+", default=[], metavar="KIND=UNIT",
-                   help="length=m|cm|mm|km|bl and time=s|ms|min|h|datetime (default m and s); a bare unit "
-                        "such as cm means length")
+                   help="length=m|cm|mm|km|bl|px and time=s|ms|min|h|datetime|frame (default m and s, or what the "
+                        "format implies); a bare unit such as cm means length")
     p.add_argument("--body-length", type=float, metavar="METRES",
                    help="body length in metres: lengths become body lengths (BL), speeds BL/s")
     p.add_argument("--interval", type=float, metavar="S",
@@ -105,7 +116,8 @@ def run(args) -> int:
     if "length" in units and units["length"] not in LENGTH_UNITS:
         units["length"] = units["length"].lower()
     given = {"columns": _pairs(args.columns, "--columns"), "units": units, "body_length": args.body_length,
-             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format}
+             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format, "fps": args.fps,
+             "body_length_px": args.body_length_px, "layout": _pairs(args.layout, "--layout")}
     given = {k: v for k, v in given.items() if v not in (None, {})}
     source = track_source(args.tracks, given, "")
     for flag, value in (("--interval", args.interval), ("--max-gap", args.max_gap)):

@@ -155,8 +155,9 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         _write_parquet(folder, "timeseries.parquet", measurement.timeseries)
         velocities = velocity_label(velocity_interval, interval)
         info = {"tracks": str(Path(path).resolve()), "description": read_sidecar(path).get("description", ""),
-                "dims": table.dims, "length_unit": table.unit_label, "units": dict(source.units),
-                "columns": dict(source.columns), "body_length_m": source.body_length,
+                "dims": table.dims, "length_unit": table.unit_label, "units": dict(table.source.units),
+                "columns": dict(table.source.columns), "body_length_m": table.source.body_length,
+                "format": table.source.format,
                 "interval": interval if interval is not None else "inferred per flock (runs.interval)",
                 "max_gap": max_gap if max_gap is not None else "2.5 x interval", "velocities": velocities,
                 "warmup": settings.warmup, "group_radius": settings.group_radius,

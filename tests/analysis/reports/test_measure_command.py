@@ -101,3 +101,41 @@ def test_zero_padding_warns_and_no_measurable_flock_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "not measured: flock 't'" in err and "too few" in err
     assert pd.read_csv(tmp_path / "b" / "validation.csv")["check"].tolist() == ["not measured"]
+
+
+def test_a_matlab_file_of_birds_channels_samples_measures_from_the_command_line(tmp_path, capsys):
+    import scipy.io
+    t = np.arange(20) / 10.0                                    # 10 Hz, frame numbers in the file
+    birds = np.stack([np.stack([t * 15.0, np.full(20, 3.0 * b), np.full(20, 15.0), np.zeros(20)])
+                      for b in range(3)])                       # birds x (x, y, vx, vy) x samples, metres
+    path = tmp_path / "flight.mat"
+    scipy.io.savemat(path, {"data": birds})
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--group-radius", "5", "--fps", "10", "--layout", "channels=x,y,vx,vy",
+                 "--out", str(out), "--no-figures"]) == 0
+    assert "1 flock(s), 1 measured, 2-D" in capsys.readouterr().out
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "interval"] == 0.1 and runs.loc[0, "speed_mean_mean"] == 15.0
+    assert runs.loc[0, "polarization_mean"] == 1.0 and runs.loc[0, "nn_distance_mean"] == 3.0
+
+
+@pytest.mark.parametrize("name, content, args, message", [
+    ("a.mat", None, ["--fps", "10"], "layout.channels: missing"),
+    ("b.mat", None, ["--layout", "channels=x,y,vx,vy"], "fps: the times are frame numbers"),
+    ("c.mat", b"MATLAB 5.0 MAT-file, but cut short", [], "cannot read it as a MATLAB .mat file"),
+    ("d.csv", b"timestamp,location-long,location-lat,individual-local-identifier\n2010-01-01,190.0,47.0,a\n", [],
+     "latitude/longitude outside"),
+    ("e.csv", b"bird,time,x\n1,0,0\n", [], "no column for role 'id'"),
+])
+def test_bad_files_exit_2_with_one_message(tmp_path, capsys, name, content, args, message):
+    import scipy.io
+    path = tmp_path / name
+    if content is None:
+        scipy.io.savemat(path, {"data": np.zeros((3, 4, 5))})
+    else:
+        path.write_bytes(content)
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    if "no column for role 'id'" in message:
+        assert "no column for role 't'" in err and "no column for role 'y'" in err   # all at once
