@@ -15,6 +15,7 @@ A calibration file may take its targets from a track file instead of typed numbe
     from_tracks = "../tracks/synthetic_holland.csv.gz"
     aggregate = "samples"         # each measured flock is one sample of the statistics (default), or
                                   # "mean": the flocks' mean with the covariance of that mean
+    sd = [0.02, 0.3, 0.05]        # optional, with "samples": the measurement sd of one flock's statistics
 
     [targets.tracks]              # how to read them (defaults from the file's sidecar JSON)
     columns = { flock = "event" }
@@ -28,7 +29,10 @@ radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per f
 :class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
 metres need ``body_length``), 2-D tracks need a ``projection`` and 3-D tracks must not have one, every
 flock must be measured and every target statistic finite; ``aggregate = "mean"`` needs more flocks than
-statistics.
+statistics. ``targets.sd`` (with ``aggregate = "samples"`` only: with "mean" the flocks' spread already holds
+their measurement error) is a known measurement error of one flock's statistics: the targets' covariance is
+then diag(sd^2), which the calibration adds to every simulated summary as Gaussian noise, so the synthetic
+likelihood's Gaussian has the replicate covariance plus diag(sd^2), as for typed mean/sd targets.
 
 :func:`check_observation` checks an ``[observation]`` block against the model and the rest of the file:
 an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
@@ -123,9 +127,27 @@ def fixed_group_radius(metrics: MetricSettings, preset, parameters) -> float:
 
 
 def _given_with_tracks(targets) -> None:
-    for key in ("mean", "sd", "cov", "samples"):
+    for key in ("mean", "cov", "samples"):
         if getattr(targets, key) is not None:
             raise ConfigError(f"targets.{key}", "not with from_tracks: the tracks give the targets")
+
+
+def measurement_sd(targets, k: int) -> np.ndarray | None:
+    """``targets.sd`` with from_tracks: (k,) measurement sd of one flock's statistics (> 0), or None."""
+    if targets.sd is None:
+        return None
+    if (targets.aggregate or "samples") != "samples":
+        raise ConfigError("targets.sd", 'only with aggregate = "samples": the flocks\' spread around their mean '
+                                        "already holds their measurement error")
+    values = targets.sd if isinstance(targets.sd, (list, tuple)) else [targets.sd]
+    try:
+        sd = np.array([float(v) for v in values if not isinstance(v, bool)], dtype=np.float64)
+    except (TypeError, ValueError):
+        sd = np.empty(0)
+    if sd.shape != (k,) or not (np.isfinite(sd).all() and (sd > 0).all()):
+        raise ConfigError("targets.sd", f"got {targets.sd!r}; expected {k} numbers > 0, one per stat (the "
+                                        "measurement sd of one flock's statistic)")
+    return sd
 
 
 def _measure(path: Path, targets, observation: Observation, radius: float, fragmentation: float) -> Measurement:
@@ -157,6 +179,7 @@ def tracks_targets(targets, observation: Observation | None, radius: float, frag
         raise ConfigError("targets.from_tracks", "needs an [observation] block (at least interval = seconds between "
                                                  "samples) so that simulated runs are measured as the tracks were")
     _given_with_tracks(targets)
+    measurement_sd(targets, len(columns))          # checked before the tracks are measured
     measurement = _measure(path, targets, observation, radius, fragmentation)
     runs = measurement.runs
     failed = runs[runs["status"] != "ok"]
@@ -170,8 +193,10 @@ def tracks_targets(targets, observation: Observation | None, radius: float, frag
         raise ConfigError("targets.stats", f"{columns[c]} is undefined (nan) for flock {runs['flock'].iloc[r]!r}; "
                                            "choose statistics every flock has")
     flocks = tuple(runs["flock"])
+    sd = measurement_sd(targets, per_flock.shape[1])
     if (targets.aggregate or "samples") == "samples":
-        return TrackTargets(per_flock, None, path, flocks, per_flock, measurement)
+        cov = None if sd is None else np.diag(sd ** 2)
+        return TrackTargets(per_flock, cov, path, flocks, per_flock, measurement)
     m, k = per_flock.shape
     if m < k + 1:
         raise ConfigError("targets.aggregate", f'"mean" needs more flocks than statistics for a covariance ({m} '
@@ -197,6 +222,8 @@ def tracks_block(config) -> str:
     mean = rows.mean(axis=0)
     lines += ["[targets]", f'summary = "{t.summary}"', "stats = [" + ", ".join(f'"{s}"' for s in stats) + "]",
               f'from_tracks = "{t.tracks_path}"      # each flock one sample']
+    if t.cov is not None and len(t.observed) > 1:
+        lines.append("sd = [" + ", ".join(f"{v:.6g}" for v in np.sqrt(np.diag(t.cov))) + "]      # measurement sd")
     if len(rows) > 1:
         cov = np.atleast_2d(np.cov(rows, rowvar=False, ddof=1)) / len(rows)
         lines += ['# or aggregate = "mean": the flocks\' mean and the covariance of that mean',

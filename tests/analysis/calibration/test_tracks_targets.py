@@ -108,6 +108,32 @@ def test_aggregate_mean_gives_the_mean_and_the_covariance_of_the_mean(tracks, tm
     assert config.targets.samples_path is None and observation_covariance(config) is not None
 
 
+def test_a_measurement_sd_is_added_to_the_replicate_covariance(tracks, tmp_path, capsys):
+    text = calibration_text(tracks.name, targets_extra="sd = [0.05, 0.5, 0.1]")
+    config = load_calibration(write_config(tmp_path, text))
+    assert config.targets.observed.shape == (5, 3) and config.targets.samples_path is None
+    assert np.array_equal(observation_covariance(config), np.diag([0.05, 0.5, 0.1]) ** 2)
+    plain = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))
+    assert np.array_equal(config.targets.observed, plain.targets.observed)
+    # the simulator adds that noise: with common seeds the difference is one draw of N(0, diag(sd^2))
+    noisy = summary_simulator(config, n_sim=5)
+    assert noisy.simulate(np.array(THETA), list(SEEDS)).shape == (5, 3)
+    for bad, message in (("sd = [0.05, 0.5]", "expected 3 numbers > 0"), ("sd = [0.05, 0.5, -1]", "expected 3"),
+                         ('sd = [0.05, 0.5, 0.1]\naggregate = "mean"', 'only with aggregate = "samples"')):
+        with pytest.raises(ConfigError, match=message) as caught:
+            load_calibration(write_config(tmp_path, calibration_text(tracks.name, targets_extra=bad)))
+        assert caught.value.key == "targets.sd"
+    # flocksweep targets --set: the override reaches the measured targets
+    path = write_config(tmp_path, calibration_text(tracks.name))
+    assert main(["targets", str(path), "--from-tracks", "--set", "targets.sd=[0.05, 0.5, 0.1]"]) == 0
+    assert "sd = [0.05, 0.5, 0.1]" in capsys.readouterr().out
+    assert main(["targets", str(path), "--from-tracks"]) == 0
+    default = capsys.readouterr().out
+    assert main(["targets", str(path), "--from-tracks", "--set", "observation.velocity_interval=0.6"]) == 0
+    changed = capsys.readouterr().out
+    assert "velocities over 0.6" in changed or changed.splitlines()[3:] != default.splitlines()[3:]
+
+
 @pytest.mark.parametrize("change, key, message", [
     (dict(observation=""), "observation.interval", "missing"),
     (dict(targets_extra="mean = [0.9, 5, 2]"), "targets.mean", "not with from_tracks"),
