@@ -18,7 +18,9 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
 ``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
-``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
+``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
+``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
+delays up to ``dcd_max_delay`` s, over the individuals present). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
 ``Measurement.issues`` lists what the reading and the checks found (notes and warnings, and an error per
 flock that could not be measured). When no flock could be measured, a
 :class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
@@ -32,12 +34,15 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from .directional_correlation import DCD_METRIC_NAMES, dcd_metrics
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
 from .resample import MAX_GAP_INTERVALS, RECORDED, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .validation import Issue, TrackError, check_flock, infer_interval
+
+DCD_MAX_DELAY = 2.0    # s: the largest delay of the directional correlations (observables.directional_correlation)
 
 
 def track_settings(group_radius: float, warmup: float = 0.0,
@@ -66,16 +71,18 @@ def _row(name: str, status: str, error: str, table: TrackTable, interval: float,
             "velocity_interval": str(velocity_interval), "length_unit": table.unit_label}
 
 
-def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings) -> pd.DataFrame:
+def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings, dcd_max_delay: float) -> pd.DataFrame:
     series, summary = measure_run(flock, settings)
     row.update(individuals=int(flock.n), records=int(len(flock.times)), t_start=flock.t_start,
                duration=float(flock.times[-1] - flock.times[0]))
     row.update(summary)
+    row.update(dcd_metrics(np.where(flock.present[..., None], flock.vel, np.nan), flock.interval, dcd_max_delay))
     return pd.DataFrame({"run_id": flock.name, "t": flock.times, **series})
 
 
 def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float | None = None,
-                   max_gap: float | None = None, velocity_interval=None, progress: bool = False) -> Measurement:
+                   max_gap: float | None = None, velocity_interval=None, progress: bool = False,
+                   dcd_max_delay: float = DCD_MAX_DELAY) -> Measurement:
     """Check, resample and measure every flock of ``table`` (see the module docstring); ``progress`` shows a
     progress bar over the flocks."""
     raws, issues = raw_flocks(table)
@@ -112,7 +119,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
             row.update(status="failed", error="no record has an individual with a known position and velocity")
             rows.append(row)
             continue
-        frames.append(_measure_flock(flock, row, settings))
+        frames.append(_measure_flock(flock, row, settings, dcd_max_delay))
         rows.append(row)
         flocks.append(flock)
     failed = [Issue("error", "not measured", row["error"], flock=row["flock"]) for row in rows if row["status"] != "ok"]
@@ -121,7 +128,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
                          table.line_offset)
     issues += failed
     runs = pd.DataFrame(rows)
-    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final"):
+    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final") + DCD_METRIC_NAMES:
         if column not in runs:
             runs[column] = np.nan
     timeseries = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id", "t"])

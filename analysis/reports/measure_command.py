@@ -20,7 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from observables.measured import track_settings
+from observables.measured import DCD_MAX_DELAY, track_settings
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.resample import RECORDED
 from observables.track_formats import FORMATS
@@ -71,6 +71,8 @@ def add_arguments(p) -> None:
                    help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
     p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
                    help="samples reached at an impossible speed: stop (default), keep them, or drop them")
+    p.add_argument("--dcd-max-delay", type=float, default=DCD_MAX_DELAY, metavar="S",
+                   help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
     p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -120,6 +122,8 @@ def run(args) -> int:
              "body_length_px": args.body_length_px, "layout": _pairs(args.layout, "--layout")}
     given = {k: v for k, v in given.items() if v not in (None, {})}
     source = track_source(args.tracks, given, "")
+    if not args.dcd_max_delay >= 0:
+        raise ConfigError("--dcd-max-delay", f"got {args.dcd_max_delay}; expected seconds >= 0")
     for flag, value in (("--interval", args.interval), ("--max-gap", args.max_gap)):
         if value is not None and not value > 0:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
@@ -131,7 +135,7 @@ def run(args) -> int:
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
                                 _velocity_interval(args.velocity_interval), figures=not args.no_figures,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, dcd_max_delay=args.dcd_max_delay)
     except TrackError as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         print(f"  (every problem is listed in {out / 'validation.csv'})", file=sys.stderr)

@@ -29,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from observables.measured import Measurement, measure_tracks, velocity_label
+from observables.measured import DCD_MAX_DELAY, Measurement, measure_tracks, velocity_label
 from observables.resample import RECORDED
 from observables.summary import MetricSettings
 from observables.tracks import TrackSource, load_tracks, read_sidecar
@@ -47,7 +47,8 @@ FIGURE_METRICS = ("polarization", "nn_distance", "speed_mean", "cohesion", "n_gr
 FLOCK_FIGURES = 12          # figures of single flocks drawn at most
 TABLE_COLUMNS = ("flock", "status", "individuals", "records", "duration", "tracked_mean", "polarization_mean",
                  "nn_distance_mean", "speed_mean_mean", "speed_cv_mean", "cohesion_mean", "n_groups_mean",
-                 "gyration_radius_mean", "elongation_mean", "milling_mean")
+                 "gyration_radius_mean", "elongation_mean", "milling_mean", "dcd_corr_mean", "dcd_delay_mean",
+                 "dcd_edges", "dcd_leader_delay")
 
 
 def _slug(name: str) -> str:
@@ -134,7 +135,7 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,
                    max_gap: float | None = None, velocity_interval="auto", formats=("html", "md"),
-                   figures: bool = True, progress: bool = False) -> dict:
+                   figures: bool = True, progress: bool = False, dcd_max_delay: float = DCD_MAX_DELAY) -> dict:
     """Measure the track file at ``path`` and write the folder (see the module docstring); ``velocity_interval``
     "auto" uses the tracks' velocities when they have them, else one sampling interval."""
     started = time.perf_counter()
@@ -144,7 +145,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
             table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
-            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
+            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress, dcd_max_delay)
         except TrackError as err:
             folder.write_csv("validation.csv", issues_table(err.issues, err.line_offset), index=False)
             raise

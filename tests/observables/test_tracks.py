@@ -201,6 +201,9 @@ def test_a_flock_too_short_for_the_velocity_interval_is_a_failed_row_with_its_re
     # the straight flock: aligned, 2 m apart along a line, flying at 1 m/s
     assert runs.loc["long", "polarization_mean"] == 1.0 and np.isclose(runs.loc["long", "nn_distance_mean"], 2.0)
     assert np.isclose(runs.loc["long", "speed_mean_mean"], 1.0)
+    # everyone flies the same heading: correlated 1 at every delay, so no one leads (delay 0, no edge)
+    assert runs.loc["long", "dcd_corr_mean"] == 1.0 and runs.loc["long", "dcd_edges"] == 0.0
+    assert runs.loc["long", "dcd_delay_mean"] == 0.0
 
 
 def test_every_missing_column_is_named_at_once(tmp_path):
