@@ -36,7 +36,7 @@ def parse_until_ci(text: str) -> tuple[str, float]:
     if not metric or not (0 < target < float("inf")):
         raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with a finite HALFWIDTH > 0, "
                                         "e.g. cohesion_mean=0.05")
-    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES)
+    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES, dcd=True)
     column = metric if metric in columns else f"{metric}_mean"
     if column not in columns:
         raise ConfigError("--until-ci", f"unknown metric {metric!r}{suggest(metric, columns)}; expected a summary "
@@ -76,7 +76,8 @@ def run_until_claims_command(args, config, out) -> int:
         raise ConfigError("--until-claims", "cannot be combined with --dry-run (the rounds depend on the results)")
     print(f"{config.name}: adding replicates where a claim is undecided (at most {args.max_replicates} per cell); "
           f"claims {', '.join(c.id for c in config.claims)}")
-    factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership).factors
+    factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership,
+                            config.metrics.dcd).factors
     result = run_until(config, args.sweep_text, out,
                        claims_rule(config.claims, factors), args.max_replicates, executor=args.executor,
                        workers=args.workers, scheduler=args.scheduler, force=args.force,

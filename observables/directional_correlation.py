@@ -20,11 +20,18 @@ stopped or unseen individual has none at that record and is left out of every te
 * **Hierarchy**: score_i = mean of tau*_ij over the j with C*_ij >= ``min_corr``; rank 1 is the highest
   score (leads the most, by the longest delays), nan scores rank last.
 
-Scalars per flock (``DCD_METRIC_NAMES``): ``dcd_corr_mean`` (mean C* over pairs i < j with a value),
+Scalars per flock (``DCD_METRIC_NAMES``, :func:`dcd_scalars` of a :class:`DirectionalCorrelation`): ``dcd_corr_mean`` (mean C* over pairs i < j with a value),
 ``dcd_delay_mean`` (mean |tau*| over pairs with C* >= min_corr, s), ``dcd_edges`` (edges of the network
 per individual) and ``dcd_leader_delay`` (the highest score, s). nan without any pair.
 
-Cost: one (R, N, N) product per delay, O((2M + 1) R N^2), numpy.
+Delays go up to ``max_delay`` (``DCD_MAX_DELAY`` = 2 s by default, the range of Nagy et al.'s delays).
+:func:`observables.summary.run_directional_correlation` applies this to a run or a measured flock with
+its metric settings (the records at or after the warm-up, ``MetricSettings.dcd_max_delay``): the one
+path of ``flocksweep measure``, the sweeps (``run.dcd_metrics``) and calibration statistics.
+
+Cost: one (R, N, N) product per delay, O((2M + 1) R N^2), numpy: about 5 ms for 30 boids over 31
+records (1 s apart, M = 2) but 0.3 s over 301 records (0.1 s apart, M = 20), three times the 30 s
+simulation itself, which is why sweeps compute it only when asked (docs/metrics.md).
 """
 from __future__ import annotations
 
@@ -34,6 +41,7 @@ import numpy as np
 
 DCD_METRIC_NAMES = ("dcd_corr_mean", "dcd_delay_mean", "dcd_edges", "dcd_leader_delay")
 MIN_CORR = 0.5
+DCD_MAX_DELAY = 2.0    # s: the largest delay by default
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,15 +113,19 @@ def directional_correlation(vel: np.ndarray, interval: float, max_delay: float, 
     return DirectionalCorrelation(delays, corr, corr_max, delay, edges, score, rank)
 
 
-def dcd_metrics(vel: np.ndarray, interval: float, max_delay: float, min_corr: float = MIN_CORR) -> dict:
-    """The per-flock scalars of ``DCD_METRIC_NAMES``."""
-    dc = directional_correlation(vel, interval, max_delay, min_corr)
+def dcd_scalars(dc: DirectionalCorrelation, min_corr: float = MIN_CORR) -> dict:
+    """The per-flock scalars of ``DCD_METRIC_NAMES`` of computed correlations (``min_corr`` as computed)."""
     n = dc.corr_max.shape[0]
     upper = dc.corr_max[np.triu_indices(n, 1)]
+    strong = np.abs(dc.delay[np.triu_indices(n, 1)])[upper >= min_corr]
     upper = upper[np.isfinite(upper)]
-    strong = np.abs(dc.delay[np.triu_indices(n, 1)])[dc.corr_max[np.triu_indices(n, 1)] >= min_corr]
     scores = dc.score[np.isfinite(dc.score)]
     return {"dcd_corr_mean": float(upper.mean()) if upper.size else float("nan"),
             "dcd_delay_mean": float(strong.mean()) if strong.size else float("nan"),
             "dcd_edges": float(dc.edges.sum() / n) if upper.size else float("nan"),
             "dcd_leader_delay": float(scores.max()) if scores.size else float("nan")}
+
+
+def dcd_metrics(vel: np.ndarray, interval: float, max_delay: float, min_corr: float = MIN_CORR) -> dict:
+    """The per-flock scalars of ``DCD_METRIC_NAMES`` of velocities (R, N, 3)."""
+    return dcd_scalars(directional_correlation(vel, interval, max_delay, min_corr), min_corr)

@@ -20,7 +20,8 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
 ``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
-delays up to ``dcd_max_delay`` s, over the individuals present). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
+delays up to ``settings.dcd_max_delay`` s, over the individuals present and the records at or after the
+warm-up, by :func:`~observables.summary.measure_run` as for a simulated run). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
 ``Measurement.issues`` lists what the reading and the checks found (notes and warnings, and an error per
 flock that could not be measured). When no flock could be measured, a
 :class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
@@ -34,7 +35,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from .directional_correlation import DCD_METRIC_NAMES, dcd_metrics
+from .directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
 from .resample import MAX_GAP_INTERVALS, RECORDED, resample
@@ -42,18 +43,18 @@ from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .validation import Issue, TrackError, check_flock, infer_interval
 
-DCD_MAX_DELAY = 2.0    # s: the largest delay of the directional correlations (observables.directional_correlation)
-
-
 def track_settings(group_radius: float, warmup: float = 0.0,
-                   fragmentation_cohesion: float = FRAGMENTATION_COHESION) -> MetricSettings:
+                   fragmentation_cohesion: float = FRAGMENTATION_COHESION,
+                   dcd_max_delay: float = DCD_MAX_DELAY) -> MetricSettings:
     """Metric settings for measured flocks: the group radius (analysis length units) is required, there is
-    no periodic box and no leadership (the escape duration is not applicable: nan)."""
+    no periodic box and no leadership (the escape duration is not applicable: nan); the directional
+    correlation delays are on, up to ``dcd_max_delay`` s."""
     if group_radius is None:
         raise ValueError("group radius: measured flocks need one (in the tracks' length units); there is no "
                          "model perception range to default to")
     return MetricSettings(warmup=warmup, group_radius=float(group_radius), fragmentation_cohesion=fragmentation_cohesion,
-                          leadership=False, box=None, escape_duration=math.nan)
+                          leadership=False, box=None, escape_duration=math.nan, dcd=True,
+                          dcd_max_delay=dcd_max_delay)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,18 +72,16 @@ def _row(name: str, status: str, error: str, table: TrackTable, interval: float,
             "velocity_interval": str(velocity_interval), "length_unit": table.unit_label}
 
 
-def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings, dcd_max_delay: float) -> pd.DataFrame:
+def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings) -> pd.DataFrame:
     series, summary = measure_run(flock, settings)
     row.update(individuals=int(flock.n), records=int(len(flock.times)), t_start=flock.t_start,
                duration=float(flock.times[-1] - flock.times[0]))
     row.update(summary)
-    row.update(dcd_metrics(np.where(flock.present[..., None], flock.vel, np.nan), flock.interval, dcd_max_delay))
     return pd.DataFrame({"run_id": flock.name, "t": flock.times, **series})
 
 
 def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float | None = None,
-                   max_gap: float | None = None, velocity_interval=None, progress: bool = False,
-                   dcd_max_delay: float = DCD_MAX_DELAY) -> Measurement:
+                   max_gap: float | None = None, velocity_interval=None, progress: bool = False) -> Measurement:
     """Check, resample and measure every flock of ``table`` (see the module docstring); ``progress`` shows a
     progress bar over the flocks."""
     raws, issues = raw_flocks(table)
@@ -119,7 +118,7 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
             row.update(status="failed", error="no record has an individual with a known position and velocity")
             rows.append(row)
             continue
-        frames.append(_measure_flock(flock, row, settings, dcd_max_delay))
+        frames.append(_measure_flock(flock, row, settings))
         rows.append(row)
         flocks.append(flock)
     failed = [Issue("error", "not measured", row["error"], flock=row["flock"]) for row in rows if row["status"] != "ok"]

@@ -24,8 +24,9 @@ A calibration file may take its targets from a track file instead of typed numbe
     warmup = 0.0                  # seconds skipped at the start of each measured flock
 
 The tracks are measured by :func:`observables.measured.measure_tracks` with the observation's
-interval, gap limit and velocity interval, the calibration's fragmentation threshold and a fixed group
-radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
+interval, gap limit and velocity interval, the calibration's fragmentation threshold, its
+``run.dcd_max_delay`` (the directional correlation delays ``dcd_*`` need only velocities: they are
+measured on tracks and observed runs alike) and a fixed group radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
 :class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
 metres need ``body_length``), 2-D tracks need a ``projection`` and 3-D tracks must not have one, every
 flock must be measured and every target statistic finite; ``aggregate = "mean"`` needs more flocks than
@@ -150,7 +151,7 @@ def measurement_sd(targets, k: int) -> np.ndarray | None:
     return sd
 
 
-def _measure(path: Path, targets, observation: Observation, radius: float, fragmentation: float) -> Measurement:
+def _measure(path: Path, targets, observation: Observation, metrics: MetricSettings) -> Measurement:
     source = track_source(path, targets.tracks or {}, "targets.tracks", cls=TracksTable)
     try:
         table = load_tracks(path, source)
@@ -164,23 +165,25 @@ def _measure(path: Path, targets, observation: Observation, radius: float, fragm
                                                     'too, e.g. projection = "xz" (the horizontal plane)')
     if table.dims == 3 and observation.projection != "none":
         raise ConfigError("observation.projection", f"{path.name} holds 3-D tracks; a projection is for 2-D ones")
-    settings = track_settings(radius, source.warmup, fragmentation)
+    settings = track_settings(metrics.group_radius, source.warmup, metrics.fragmentation_cohesion,
+                              metrics.dcd_max_delay)
     try:
         return measure_tracks(table, settings, observation.interval, observation.max_gap, observation.velocity_interval)
     except TrackError as err:
         raise ConfigError("targets.from_tracks", str(err)) from None
 
 
-def tracks_targets(targets, observation: Observation | None, radius: float, fragmentation: float, columns,
+def tracks_targets(targets, observation: Observation | None, metrics: MetricSettings, columns,
                    base: Path) -> TrackTargets:
-    """The targets of ``[targets] from_tracks`` (see the module docstring)."""
+    """The targets of ``[targets] from_tracks`` (see the module docstring); ``metrics``: the calibration's,
+    its group radius fixed (:func:`fixed_group_radius`)."""
     path = resolve_path(targets.from_tracks, base, "targets.from_tracks", "track file")
     if observation is None:
         raise ConfigError("targets.from_tracks", "needs an [observation] block (at least interval = seconds between "
                                                  "samples) so that simulated runs are measured as the tracks were")
     _given_with_tracks(targets)
     measurement_sd(targets, len(columns))          # checked before the tracks are measured
-    measurement = _measure(path, targets, observation, radius, fragmentation)
+    measurement = _measure(path, targets, observation, metrics)
     runs = measurement.runs
     failed = runs[runs["status"] != "ok"]
     if len(failed):

@@ -20,7 +20,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from observables.measured import DCD_MAX_DELAY, track_settings
+from observables.directional_correlation import DCD_MAX_DELAY
+from observables.measured import track_settings
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.resample import RECORDED
 from observables.track_formats import FORMATS
@@ -128,14 +129,14 @@ def run(args) -> int:
         if value is not None and not value > 0:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
     try:
-        settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion)
+        settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion, args.dcd_max_delay)
     except (ValueError, ConfigError) as err:
         raise ConfigError("--group-radius" if "radius" in str(err) else "--warmup", str(err)) from None
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
                                 _velocity_interval(args.velocity_interval), figures=not args.no_figures,
-                                progress=not args.no_progress, dcd_max_delay=args.dcd_max_delay)
+                                progress=not args.no_progress)
     except TrackError as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         print(f"  (every problem is listed in {out / 'validation.csv'})", file=sys.stderr)

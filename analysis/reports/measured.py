@@ -29,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from observables.measured import DCD_MAX_DELAY, Measurement, measure_tracks, velocity_label
+from observables.measured import Measurement, measure_tracks, velocity_label
 from observables.resample import RECORDED
 from observables.summary import MetricSettings
 from observables.tracks import TrackSource, load_tracks, read_sidecar
@@ -135,7 +135,7 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,
                    max_gap: float | None = None, velocity_interval="auto", formats=("html", "md"),
-                   figures: bool = True, progress: bool = False, dcd_max_delay: float = DCD_MAX_DELAY) -> dict:
+                   figures: bool = True, progress: bool = False) -> dict:
     """Measure the track file at ``path`` and write the folder (see the module docstring); ``velocity_interval``
     "auto" uses the tracks' velocities when they have them, else one sampling interval."""
     started = time.perf_counter()
@@ -145,7 +145,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
             table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
-            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress, dcd_max_delay)
+            measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
         except TrackError as err:
             folder.write_csv("validation.csv", issues_table(err.issues, err.line_offset), index=False)
             raise
