@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from observables.directional_correlation import correlation_curves, dcd_metrics, directional_correlation
+from planted_flocks import turning_flock, write_planted_tracks
 
 
 def twin_curves(vel, interval, max_delay):
@@ -25,17 +26,6 @@ def twin_curves(vel, interval, max_delay):
                 if terms:
                     out[i, j, k] = np.mean(terms)
     return out
-
-
-def turning_flock(delays, records=200, seed=0, noise=0.0):
-    """A leader whose heading wanders in the plane; individual k copies it delays[k] records later."""
-    rng = np.random.default_rng(seed)
-    angle = np.cumsum(rng.normal(0.0, 0.25, records + max(delays)))
-    vel = np.zeros((records, len(delays), 3))
-    for k, d in enumerate(delays):
-        a = angle[max(delays) - d: max(delays) - d + records] + rng.normal(0.0, noise, records)
-        vel[:, k, 0], vel[:, k, 1] = np.cos(a) * 2.0, np.sin(a) * 2.0
-    return vel
 
 
 def test_the_numpy_curves_equal_the_loop_twin_with_gaps_and_stops():
@@ -89,18 +79,10 @@ def test_bad_arguments_are_named():
 
 
 def test_tracks_measure_the_same_delays_as_the_arrays(tmp_path):
-    import pandas as pd
-
     from observables.measured import measure_tracks, track_settings
     from observables.tracks import TrackSource, load_tracks
     planted, interval = [0, 2, 4, 7, 3], 0.2
-    vel = turning_flock(planted, records=120)
-    pos = np.cumsum(vel, axis=0) * interval + np.arange(5)[None, :, None] * 3.0
-    t = np.arange(120) * interval
-    frame = pd.DataFrame({"id": np.tile(np.arange(5), 120), "t": np.repeat(t, 5),
-                          **{a: pos[:, :, k].reshape(-1) for k, a in enumerate("xyz")},
-                          **{f"v{a}": vel[:, :, k].reshape(-1) for k, a in enumerate("xyz")}})
-    frame.to_parquet(tmp_path / "f.parquet", index=False)
+    vel = write_planted_tracks(tmp_path / "f.parquet", planted, 120, interval)
     table = load_tracks(tmp_path / "f.parquet", TrackSource())
     (row,) = measure_tracks(table, track_settings(50.0, dcd_max_delay=2.0),
                             velocity_interval="recorded").runs.to_dict("records")

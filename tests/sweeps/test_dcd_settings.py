@@ -15,17 +15,7 @@ from sweeps.design import expand, rebuild
 from sweeps.runner import model_record
 from sweeps.worker import execute_run
 from paths import ROOT
-
-HOLLAND = ROOT / "configs" / "models" / "holland.toml"
-
-
-def sweep(**run) -> dict:
-    return {"name": "tiny", "seed": 7, "model": {"preset": str(HOLLAND)},
-            "run": {"n": 8, "duration": 1.0, "record_interval": 0.5, "warmup": 0.25, **run}, "axes": []}
-
-
-def run_ids(data: dict) -> list[str]:
-    return [spec.run_id for spec in expand(sweep_from_dict(data, ROOT))]
+from tiny_sweeps import run_ids, sweep
 
 
 def test_off_by_default_and_part_of_the_run_id_only_when_on():

@@ -139,3 +139,26 @@ def test_bad_files_exit_2_with_one_message(tmp_path, capsys, name, content, args
     assert message in err and "Traceback" not in err
     if "no column for role 'id'" in message:
         assert "no column for role 't'" in err and "no column for role 'y'" in err   # all at once
+
+
+def test_the_report_draws_each_flocks_leader_follower_hierarchy(tmp_path, capsys):
+    from PIL import Image
+
+    from planted_flocks import write_planted_tracks
+    planted = [0, 2, 4, 7, 3]                   # individual 0 leads; 3 follows everyone, 7 records late
+    write_planted_tracks(tmp_path / "planted.parquet", planted, 120, 0.2)
+    out = tmp_path / "out"
+    assert main(["measure", str(tmp_path / "planted.parquet"), "--group-radius", "50", "--out", str(out),
+                 "--no-progress"]) == 0
+    path = out / "figures/hierarchy_planted.png"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = Image.open(path).size
+    assert width >= 1400 and height >= 600      # 11 x 5 inches at 150 dpi: readable at a report's width
+    report = (out / "report.md").read_text()
+    assert "## Leader-follower hierarchy" in report and "figures/hierarchy_planted.png" in report
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "dcd_edges"] * 5 == 10    # every pair correlates: 10 edges, from the earlier copier
+    # without figures there is none
+    assert main(["measure", str(tmp_path / "planted.parquet"), "--group-radius", "50", "--out", str(tmp_path / "b"),
+                 "--no-figures", "--no-progress"]) == 0
+    assert not (tmp_path / "b/figures").exists()
