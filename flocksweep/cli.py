@@ -15,8 +15,8 @@
     flocksweep calibrate CALIB.toml [--method emcee|optimize|emulator] [--set key=value ...] [--out DIR]
                          [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
-    flocksweep targets CALIB.toml --truth NAME=VALUE ... [--seed S] [--replicates R] [--sd SD,...]
-    flocksweep targets CALIB.toml --from-tracks [TRACKS]
+    flocksweep targets CALIB.toml --truth NAME=VALUE ... [--set key=value ...] [--seed S] [--replicates R] [--sd SD,...]
+    flocksweep targets CALIB.toml --from-tracks [TRACKS] [--set key=value ...]
     flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
     flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
                     [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
@@ -233,7 +233,7 @@ def parse_until_ci(text: str) -> tuple[str, float]:
     if not metric or not (0 < target < float("inf")):
         raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with a finite HALFWIDTH > 0, "
                                         "e.g. cohesion_mean=0.05")
-    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES)
+    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES, dcd=True)
     column = metric if metric in columns else f"{metric}_mean"
     if column not in columns:
         raise ConfigError("--until-ci", f"unknown metric {metric!r}{suggest(metric, columns)}; expected a summary "
@@ -259,7 +259,8 @@ def run_until_claims_command(args, config, out) -> int:
     _check_rounds(args, config, "--until-claims")
     print(f"{config.name}: adding replicates where a claim is undecided (at most {args.max_replicates} per cell); "
           f"claims {', '.join(c.id for c in config.claims)}")
-    factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership).factors
+    factors = sweep_columns(config.axes, config.sample or config.design, config.metrics.leadership,
+                            config.metrics.dcd).factors
     return _run_rounds(args, config, out, claims_rule(config.claims, factors),
                        f"; `flocksweep report {out}` shows the claims' evidence")
 
@@ -411,6 +412,9 @@ def _add_targets(sub) -> None:
                                    "truth and print a [targets] block to paste into the calibration file. "
                                    "With --from-tracks: the targets measured from tracks, one row per flock.")
     p.add_argument("config", help="calibration TOML")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of the calibration file, as for calibrate (repeatable), e.g. "
+                        "--set observation.velocity_interval=0.4")
     p.add_argument("--truth", action="append", default=[], metavar="NAME=VALUE",
                    help="value of a free parameter (repeat for each), e.g. --truth field=150")
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic runs (default 0)")
@@ -427,7 +431,7 @@ def _targets_from_tracks(args) -> int:
 
     if args.truth:
         raise ConfigError("--from-tracks", "measured targets take no --truth")
-    print(measured_targets_block(args.config, args.from_tracks or None), end="")
+    print(measured_targets_block(args.config, args.from_tracks or None, args.overrides), end="")
     return 0
 
 
@@ -442,7 +446,7 @@ def cmd_targets(args) -> int:
         return _targets_from_tracks(args)
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     check_count("--replicates", args.replicates, 1, 10_000)
-    config = load_calibration(args.config)
+    config = load_calibration(args.config, args.overrides)
     truth = {}
     for item in args.truth:
         name, sep, value = item.partition("=")

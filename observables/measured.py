@@ -5,7 +5,7 @@
 takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by flock:
 
 1. checks it (:func:`~observables.validation.check_flock`: duplicates, impossible speeds,
-   gaps); errors of every flock are collected and raised together as one
+   recorded velocities, gaps); errors of every flock are collected and raised together as one
    :class:`~observables.validation.TrackError`;
 2. resamples it onto its record grid (:func:`~observables.resample.resample`; ``interval``
    None: each flock's own sampling interval, :func:`~observables.validation.infer_interval`;
@@ -18,8 +18,13 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
 ``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
-``tracked_final``. ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
-``Measurement.issues`` lists what the reading and the checks found (notes and warnings).
+``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
+``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
+delays up to ``settings.dcd_max_delay`` s, over the individuals present and the records at or after the
+warm-up, by :func:`~observables.summary.measure_run` as for a simulated run). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
+``Measurement.issues`` lists what the reading and the checks found (notes and warnings, and an error per
+flock that could not be measured). When no flock could be measured, a
+:class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from .directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
 from .resample import MAX_GAP_INTERVALS, RECORDED, resample
@@ -37,16 +43,18 @@ from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .validation import Issue, TrackError, check_flock, infer_interval
 
-
 def track_settings(group_radius: float, warmup: float = 0.0,
-                   fragmentation_cohesion: float = FRAGMENTATION_COHESION) -> MetricSettings:
+                   fragmentation_cohesion: float = FRAGMENTATION_COHESION,
+                   dcd_max_delay: float = DCD_MAX_DELAY) -> MetricSettings:
     """Metric settings for measured flocks: the group radius (analysis length units) is required, there is
-    no periodic box and no leadership (the escape duration is not applicable: nan)."""
+    no periodic box and no leadership (the escape duration is not applicable: nan); the directional
+    correlation delays are on, up to ``dcd_max_delay`` s."""
     if group_radius is None:
         raise ValueError("group radius: measured flocks need one (in the tracks' length units); there is no "
                          "model perception range to default to")
     return MetricSettings(warmup=warmup, group_radius=float(group_radius), fragmentation_cohesion=fragmentation_cohesion,
-                          leadership=False, box=None, escape_duration=math.nan)
+                          leadership=False, box=None, escape_duration=math.nan, dcd=True,
+                          dcd_max_delay=dcd_max_delay)
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,8 +121,13 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
         frames.append(_measure_flock(flock, row, settings))
         rows.append(row)
         flocks.append(flock)
+    failed = [Issue("error", "not measured", row["error"], flock=row["flock"]) for row in rows if row["status"] != "ok"]
+    if not flocks:
+        raise TrackError(failed or [Issue("error", "not measured", "the tracks hold no flock")], table.path,
+                         table.line_offset)
+    issues += failed
     runs = pd.DataFrame(rows)
-    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final"):
+    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final") + DCD_METRIC_NAMES:
         if column not in runs:
             runs[column] = np.nan
     timeseries = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id", "t"])

@@ -3,7 +3,8 @@ simulation into numbers.
 
 :class:`MetricSettings` says how records become a row: the warm-up excluded from window means, the
 group radius linking boids (None: the model's perception range), the cohesion below which the flock
-counts as fragmented, whether the leadership metrics are computed, the capture radius, predator "near"
+counts as fragmented, whether the leadership metrics and the directional correlation delays (with
+their largest delay) are computed, the capture radius, predator "near"
 distance and prey reach of the encounter metrics (:mod:`observables.encounters`), and the values
 a model fixes: the periodic box side, the escape duration, the obstacles and the body radius.
 :meth:`MetricSettings.resolve` fills those in from a model; a configuration file sets the others (its
@@ -13,7 +14,11 @@ a model fixes: the periodic box side, the escape duration, the obstacles and the
 :data:`~observables.metrics.METRIC_NAMES` its ``<name>_mean`` and ``<name>_final``, then
 ``time_to_fragmentation`` and ``fragmented`` (:func:`~observables.metrics.summarize`), then,
 with ``settings.leadership``, the leadership scalars
-(:data:`~observables.leadership.LEADERSHIP_METRIC_NAMES`), then, when the model has a migratory
+(:data:`~observables.leadership.LEADERSHIP_METRIC_NAMES`), then, with ``settings.dcd``, the directional
+correlation delays of Nagy et al. 2010 (:data:`~observables.directional_correlation.DCD_METRIC_NAMES`, of
+:func:`run_directional_correlation`: over the records at or after the warm-up, delays up to
+``settings.dcd_max_delay``; they need only velocities, so measured flocks and observed runs have them
+too), then, when the model has a migratory
 urge (``settings.migration``, its direction), the migration scalars
 (:data:`~observables.migration.MIGRATION_METRIC_NAMES`), then the obstacle, predator and prey
 columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
@@ -41,6 +46,8 @@ import numpy as np
 
 from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
+from .directional_correlation import (DCD_MAX_DELAY, DCD_METRIC_NAMES, DirectionalCorrelation, dcd_scalars,
+                                      directional_correlation)
 from .encounters import (CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, agent_positions, encounter_columns,
                          encounter_metrics)
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
@@ -74,11 +81,14 @@ class MetricSettings:
     obstacles: tuple = ()                      # the model's world.obstacles (set by resolve)
     body_radius: float | None = None           # the model's perception.body_radius (set by resolve)
     migration: tuple[float, float, float] | None = None  # the model's migration direction (set by resolve)
+    dcd: bool = False                          # the directional correlation delays (DCD_METRIC_NAMES)
+    dcd_max_delay: float = DCD_MAX_DELAY       # s: their largest delay
 
     def __post_init__(self):
         for key in ENCOUNTER_SETTINGS:
             check_positive(key, getattr(self, key))
         check_non_negative("warmup", self.warmup)
+        check_non_negative("dcd_max_delay", self.dcd_max_delay)
         if self.group_radius is not None:
             _finite("group_radius", self.group_radius)
             if self.group_radius <= 0:
@@ -101,13 +111,14 @@ class MetricSettings:
 
 
 def summary_columns(leadership: bool = True, migration: bool = False,
-                    encounters: tuple[str, ...] = ()) -> tuple[str, ...]:
+                    encounters: tuple[str, ...] = (), dcd: bool = False) -> tuple[str, ...]:
     """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
-    scalars, the migration scalars, then the columns of the given encounter families
+    scalars, the directional correlation delays, the migration scalars, then the columns of the given encounter families
     (``ENCOUNTER_FAMILIES`` for all; a row has a family's columns only when its run has obstacles, a
     predator or prey, see :mod:`observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
     columns += tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()
+    columns += DCD_METRIC_NAMES if dcd else ()
     columns += MIGRATION_METRIC_NAMES if migration else ()
     return columns + encounter_columns(encounters)
 
@@ -158,6 +169,8 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
+    if settings.dcd:
+        row.update(dcd_scalars(run_directional_correlation(obs, settings)))
     if settings.migration is not None:
         row.update(migration_metrics(obs.pos, obs.vel, obs.times, settings.migration, settings.warmup))
     if getattr(obs, "present", None) is None:
@@ -165,6 +178,17 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
         series.update(extra_series)
         row.update(extra_row)
     return RunMetrics(series, row)
+
+
+def run_directional_correlation(obs, settings: MetricSettings) -> DirectionalCorrelation:
+    """The directional correlation delays of a run or an observed flock: its velocities (nan where an
+    individual is not present) over the records at or after ``settings.warmup``, delays up to
+    ``settings.dcd_max_delay``."""
+    present = getattr(obs, "present", None)
+    vel = obs.vel if present is None else np.where(present[..., None], obs.vel, np.nan)
+    interval = record_interval(obs) if present is None else obs.interval
+    window = np.asarray(obs.times) >= settings.warmup
+    return directional_correlation(vel[window], interval, settings.dcd_max_delay)
 
 
 def summarize_run(obs, settings: MetricSettings) -> dict:

@@ -4,11 +4,12 @@ A track file (CSV, also gzipped, or Parquet) has one row per detection of one in
 
 * ``flock``: flock / event id (optional; without it the whole file is one flock, named after the file);
 * ``id``: individual id (numbers sort numerically, anything else as text);
-* ``t``: time, in ``units.time`` (s, ms, min, h; or ``datetime``: timestamps);
+* ``t``: time, in ``units.time`` (s, ms, min, h; ``datetime``: timestamps; ``frame``: frame numbers, with
+  ``fps`` frames per second);
 * ``x``, ``y``: position, in ``units.length`` (m, cm, mm, km; or ``bl``: body lengths);
 * ``z``: third coordinate (optional; without it the tracks are 2-D, marked as such, with z = 0);
-* ``vx``, ``vy``, ``vz``: velocities in the same units per time unit (per second with timestamps), all of
-  them or none (optional);
+* ``vx``, ``vy``, ``vz``: velocities in the same units per time unit (per second with timestamps and frames), all of
+  them or none (optional; 2-D tracks have ``vx`` and ``vy`` only, and get vz = 0);
 * ``pattern``: an integer label per individual, constant over time (optional).
 
 A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
@@ -33,9 +34,9 @@ lengths (``flocksweep simulate --tracks``).
 from __future__ import annotations
 
 import dataclasses
-import gzip
 import json
 import math
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Literal, TYPE_CHECKING
@@ -44,6 +45,7 @@ import numpy as np
 
 from simcore.schema import ConfigError, build, suggest
 
+from .track_formats import WIDE_FORMATS, detect_format, read_table, read_wide
 from .validation import Issue, TrackError
 
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
@@ -51,14 +53,8 @@ if TYPE_CHECKING:  # pandas is imported where it is used: importing this module 
 
 ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
 REQUIRED = ("id", "t", "x", "y")
-LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None}
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None}
-
-
-def _exact_floats(pd) -> dict:
-    """read_csv options reading CSV numbers back exactly as written (pandas >= 3 does by default and
-    deprecates the option)."""
-    return {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None, "px": None}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None, "frame": None}
 
 
 @dataclass(frozen=True)
@@ -70,7 +66,10 @@ class TrackSource:
     body_length: float | None = None              # metres; lengths then in body lengths
     max_speed: float | None = None                # analysis units per s; None: 10 x the flock's median step speed
     bad_speeds: Literal["error", "keep", "drop"] = "error"
-    format: Literal["auto", "csv", "parquet"] = "auto"
+    format: Literal["auto", "csv", "parquet", "mat", "idtracker", "trex", "trajr", "movebank"] = "auto"
+    fps: float | None = None                      # frames per second: times in frames (units.time = "frame")
+    body_length_px: float | None = None           # pixels: tracks in pixels (units.length = "px") -> body lengths
+    layout: dict | None = None                    # a .mat file's array layout (observables.track_formats)
 
     def __post_init__(self):
         for role, name in self.columns.items():
@@ -93,8 +92,22 @@ class TrackSource:
         if self.body_length is not None:
             if isinstance(self.body_length, bool) or not (math.isfinite(self.body_length) and self.body_length > 0):
                 raise ConfigError("body_length", f"got {self.body_length!r}; expected metres > 0")
-            if self.length_unit == "bl":
-                raise ConfigError("body_length", 'the tracks are already in body lengths (units.length = "bl")')
+            if self.length_unit in ("bl", "px"):
+                raise ConfigError("body_length", f"not with units.length = {self.length_unit!r}: the tracks are "
+                                                 + ("already in body lengths" if self.length_unit == "bl" else
+                                                    "in pixels (give body_length_px)"))
+        for key in ("fps", "body_length_px"):
+            value = getattr(self, key)
+            if value is not None and (isinstance(value, bool) or not (math.isfinite(value) and value > 0)):
+                raise ConfigError(key, f"got {value!r}; expected a number > 0")
+        if self.time_unit == "frame" and self.fps is None:
+            raise ConfigError("fps", "the times are frame numbers (units.time = \"frame\"): give the frame rate, "
+                                     "e.g. --fps 30")
+        if self.length_unit == "px" and self.body_length_px is None:
+            raise ConfigError("body_length_px", "the positions are in pixels (units.length = \"px\"): give the body "
+                                                "length in pixels (--body-length-px), or the file's length unit")
+        if self.body_length_px is not None and self.length_unit != "px":
+            raise ConfigError("body_length_px", f"only for tracks in pixels; the length unit is {self.length_unit!r}")
         if self.max_speed is not None and not (math.isfinite(self.max_speed) and self.max_speed > 0):
             raise ConfigError("max_speed", f"got {self.max_speed!r}; expected a number > 0 (length units per s)")
 
@@ -109,7 +122,12 @@ class TrackSource:
     @property
     def unit_label(self) -> str:
         """The analysis length unit: "BL" (body lengths) or "m"."""
-        return "BL" if self.length_unit == "bl" or self.body_length is not None else "m"
+        return "BL" if self.length_unit in ("bl", "px") or self.body_length is not None else "m"
+
+    @property
+    def seconds_per_time_unit(self) -> float | None:
+        """Seconds per unit of the time column (None for timestamps)."""
+        return 1.0 / self.fps if self.time_unit == "frame" else TIME_UNITS[self.time_unit]
 
     def column(self, role: str) -> str:
         return self.columns.get(role, role)
@@ -147,38 +165,6 @@ def track_source(path, given: dict, where: str = "", cls=None) -> TrackSource:
 
 # ------------------------------------------------------------------------------------------- reading
 
-def _delimiter(path: Path) -> str:
-    opener = gzip.open if path.suffix == ".gz" else open
-    with opener(path, "rt") as handle:
-        header = handle.readline()
-    for sep in (",", "\t", ";"):
-        if sep in header:
-            return sep
-    return r"\s+"
-
-
-def file_format(path, fmt: str = "auto") -> str:
-    """"parquet" or "csv": ``fmt``, or with "auto" Parquet for .parquet/.pq files and CSV otherwise."""
-    if fmt != "auto":
-        return fmt
-    return "parquet" if Path(path).suffix in (".parquet", ".pq") else "csv"
-
-
-def read_table(path, fmt: str = "auto") -> pd.DataFrame:
-    """The raw table of a track file (see :func:`file_format`)."""
-    import pandas as pd
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(str(path), "no such track file")
-    fmt = file_format(path, fmt)
-    try:
-        if fmt == "parquet":
-            return pd.read_parquet(path)
-        return pd.read_csv(path, sep=_delimiter(path), **_exact_floats(pd))
-    except Exception as err:  # noqa: BLE001 - an unreadable file is the user's input problem
-        raise ConfigError(str(path), f"cannot read it as {fmt}: {err}") from None
-
-
 @dataclass(frozen=True, eq=False)
 class TrackTable:
     """A track file read and converted: ``frame`` has row, flock, id, t (s), x, y, z (analysis units) and,
@@ -215,10 +201,10 @@ def _numeric(frame: pd.DataFrame, role: str, name: str, errors: list, allow_miss
     return values
 
 
-def _times(frame: pd.DataFrame, name: str, unit: str, errors: list) -> tuple[np.ndarray, str]:
+def _times(frame: pd.DataFrame, name: str, unit: str, seconds: float | None, errors: list) -> tuple[np.ndarray, str]:
     import pandas as pd
     if unit != "datetime":
-        return _numeric(frame, "t", name, errors, allow_missing=False) * TIME_UNITS[unit], ""
+        return _numeric(frame, "t", name, errors, allow_missing=False) * seconds, ""
     stamps = pd.to_datetime(frame[name], errors="coerce")
     bad = stamps.isna().to_numpy()
     if bad.any():
@@ -231,30 +217,64 @@ def _times(frame: pd.DataFrame, name: str, unit: str, errors: list) -> tuple[np.
 
 
 def _present_roles(frame: pd.DataFrame, source: TrackSource, path: Path) -> dict:
+    """Role -> column name of the file; every missing required (or mapped) column in one TrackError."""
     columns = [str(c) for c in frame.columns]
-    roles = {}
+    roles, missing = {}, []
     for role in ROLES:
         name = source.column(role)
         if name in columns:
             roles[role] = name
         elif role in REQUIRED or role in source.columns:
             mapped = f" (mapped to {name!r})" if role in source.columns else ""
-            raise TrackError([Issue("error", "missing column", f"no column for role {role!r}{mapped}"
-                                    f"{suggest(name, columns)}; the file has: {', '.join(columns)}; map one with "
-                                    f"columns {role}=NAME", column=name)], path)
+            missing.append(Issue("error", "missing column", f"no column for role {role!r}{mapped}"
+                                 f"{suggest(name, columns)}; the file has: {', '.join(columns)}; map one with "
+                                 f"columns {role}=NAME", column=name))
     velocity = [r for r in ("vx", "vy", "vz") if r in roles]
     need = ["vx", "vy"] + (["vz"] if "z" in roles else [])
     if velocity and sorted(velocity) != sorted(need):
-        raise TrackError([Issue("error", "missing column", f"velocities need all of {need}, the file maps "
-                                f"{velocity}")], path)
+        missing.append(Issue("error", "missing column", f"velocities need all of {need}, the file maps {velocity}"))
+    if missing:
+        raise TrackError(missing, path)
     return roles
+
+
+def _unmapped(frame: pd.DataFrame, roles: dict) -> list[Issue]:
+    """A warning listing the file's columns that no role uses (they are not read)."""
+    used = set(roles.values())
+    left = [str(c) for c in frame.columns if str(c) not in used]
+    if not left:
+        return []
+    hints = [f"{name} (a {role}?)" for name in left for role in ROLES
+             if role not in roles and (re.split(r"[^a-z0-9]", name.lower())[0] == role or suggest(name, [role]))]
+    return [Issue("warning", "unmapped columns", f"{len(left)} column(s) not used: {', '.join(left)}"
+                  + (f"; perhaps {', '.join(hints)}" if hints else "") + "; map one with columns ROLE=NAME "
+                  f"(roles: {', '.join(ROLES)})")]
+
+
+def _read_any(path: Path, source: TrackSource) -> tuple[pd.DataFrame, TrackSource]:
+    """The file's long table and the source it is read with: the format resolved, a tracker's file turned
+    into the long table (its column map used up) with the settings it implies as defaults."""
+    fmt = detect_format(path) if source.format == "auto" else source.format
+    if fmt not in WIDE_FORMATS:
+        if not path.is_file():
+            raise ConfigError(str(path), "no such track file" + (" (a folder: give --format trex or trajr)"
+                                                                 if path.is_dir() else ""))
+        return read_table(path, fmt), dataclasses.replace(source, format=fmt)
+    frame, implied = read_wide(path, fmt, source)
+    settings = {"format": fmt, "units": {**implied.get("units", {}), **source.units},
+                "columns": source.columns if fmt == "trajr" else {}}
+    for key in ("fps", "body_length_px"):
+        if getattr(source, key) is None and key in implied and not (key == "body_length_px" and
+                                                                     settings["units"].get("length") != "px"):
+            settings[key] = implied[key]
+    return frame, dataclasses.replace(source, **settings)
 
 
 def load_tracks(path, source: TrackSource) -> TrackTable:
     """Read ``path`` and convert it (see the module docstring); TrackError lists every bad cell."""
     import pandas as pd
     path = Path(path)
-    frame = read_table(path, source.format)
+    frame, source = _read_any(path, source)
     roles = _present_roles(frame, source, path)
     errors: list[Issue] = []
     out = {"row": np.arange(1, len(frame) + 1)}
@@ -266,31 +286,36 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
                                 rows=tuple(np.flatnonzero(frame[roles[role]].isna()) + 1), column=roles[role]))
     ids = frame[roles["id"]]
     out["id"] = ids.to_numpy()
-    out["t"], origin = _times(frame, roles["t"], source.time_unit, errors)
+    out["t"], origin = _times(frame, roles["t"], source.time_unit, source.seconds_per_time_unit, errors)
     scale = LENGTH_UNITS[source.length_unit] or 1.0
     if source.body_length is not None:
         scale = scale / source.body_length
+    if source.body_length_px is not None:
+        scale = 1.0 / source.body_length_px
     for role in ("x", "y", "z", "vx", "vy", "vz"):
         if role in roles:
             values = _numeric(frame, role, roles[role], errors, allow_missing=True)
-            if role.startswith("v") and source.time_unit != "datetime":
-                values = values / TIME_UNITS[source.time_unit]
+            if role.startswith("v") and source.time_unit not in ("datetime", "frame"):
+                values = values / source.seconds_per_time_unit
             out[role] = values if scale == 1.0 else values * scale
     if "z" not in roles:
         out["z"] = np.zeros(len(frame))
+        if "vx" in roles:
+            out["vz"] = np.zeros(len(frame))
     if "pattern" in roles:
         pattern = _numeric(frame, "pattern", roles["pattern"], errors, allow_missing=False)
         if np.any(pattern != np.round(pattern)):
             errors.append(Issue("error", "bad value", "pattern: not an integer", column=roles["pattern"],
                                 rows=tuple(np.flatnonzero(pattern != np.round(pattern)) + 1)))
         out["pattern"] = pattern
-    line_offset = None if file_format(path, source.format) == "parquet" else 1
+    line_offset = 1 if source.format == "csv" else None
     if errors:
         raise TrackError(errors, path, line_offset)
     table = pd.DataFrame(out)
     return _drop_undetected(TrackTable(frame=table, path=path, source=source, dims=3 if "z" in roles else 2,
                                        has_velocity="vx" in roles, has_pattern="pattern" in roles,
-                                       line_offset=line_offset, t_origin=origin))
+                                       line_offset=line_offset, t_origin=origin,
+                                       issues=tuple(_unmapped(frame, roles))))
 
 
 def _drop_undetected(table: TrackTable) -> TrackTable:

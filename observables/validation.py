@@ -14,6 +14,12 @@ The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
   flagged sample and the track continues from the last good one. ``bad_speeds`` says what happens:
   "error" (the default: stop and list them), "keep" (a warning, the samples are used) or "drop" (a
   warning listing the samples left out);
+* **recorded velocities** (tracks with velocity columns): each sample's recorded velocity is compared with
+  its velocity from position differences (centred over its neighbours, one-sided at an individual's
+  first and last sample, :func:`difference_velocities`); a sample where they differ by more than
+  ``VELOCITY_TOLERANCE`` (0.5) x the larger of the difference speed and the flock's median difference
+  speed gets a warning, one per individual, naming the flock, the individual, the samples' times and
+  rows (zero padding, velocities in other units or of other individuals show up this way);
 * **gaps**: consecutive samples of an individual more than 1.5 sampling intervals apart. Gaps up to
   ``max_gap`` are bridged by linear interpolation when resampling (a note), longer ones stay missing (a
   warning); one issue of each kind per flock, counting them and naming the longest gap, its individual
@@ -34,6 +40,7 @@ import numpy as np
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
     import pandas as pd
 
+VELOCITY_TOLERANCE = 0.5  # recorded and position-difference velocities disagree beyond this share of the speed
 GAP_FACTOR = 1.5          # consecutive samples further apart than this many intervals make a gap
 SPEED_FACTOR = 10.0       # default max_speed: this many times the flock's median step speed
 LEVELS = ("error", "warning", "note")
@@ -166,6 +173,47 @@ def _speeds(raw, max_speed: float | None, policy: str, unit: str):
     return cleaned, [Issue("warning", "speed", text + "; left out (bad_speeds = drop)", flock=raw.name, rows=rows)]
 
 
+def difference_velocities(raw) -> np.ndarray:
+    """(S, 3) each sample's velocity from positions: (p_next - p_prev) / (t_next - t_prev) over the
+    individual's neighbouring samples (the sample itself at its first and last one); nan for a lone sample."""
+    count = len(raw.t)
+    index = np.arange(count)
+    same = np.diff(raw.ind) == 0
+    lo = np.where(np.r_[False, same], index - 1, index)
+    hi = np.where(np.r_[same, False], index + 1, index)
+    dt = raw.t[hi] - raw.t[lo]
+    out = np.full((count, 3), np.nan)
+    ok = dt > 0
+    out[ok] = (raw.pos[hi[ok]] - raw.pos[lo[ok]]) / dt[ok, None]
+    return out
+
+
+def _velocity_agreement(raw, unit: str) -> list[Issue]:
+    """A warning per individual whose recorded velocities disagree with its position differences."""
+    if raw.vel is None or len(raw.t) == 0:
+        return []
+    diff = difference_velocities(raw)
+    speed = np.linalg.norm(diff, axis=1)
+    if not np.isfinite(speed).any():
+        return []
+    typical = float(np.nanmedian(speed))
+    error = np.linalg.norm(raw.vel - diff, axis=1)
+    with np.errstate(invalid="ignore"):
+        bad = error > VELOCITY_TOLERANCE * np.maximum(speed, typical)
+    issues = []
+    for i in np.unique(raw.ind[bad]):
+        samples = np.flatnonzero(bad & (raw.ind == i))
+        k = samples[0]
+        times = ", ".join(f"{t:.6g}" for t in raw.t[samples[:8]]) + (" ..." if len(samples) > 8 else "")
+        issues.append(Issue("warning", "velocity", f"{len(samples)} sample(s) at t = {times} s: the recorded "
+                            f"velocity disagrees with the position differences by more than {VELOCITY_TOLERANCE:g} x "
+                            f"the speed (first: recorded speed {np.linalg.norm(raw.vel[k]):.4g}, from positions "
+                            f"{speed[k]:.4g} {unit}/s; the flock's median {typical:.4g}): zero padding, other units "
+                            "or another individual's velocities? Used as recorded; a velocity interval differences "
+                            "positions instead", flock=raw.name, id=str(raw.ids[i]), rows=raw.source_rows(samples)))
+    return issues
+
+
 def _gaps(raw, interval: float, max_gap: float) -> list[Issue]:
     later, dt = _steps(raw)
     gap = dt > GAP_FACTOR * interval
@@ -186,10 +234,10 @@ def _gaps(raw, interval: float, max_gap: float) -> list[Issue]:
 
 def check_flock(raw, interval: float, max_gap: float, max_speed: float | None = None, bad_speeds: str = "error",
                 unit: str = "length units"):
-    """(the flock to use, its issues): duplicates, impossible speeds and gaps (see the module docstring);
+    """(the flock to use, its issues): duplicates, impossible speeds, recorded velocities and gaps (see the module docstring);
     ``unit`` names the length unit in messages."""
     issues = _duplicates(raw)
     if issues:
         return raw, issues
     raw, speed_issues = _speeds(raw, max_speed, bad_speeds, unit)
-    return raw, speed_issues + _gaps(raw, interval, max_gap)
+    return raw, speed_issues + _velocity_agreement(raw, unit) + _gaps(raw, interval, max_gap)

@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from observables.directional_correlation import DCD_METRIC_NAMES
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.summary import ENCOUNTER_FAMILIES, summary_columns
 from simcore.schema import ConfigError, build, read_toml, resolve_path, suggest, to_dict
@@ -97,7 +98,7 @@ def _axis_columns(axis) -> list[tuple[str, list]]:
     return out
 
 
-def sweep_columns(axes, sample, leadership: bool) -> Columns:
+def sweep_columns(axes, sample, leadership: bool, dcd: bool = False) -> Columns:
     """What a sweep's claims may name, from its axes and sampled block (before anything runs)."""
     factors, numeric = [], set()
     per_axis = []
@@ -122,9 +123,11 @@ def sweep_columns(axes, sample, leadership: bool) -> Columns:
                 row.update({name: values[level] for name, values in columns})
             rows.append(row)
         design = pd.DataFrame(rows) if rows else None
-    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES, migration=True))
+    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES, migration=True, dcd=dcd))
     off = {} if leadership else {m: "leadership metrics are computed only with run.leadership_metrics = true "
                                     "(or leadership.x swept)" for m in LEADERSHIP_METRIC_NAMES}
+    off |= {} if dcd else {m: "directional correlation delays are computed only with run.dcd_metrics = true"
+                           for m in DCD_METRIC_NAMES}
     return Columns(tuple(factors), frozenset(numeric), metrics, off, design)
 
 

@@ -29,6 +29,8 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     keep = "metrics"                # or "trajectories" (positions and velocities per run)
     trajectory_every = 6            # steps between stored trajectory frames when keep = "trajectories"
     leadership_metrics = "auto"     # trigger rate, follow response...: "auto" = when leadership.x is swept or > 0
+    dcd_metrics = false             # directional correlation delays (Nagy et al. 2010): dcd_* columns
+    dcd_max_delay = 2.0             # seconds: their largest delay (with dcd_metrics = true)
 
     [[axes]]                        # one factor: a key and its values (cartesian product of all axes)
     name = "mode"                   # column name (default: the key)
@@ -81,7 +83,7 @@ Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is s
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
 :func:`model_data` applies them to the preset the same way for both. ``warmup``, ``group_radius`` and
-``fragmentation_cohesion`` (and the leadership switch) become the run's
+``fragmentation_cohesion`` (and the leadership and directional correlation switches, ``dcd_max_delay``) become the run's
 :class:`~observables.summary.MetricSettings`; ``keep`` and ``trajectory_every`` what is stored
 (:class:`Storage`).
 """
@@ -92,6 +94,7 @@ from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
 from typing import Any, Literal
 
+from observables.directional_correlation import DCD_MAX_DELAY
 from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
@@ -133,6 +136,7 @@ class RunTable:
     capture_radius: float = ENCOUNTER_SETTINGS["capture_radius"]
     predator_near: float = ENCOUNTER_SETTINGS["predator_near"]
     prey_reach: float = ENCOUNTER_SETTINGS["prey_reach"]
+    dcd_max_delay: float = DCD_MAX_DELAY
 
     def __post_init__(self):
         radius = self.group_radius
@@ -145,26 +149,32 @@ class RunTable:
         return {short: (key, getattr(self, short)) for short, key in RUN_SHORTHANDS.items()
                 if getattr(self, short) is not None}
 
-    def metrics(self, leadership: bool) -> MetricSettings:
+    def metrics(self, leadership: bool, dcd: bool = False) -> MetricSettings:
         radius = None if self.group_radius == "auto" else float(self.group_radius)
         return MetricSettings(warmup=self.warmup, group_radius=radius,
                               fragmentation_cohesion=self.fragmentation_cohesion, leadership=leadership,
+                              dcd=dcd, dcd_max_delay=self.dcd_max_delay,
                               **{key: getattr(self, key) for key in ENCOUNTER_SETTINGS})
 
 
 @dataclass(frozen=True)
 class SweepRunTable(RunTable):
-    """A sweep's ``[run]``: the shared keys, what is stored and whether leadership metrics are computed."""
+    """A sweep's ``[run]``: the shared keys, what is stored and whether leadership metrics and directional
+    correlation delays are computed."""
 
     keep: Literal["metrics", "trajectories"] = "metrics"
     trajectory_every: int = 6
     leadership_metrics: Any = "auto"
+    dcd_metrics: bool = False
 
     def __post_init__(self):
         super().__post_init__()
         check_at_least("trajectory_every", self.trajectory_every, 1)
         if self.leadership_metrics not in ("auto", True, False):
             raise ConfigError("leadership_metrics", f'got {self.leadership_metrics!r}; allowed: "auto", true, false')
+        if not self.dcd_metrics and self.dcd_max_delay != DCD_MAX_DELAY:
+            raise ConfigError("dcd_max_delay", "sets the directional correlation delays, which a sweep computes only "
+                                               "with dcd_metrics = true: add it, or leave dcd_max_delay out")
 
 
 @dataclass(frozen=True)
@@ -370,6 +380,8 @@ class SweepConfig(FileConfig, loader="load_sweep"):
         m, s = self.metrics, self.storage
         record = {"warmup": m.warmup, "group_radius": m.group_radius, "fragmentation_cohesion": m.fragmentation_cohesion,
                   "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
+        if m.dcd:   # added later: absent when off, so model.json of earlier sweeps reads the same
+            record["dcd_max_delay"] = m.dcd_max_delay
         return record | encounter_settings(m)
 
 
@@ -507,8 +519,9 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
         dupes = sorted({x for x in items if items.count(x) > 1})
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
-    metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys))
-    claims = load_claims(table.claims, table.include_claims, base, sweep_columns(axes, sample or design, metrics.leadership))
+    metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys), table.run.dcd_metrics)
+    claims = load_claims(table.claims, table.include_claims, base,
+                         sweep_columns(axes, sample or design, metrics.leadership, metrics.dcd))
     return SweepConfig(name=table.name, description=table.description, seed=table.seed,
                        replicates=table.replicates, common_random_numbers=table.common_random_numbers,
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,

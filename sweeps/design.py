@@ -30,6 +30,7 @@ import itertools
 import json
 from dataclasses import dataclass
 
+from observables.directional_correlation import DCD_MAX_DELAY
 from observables.summary import ENCOUNTER_SETTINGS, MetricSettings
 from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
@@ -152,6 +153,7 @@ def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
     metrics = MetricSettings(warmup=analysis["warmup"], group_radius=analysis.get("group_radius"),
                              fragmentation_cohesion=analysis["fragmentation_cohesion"],
                              leadership=bool(analysis.get("leadership", False)),
+                             dcd="dcd_max_delay" in analysis, dcd_max_delay=analysis.get("dcd_max_delay", DCD_MAX_DELAY),
                              **{key: analysis.get(key, default) for key, default in ENCOUNTER_SETTINGS.items()})
     return preset, metrics.resolve(preset.model)
 

@@ -4,7 +4,8 @@
 * ``run_id(resolved_preset, metrics, storage, seed)``: the first 20 hex digits of the SHA-256 of the
   canonical JSON of everything that determines a run's results: the resolved preset (model, initial
   conditions, run settings), the metric settings (warm-up, group radius resolved for the run,
-  fragmentation threshold, leadership metrics when on, the obstacle/predator/prey metric settings
+  fragmentation threshold, leadership metrics when on, the directional correlation delays' largest
+  delay when they are on, the obstacle/predator/prey metric settings
   that differ from their defaults) and what is stored (keep, trajectory_every), the
   seed and ``simcore.MODEL_VERSION``. Run seeds are :func:`sweeps.seeds.run_seed`.
 """
@@ -32,6 +33,8 @@ def run_id(resolved_preset: dict, metrics, storage, seed: int) -> str:
                 "trajectory_every": storage.trajectory_every}
     if metrics.leadership:  # added later: absent when off, so earlier run ids stay valid
         settings["leadership"] = True
+    if metrics.dcd:  # likewise
+        settings["dcd_max_delay"] = metrics.dcd_max_delay
     settings.update(encounter_settings(metrics))  # likewise: only those that differ from their defaults
     spec = {"model_version": MODEL_VERSION, "preset": resolved_preset, "analysis": settings, "seed": seed}
     return hashlib.sha256(canonical(spec).encode()).hexdigest()[:20]

@@ -33,8 +33,9 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     [targets]                       # observed summary statistics
     summary = "mean"                # each simulated run summarised by "mean" (window mean after warmup)
                                     # or "final" (last record)
-    stats = ["cohesion", "polarization", "nn_distance"]   # per-record metric names or leadership
-                                                          # metric names (observables)
+    stats = ["cohesion", "polarization", "nn_distance"]   # per-record metric names, leadership metric
+                                                          # names or directional correlation delays
+                                                          # (dcd_*, up to run.dcd_max_delay = 2 s)
     mean = [0.9, 0.8, 2.5]          # observed values ...
     sd = [0.05, 0.05, 0.3]          # ... with their uncertainty (sd > 0), or cov = [[...], ...] (k x k,
                                     # symmetric positive definite); OR instead of mean/sd/cov:
@@ -67,7 +68,10 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # kind picks the default, --method another (analysis/calibration/method_table.py)
 
 Summary columns: a per-record metric ``x`` is compared through the run summary column ``x_mean`` or
-``x_final`` (``targets.summary``); a leadership metric is a per-run scalar and keeps its own name.
+``x_final`` (``targets.summary``); a leadership metric or a directional correlation delay (``dcd_*``,
+:mod:`observables.directional_correlation`) is a per-run scalar and keeps its own name (``RUN_SCALARS``).
+The ``dcd_*`` statistics need only velocities: simulated targets, ``from_tracks`` and the ``[observation]``
+block all take them.
 
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
@@ -97,6 +101,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from observables.directional_correlation import DCD_METRIC_NAMES
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.metrics import METRIC_NAMES
 from observables.observation import Observation
@@ -113,7 +118,13 @@ from .method_table import chosen_kind, method_settings
 from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
-STAT_NAMES = tuple(METRIC_NAMES) + tuple(LEADERSHIP_METRIC_NAMES)
+RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES   # per-run statistics: no _mean / _final
+STAT_NAMES = tuple(METRIC_NAMES) + RUN_SCALARS
+
+
+def stat_columns(stats, summary: str) -> tuple[str, ...]:
+    """The summary column of each statistic: ``<metric>_<summary>``, or a per-run scalar's own name."""
+    return tuple(s if s in RUN_SCALARS else f"{s}_{summary}" for s in stats)
 
 
 # ---------------------------------------------------------------------------------------- the file
@@ -379,7 +390,7 @@ def _covariance(targets: TargetsTable, k: int, stats) -> np.ndarray:
 def _targets(targets: TargetsTable, base: Path) -> Targets:
     stats = _stats(targets)
     k = len(stats)
-    columns = tuple(s if s in LEADERSHIP_METRIC_NAMES else f"{s}_{targets.summary}" for s in stats)
+    columns = stat_columns(stats, targets.summary)
     for key in ("aggregate", "tracks"):
         if getattr(targets, key) is not None:
             raise ConfigError(f"targets.{key}", "only with from_tracks = \"tracks file\"")
@@ -452,17 +463,16 @@ def _read_samples(path: Path, stats, columns) -> np.ndarray:
 def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path, kind: str
                       ) -> tuple[Targets, MetricSettings]:
     """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
-    metrics = table.run.metrics(leadership=False)
     stats = _stats(table.targets)
+    metrics = table.run.metrics(leadership=False, dcd=any(s in DCD_METRIC_NAMES for s in stats))
     if table.observation is not None:
         check_observation(table.observation, preset, table.run, stats, kind)
     if table.targets.from_tracks is None:
         targets = _targets(table.targets, base)
     else:
-        columns = tuple(f"{s}_{table.targets.summary}" for s in stats)
+        columns = stat_columns(stats, table.targets.summary)
         metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
-        found = tracks_targets(table.targets, table.observation, metrics.group_radius,
-                               metrics.fragmentation_cohesion, columns, base)
+        found = tracks_targets(table.targets, table.observation, metrics, columns, base)
         targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
                           observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
                           samples_path=found.path if found.cov is None else None, tracks_path=found.path,

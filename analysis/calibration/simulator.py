@@ -5,7 +5,7 @@ Contract
 :class:`SummarySimulator` is configured once and called many times:
 
     sim = SummarySimulator(base_preset_data, keys, columns, n_sim, warmup, group_radius=None,
-                           fragmentation_cohesion=0.5, observation=None)
+                           fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0)
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
 
@@ -21,11 +21,12 @@ Contract
   preset's ``[run]`` table.
 * ``columns`` (k,) are per-run summary columns, in the output's column order: any of
   :func:`observables.summary.summary_columns` (``<metric>_mean`` / ``<metric>_final``,
-  ``time_to_fragmentation``, ``fragmented`` and the leadership scalars). A row is
-  :func:`observables.summary.summarize_run` of the run with the metric settings ``warmup``,
-  ``group_radius`` and ``fragmentation_cohesion`` (leadership metrics when a leadership column is asked
-  for; with ``leadership.x = 0`` there are no events, so ``trigger_rate`` is 0). Unknown columns raise
-  ValueError at construction.
+  ``time_to_fragmentation``, ``fragmented``, the leadership scalars and the directional correlation
+  delays ``dcd_*``). A row is :func:`observables.summary.summarize_run` of the run with the metric
+  settings ``warmup``, ``group_radius`` and ``fragmentation_cohesion`` (leadership metrics when a
+  leadership column is asked for; with ``leadership.x = 0`` there are no events, so ``trigger_rate`` is
+  0; the directional correlation delays, up to ``dcd_max_delay`` s, when a ``dcd_*`` column is). Unknown
+  columns raise ValueError at construction.
 * ``group_radius`` None (default) uses the perception range of the model *at theta*, as the sweeps do,
   so a free perception radius also moves the group radius. Pass a number to keep it fixed.
 * ``observation`` (an :class:`observables.observation.Observation`, default None): each run is
@@ -56,6 +57,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from observables.directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.observation import observe_run
@@ -67,7 +69,7 @@ from sweeps.seeds import seeds_for
 
 from .checks import integer
 
-ALL_COLUMNS = summary_columns(leadership=True)
+ALL_COLUMNS = summary_columns(leadership=True, dcd=True)
 
 
 def _fresh_seed(seed):
@@ -97,7 +99,8 @@ class SummarySimulator:
 
     def __init__(self, base_preset_data: dict, keys: Sequence[str], columns: Sequence[str], n_sim: int,
                  warmup: float, group_radius: float | None = None,
-                 fragmentation_cohesion: float = FRAGMENTATION_COHESION, observation=None):
+                 fragmentation_cohesion: float = FRAGMENTATION_COHESION, observation=None,
+                 dcd_max_delay: float = DCD_MAX_DELAY):
         self.base = copy.deepcopy(dict(base_preset_data))
         self.observation = observation
         self.base_preset = preset_from_dict(self.base)
@@ -119,7 +122,9 @@ class SummarySimulator:
             raise ValueError(f"group_radius: got {group_radius!r}; must be a finite number > 0 or None")
         self.metrics = MetricSettings(warmup=float(warmup), group_radius=None if group_radius is None
                                       else float(group_radius), fragmentation_cohesion=fragmentation_cohesion,
-                                      leadership=any(c in LEADERSHIP_METRIC_NAMES for c in self.columns))
+                                      leadership=any(c in LEADERSHIP_METRIC_NAMES for c in self.columns),
+                                      dcd=any(c in DCD_METRIC_NAMES for c in self.columns),
+                                      dcd_max_delay=float(dcd_max_delay))
         full = self.base_preset.full_dict()
         integer_keys = []
         for key in self.keys:
@@ -142,7 +147,7 @@ class SummarySimulator:
         if n_sim == self.n_sim:
             return self
         return SummarySimulator(self.base, self.keys, self.columns, n_sim, self.warmup, self.group_radius,
-                                self.metrics.fragmentation_cohesion, self.observation)
+                                self.metrics.fragmentation_cohesion, self.observation, self.metrics.dcd_max_delay)
 
     def preset(self, theta) -> Preset:
         """The validated preset at ``theta`` (integer keys rounded; ConfigError naming the key when invalid)."""
@@ -197,4 +202,4 @@ def summary_simulator(config, n_sim: int | None = None) -> SummarySimulator:
     n_sim = config.method.n_sim if n_sim is None else n_sim
     m = config.metrics
     return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
-                            m.group_radius, m.fragmentation_cohesion, config.observation)
+                            m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay)

@@ -13,7 +13,7 @@ the user states).
 calibration file (one replicate: its values; several: their means, with the replicate sd in a comment;
 with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report).
 
-``measured_targets_block(path, tracks=None)`` is ``flocksweep targets --from-tracks``: the calibration
+``measured_targets_block(path, tracks=None, overrides=())`` is ``flocksweep targets --from-tracks``: the calibration
 file's targets measured from its ``from_tracks`` file (or from ``tracks`` instead of the file's own
 targets), one row per flock, as :func:`~analysis.calibration.tracks_targets.tracks_block` prints them.
 """
@@ -25,6 +25,7 @@ from pathlib import Path
 
 from simcore.schema import ConfigError, read_config
 
+from sweeps.model_set import model_overrides
 from sweeps.seeds import common_seeds
 
 from .config import CalibrationConfig, calibration_from_dict
@@ -75,13 +76,14 @@ def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None) -
     return "\n".join(lines) + "\n"
 
 
-def measured_targets_block(path, tracks=None) -> str:
-    """The targets of calibration file ``path`` measured from tracks (see the module docstring)."""
+def measured_targets_block(path, tracks=None, overrides=()) -> str:
+    """The targets of calibration file ``path`` (with ``key=value`` ``overrides``) measured from tracks (see
+    the module docstring); the file's ``targets.sd`` stays, as the flocks' measurement error."""
     path = Path(path)
-    data = read_config(path, "calibration file")
+    data = read_config(path, "calibration file", model_overrides(overrides))
     if tracks:
         targets = data.setdefault("targets", {})
-        for key in ("mean", "sd", "cov", "samples"):
+        for key in ("mean", "cov", "samples"):
             targets.pop(key, None)
         targets["from_tracks"] = str(Path(tracks).resolve())
     config = calibration_from_dict(data, path.resolve().parent)

@@ -15,6 +15,7 @@ A calibration file may take its targets from a track file instead of typed numbe
     from_tracks = "../tracks/synthetic_holland.csv.gz"
     aggregate = "samples"         # each measured flock is one sample of the statistics (default), or
                                   # "mean": the flocks' mean with the covariance of that mean
+    sd = [0.02, 0.3, 0.05]        # optional, with "samples": the measurement sd of one flock's statistics
 
     [targets.tracks]              # how to read them (defaults from the file's sidecar JSON)
     columns = { flock = "event" }
@@ -23,12 +24,16 @@ A calibration file may take its targets from a track file instead of typed numbe
     warmup = 0.0                  # seconds skipped at the start of each measured flock
 
 The tracks are measured by :func:`observables.measured.measure_tracks` with the observation's
-interval, gap limit and velocity interval, the calibration's fragmentation threshold and a fixed group
-radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
+interval, gap limit and velocity interval, the calibration's fragmentation threshold, its
+``run.dcd_max_delay`` (the directional correlation delays ``dcd_*`` need only velocities: they are
+measured on tracks and observed runs alike) and a fixed group radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
 :class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
 metres need ``body_length``), 2-D tracks need a ``projection`` and 3-D tracks must not have one, every
 flock must be measured and every target statistic finite; ``aggregate = "mean"`` needs more flocks than
-statistics.
+statistics. ``targets.sd`` (with ``aggregate = "samples"`` only: with "mean" the flocks' spread already holds
+their measurement error) is a known measurement error of one flock's statistics: the targets' covariance is
+then diag(sd^2), which the calibration adds to every simulated summary as Gaussian noise, so the synthetic
+likelihood's Gaussian has the replicate covariance plus diag(sd^2), as for typed mean/sd targets.
 
 :func:`check_observation` checks an ``[observation]`` block against the model and the rest of the file:
 an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
@@ -123,12 +128,30 @@ def fixed_group_radius(metrics: MetricSettings, preset, parameters) -> float:
 
 
 def _given_with_tracks(targets) -> None:
-    for key in ("mean", "sd", "cov", "samples"):
+    for key in ("mean", "cov", "samples"):
         if getattr(targets, key) is not None:
             raise ConfigError(f"targets.{key}", "not with from_tracks: the tracks give the targets")
 
 
-def _measure(path: Path, targets, observation: Observation, radius: float, fragmentation: float) -> Measurement:
+def measurement_sd(targets, k: int) -> np.ndarray | None:
+    """``targets.sd`` with from_tracks: (k,) measurement sd of one flock's statistics (> 0), or None."""
+    if targets.sd is None:
+        return None
+    if (targets.aggregate or "samples") != "samples":
+        raise ConfigError("targets.sd", 'only with aggregate = "samples": the flocks\' spread around their mean '
+                                        "already holds their measurement error")
+    values = targets.sd if isinstance(targets.sd, (list, tuple)) else [targets.sd]
+    try:
+        sd = np.array([float(v) for v in values if not isinstance(v, bool)], dtype=np.float64)
+    except (TypeError, ValueError):
+        sd = np.empty(0)
+    if sd.shape != (k,) or not (np.isfinite(sd).all() and (sd > 0).all()):
+        raise ConfigError("targets.sd", f"got {targets.sd!r}; expected {k} numbers > 0, one per stat (the "
+                                        "measurement sd of one flock's statistic)")
+    return sd
+
+
+def _measure(path: Path, targets, observation: Observation, metrics: MetricSettings) -> Measurement:
     source = track_source(path, targets.tracks or {}, "targets.tracks", cls=TracksTable)
     try:
         table = load_tracks(path, source)
@@ -142,22 +165,25 @@ def _measure(path: Path, targets, observation: Observation, radius: float, fragm
                                                     'too, e.g. projection = "xz" (the horizontal plane)')
     if table.dims == 3 and observation.projection != "none":
         raise ConfigError("observation.projection", f"{path.name} holds 3-D tracks; a projection is for 2-D ones")
-    settings = track_settings(radius, source.warmup, fragmentation)
+    settings = track_settings(metrics.group_radius, source.warmup, metrics.fragmentation_cohesion,
+                              metrics.dcd_max_delay)
     try:
         return measure_tracks(table, settings, observation.interval, observation.max_gap, observation.velocity_interval)
     except TrackError as err:
         raise ConfigError("targets.from_tracks", str(err)) from None
 
 
-def tracks_targets(targets, observation: Observation | None, radius: float, fragmentation: float, columns,
+def tracks_targets(targets, observation: Observation | None, metrics: MetricSettings, columns,
                    base: Path) -> TrackTargets:
-    """The targets of ``[targets] from_tracks`` (see the module docstring)."""
+    """The targets of ``[targets] from_tracks`` (see the module docstring); ``metrics``: the calibration's,
+    its group radius fixed (:func:`fixed_group_radius`)."""
     path = resolve_path(targets.from_tracks, base, "targets.from_tracks", "track file")
     if observation is None:
         raise ConfigError("targets.from_tracks", "needs an [observation] block (at least interval = seconds between "
                                                  "samples) so that simulated runs are measured as the tracks were")
     _given_with_tracks(targets)
-    measurement = _measure(path, targets, observation, radius, fragmentation)
+    measurement_sd(targets, len(columns))          # checked before the tracks are measured
+    measurement = _measure(path, targets, observation, metrics)
     runs = measurement.runs
     failed = runs[runs["status"] != "ok"]
     if len(failed):
@@ -170,8 +196,10 @@ def tracks_targets(targets, observation: Observation | None, radius: float, frag
         raise ConfigError("targets.stats", f"{columns[c]} is undefined (nan) for flock {runs['flock'].iloc[r]!r}; "
                                            "choose statistics every flock has")
     flocks = tuple(runs["flock"])
+    sd = measurement_sd(targets, per_flock.shape[1])
     if (targets.aggregate or "samples") == "samples":
-        return TrackTargets(per_flock, None, path, flocks, per_flock, measurement)
+        cov = None if sd is None else np.diag(sd ** 2)
+        return TrackTargets(per_flock, cov, path, flocks, per_flock, measurement)
     m, k = per_flock.shape
     if m < k + 1:
         raise ConfigError("targets.aggregate", f'"mean" needs more flocks than statistics for a covariance ({m} '
@@ -197,6 +225,8 @@ def tracks_block(config) -> str:
     mean = rows.mean(axis=0)
     lines += ["[targets]", f'summary = "{t.summary}"', "stats = [" + ", ".join(f'"{s}"' for s in stats) + "]",
               f'from_tracks = "{t.tracks_path}"      # each flock one sample']
+    if t.cov is not None and len(t.observed) > 1:
+        lines.append("sd = [" + ", ".join(f"{v:.6g}" for v in np.sqrt(np.diag(t.cov))) + "]      # measurement sd")
     if len(rows) > 1:
         cov = np.atleast_2d(np.cov(rows, rowvar=False, ddof=1)) / len(rows)
         lines += ['# or aggregate = "mean": the flocks\' mean and the covariance of that mean',

@@ -13,8 +13,9 @@ Contract
     * ``method.results``: folder missing, no ``runs.parquet`` / ``model.json``; the sweep's fixed
       settings differ from the calibration's (every resolved preset value that neither design varies
       is compared: model name, dynamics, run duration, dt, record interval, ``init.n``, steering, ...;
-      plus the warmup, an automatic group radius, and the fragmentation threshold when a
-      fragmentation column is a target); a swept factor that is not a free parameter has no run at the
+      plus the warmup, an automatic group radius, the fragmentation threshold when a fragmentation
+      column is a target, and ``dcd_max_delay`` when a directional correlation delay is); a swept
+      factor that is not a free parameter has no run at the
       calibration's value (only the runs at that value are kept; the values available are listed);
       fewer than ``d + 2`` points with >= 2 replicates, or no replicates at all; points that do not
       vary the free parameters independently (e.g. a zipped axis moving two of them together);
@@ -46,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from observables.directional_correlation import DCD_METRIC_NAMES
 from observables.metrics import FRAGMENTATION_COHESION
 from simcore.params import canonical_key, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
@@ -268,6 +270,10 @@ def _analysis_differences(config, model: dict) -> list[str]:
         threshold = analysis.get("fragmentation_cohesion", FRAGMENTATION_COHESION)
         if not _same(threshold, mine.fragmentation_cohesion):
             out.append(f"fragmentation_cohesion: sweep {threshold!r}, calibration {mine.fragmentation_cohesion!r}")
+    if any(c in DCD_METRIC_NAMES for c in config.targets.columns):
+        delay = analysis.get("dcd_max_delay")
+        if delay is not None and not _same(delay, mine.dcd_max_delay):
+            out.append(f"dcd_max_delay: sweep {delay!r}, calibration {mine.dcd_max_delay!r}")
     return out
 
 

@@ -1,7 +1,8 @@
 """``flocksweep measure``: the command line of :func:`analysis.reports.measured.measure_folder`.
 
-    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet] [--columns ROLE=NAME ...]
-                       [--units length=m|cm|mm|km|bl time=s|ms|min|h|datetime] [--body-length METRES]
+    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet|mat|idtracker|trex|trajr|movebank]
+                       [--fps HZ] [--body-length-px PX] [--layout KEY=VALUE ...] [--columns ROLE=NAME ...]
+                       [--units length=m|cm|mm|km|bl|px time=s|ms|min|h|datetime|frame] [--body-length METRES]
                        [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
                        [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
                        [--no-figures] [--no-progress]
@@ -10,19 +11,22 @@ Lengths given here (group radius, max speed) are in the analysis units: body len
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
 when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
 ``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
-``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks exit
-with status 2 after listing every problem (and writing ``validation.csv``).
+``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks, and
+tracks of which no flock could be measured, exit with status 2 after listing every problem (and writing
+``validation.csv``); warnings and flocks not measured are printed on stderr (the first 10).
 """
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
+from observables.directional_correlation import DCD_MAX_DELAY
 from observables.measured import track_settings
 from observables.metrics import FRAGMENTATION_COHESION
 from observables.resample import RECORDED
+from observables.track_formats import FORMATS
 from observables.tracks import LENGTH_UNITS, ROLES, track_source
-from observables.validation import TrackError
+from observables.validation import TrackError, describe
 from simcore.schema import ConfigError
 
 from .measured import measure_folder
@@ -33,17 +37,26 @@ DESCRIPTION = ("Compute every flock metric from measured trajectories (long form
 
 
 def add_arguments(p) -> None:
-    p.add_argument("tracks", type=Path, help="track file: CSV (also .csv.gz) or Parquet, one row per detection")
+    p.add_argument("tracks", type=Path, help="track file or folder: long CSV (also .csv.gz) or Parquet, one row per "
+                                             "detection, or a tracker's or logger's file (--format)")
     p.add_argument("--group-radius", type=float, required=True, metavar="R",
                    help="individuals closer than R are linked into one group (analysis length units: body "
                         "lengths with --body-length, else metres); groups, cohesion and the shape metrics use it")
-    p.add_argument("--format", choices=("auto", "csv", "parquet"), default=None,
-                   help="file format (default: from the extension)")
+    p.add_argument("--format", choices=FORMATS, default=None,
+                   help="file format (default: detected from the file): long csv or parquet; mat (MATLAB, with "
+                        "--layout), idtracker (trajectories.npy/.npz), trex (a folder of per-individual exports), "
+                        "trajr (a folder of one CSV per individual), movebank (GPS, projected to metres)")
+    p.add_argument("--fps", type=float, metavar="HZ", help="frames per second, for times given as frame numbers")
+    p.add_argument("--body-length-px", type=float, metavar="PX",
+                   help="body length in pixels, for tracks in pixels (lengths become body lengths)")
+    p.add_argument("--layout", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="a .mat file's array: variable=NAME axes=individual,channel,sample channels=x,y,vx,vy "
+                        "[time=NAME]")
     p.add_argument("--columns", nargs="+", default=[], metavar="ROLE=NAME",
                    help=f"column map, e.g. id=bird t=time; roles: {', '.join(ROLES)}")
     p.add_argument("--units", nargs="+", default=[], metavar="KIND=UNIT",
-                   help="length=m|cm|mm|km|bl and time=s|ms|min|h|datetime (default m and s); a bare unit "
-                        "such as cm means length")
+                   help="length=m|cm|mm|km|bl|px and time=s|ms|min|h|datetime|frame (default m and s, or what the "
+                        "format implies); a bare unit such as cm means length")
     p.add_argument("--body-length", type=float, metavar="METRES",
                    help="body length in metres: lengths become body lengths (BL), speeds BL/s")
     p.add_argument("--interval", type=float, metavar="S",
@@ -59,6 +72,8 @@ def add_arguments(p) -> None:
                    help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
     p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
                    help="samples reached at an impossible speed: stop (default), keep them, or drop them")
+    p.add_argument("--dcd-max-delay", type=float, default=DCD_MAX_DELAY, metavar="S",
+                   help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
     p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -87,19 +102,34 @@ def _velocity_interval(text: str | None):
         raise ConfigError("--velocity-interval", f"got {text!r}; expected seconds or 'recorded'") from None
 
 
+SHOWN_WARNINGS = 10
+
+
+def _print_warnings(issues, line_offset, out: Path) -> None:
+    """The errors (flocks not measured) and warnings on stderr, the first SHOWN_WARNINGS of them."""
+    loud = [i for i in issues if i.level in ("error", "warning")]
+    for issue in loud[:SHOWN_WARNINGS]:
+        print(f"flocksweep: {describe(issue, line_offset)}", file=sys.stderr)
+    if len(loud) > SHOWN_WARNINGS:
+        print(f"flocksweep: ... and {len(loud) - SHOWN_WARNINGS} more in {out / 'validation.csv'}", file=sys.stderr)
+
+
 def run(args) -> int:
     units = _pairs(args.units, "--units", bare="length")
     if "length" in units and units["length"] not in LENGTH_UNITS:
         units["length"] = units["length"].lower()
     given = {"columns": _pairs(args.columns, "--columns"), "units": units, "body_length": args.body_length,
-             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format}
+             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format, "fps": args.fps,
+             "body_length_px": args.body_length_px, "layout": _pairs(args.layout, "--layout")}
     given = {k: v for k, v in given.items() if v not in (None, {})}
     source = track_source(args.tracks, given, "")
+    if not args.dcd_max_delay >= 0:
+        raise ConfigError("--dcd-max-delay", f"got {args.dcd_max_delay}; expected seconds >= 0")
     for flag, value in (("--interval", args.interval), ("--max-gap", args.max_gap)):
         if value is not None and not value > 0:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
     try:
-        settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion)
+        settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion, args.dcd_max_delay)
     except (ValueError, ConfigError) as err:
         raise ConfigError("--group-radius" if "radius" in str(err) else "--warmup", str(err)) from None
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
@@ -118,8 +148,7 @@ def run(args) -> int:
     shown = runs[["flock", "individuals", "records", "tracked_mean", "polarization_mean", "nn_distance_mean",
                   "speed_mean_mean", "cohesion_mean"]]
     print(shown.head(20).round(4).to_string(index=False))
-    for name, error in runs.loc[runs["status"] == "failed", ["flock", "error"]].itertuples(index=False):
-        print(f"  flock {name} not measured: {error}")
+    _print_warnings(result["measurement"].issues, table.line_offset, out)
     for path in result["paths"].values():
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'runs.parquet'}, {result['out'] / 'timeseries.parquet'}, "

@@ -14,6 +14,9 @@ formats=("html", "md"), figures=True, progress=False) -> dict`` reads a track fi
   provenance stamp;
 * ``figures/metrics_over_time.png`` (every flock, one panel per metric) and ``figures/flock_<name>.png``
   (one per flock, for the first 12 flocks: the time series of all are in ``timeseries.parquet``);
+  ``figures/hierarchy_<name>.png`` (the same flocks with at least two individuals: the leader-follower
+  network and hierarchy of the directional correlation delays, :mod:`analysis.reports.hierarchy`, computed
+  by :func:`observables.summary.run_directional_correlation` as for the ``dcd_*`` columns);
   ``report.md`` and a self-contained ``report.html``. ``figures=False`` leaves the figures out (large
   data sets: matplotlib takes seconds per figure); ``progress`` shows progress bars (flocks, figures).
 
@@ -31,13 +34,14 @@ from tqdm import tqdm
 
 from observables.measured import Measurement, measure_tracks, velocity_label
 from observables.resample import RECORDED
-from observables.summary import MetricSettings
+from observables.summary import MetricSettings, run_directional_correlation
 from observables.tracks import TrackSource, load_tracks, read_sidecar
 from observables.validation import TrackError, issues_table
 from sweeps.files import write_parquet
 from sweeps.store import OutputFolder
 
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
+from .hierarchy import hierarchy_figure
 from .plotting import pyplot, save
 
 UNITS = {"nn_distance": "L", "gyration_radius": "L", "speed_mean": "L/s", "n_groups": "count",
@@ -47,7 +51,8 @@ FIGURE_METRICS = ("polarization", "nn_distance", "speed_mean", "cohesion", "n_gr
 FLOCK_FIGURES = 12          # figures of single flocks drawn at most
 TABLE_COLUMNS = ("flock", "status", "individuals", "records", "duration", "tracked_mean", "polarization_mean",
                  "nn_distance_mean", "speed_mean_mean", "speed_cv_mean", "cohesion_mean", "n_groups_mean",
-                 "gyration_radius_mean", "elongation_mean", "milling_mean")
+                 "gyration_radius_mean", "elongation_mean", "milling_mean", "dcd_corr_mean", "dcd_delay_mean",
+                 "dcd_edges", "dcd_leader_delay")
 
 
 def _slug(name: str) -> str:
@@ -83,7 +88,26 @@ def series_figure(ts: pd.DataFrame, names: list, metrics: list, path, unit: str,
     return save(fig, path, tight=False)
 
 
-def _figures(measurement: Measurement, folder: OutputFolder, unit: str, progress: bool) -> list:
+def _hierarchy_figures(measurement: Measurement, folder: OutputFolder, settings: MetricSettings,
+                       progress: bool) -> list:
+    flocks = [f for f in measurement.flocks if f.n >= 2][:FLOCK_FIGURES]
+    if not flocks:
+        return []
+    blocks = [Heading("Leader-follower hierarchy"),
+              Para("Directional correlation delays (Nagy et al. 2010): an edge i -> j when j flies as i flew "
+                   f"tau* earlier (maximum correlation C* >= 0.5 at tau* > 0, delays up to {settings.dcd_max_delay:g} s, "
+                   f"records at t >= {settings.warmup:g} s). Individuals are ordered by their mean delay over "
+                   "the pairs they correlate with (score, rank 1 on top).")]
+    for flock in tqdm(flocks, desc="hierarchies", unit="flock", disable=not progress):
+        dc = run_directional_correlation(flock, settings)
+        path = hierarchy_figure(dc, flock.ids, folder.path(f"figures/hierarchy_{_slug(flock.name)}.png"),
+                                f"flock {flock.name}: {int(dc.edges.sum())} leader-follower edges")
+        blocks.append(Figure(path, f"Leader-follower network and delays of flock {flock.name}"))
+    return blocks
+
+
+def _figures(measurement: Measurement, folder: OutputFolder, unit: str, settings: MetricSettings,
+             progress: bool) -> list:
     ts = measurement.timeseries
     if ts.empty:
         return []
@@ -101,7 +125,7 @@ def _figures(measurement: Measurement, folder: OutputFolder, unit: str, progress
         path = series_figure(ts, [name], metrics, folder.path(f"figures/flock_{_slug(name)}.png"), unit,
                              f"flock {name}")
         blocks.append(Figure(path, f"Flock {name}"))
-    return blocks
+    return blocks + _hierarchy_figures(measurement, folder, settings, progress)
 
 
 def _report(measurement: Measurement, settings: MetricSettings, info: dict, issues: pd.DataFrame,
@@ -155,8 +179,9 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         _write_parquet(folder, "timeseries.parquet", measurement.timeseries)
         velocities = velocity_label(velocity_interval, interval)
         info = {"tracks": str(Path(path).resolve()), "description": read_sidecar(path).get("description", ""),
-                "dims": table.dims, "length_unit": table.unit_label, "units": dict(source.units),
-                "columns": dict(source.columns), "body_length_m": source.body_length,
+                "dims": table.dims, "length_unit": table.unit_label, "units": dict(table.source.units),
+                "columns": dict(table.source.columns), "body_length_m": table.source.body_length,
+                "format": table.source.format,
                 "interval": interval if interval is not None else "inferred per flock (runs.interval)",
                 "max_gap": max_gap if max_gap is not None else "2.5 x interval", "velocities": velocities,
                 "warmup": settings.warmup, "group_radius": settings.group_radius,
@@ -165,7 +190,7 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         folder.write_json("measure.json", {**info, **folder.provenance()})
         for stale in folder.path("figures").glob("*.png") if folder.path("figures").is_dir() else []:
             stale.unlink()
-        drawn = _figures(measurement, folder, table.unit_label, progress) if figures else []
+        drawn = _figures(measurement, folder, table.unit_label, settings, progress) if figures else []
         blocks = _report(measurement, settings, info, issues, drawn)
         written = {}
         if "md" in formats:

@@ -43,6 +43,7 @@ def test_exported_tracks_give_exactly_the_simulators_metrics(pattern_run, tmp_pa
     measured = measure_tracks(table, track_settings(settings.group_radius, warmup=1.0), velocity_interval="recorded")
     (got,) = measured.runs.to_dict("records")
     assert got["status"] == "ok" and got["records"] == len(obs.times) and got["interval"] == 0.1
+    assert not [i for i in measured.issues if i.level != "note"]    # the simulator's velocities agree
     for column in summary_columns(leadership=False):
         if column.rsplit("_", 1)[0] in PERCEPTION:
             assert np.isnan(got[column])
@@ -81,5 +82,20 @@ def test_planar_tracks_match_a_projected_run(pattern_run, tmp_path):
     simulated = summarize_run(observe_run(obs, observation, 0), settings)
     (got,) = measured.runs.to_dict("records")
     assert got["dims"] == 2
+    for column, value in simulated.items():
+        assert np.array_equal(got[column], value, equal_nan=True), column
+
+
+def test_planar_tracks_with_velocities_match_a_projected_run_with_recorded_velocities(pattern_run, tmp_path):
+    preset, obs = pattern_run
+    frame = tracks_frame(obs, "sim").drop(columns=["z", "vz"])
+    table = load_tracks(_write(frame, tmp_path / "flat.csv"), TrackSource(units={"length": "bl"}))
+    assert table.dims == 2 and table.has_velocity
+    observation = Observation(interval=0.1, velocity_interval="recorded", projection="xy")
+    settings = track_settings(7.0)
+    measured = measure_tracks(table, settings, 0.1, None, "recorded")
+    simulated = summarize_run(observe_run(obs, observation, 0), settings)
+    (got,) = measured.runs.to_dict("records")
+    assert got["dims"] == 2 and got["status"] == "ok"
     for column, value in simulated.items():
         assert np.array_equal(got[column], value, equal_nan=True), column

@@ -196,6 +196,52 @@ def test_a_flock_too_short_for_the_velocity_interval_is_a_failed_row_with_its_re
     assert runs.loc["short", "status"] == "failed" and "too few" in runs.loc["short", "error"]
     assert np.isnan(runs.loc["short", "polarization_mean"]) and len(measured.flocks) == 1
     assert set(measured.timeseries["run_id"]) == {"long"}
+    (failed,) = [i for i in measured.issues if i.level == "error"]
+    assert failed.check == "not measured" and failed.flock == "short" and "too few" in failed.detail
     # the straight flock: aligned, 2 m apart along a line, flying at 1 m/s
     assert runs.loc["long", "polarization_mean"] == 1.0 and np.isclose(runs.loc["long", "nn_distance_mean"], 2.0)
     assert np.isclose(runs.loc["long", "speed_mean_mean"], 1.0)
+    # everyone flies the same heading: correlated 1 at every delay, so no one leads (delay 0, no edge)
+    assert runs.loc["long", "dcd_corr_mean"] == 1.0 and runs.loc["long", "dcd_edges"] == 0.0
+    assert runs.loc["long", "dcd_delay_mean"] == 0.0
+
+
+def test_every_missing_column_is_named_at_once(tmp_path):
+    path = write(straight_tracks().rename(columns={"id": "bird", "t": "time"}), tmp_path / "t.csv")
+    with pytest.raises(TrackError) as caught:
+        load_tracks(path, TrackSource())
+    text = str(caught.value)
+    assert "2 problem(s)" in text and "role 'id'" in text and "role 't'" in text
+
+
+def test_unmapped_columns_are_listed_with_a_hint(tmp_path):
+    frame = straight_tracks().drop(columns=["z"]).assign(vx_ms=1.0, vy_ms=0.0, note="a")
+    table = load_tracks(write(frame, tmp_path / "t.csv"), TrackSource())
+    (issue,) = table.issues
+    assert issue.level == "warning" and issue.check == "unmapped columns"
+    assert "3 column(s) not used: vx_ms, vy_ms, note" in issue.detail and "vx_ms (a vx?)" in issue.detail
+    mapped = load_tracks(write(frame, tmp_path / "t.csv"), TrackSource(columns={"vx": "vx_ms", "vy": "vy_ms"}))
+    assert mapped.has_velocity and "1 column(s) not used: note" in mapped.issues[0].detail
+
+
+def test_zero_padded_velocities_warn_naming_flock_individual_and_sample(tmp_path):
+    frame = straight_tracks(flocks=("F1",)).assign(vx=1.0, vy=0.0, vz=0.0)
+    last = (frame["id"] == 2) & (frame["t"] == frame["t"].max())
+    frame.loc[last, ["vx", "vy", "vz"]] = 0.0                      # the logger's zero padding
+    table = load_tracks(write(frame, tmp_path / "t.csv"), TrackSource())
+    measured = measure_tracks(table, track_settings(5.0), velocity_interval="recorded")
+    (issue,) = [i for i in measured.issues if i.check == "velocity"]
+    assert issue.level == "warning" and issue.flock == "F1" and issue.id == "2"
+    assert issue.rows == (int(np.flatnonzero(last)[0]) + 1,) and "1 sample(s) at t = 5 s" in issue.detail
+    assert "recorded speed 0, from positions 1" in issue.detail
+    # velocities that agree give no warning; differenced velocities are not checked against anything
+    clean = load_tracks(write(frame.assign(vx=1.0), tmp_path / "c.csv"), TrackSource())
+    assert not [i for i in measure_tracks(clean, track_settings(5.0)).issues if i.check == "velocity"]
+
+
+def test_tracks_of_which_no_flock_can_be_measured_are_an_error(tmp_path):
+    table = load_tracks(write(straight_tracks(), tmp_path / "t.csv"), TrackSource())
+    with pytest.raises(TrackError, match=r"not measured: flock 'A'.*no velocities"):
+        measure_tracks(table, track_settings(5.0), velocity_interval="recorded")
+    with pytest.raises(TrackError, match=r"not measured: flock 'A'.*too few"):
+        measure_tracks(table, track_settings(5.0), 0.5, None, 6.0)

@@ -108,6 +108,32 @@ def test_aggregate_mean_gives_the_mean_and_the_covariance_of_the_mean(tracks, tm
     assert config.targets.samples_path is None and observation_covariance(config) is not None
 
 
+def test_a_measurement_sd_is_added_to_the_replicate_covariance(tracks, tmp_path, capsys):
+    text = calibration_text(tracks.name, targets_extra="sd = [0.05, 0.5, 0.1]")
+    config = load_calibration(write_config(tmp_path, text))
+    assert config.targets.observed.shape == (5, 3) and config.targets.samples_path is None
+    assert np.array_equal(observation_covariance(config), np.diag([0.05, 0.5, 0.1]) ** 2)
+    plain = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))
+    assert np.array_equal(config.targets.observed, plain.targets.observed)
+    # the simulator adds that noise: with common seeds the difference is one draw of N(0, diag(sd^2))
+    noisy = summary_simulator(config, n_sim=5)
+    assert noisy.simulate(np.array(THETA), list(SEEDS)).shape == (5, 3)
+    for bad, message in (("sd = [0.05, 0.5]", "expected 3 numbers > 0"), ("sd = [0.05, 0.5, -1]", "expected 3"),
+                         ('sd = [0.05, 0.5, 0.1]\naggregate = "mean"', 'only with aggregate = "samples"')):
+        with pytest.raises(ConfigError, match=message) as caught:
+            load_calibration(write_config(tmp_path, calibration_text(tracks.name, targets_extra=bad)))
+        assert caught.value.key == "targets.sd"
+    # flocksweep targets --set: the override reaches the measured targets
+    path = write_config(tmp_path, calibration_text(tracks.name))
+    assert main(["targets", str(path), "--from-tracks", "--set", "targets.sd=[0.05, 0.5, 0.1]"]) == 0
+    assert "sd = [0.05, 0.5, 0.1]" in capsys.readouterr().out
+    assert main(["targets", str(path), "--from-tracks"]) == 0
+    default = capsys.readouterr().out
+    assert main(["targets", str(path), "--from-tracks", "--set", "observation.velocity_interval=0.6"]) == 0
+    changed = capsys.readouterr().out
+    assert "velocities over 0.6" in changed or changed.splitlines()[3:] != default.splitlines()[3:]
+
+
 @pytest.mark.parametrize("change, key, message", [
     (dict(observation=""), "observation.interval", "missing"),
     (dict(targets_extra="mean = [0.9, 5, 2]"), "targets.mean", "not with from_tracks"),
@@ -206,3 +232,45 @@ def test_a_calibration_from_tracks_runs_end_to_end_through_the_cli(tracks, tmp_p
     assert list(posterior["parameter"]) == ["separation", "alignment"]
     predictive = pd.read_csv(out / "predictive.csv")
     assert len(predictive) == 3 and (out / "chain.h5").exists()
+
+
+DCD_STATS = '["polarization", "dcd_corr_mean", "dcd_delay_mean", "dcd_leader_delay"]'
+
+
+def test_directional_correlation_delays_are_statistics_measured_alike_on_runs_and_tracks(tracks, tmp_path):
+    text = calibration_text(tracks.name, run_extra="dcd_max_delay = 0.6",
+                            targets_extra="[targets.tracks]\nwarmup = 1.0").replace(
+        'stats = ["polarization", "nn_distance", "speed_mean"]', f"stats = {DCD_STATS}")
+    config = load_calibration(write_config(tmp_path, text))
+    assert config.targets.columns == ("polarization_mean", "dcd_corr_mean", "dcd_delay_mean", "dcd_leader_delay")
+    assert config.metrics.dcd and config.metrics.dcd_max_delay == 0.6
+    rows = summary_simulator(config, n_sim=5).simulate(np.array(THETA), list(SEEDS))
+    assert np.array_equal(rows, config.targets.observed) and np.isfinite(rows).all()
+    assert len(np.unique(rows[:, 3])) > 1                       # the flocks differ: not a constant
+    # flocksweep measure on the same track file, measured as the [observation] block says, gives them too
+    out = tmp_path / "measured"
+    assert main(["measure", str(tracks), "--group-radius", "20", "--interval", "0.2", "--velocity-interval", "0.4",
+                 "--warmup", "1.0", "--dcd-max-delay", "0.6", "--out", str(out), "--no-figures",
+                 "--no-progress"]) == 0
+    measured = pd.read_parquet(out / "runs.parquet").set_index("flock")
+    for k, flock in enumerate(config.targets.flocks):
+        assert np.array_equal(measured.loc[flock, list(config.targets.columns)].to_numpy(float), rows[k])
+    # a longer largest delay is another statistic
+    longer = load_calibration(write_config(tmp_path, text.replace("dcd_max_delay = 0.6", "dcd_max_delay = 1.0")))
+    assert not np.array_equal(longer.targets.observed, config.targets.observed)
+
+
+def test_a_simulated_target_may_name_a_directional_correlation_delay(tmp_path):
+    text = calibration_text("unused").replace("[observation]\ninterval = 0.2\nvelocity_interval = 0.4", "")
+    text = text.replace('stats = ["polarization", "nn_distance", "speed_mean"]\nfrom_tracks = "unused"',
+                        'stats = ["polarization", "dcd_corr_mean"]\nmean = [0.9, 0.8]\nsd = [0.05, 0.1]')
+    config = load_calibration(write_config(tmp_path, text.replace("warmup = 1.0", "warmup = 1.0\nrecord_interval = 0.2")))
+    assert config.targets.columns == ("polarization_mean", "dcd_corr_mean") and config.metrics.dcd
+    simulator = summary_simulator(config, n_sim=2)
+    preset = simulator.preset(np.array(THETA))
+    run = simulate(preset.model, preset.init, 5, preset.run.duration, preset.run.dt, preset.run.record_every)
+    alone = summarize_run(run, config.metrics.resolve(preset.model))
+    assert np.array_equal(simulator.simulate(np.array(THETA), [5, 6])[0], [alone["polarization_mean"],
+                                                                          alone["dcd_corr_mean"]])
+    with pytest.raises(ConfigError, match=r"targets.stats: unknown metric 'dcd_corr'.*did you mean"):
+        load_calibration(write_config(tmp_path, text.replace('"dcd_corr_mean"]', '"dcd_corr"]')))

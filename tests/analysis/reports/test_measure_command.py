@@ -76,3 +76,89 @@ def test_the_shipped_synthetic_example_measures_with_its_glitch_reported(tmp_pat
     assert "SYNTHETIC" in report and len(list((out / "figures").glob("flock_F*.png"))) == 8
     assert "figures/metrics_over_time.png" in report and "Flock F8" in report
     assert (out / "figures/metrics_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_two_dimensional_tracks_with_velocities_measure(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    path.write_text("id,t,x,y,vx,vy\n1,0,0,0,1,0\n1,1,1,0,1,0\n2,0,0,1,1,0\n2,1,1,1,1,0\n")
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(out), "--no-figures"]) == 0
+    assert "2-D" in capsys.readouterr().out
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "dims"] == 2 and runs.loc[0, "polarization_mean"] == 1.0
+    assert runs.loc[0, "speed_mean_mean"] == 1.0 and runs.loc[0, "nn_distance_mean"] == 1.0
+
+
+def test_zero_padding_warns_and_no_measurable_flock_exits_2(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    rows = [f"{i},{k * 0.1:g},{k * 0.1:g},{i},{0 if k == 9 and i == 2 else 1},0" for i in (1, 2) for k in range(10)]
+    path.write_text("id,t,x,y,vx,vy\n" + "\n".join(rows) + "\n")
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(tmp_path / "a"), "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: velocity: flock 't', id 2, row 20 (line 21): 1 sample(s) at t = 0.9 s" in err
+    code = main(["measure", str(path), "--group-radius", "5", "--velocity-interval", "1.5", "--out",
+                 str(tmp_path / "b"), "--no-figures"])
+    err = capsys.readouterr().err
+    assert code == 2 and "not measured: flock 't'" in err and "too few" in err
+    assert pd.read_csv(tmp_path / "b" / "validation.csv")["check"].tolist() == ["not measured"]
+
+
+def test_a_matlab_file_of_birds_channels_samples_measures_from_the_command_line(tmp_path, capsys):
+    import scipy.io
+    t = np.arange(20) / 10.0                                    # 10 Hz, frame numbers in the file
+    birds = np.stack([np.stack([t * 15.0, np.full(20, 3.0 * b), np.full(20, 15.0), np.zeros(20)])
+                      for b in range(3)])                       # birds x (x, y, vx, vy) x samples, metres
+    path = tmp_path / "flight.mat"
+    scipy.io.savemat(path, {"data": birds})
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--group-radius", "5", "--fps", "10", "--layout", "channels=x,y,vx,vy",
+                 "--out", str(out), "--no-figures"]) == 0
+    assert "1 flock(s), 1 measured, 2-D" in capsys.readouterr().out
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "interval"] == 0.1 and runs.loc[0, "speed_mean_mean"] == 15.0
+    assert runs.loc[0, "polarization_mean"] == 1.0 and runs.loc[0, "nn_distance_mean"] == 3.0
+
+
+@pytest.mark.parametrize("name, content, args, message", [
+    ("a.mat", None, ["--fps", "10"], "layout.channels: missing"),
+    ("b.mat", None, ["--layout", "channels=x,y,vx,vy"], "fps: the times are frame numbers"),
+    ("c.mat", b"MATLAB 5.0 MAT-file, but cut short", [], "cannot read it as a MATLAB .mat file"),
+    ("d.csv", b"timestamp,location-long,location-lat,individual-local-identifier\n2010-01-01,190.0,47.0,a\n", [],
+     "latitude/longitude outside"),
+    ("e.csv", b"bird,time,x\n1,0,0\n", [], "no column for role 'id'"),
+])
+def test_bad_files_exit_2_with_one_message(tmp_path, capsys, name, content, args, message):
+    import scipy.io
+    path = tmp_path / name
+    if content is None:
+        scipy.io.savemat(path, {"data": np.zeros((3, 4, 5))})
+    else:
+        path.write_bytes(content)
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    if "no column for role 'id'" in message:
+        assert "no column for role 't'" in err and "no column for role 'y'" in err   # all at once
+
+
+def test_the_report_draws_each_flocks_leader_follower_hierarchy(tmp_path, capsys):
+    from PIL import Image
+
+    from planted_flocks import write_planted_tracks
+    planted = [0, 2, 4, 7, 3]                   # individual 0 leads; 3 follows everyone, 7 records late
+    write_planted_tracks(tmp_path / "planted.parquet", planted, 120, 0.2)
+    out = tmp_path / "out"
+    assert main(["measure", str(tmp_path / "planted.parquet"), "--group-radius", "50", "--out", str(out),
+                 "--no-progress"]) == 0
+    path = out / "figures/hierarchy_planted.png"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = Image.open(path).size
+    assert width >= 1400 and height >= 600      # 11 x 5 inches at 150 dpi: readable at a report's width
+    report = (out / "report.md").read_text()
+    assert "## Leader-follower hierarchy" in report and "figures/hierarchy_planted.png" in report
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "dcd_edges"] * 5 == 10    # every pair correlates: 10 edges, from the earlier copier
+    # without figures there is none
+    assert main(["measure", str(tmp_path / "planted.parquet"), "--group-radius", "50", "--out", str(tmp_path / "b"),
+                 "--no-figures", "--no-progress"]) == 0
+    assert not (tmp_path / "b/figures").exists()
