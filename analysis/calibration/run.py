@@ -21,7 +21,8 @@ results do not depend on it.
 * ``posterior.nc``: ArviZ InferenceData (posterior with parameter names, walkers as chains; sample
   stats with the log likelihood and acceptance; posterior predictive of the target statistics; observed
   data; prior draws; :mod:`~analysis.calibration.inference`);
-* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly). It records everything
+* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly, and so does the same
+  command run again without it: an existing chain is always continued, never replaced). It records everything
   that defines the chain (:func:`chain_meta`: seed, walkers, moves, likelihood, re-evaluation, n_sim, the
   parameters and their priors, the targets, the model and the metric settings); ``resume`` with any of
   them changed is refused with the list of differences (``ChainMismatch``, a ConfigError at
@@ -79,7 +80,7 @@ from tqdm import tqdm
 
 from analysis.reports.labels import parameter_label
 from simcore import MODEL_VERSION
-from simcore.schema import ConfigError, to_dict
+from simcore.schema import to_dict
 from sweeps.executors import Executor
 from sweeps.files import atomic_path, json_ready
 from sweeps.seeds import Tag, generator
@@ -223,9 +224,9 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
     default = Path("results") / "calibration" / (config.folder_name or config.name)
     folder = OutputFolder(Path(out_dir) if out_dir else default)
-    chain_path = folder.path("chain.h5")
-    if config.method.kind != "optimize" and chain_path.exists() and not resume:
-        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
+    # the same command, run again after any interrupt, continues the stored chain (checked to have
+    # been made with the same settings, else ChainMismatch)
+    resume = resume or (config.method.kind != "optimize" and folder.path("chain.h5").exists())
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
             outcome = _optimize(config, folder, pool)

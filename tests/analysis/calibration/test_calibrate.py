@@ -82,12 +82,16 @@ def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_p
 
 
 @pytest.mark.slow
-def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_path):
+def test_an_existing_chain_is_continued_never_replaced_and_resume_extends_it(truth_targets, tmp_path):
     config = calibration_from_dict(tiny(truth_targets, steps=10), ROOT)
     calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)
+    chain = (tmp_path / "c" / "chain.h5").read_bytes()
+    calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)   # the same command: nothing to add
+    assert (tmp_path / "c" / "chain.h5").read_bytes() == chain
+    other = calibration_from_dict({**tiny(truth_targets, steps=10), "seed": 5}, ROOT)
     with pytest.raises(ConfigError) as info:
-        calibrate(config, tmp_path / "c", progress=False)
-    assert info.value.key == "--resume"
+        calibrate(other, tmp_path / "c", progress=False)
+    assert info.value.key == "--resume" and "bsl_seed: stored 4, now 5" in str(info.value)
     longer = calibration_from_dict(tiny(truth_targets, steps=16), ROOT)
     calibrate(longer, tmp_path / "c", resume=True, progress=False, predictive_draws=4)
     assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16
