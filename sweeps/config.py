@@ -168,6 +168,15 @@ class SweepRunTable(RunTable):
             raise ConfigError("leadership_metrics", f'got {self.leadership_metrics!r}; allowed: "auto", true, false')
 
 
+MAX_AXIS_VALUES = 1_000_000   # an axis holds at most this many values: counted before any is listed
+
+
+def _check_axis_size(key: str, count: float) -> None:
+    if count > MAX_AXIS_VALUES:
+        raise ConfigError(key, f"gives {count:,.0f} values; an axis holds at most {MAX_AXIS_VALUES:,} (the design "
+                               "would have at least that many runs): use fewer values or split it into several sweeps")
+
+
 @dataclass(frozen=True)
 class Linspace:
     start: float
@@ -178,6 +187,7 @@ class Linspace:
         check_finite("start", self.start)
         check_finite("stop", self.stop)
         check_at_least("num", self.num, 1)
+        _check_axis_size("num", self.num)
 
     def values(self) -> list[float]:
         num, start, stop = self.num, self.start, self.stop
@@ -197,6 +207,7 @@ class Steps:
             check_finite(name, getattr(self, name))
         if self.step <= 0 or self.stop < self.start:
             raise ConfigError("", "needs step > 0 and stop >= start")
+        _check_axis_size("step", (self.stop - self.start) / self.step + 1)
 
     def values(self) -> list[float]:
         count = int(math.floor((self.stop - self.start) / self.step + 1e-9)) + 1

@@ -90,6 +90,7 @@ from .accounting import Accounting
 from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
+from .feasibility import check_chain_size
 from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
@@ -220,8 +221,15 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
 
 def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
                     predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
-                    scheduler: str | None = None) -> CalibrationRun:
-    """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
+                    scheduler: str | None = None, yes: bool = False) -> CalibrationRun:
+    """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring).
+    A chain too large to hold is refused, one of more than ``MAX_SIMULATIONS`` simulations needs ``yes``
+    (:func:`~analysis.calibration.feasibility.check_chain_size`), before anything is written."""
+    settings = config.method
+    if settings.kind != "optimize":
+        dim = len(config.names)
+        check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
+                         settings.n_sim if settings.kind == "emcee" else 0, dim, yes)
     default = Path("results") / "calibration" / (config.folder_name or config.name)
     folder = OutputFolder(Path(out_dir) if out_dir else default)
     # the same command, run again after any interrupt, continues the stored chain (checked to have
