@@ -93,7 +93,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
+from observables.summary import (ENCOUNTER_FAMILIES, ENCOUNTER_SETTINGS, MetricSettings, encounter_settings,
+                                 summary_columns)
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted)
@@ -105,6 +106,7 @@ from .sensitivity import DesignTable, SensitivityDesign
 from .sweep_toml import sweep_toml
 
 NAME_MAX = 100
+METRIC_COLUMNS = frozenset(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))   # any run's
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
 
@@ -429,8 +431,15 @@ def parse_axis(axis: AxisTable, index: int) -> Axis:
     if name in RESERVED_COLUMNS:
         raise ConfigError(f"{where}.name", f"got {name!r}; that name is a results column "
                                            f"({', '.join(RESERVED_COLUMNS)}); choose another")
+    if name in METRIC_COLUMNS:
+        raise ConfigError(f"{where}.name", f"got {name!r}; that name is a metric column of the results; choose "
+                                           "another")
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"{where}.name", f"got {name!r}; expected a non-empty name for the axis' column")
     if axis.labels is not None and len(axis.labels) != len(points):
         raise ConfigError(f"{where}.labels", f"got {list(axis.labels)!r}; expected {len(points)} strings, one per value")
+    if axis.labels is not None and len(set(axis.labels)) != len(axis.labels):
+        raise ConfigError(f"{where}.labels", f"got {list(axis.labels)!r}; labels repeat: each value needs its own")
     if len(set(map(repr, points))) != len(points):
         raise ConfigError(f"{where}.values", "values repeat; use 'replicates' for repeated runs")
     return Axis(name=name, keys=keys, points=tuple(points), labels=axis.labels)

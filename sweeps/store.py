@@ -59,8 +59,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from observables.summary import ENCOUNTER_FAMILIES, summary_columns
 
+from .config import METRIC_COLUMNS, RESERVED_COLUMNS
 from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
@@ -72,9 +72,6 @@ NUMBERED = re.compile(r"part-(\d{6})\.parquet")          # also quarantined part
 RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has these
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
-ROW_COLUMNS = frozenset(("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
-                         "part"))                         # a run's identity, status and timing (sweeps.worker)
-METRIC_COLUMNS = frozenset(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))
 CHECKSUMS, SELF_CHECKSUM = "checksums", "manifest_checksum"   # keys of manifest.json
 CHANGED = "changed since it was written (its checksum differs from the one recorded in manifest.json)"
 
@@ -257,7 +254,7 @@ class ResultsStore(OutputFolder):
             values = frame[column]
             if not (pd.api.types.is_numeric_dtype(values) or values.isna().all()):
                 raise Unreadable(f"holds non-numbers in its metric column {column!r}")
-        known = ROW_COLUMNS | METRIC_COLUMNS | (design_columns or set())
+        known = set(RESERVED_COLUMNS) | METRIC_COLUMNS | (design_columns or set())
         foreign = sorted(set(frame.columns) - known) if design_columns is not None else []
         if foreign:
             raise Unreadable(f"holds a column flocksweep never writes ({', '.join(map(repr, foreign))}): a foreign "

@@ -447,6 +447,12 @@ NUMBERS = [
 ]
 
 TABLES = [
+    run_case("an axis named like a metric column", "axes[0].name",
+             axes='[[axes]]\nname = "cohesion_mean"\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("an axis named ''", "axes[0].name",
+             axes='[[axes]]\nname = ""\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("labels that repeat", "labels repeat",
+             axes='[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\nlabels = ["a", "a"]\n'),
     run_case("a dotted key 3,000 deep", "toml", top="a" + ".a" * 3000 + " = 1"),
     run_case("a table header 3,000 deep", "toml", top="[" + "a." * 3000 + "a]"),
     run_case("a --set key 3,000 deep", "unknown key", args=("--set", "a" + ".a" * 3000 + "=1")),
