@@ -94,7 +94,7 @@ def cmd_simulate(args) -> int:
     from sweeps.budget import check_runs
 
     preset = load_preset(args.model, overrides)
-    check_count("--record-every", args.record_every, 1)
+    check_count("--record-every", args.record_every, 1, preset.run.n_steps)   # at least one record after t = 0
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     check_out("--out", args.out)
     check_runs("init.n", preset.init.n, preset.run.n_steps, args.record_every)
@@ -366,7 +366,9 @@ def _add_calibrate(sub) -> None:
                    help="run this method with its [method.<name>] settings instead of the file's method.kind; "
                         "its outputs go to results/calibration/<name>-<method> unless --out is given")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
-    p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps")
+    p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps (the same "
+                                                         "command without it does too)")
+    p.add_argument("--yes", action="store_true", help="go ahead with a chain of more than 20,000,000 simulations")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--executor", choices=("serial", "local", "dask"), default="serial",
                    help="where simulations run: serial = this process, each evaluation's replicates on all "
@@ -389,7 +391,8 @@ def cmd_calibrate(args) -> int:
     command = f"{args.config} --method {args.method}" if args.method else args.config
     args.on_interrupt = lambda: resume_hint(command, args.out or Path("results") / "calibration" / config.folder_name)
     result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
-                             executor=args.executor, workers=args.workers, scheduler=args.scheduler)
+                             executor=args.executor, workers=args.workers, scheduler=args.scheduler,
+                             yes=args.yes)
     if result.optimum:
         opt = result.optimum
         print("optimum: " + ", ".join(f"{k} = {v:.4g}" for k, v in opt["theta"].items()))

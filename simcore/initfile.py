@@ -31,9 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .schema import FILE_UNIT_TOLERANCE, ConfigError
+from .schema import FILE_UNIT_TOLERANCE, ConfigError, input_file
 
 KEY = "init.from_file"
+STATE_LIMIT = 4 << 30   # bytes: 10^7 boids' pos, vel, up, acc in float64 are about 1 GiB
 
 
 def file_digest(path) -> str:
@@ -53,10 +54,11 @@ def read_state_file(path) -> dict:
 
 def _cached(path: str):
     try:
-        stat = os.stat(path)
-    except OSError:
+        os.stat(path)
+    except (OSError, ValueError):
         raise ConfigError(KEY, f"got {path!r}: no such file (relative paths start at the working directory "
                                f"{os.getcwd()})") from None
+    stat = input_file(path, KEY, "the state file", STATE_LIMIT)   # no folder, FIFO, device; bounded size
     return _read(os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
 
 

@@ -320,6 +320,9 @@ def init_dict(init: InitParams) -> dict:
     return out
 
 
+MAX_STEPS = 10 ** 10   # steps of one run (a day of simulated time at dt = 1/60 is 5 x 10^6)
+
+
 @dataclass(frozen=True)
 class RunSettings:
     """Duration, fixed step and record interval of one run (seconds)."""
@@ -333,10 +336,18 @@ class RunSettings:
         _positive("run.duration", self.duration)
         _positive("run.record_interval", self.record_interval)
         whole = self.duration / self.dt
+        if not whole <= MAX_STEPS:   # also inf (1e308 / 0.01): counted before any step is
+            raise ConfigError("run.duration", f"got {self.duration!r} with run.dt = {self.dt!r}: {whole:.3g} steps; a "
+                                              f"run takes at most {MAX_STEPS:,} steps")
+        if round(whole) < 1:
+            raise ConfigError("run.duration", f"got {self.duration!r}; shorter than one step of run.dt = {self.dt!r}")
         if abs(whole - round(whole)) > 1e-6 * max(1.0, whole):
             raise ConfigError("run.duration", f"got {self.duration!r}; must be a whole number of steps of "
                                               f"run.dt = {self.dt!r} (e.g. {round(whole) * self.dt!r})")
         steps = self.record_interval / self.dt
+        if not steps <= MAX_STEPS:
+            raise ConfigError("run.record_interval", f"got {self.record_interval!r} with run.dt = {self.dt!r}: every "
+                                                     f"{steps:.3g} steps; at most {MAX_STEPS:,}")
         if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
             raise ConfigError("run.record_interval",
                               f"got {self.record_interval!r}; must be a whole multiple of run.dt = {self.dt!r}")

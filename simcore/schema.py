@@ -43,6 +43,8 @@ import functools
 import json
 import math
 import numbers
+import os
+import stat
 import sys
 import tomllib
 import types
@@ -344,18 +346,49 @@ def check_plain(value, key: str = "") -> None:
             check_plain(item, f"{key}[{index}]")
 
 
-def read_toml(path, what: str) -> dict:
-    """A TOML file as a dict; a missing, unreadable or non-UTF-8 file, bad TOML or a date value is a
-    ConfigError naming the file or key (``what`` says which kind of file it is)."""
-    path = Path(path)
+TOML_LIMIT = 16 << 20   # bytes: a config file is text a person wrote
+
+
+def input_file(path, key: str, what: str, limit: int) -> os.stat_result:
+    """Check that ``path`` is a regular file of at most ``limit`` bytes before anything reads it:
+    ConfigError at ``key`` when it is missing (a NUL in the path, a dangling symlink), a folder, a FIFO,
+    a device or a socket (``/dev/zero``), a symlink loop, unreadable, or too large."""
     try:
-        if not path.is_file():
-            raise ConfigError("", f"{what} not found: {path}")
-        raw = path.read_bytes()
+        info = os.stat(path)
     except ValueError:   # a NUL character in the path
-        raise ConfigError("", f"{what} not found: {str(path)!r} (a path cannot contain a NUL character)") from None
+        raise ConfigError(key, f"{what} not found: {str(path)!r} (a path cannot contain a NUL character)") from None
+    except FileNotFoundError:
+        raise ConfigError(key, f"{what} not found: {path}") from None
     except OSError as err:
-        raise ConfigError("", f"{what} cannot be read: {path}: {err.strerror or err}") from None
+        raise ConfigError(key, f"{what} cannot be read: {path}: {err.strerror or err}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ConfigError(key, f"{what} {path} is a folder; expected a file")
+    if not stat.S_ISREG(info.st_mode):
+        raise ConfigError(key, f"{what} {path} is not a regular file (a FIFO, device or socket); expected a file")
+    if info.st_size > limit:
+        raise ConfigError(key, f"{what} {path} holds {info.st_size:,} bytes; at most {limit:,} are read here")
+    return info
+
+
+def read_input(path, key: str, what: str, limit: int) -> bytes:
+    """The bytes of the input file ``path``, checked by :func:`input_file` and read at most ``limit``."""
+    input_file(path, key, what, limit)
+    try:
+        with open(path, "rb") as handle:
+            raw = handle.read(limit + 1)
+    except OSError as err:
+        raise ConfigError(key, f"{what} cannot be read: {path}: {err.strerror or err}") from None
+    if len(raw) > limit:
+        raise ConfigError(key, f"{what} {path} holds more than {limit:,} bytes; at most {limit:,} are read here")
+    return raw
+
+
+def read_toml(path, what: str) -> dict:
+    """A TOML file as a dict; a missing, unreadable, special (FIFO, device, folder), oversized or
+    non-UTF-8 file, bad TOML or a date value is a ConfigError naming the file or key (``what`` says which
+    kind of file it is)."""
+    path = Path(path)
+    raw = read_input(path, "", what, TOML_LIMIT)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
@@ -367,8 +400,27 @@ def read_toml(path, what: str) -> dict:
         raise ConfigError("", f"{path}: not valid TOML: {err}") from None
     except RecursionError:
         raise ConfigError("", f"{path}: not valid TOML: nested too deeply") from None
+    if nesting(data) > MAX_NESTING:
+        raise ConfigError("", f"{path}: tables or lists nested more than {MAX_NESTING} levels deep (a dotted key or "
+                              "table header of that many parts); no setting is that deep")
     check_plain(data)
     return data
+
+
+MAX_NESTING = 64   # levels of tables and lists in a config file
+
+
+def nesting(value) -> int:
+    """Levels of nested dicts and lists in ``value`` (counted without recursion)."""
+    deepest, todo = 0, [(value, 0)]
+    while todo:
+        item, level = todo.pop()
+        deepest = max(deepest, level)
+        if isinstance(item, dict):
+            todo += [(v, level + 1) for v in item.values()]
+        elif isinstance(item, list):
+            todo += [(v, level + 1) for v in item]
+    return deepest
 
 
 def read_config(path, what: str, overrides=()) -> dict:

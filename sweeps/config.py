@@ -96,7 +96,8 @@ from typing import Any, Literal
 
 from observables.directional_correlation import DCD_MAX_DELAY
 from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
+from observables.summary import (ENCOUNTER_FAMILIES, ENCOUNTER_SETTINGS, MetricSettings, encounter_settings,
+                                 summary_columns)
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted, suggest)
@@ -107,6 +108,7 @@ from .sensitivity import DesignTable, SensitivityDesign
 from .sweep_toml import sweep_toml
 
 NAME_MAX = 100
+METRIC_COLUMNS = frozenset(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))   # any run's
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
 
@@ -177,6 +179,15 @@ class SweepRunTable(RunTable):
                                                "with dcd_metrics = true: add it, or leave dcd_max_delay out")
 
 
+MAX_AXIS_VALUES = 1_000_000   # an axis holds at most this many values: counted before any is listed
+
+
+def _check_axis_size(key: str, count: float) -> None:
+    if count > MAX_AXIS_VALUES:
+        raise ConfigError(key, f"gives {count:,.0f} values; an axis holds at most {MAX_AXIS_VALUES:,} (the design "
+                               "would have at least that many runs): use fewer values or split it into several sweeps")
+
+
 @dataclass(frozen=True)
 class Linspace:
     start: float
@@ -187,6 +198,7 @@ class Linspace:
         check_finite("start", self.start)
         check_finite("stop", self.stop)
         check_at_least("num", self.num, 1)
+        _check_axis_size("num", self.num)
 
     def values(self) -> list[float]:
         num, start, stop = self.num, self.start, self.stop
@@ -206,6 +218,7 @@ class Steps:
             check_finite(name, getattr(self, name))
         if self.step <= 0 or self.stop < self.start:
             raise ConfigError("", "needs step > 0 and stop >= start")
+        _check_axis_size("step", (self.stop - self.start) / self.step + 1)
 
     def values(self) -> list[float]:
         count = int(math.floor((self.stop - self.start) / self.step + 1e-9)) + 1
@@ -476,8 +489,15 @@ def parse_axis(axis: AxisTable, index: int) -> Axis:
     if name in RESERVED_COLUMNS:
         raise ConfigError(f"{where}.name", f"got {name!r}; that name is a results column "
                                            f"({', '.join(RESERVED_COLUMNS)}); choose another")
+    if name in METRIC_COLUMNS:
+        raise ConfigError(f"{where}.name", f"got {name!r}; that name is a metric column of the results; choose "
+                                           "another")
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"{where}.name", f"got {name!r}; expected a non-empty name for the axis' column")
     if axis.labels is not None and len(axis.labels) != len(points):
         raise ConfigError(f"{where}.labels", f"got {list(axis.labels)!r}; expected {len(points)} strings, one per value")
+    if axis.labels is not None and len(set(axis.labels)) != len(axis.labels):
+        raise ConfigError(f"{where}.labels", f"got {list(axis.labels)!r}; labels repeat: each value needs its own")
     if len(set(map(repr, points))) != len(points):
         raise ConfigError(f"{where}.values", "values repeat; use 'replicates' for repeated runs")
     return Axis(name=name, keys=keys, points=tuple(points), labels=axis.labels)

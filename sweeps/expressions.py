@@ -14,8 +14,13 @@ Allowed: column names, dotted like preset keys (``perception.field_deg``; ``n`` 
 everywhere); numbers, strings in quotes, ``true``/``false`` (also ``True``/``False``); ``+ - * /``,
 unary ``-``; the functions ``abs``, ``sqrt``, ``log``, ``exp``; and in conditions the comparisons
 ``== != < <= > >=`` (chained too), ``in [..]`` / ``not in [..]`` with a list of constants, and
-``and``, ``or``, ``not``. Anything else (attribute calls, subscripts, lambdas, ...) is a
-:class:`~simcore.schema.ConfigError` at ``key`` saying what is allowed.
+``and``, ``or``, ``not``. Anything else is a :class:`~simcore.schema.ConfigError` at ``key`` saying what
+is allowed: attribute access that is not a column name (``x.__class__`` is the column ``x.__class__``,
+which no table has), calls of any other function (``__import__('os')``, ``eval``, methods), ``**``
+(no huge powers), subscripts, lambdas, comprehensions, f-strings, walrus. An expression is at most
+:data:`MAX_LENGTH` characters and :data:`MAX_DEPTH` levels deep (3,000 nested ``not`` or 20,000 ``+``
+terms are refused with that figure, never a RecursionError). Evaluation is numpy arithmetic on columns:
+it reads the table and nothing else, never the file system or the network.
 
 :class:`Expression` has ``text``, ``kind``, ``names`` (the columns it reads, in order of appearance) and
 ``evaluate(frame) -> numpy array`` (one value per row; a condition gives booleans, NaN compares false).
@@ -35,6 +40,8 @@ import pandas as pd
 from simcore.params import canonical_key
 from simcore.schema import ConfigError
 
+MAX_LENGTH = 4000   # characters of an expression
+MAX_DEPTH = 60      # levels of its syntax tree
 FUNCTIONS = {"abs": np.abs, "sqrt": np.sqrt, "log": np.log, "exp": np.exp}
 CONSTANTS = {"true": True, "false": False, "True": True, "False": False}
 ARITHMETIC = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
@@ -141,13 +148,35 @@ def parse(text, key: str, kind: str) -> Expression:
     if not isinstance(text, str) or not text.strip():
         raise ConfigError(key, f"got {text!r}; expected a {kind} such as "
                                + ("'perception.direction_deg <= 20'" if kind == "condition" else "'cohesion_mean'"))
+    if len(text) > MAX_LENGTH:
+        raise ConfigError(key, f"a {kind} of {len(text):,} characters; at most {MAX_LENGTH:,} are allowed")
     try:
         tree = ast.parse(text.strip(), mode="eval").body
     except SyntaxError as err:
         raise ConfigError(key, f"{text!r} is not a valid {kind}: {err.msg}") from None
+    except (RecursionError, MemoryError, ValueError):   # nested too deeply for the parser; a huge literal
+        raise ConfigError(key, f"{_short(text)} is not a valid {kind}: nested more than {MAX_DEPTH} levels deep "
+                               "or a number too long") from None
+    if _depth(tree) > MAX_DEPTH:
+        raise ConfigError(key, f"{_short(text)}: nested more than {MAX_DEPTH} levels deep; split it into simpler "
+                               f"{kind}s")
     names: list[str] = []
     _check(tree, kind, key, names)
     return Expression(text=text.strip(), kind=kind, tree=tree, names=tuple(names))
+
+
+def _short(text: str) -> str:
+    return repr(text if len(text) <= 60 else text[:57] + "...")
+
+
+def _depth(tree: ast.AST) -> int:
+    """Levels of the syntax tree (counted without recursion)."""
+    deepest, todo = 0, [(tree, 1)]
+    while todo:
+        node, level = todo.pop()
+        deepest = max(deepest, level)
+        todo += [(child, level + 1) for child in ast.iter_child_nodes(node)]
+    return deepest
 
 
 # ------------------------------------------------------------------------------------------ evaluation

@@ -9,6 +9,11 @@ match the glob patterns, to be removed before this build writes its own; ``finis
 marker every file that appeared or changed since ``claim()`` plus the previous build's files still
 there, so the next build removes exactly those. Files that were in the folder and were not ours are
 never listed and never removed.
+
+A build can be stopped half-way (Ctrl-C, SIGTERM, SIGKILL, a full disk): ``claim()`` therefore writes the
+marker at once, listing the files that were not ours (``foreign``) and the previous build's, before the
+build writes anything. The same command run again finds that marker: the files that appeared since (the
+stopped build's) are ours, the recorded foreign ones are still not.
 """
 from __future__ import annotations
 
@@ -39,15 +44,16 @@ class OwnedFolder:
         marker = self.root / self.marker
         before = self._files()
         if marker.is_file():
-            try:
-                self.previous = set(json.loads(marker.read_text(encoding="utf-8")).get("files", []))
-            except (ValueError, UnicodeDecodeError, AttributeError):
-                self.previous = set()   # a damaged record: delete nothing, record afresh
+            record = _record(marker)
+            self.previous = set(record.get("files", []))
+            if "foreign" in record:   # a build was stopped half-way: what appeared since is its work
+                self.previous |= set(before) - set(record["foreign"])
         elif before and not self.adopt:
             raise ConfigError(self.flag, f"{self.root} is not empty and was not written by flocksweep; choose a new "
                                          "or empty folder (nothing was written, nothing deleted)")
         self.foreign = set(before) - self.previous
         self._before = before
+        write_json(marker, {"files": sorted(self.previous), "foreign": sorted(self.foreign)})
         return self
 
     def stale(self, patterns) -> list[Path]:
@@ -61,3 +67,14 @@ class OwnedFolder:
         ours = {name for name, stamp in now.items()
                 if name not in self.foreign or self._before.get(name) != stamp}
         write_json(self.root / self.marker, {"files": sorted(ours)})
+
+
+def _record(marker: Path) -> dict:
+    """The marker's record ({} when damaged: delete nothing, record afresh)."""
+    try:
+        record = json.loads(marker.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError, OSError):
+        return {}
+    if not isinstance(record, dict) or not all(isinstance(record.get(k, []), list) for k in ("files", "foreign")):
+        return {}
+    return {k: [str(x) for x in v] for k, v in record.items() if k in ("files", "foreign")}

@@ -21,6 +21,10 @@
   part; only the part its row comes from is read), nothing loaded until asked
   (``results.timeseries.to_table(filter=...)``, ``.to_batches()``, ``.to_table().to_pandas()``);
   else None. :meth:`Results.series` reads the series of some runs into a DataFrame.
+
+Every part read is verified against the checksum recorded when it was written (:mod:`sweeps.store`): a
+changed runs part or ``runs.parquet`` is left out with a warning naming the file (its runs count as
+missing until ``flocksweep run`` recomputes them), a changed time series part likewise.
 """
 from __future__ import annotations
 
@@ -136,7 +140,7 @@ def series_dataset(store: ResultsStore, runs: pd.DataFrame) -> ds.Dataset:
     paths, numbers, keep = [], [], None
     for part, group in ok.groupby("part"):
         path = store.root / "timeseries" / f"part-{int(part):06d}.parquet"
-        if not path.exists():
+        if not path.exists() or not store.series_intact(path):
             continue
         paths.append(str(path))
         numbers.append(int(part))

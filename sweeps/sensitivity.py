@@ -42,6 +42,7 @@ from simcore.schema import ConfigError, check_at_least
 from .seeds import Tag, generator
 
 KINDS = ("saltelli", "morris")
+MAX_BASE = 1 << 20   # Saltelli's n, Morris' trajectories: checked before SALib allocates anything
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -62,6 +63,10 @@ class DesignTable:
                 raise ConfigError("n", "missing: a Saltelli design needs the base sample size n (a power of 2, "
                                        "e.g. 256; the sweep runs n x (d + 2) points)")
             check_at_least("n", self.n, 2)
+            if self.n > MAX_BASE:
+                raise ConfigError("n", f"got {self.n:,}; a Saltelli design here takes n up to {MAX_BASE:,} (n x (d + 2) "
+                                       "runs; larger samples would not fit in memory): use a smaller n or split the "
+                                       "study")
             if self.n & (self.n - 1):
                 lower = 1 << (self.n.bit_length() - 1)
                 raise ConfigError("n", f"got {self.n}; the Sobol' sequence behind a Saltelli design needs a power "
@@ -74,6 +79,9 @@ class DesignTable:
                 raise ConfigError("trajectories", "missing: a Morris design needs the number of trajectories "
                                                   "(e.g. 20; the sweep runs trajectories x (d + 1) points)")
             check_at_least("trajectories", self.trajectories, 2)
+            if self.trajectories > MAX_BASE:
+                raise ConfigError("trajectories", f"got {self.trajectories:,}; a Morris design here takes up to "
+                                                  f"{MAX_BASE:,} trajectories: use fewer or split the study")
             check_at_least("levels", self.levels, 2)
             if self.levels % 2:
                 raise ConfigError("levels", f"got {self.levels}; use an even number of grid levels (e.g. 4 or 6) "

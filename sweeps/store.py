@@ -33,16 +33,35 @@ skipped with a warning by readers and, by ``repair()`` (the runner, holding the 
 ``manifest.json`` is moved aside the same way (a new one is written); a garbage ``runs.parquet`` is
 rebuilt from the parts; an unreadable ``design.parquet`` is :class:`~sweeps.files.Unreadable` with how
 to rewrite it. Part numbers are never reused, quarantined ones included.
+
+Content checksums: every file the store writes (runs and time series parts, ``runs.parquet``,
+``design.parquet``) has the SHA-256 of its bytes recorded in ``manifest.json`` (``checksums``, by path
+relative to the folder) as it is written (a part's together with the part, not cut by signals), and
+the manifest carries the checksum of its own content (``manifest_checksum``). Every reader verifies
+them: a part whose bytes changed since they were written (a renamed column, values overwritten with
+valid numbers or NaN) is damaged like an unreadable one (skipped by readers, quarantined and recomputed
+by ``repair``); a changed ``runs.parquet`` is rebuilt from the parts, a changed ``design.parquet`` is
+:class:`Unreadable`, a changed or non-object manifest is moved aside and written anew. A part written
+after the last manifest update (the runner was killed in between) has no checksum yet and is checked
+for its schema only; ``repair`` records it. Folders written before checksums existed are checked for
+their schema alone. A runs part's schema: at least one row, the columns ``RUNS_COLUMNS``, its own
+part number, text run ids, statuses ``ok``/``failed``, numbers (or nothing) in every metric column,
+and no column that flocksweep never writes (neither a design column, nor a run's identity, status or
+timing, nor a summary metric).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import re
 from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
 
-from .files import Unreadable, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
+
+from .config import METRIC_COLUMNS, RESERVED_COLUMNS
+from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
 from .provenance import stamp
@@ -53,6 +72,23 @@ NUMBERED = re.compile(r"part-(\d{6})\.parquet")          # also quarantined part
 RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has these
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
+CHECKSUMS, SELF_CHECKSUM = "checksums", "manifest_checksum"   # keys of manifest.json
+CHANGED = "changed since it was written (its checksum differs from the one recorded in manifest.json)"
+
+
+def checksum(path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def content_checksum(data: dict) -> str:
+    """SHA-256 of a manifest's content without its own checksum (as JSON with sorted keys)."""
+    body = {k: v for k, v in data.items() if k != SELF_CHECKSUM}
+    return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
 
 __all__ = ["OutputFolder", "ResultsStore", "StoreLocked", "Unreadable"]
 
@@ -102,6 +138,38 @@ class ResultsStore(OutputFolder):
     def __init__(self, root):
         super().__init__(root)
         self._reported: set[str] = set()   # damaged files a reader has warned about already
+        self._sums: dict[str, str] | None = None   # checksums recorded in the manifest (loaded once)
+        self._latest_manifest: dict | None = None   # what write_manifest wrote last (rewritten with new sums)
+
+    # -- checksums -------------------------------------------------------------------------------
+    def _relative(self, path: Path) -> str:
+        return Path(path).relative_to(self.root).as_posix()
+
+    def checksums(self) -> dict[str, str]:
+        """{relative path: SHA-256} of the files whose checksum the manifest records."""
+        if self._sums is None:
+            sums = self.manifest().get(CHECKSUMS, {})
+            self._sums = {str(k): str(v) for k, v in sums.items()} if isinstance(sums, dict) else {}
+        return self._sums
+
+    def changed(self, path: Path) -> bool:
+        """Whether ``path``'s bytes differ from the checksum recorded when it was written (False when
+        none is recorded)."""
+        recorded = self.checksums().get(self._relative(path))
+        return recorded is not None and recorded != checksum(path)
+
+    def _record(self, *paths: Path) -> None:
+        sums = self.checksums()
+        for path in paths:
+            sums[self._relative(path)] = checksum(path)
+
+    def _forget(self, path: Path) -> None:
+        self.checksums().pop(self._relative(path), None)
+
+    def _save_checksums(self) -> None:
+        """Rewrite the manifest with the checksums as they are now."""
+        data = self._latest_manifest if self._latest_manifest is not None else self.manifest()
+        self.write_manifest(data)
 
     # -- inputs ----------------------------------------------------------------------------------
     def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
@@ -109,6 +177,7 @@ class ResultsStore(OutputFolder):
         write_json(self.root / "sweep.effective.json", effective)
         write_json(self.root / "model.json", model)
         write_parquet(self.root / "design.parquet", design)
+        self._record(self.root / "design.parquet")
 
     def model(self) -> dict:
         """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
@@ -118,11 +187,22 @@ class ResultsStore(OutputFolder):
         path = self.root / "design.parquet"
         if not path.exists():
             return None
+        rerun = f"running the sweep again (flocksweep run SWEEP.toml --out {self.root}) writes it anew"
         try:
-            return pd.read_parquet(path)
+            design = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
-            raise Unreadable(f"{path} cannot be read ({_why(err)}); running the sweep again "
-                             f"(flocksweep run SWEEP.toml --out {self.root}) writes it anew") from None
+            raise Unreadable(f"{path} cannot be read ({_why(err)}); {rerun}") from None
+        if self.changed(path):
+            raise Unreadable(f"{path} {CHANGED}; {rerun}")
+        return design
+
+    def _design_columns(self) -> set | None:
+        """The design's columns (None when there is no readable design)."""
+        try:
+            design = self.design()
+        except (Unreadable, OSError):
+            return None
+        return None if design is None else set(design.columns)
 
     # -- parts -----------------------------------------------------------------------------------
     def _parts(self, kind: str) -> list[Path]:
@@ -146,30 +226,49 @@ class ResultsStore(OutputFolder):
         with deferred():
             if timeseries is not None and len(timeseries):
                 write_parquet(self.root / "timeseries" / name, timeseries)
+                self._record(self.root / "timeseries" / name)
             write_parquet(self.root / "runs" / name, table)
+            self._record(self.root / "runs" / name)
+            self._save_checksums()
 
-    def _runs_part(self, path: Path) -> pd.DataFrame:
-        """A runs part, its schema checked (Unreadable saying what is wrong)."""
+    def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
+        """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
+        docstring)."""
         try:
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"cannot be read ({_why(err)})") from None
+        if self.changed(path):
+            raise Unreadable(CHANGED)
         missing = [c for c in RUNS_COLUMNS if c not in frame.columns]
         if missing:
             raise Unreadable(f"is not a part of a sweep (no column {', '.join(map(repr, missing))})")
+        if not len(frame):
+            raise Unreadable("holds no rows (flocksweep never writes an empty part)")
         number = int(PART.search(path.name).group(1))
-        if len(frame) and not (pd.to_numeric(frame["part"], errors="coerce") == number).all():
+        if not (pd.to_numeric(frame["part"], errors="coerce") == number).all():
             raise Unreadable(f"holds rows of another part (its 'part' column is not {number} throughout)")
-        if not frame["status"].isin(STATUSES).all() or not frame["run_id"].map(type).eq(str).all():
+        if not frame["status"].isin(STATUSES).all() or not all(isinstance(r, str) for r in frame["run_id"]):
             raise Unreadable("is not a part of a sweep (run_id must be text, status 'ok' or 'failed')")
+        for column in sorted(METRIC_COLUMNS & set(frame.columns)):
+            values = frame[column]
+            if not (pd.api.types.is_numeric_dtype(values) or values.isna().all()):
+                raise Unreadable(f"holds non-numbers in its metric column {column!r}")
+        known = set(RESERVED_COLUMNS) | METRIC_COLUMNS | (design_columns or set())
+        foreign = sorted(set(frame.columns) - known) if design_columns is not None else []
+        if foreign:
+            raise Unreadable(f"holds a column flocksweep never writes ({', '.join(map(repr, foreign))}): a foreign "
+                             "or edited table")
         return frame
 
     def _damaged(self, path: Path, reason: str, repair: bool, partner: Path | None = None) -> None:
         """Quarantine ``path`` (and ``partner``) when repairing, else warn once that it is skipped."""
         if repair:
             quarantine(self.root, path, f"{reason}; its runs will be computed again")
+            self._forget(path)
             if partner is not None and partner.exists():
                 quarantine(self.root, partner, f"its partner {path.parent.name}/{path.name} was damaged")
+                self._forget(partner)
             return
         key = str(path)
         if key not in self._reported:
@@ -181,14 +280,14 @@ class ResultsStore(OutputFolder):
         """Every stored row of every readable part (latest part last); damaged parts are skipped with a
         warning, or quarantined with ``repair``."""
         frames = []
+        design_columns = self._design_columns()
         for path in self._parts("runs"):
             try:
-                frame = self._runs_part(path)
+                frame = self._runs_part(path, design_columns)
             except Unreadable as err:
                 self._damaged(path, str(err), repair, self.root / "timeseries" / path.name)
                 continue
-            if len(frame):
-                frames.append(frame)
+            frames.append(frame)
         if not frames:
             return pd.DataFrame(columns=list(RUNS_COLUMNS))
         return pd.concat(frames, ignore_index=True).sort_values("part", kind="stable")
@@ -206,6 +305,8 @@ class ResultsStore(OutputFolder):
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             return f"has an unreadable time series part timeseries/{path.name} ({_why(err)})"
+        if self.changed(path):
+            return f"has a time series part timeseries/{path.name} that {CHANGED}"
         if any(c not in frame.columns for c in SERIES_COLUMNS):
             return f"has a time series part timeseries/{path.name} without run_id and t columns"
         lacking = ok_ids - set(frame["run_id"])
@@ -220,14 +321,18 @@ class ResultsStore(OutputFolder):
         for folder in (self.root, self.root / "runs", self.root / "timeseries", self.root / "trajectories"):
             remove_stale_temporaries(folder)
         before = set(self._quarantined())
-        self.all_rows(repair=True)
-        for path in self._parts("runs"):
-            frame = self._runs_part(path)
-            ok_ids = set(frame.loc[frame["status"] == "ok", "run_id"])
-            problem = self._series_problem(self.root / "timeseries" / path.name, ok_ids) if ok_ids else None
-            if problem:
-                self._damaged(path, problem, True, self.root / "timeseries" / path.name)
         self.manifest(repair=True)
+        self.all_rows(repair=True)
+        design_columns = self._design_columns()
+        for path in self._parts("runs"):
+            frame = self._runs_part(path, design_columns)
+            ok_ids = set(frame.loc[frame["status"] == "ok", "run_id"])
+            series = self.root / "timeseries" / path.name
+            problem = self._series_problem(series, ok_ids) if ok_ids else None
+            if problem:
+                self._damaged(path, problem, True, series)
+                continue
+            self._record(path, *([series] if series.exists() else []))   # adopts a part written after the last record
         return sorted(set(self._quarantined()) - before)
 
     def _quarantined(self) -> list[Path]:
@@ -248,18 +353,32 @@ class ResultsStore(OutputFolder):
         if "index" in table:
             table = table.sort_values("index", kind="stable").reset_index(drop=True)
         write_parquet(self.root / "runs.parquet", table)
+        self._record(self.root / "runs.parquet")
         return table
 
     def runs(self) -> pd.DataFrame:
-        """``runs.parquet``, or the latest rows of the parts when it is missing or cannot be read."""
+        """``runs.parquet``, or the latest rows of the parts when it is missing, cannot be read or changed
+        since it was written."""
         path = self.root / "runs.parquet"
         if path.exists():
             try:
-                return pd.read_parquet(path)
+                table = pd.read_parquet(path)
+                if self.changed(path):
+                    raise Unreadable(CHANGED)
+                return table
             except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
-                warn("runs.parquet cannot be read (%s); using the rows of runs/ instead (the next "
-                     "'flocksweep run' writes it anew)", _why(err))
+                problem = str(err) if isinstance(err, Unreadable) else f"cannot be read ({_why(err)})"
+                warn("runs.parquet %s; using the rows of runs/ instead (the next 'flocksweep run' writes it anew)",
+                     problem)
         return self.latest().reset_index(drop=True)
+
+    def series_intact(self, path: Path) -> bool:
+        """Whether the time series part ``path`` may be read (its checksum matches or none is recorded);
+        a changed one is reported once."""
+        if not self.changed(path):
+            return True
+        self._damaged(path, f"{CHANGED}: the series of its runs are left out", repair=False)
+        return False
 
     def timeseries(self, run_ids=None) -> pd.DataFrame:
         """Time series of the given runs (default: all of runs.parquet), read part by part; a part that
@@ -270,6 +389,8 @@ class ResultsStore(OutputFolder):
         frames = []
         for part, group in table[table["status"] == "ok"].groupby("part"):
             path = self.root / "timeseries" / f"part-{int(part):06d}.parquet"
+            if not self.series_intact(path):
+                continue
             try:
                 frame = pd.read_parquet(path, filters=[("run_id", "in", list(group["run_id"]))])
             except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
@@ -281,22 +402,36 @@ class ResultsStore(OutputFolder):
 
     # -- manifest --------------------------------------------------------------------------------
     def manifest(self, repair: bool = False) -> dict:
-        """``manifest.json`` ({} when missing); a garbage one is skipped with a warning, or quarantined."""
+        """``manifest.json`` ({} when missing); one that is not a JSON object or whose content changed
+        since it was written is skipped with a warning, or quarantined."""
         try:
-            return self.read_json("manifest.json", {})
+            data = self.read_json("manifest.json", {})
+            problem = None
         except Unreadable:
-            path = self.root / "manifest.json"
-            if repair:
-                quarantine(self.root, path, "is not valid JSON; a new manifest is written (the provenance "
-                                            "of earlier invocations is in the file moved aside)")
-            elif str(path) not in self._reported:
-                self._reported.add(str(path))
-                warn("manifest.json is not valid JSON; its provenance is ignored (the next 'flocksweep run' "
-                     "moves it aside and writes a new one)")
-            return {}
+            data, problem = {}, "is not valid JSON"
+        if problem is None and not isinstance(data, dict):
+            data, problem = {}, f"is not a JSON object (it holds a {type(data).__name__})"
+        if problem is None and SELF_CHECKSUM in data and data[SELF_CHECKSUM] != content_checksum(data):
+            data, problem = {}, CHANGED.replace("one recorded in manifest.json", "one it records")
+        if problem is None:
+            return data
+        path = self.root / "manifest.json"
+        if repair:
+            quarantine(self.root, path, f"{problem}; a new manifest is written (the provenance of earlier "
+                                        "invocations is in the file moved aside)")
+            self._sums = {}   # its checksums cannot vouch for anything: parts are checked for their schema
+        elif str(path) not in self._reported:
+            self._reported.add(str(path))
+            warn("manifest.json %s; its provenance and checksums are ignored (the next 'flocksweep run' "
+                 "moves it aside and writes a new one)", problem)
+        return {}
 
     def write_manifest(self, data: dict) -> None:
-        write_json(self.root / "manifest.json", data)
+        """Write ``manifest.json``: ``data`` with the checksums recorded so far and its own checksum."""
+        data = {k: v for k, v in data.items() if k not in (CHECKSUMS, SELF_CHECKSUM)}
+        self._latest_manifest = data
+        record = json_ready({**data, CHECKSUMS: dict(sorted(self.checksums().items()))})
+        write_json(self.root / "manifest.json", {**record, SELF_CHECKSUM: content_checksum(record)})
 
 
 def _why(err: BaseException) -> str:

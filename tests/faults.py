@@ -279,8 +279,7 @@ def calibration_argv(folder: Path) -> list:
     path = folder / "faults.toml"
     if not path.exists():
         path.write_text(CALIBRATION.format(holland=ROOT / "configs" / "models" / "holland.toml"))
-    return ["calibrate", path, "--out", folder / "out", "--executor", "local", "--workers", "2", "--no-progress",
-            "--resume"]
+    return ["calibrate", path, "--out", folder / "out", "--executor", "local", "--workers", "2", "--no-progress"]
 
 
 def sweep_ready(folder: Path):
@@ -337,5 +336,5 @@ def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0,
 
 def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
                       window=(0.0, 8.0)) -> tuple[Trial, object, str]:
-    """As :func:`sweep_trial` for the short calibration (rerun with --resume, as the message says)."""
+    """As :func:`sweep_trial` for the short calibration (rerun with the same command: no --resume needed)."""
     return _until_hit("calibration", folder, reference, how, seed, window)

@@ -113,7 +113,7 @@ SWEEP_FILES = [
     Case("run: duplicate key", RUN, {"s.toml": 'name = "a"\nname = "b"\n'}, 2, "not valid toml"),
     Case("run: empty file", RUN, {"s.toml": ""}, 2, "name"),
     Case("run: missing file", ("run", "{d}/absent.toml", "--out", "{d}/out"), {}, 2, "not found"),
-    Case("run: a folder as sweep file", ("run", "{d}", "--out", "{d}/out"), {}, 2, "not found"),
+    Case("run: a folder as sweep file", ("run", "{d}", "--out", "{d}/out"), {}, 2, "is a folder"),
     Case("run: deeply nested arrays", RUN, {"s.toml": "a = " + "[" * 5000 + "]" * 5000 + "\n"}, 2, "toml"),
 ]
 
@@ -405,7 +405,72 @@ READERS = [
         **GOOD_CAL, "out/settings.json": '{"method": "sbc", "seed": 99}'}),
 ]
 
-CASES = SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
+LINSPACE = '[[axes]]\nkey = "perception.field_deg"\nlinspace = {{ start = 1, stop = 360, num = {num} }}\n'
+SALTELLI = ('[design]\nkind = "saltelli"\nn = {n}\nbounds = {{ "perception.field_deg" = [60, 300], '
+            '"perception.range" = [5, 20] }}\n')
+
+# sizes: counted before anything is allocated (numbers), special and oversized files (paths)
+SIZES = [
+    run_case("linspace of 1e9 values", "split it", axes=LINSPACE.format(num=1000000000)),
+    run_case("linspace of 2^63 values", "split it", axes=LINSPACE.format(num=2 ** 63 - 1)),
+    run_case("range with a step of 1e-9", "split it",
+             axes='[[axes]]\nkey = "perception.field_deg"\nrange = { start = 1, stop = 360, step = 1e-9 }\n'),
+    cli_case("run: --axis linspace of 1e9 values", ("run", "--model", HOLLAND, "--axis",
+                                                    "perception.field_deg=linspace(1,360,1000000000)", "--out",
+                                                    "{d}/out", "--no-progress"), "split it"),
+    run_case("saltelli n of 2^40", "design.n", axes=SALTELLI.format(n=2 ** 40)),
+    cal_case("10^7 walkers without --yes", "--yes", walkers=10_000_000),
+]
+
+SPECIAL_FILES = [
+    Case("run: /dev/zero as sweep file", ("run", "/dev/zero", "--out", "{d}/out"), {}, 2, "not a regular file"),
+    Case("run: a missing sweep file is not blamed on NUL", ("run", "{d}/absent.toml", "--out", "{d}/out"), {}, 2,
+         "sweep file not found: "),
+    run_case("init.from_file /dev/zero", "not a regular file", model='set = { "init.from_file" = "/dev/zero" }'),
+    run_case("init.from_file a folder", "is a folder", model='set = { "init.from_file" = "{d}" }'),
+    cli_case("simulate: --init-state /dev/zero", ("simulate", HOLLAND, "--init-state", "/dev/zero", "--out",
+                                                  "{d}/out"), "not a regular file"),
+    cli_case("simulate: --init-state a folder", ("simulate", HOLLAND, "--init-state", "{d}", "--out", "{d}/out"),
+             "is a folder"),
+    cli_case("report: --claims /dev/zero", ("report", "{d}", "--claims", "/dev/zero"), "design.parquet"),
+]
+
+# numbers that overflow, tables and expressions nested or sized beyond reason (each once caught as a traceback)
+NUMBERS = [
+    run_case("--set run.duration=1e308", "run.duration", args=("--set", "run.duration=1e308")),
+    run_case("--set model.run.dt=1e-300", "run.dt", args=("--set", "model.run.dt=1e-300")),
+    run_case("duration 1e308 in the file", "run.duration", text=sweep_text().replace("duration = 1.0",
+                                                                                      "duration = 1e308")),
+    cli_case("simulate: --record-every 1e20", SIMULATE + ("--record-every", "100000000000000000000"),
+             "--record-every"),
+    cli_case("simulate: --duration 1e-9", SIMULATE + ("--duration", "1e-9"), "run.duration"),
+]
+
+TABLES = [
+    run_case("an axis named like a metric column", "axes[0].name",
+             axes='[[axes]]\nname = "cohesion_mean"\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("an axis named ''", "axes[0].name",
+             axes='[[axes]]\nname = ""\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("labels that repeat", "labels repeat",
+             axes='[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 180]\nlabels = ["a", "a"]\n'),
+    run_case("a dotted key 3,000 deep", "toml", top="a" + ".a" * 3000 + " = 1"),
+    run_case("a table header 3,000 deep", "toml", top="[" + "a." * 3000 + "a]"),
+    run_case("a --set key 3,000 deep", "unknown key", args=("--set", "a" + ".a" * 3000 + "=1")),
+]
+
+EXPRESSIONS = [
+    run_case("a claim condition of 3,000 nested not", "claims[0]", top="", axes=AXIS.format(
+        key="perception.field_deg", values="[60, 180]") + '[[claims]]\nid = "c"\nstatement = "s"\ntest = "trend"\n'
+        'metric = "polarization_mean"\nfactor = "perception.field_deg"\ndirection = "increasing"\n'
+        f'condition = "{"not " * 3000}fragmented"\n'),
+    run_case("a claim metric of 20,000 terms", "claims[0]", axes=AXIS.format(
+        key="perception.field_deg", values="[60, 180]") + '[[claims]]\nid = "c"\nstatement = "s"\ntest = "trend"\n'
+        f'metric = "{"+".join(["cohesion_mean"] * 20000)}"\nfactor = "perception.field_deg"\n'
+        'direction = "increasing"\n'),
+]
+
+CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",

@@ -107,8 +107,8 @@ from observables.metrics import METRIC_NAMES
 from observables.observation import Observation
 from observables.summary import MetricSettings, encounter_settings
 from simcore.params import Preset, canonical_key, preset_from_dict
-from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, read_config, resolve_path,
-                            suggest)
+from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, input_file, read_config,
+                            resolve_path, suggest)
 from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
 from sweeps.model_set import model_overrides
 
@@ -436,7 +436,11 @@ def _truth(truth: dict | None, parameters: tuple[Parameter, ...]) -> dict | None
     return out
 
 
+SAMPLES_LIMIT = 256 << 20   # bytes: a table of observed datasets
+
+
 def _read_samples(path: Path, stats, columns) -> np.ndarray:
+    input_file(path, "targets.samples", "samples file", SAMPLES_LIMIT)   # no folder, FIFO, device; bounded
     try:
         frame = pd.read_csv(path)
     except Exception as err:  # noqa: BLE001 - any unreadable file is a config problem

@@ -7,6 +7,11 @@
   it. ConfigError at ``where`` (``parameters.<name>.prior`` or ``.bounds``) naming the end and why.
 * ``check_memory(preset, parameters, n_sim)``: one evaluation runs ``n_sim`` replicates at once; they
   must fit in memory for the largest ``init.n`` the parameters allow (:func:`sweeps.budget.check_runs`).
+* ``check_chain_size(walkers, steps, n_sim, dim, yes=False, available=None)``: the chain (``walkers x
+  steps`` rows of ``dim`` coordinates and a log-probability, read back whole for the diagnostics) must
+  fit in memory, and a chain of more than :data:`MAX_SIMULATIONS` simulations (``walkers x (steps + 1)
+  x n_sim``) needs ``yes`` (``--yes``), as a sweep of more than ``sweeps.budget.MAX_RUNS`` runs does.
+  :class:`~sweeps.budget.BudgetError` naming ``method.walkers`` with the figures and how to shrink it.
 """
 from __future__ import annotations
 
@@ -14,7 +19,27 @@ import numpy as np
 
 from simcore.params import Preset
 from simcore.schema import ConfigError
-from sweeps.budget import check_runs
+from sweeps.budget import BudgetError, available_memory, check_runs, human
+
+MAX_SIMULATIONS = 20_000_000   # a larger chain needs --yes (the shipped studies run up to a few million)
+
+
+def check_chain_size(walkers: int, steps: int, n_sim: int, dim: int, yes: bool = False,
+                     available: int | None = None) -> None:
+    """Refuse a chain too large to hold, or gate one with too many simulations (see the module docstring)."""
+    available = available_memory() if available is None else available
+    rows = walkers * steps
+    chain_bytes = 8 * rows * (dim + 1) * 3    # the file's rows, read back, and the diagnostics' copies
+    shape = f"{walkers:,} walkers x {steps:,} steps"
+    if available is not None and chain_bytes > available:
+        raise BudgetError("method.walkers", f"a chain of {shape} would need about {human(chain_bytes)} of memory; "
+                                            f"this machine has {human(available)} available: use fewer walkers "
+                                            "or steps")
+    simulations = walkers * (steps + 1) * n_sim
+    if simulations > MAX_SIMULATIONS and not yes:
+        raise BudgetError("method.walkers", f"a chain of {shape} x {n_sim:,} simulations per evaluation runs "
+                                            f"{simulations:,} simulations (more than {MAX_SIMULATIONS:,}); that takes "
+                                            "long: use fewer walkers, steps or n_sim, or pass --yes to go ahead")
 
 
 def check_support(where: str, key: str, support: tuple[float, float], preset: Preset, integer: bool) -> None:

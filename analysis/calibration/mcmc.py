@@ -23,9 +23,11 @@ before_step=None, refresh_every=0, refresh=None, until_converged=False, check_ev
   plus ``walkers`` and ``ndim``; a resume needs every one stored with the same value (strings compared
   as strings, other values in the type of this run's value; a key missing from an older file takes its
   ``meta_defaults`` value, else it counts as different), else :class:`ChainMismatch` (a ConfigError
-  at ``--resume``) listing every difference and ``needs``. A file that cannot be read as a chain is
-  moved to ``quarantine/`` beside it with a warning and the chain starts again (the same seed gives the
-  same chain). A run that fails before its first step is stored removes the file it created.
+  at ``--resume``) listing every difference and ``needs``. A file that cannot be read as a chain, or
+  whose rows changed since they were written (:func:`~analysis.calibration.chainfile.check_chain`: row
+  checksums), is moved to ``quarantine/`` beside it with one warning and the chain starts again (the same
+  seed gives the same chain). A run that fails before its first step is stored removes the file it
+  created, and only then: a failed write never deletes a file that may hold steps.
 * Exact resume: ``resume=True`` continues from the stored iteration up to ``steps`` rows and gives bit
   for bit the chain of an uninterrupted run (the state is what emcee stores: the last row, the accepted
   counts, the move random state). A file holding ``>= steps`` rows runs nothing; with no file (or an
@@ -69,7 +71,7 @@ from sweeps.files import write_failed
 from sweeps.quarantine import quarantine
 from sweeps.seeds import Tag, generator
 
-from .chainfile import ChainFile, differences, stored_attrs
+from .chainfile import ChainFile, DamagedChain, check_chain, differences, stored_attrs
 from .checks import integer
 from .diagnostics import integrated_times, sampled_enough
 
@@ -110,12 +112,13 @@ def open_chain(path, resume: bool, meta: dict, defaults: dict | None = None, nee
         raise FileExistsError(f"{path} exists; remove it to start afresh or pass resume=True")
     backend = ChainFile(path, name=GROUP)
     try:
+        check_chain(path) if os.path.exists(path) else 0
         attrs = stored_attrs(path) if os.path.exists(path) else {}
         initialized = bool(attrs) and backend.initialized
-    except (OSError, ValueError) as err:
-        quarantine(Path(path).parent, Path(path), f"cannot be read as a chain file ({type(err).__name__}: "
-                                                  f"{str(err).splitlines()[0] if str(err) else ''}); the chain "
-                                                  "starts again from its first step (same seed: same chain)")
+    except DamagedChain as err:
+        reason = str(err).replace(f"{path} ", "", 1).replace(f"{path}: ", "", 1)
+        quarantine(Path(path).parent, Path(path), f"{reason}; the chain starts again from its first step "
+                                                  "(same seed: same chain)")
         return ChainFile(path, name=GROUP)
     if initialized:
         attrs.setdefault("walkers", attrs.get("nwalkers"))
@@ -182,10 +185,12 @@ def run_chain(log_prob: Callable, prior, *, walkers: int, steps: int, seed: int,
 
 
 def _empty(path) -> bool:
+    """True only for a chain file that can be read and holds no step: one that cannot be read (a full
+    disk cut its write) may hold steps, so it is kept (the next run sets it aside if it is damaged)."""
     try:
         return os.path.exists(path) and int(stored_attrs(path).get("iteration", 0)) == 0
     except ValueError:
-        return True
+        return False
 
 
 def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, initial, every, progress, before_step,

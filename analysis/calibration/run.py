@@ -21,7 +21,8 @@ results do not depend on it.
 * ``posterior.nc``: ArviZ InferenceData (posterior with parameter names, walkers as chains; sample
   stats with the log likelihood and acceptance; posterior predictive of the target statistics; observed
   data; prior draws; :mod:`~analysis.calibration.inference`);
-* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly). It records everything
+* ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly, and so does the same
+  command run again without it: an existing chain is always continued, never replaced). It records everything
   that defines the chain (:func:`chain_meta`: seed, walkers, moves, likelihood, re-evaluation, n_sim, the
   parameters and their priors, the targets, the model and the metric settings); ``resume`` with any of
   them changed is refused with the list of differences (``ChainMismatch``, a ConfigError at
@@ -79,7 +80,7 @@ from tqdm import tqdm
 
 from analysis.reports.labels import parameter_label
 from simcore import MODEL_VERSION
-from simcore.schema import ConfigError, to_dict
+from simcore.schema import to_dict
 from sweeps.executors import Executor
 from sweeps.files import atomic_path, json_ready
 from sweeps.seeds import Tag, generator
@@ -89,6 +90,7 @@ from .accounting import Accounting
 from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
+from .feasibility import check_chain_size
 from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
@@ -219,13 +221,20 @@ def calibrate(config: CalibrationConfig, out_dir=None, resume: bool = False, pro
 
 def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = False, progress: bool = True,
                     predictive_draws: int = 100, executor: str = "serial", workers: int | None = None,
-                    scheduler: str | None = None) -> CalibrationRun:
-    """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring)."""
+                    scheduler: str | None = None, yes: bool = False) -> CalibrationRun:
+    """Run ``config``'s method and write its outputs; the :class:`CalibrationRun` (see the module docstring).
+    A chain too large to hold is refused, one of more than ``MAX_SIMULATIONS`` simulations needs ``yes``
+    (:func:`~analysis.calibration.feasibility.check_chain_size`), before anything is written."""
+    settings = config.method
+    if settings.kind != "optimize":
+        dim = len(config.names)
+        check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
+                         settings.n_sim if settings.kind == "emcee" else 0, dim, yes)
     default = Path("results") / "calibration" / (config.folder_name or config.name)
     folder = OutputFolder(Path(out_dir) if out_dir else default)
-    chain_path = folder.path("chain.h5")
-    if config.method.kind != "optimize" and chain_path.exists() and not resume:
-        raise ConfigError("--resume", f"{chain_path} exists: pass --resume to continue it, or remove it")
+    # the same command, run again after any interrupt, continues the stored chain (checked to have
+    # been made with the same settings, else ChainMismatch)
+    resume = resume or (config.method.kind != "optimize" and folder.path("chain.h5").exists())
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
             outcome = _optimize(config, folder, pool)

@@ -333,9 +333,10 @@ def _adequacy(ctx: Context) -> None:
     ctx.blocks.append(Table(pd.DataFrame(rows), "CI half-width per metric over cells"))
 
 
-def _claims(ctx: Context, files) -> None:
-    """The sweep's declared claims (and those of ``files``), tested on the ok runs."""
-    claims, columns, skipped = claims_of(ctx.results, files)
+def _claims(ctx: Context, declared) -> None:
+    """The sweep's declared claims (and those of the claims files), ``claims_of``'s answer, tested on the
+    ok runs."""
+    claims, columns, skipped = declared
     outcomes = evaluate(claims, ctx.runs, columns.factors, seed=ctx.seed)
     blocks, tables = claims_section(outcomes, ctx.fig_dir, ctx.seed)
     for name, table in tables.items():
@@ -414,6 +415,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     default = results.path / "report"
     out = Path(out_dir) if out_dir else default
     metric_columns = resolve_metrics(results, metrics)
+    declared = claims_of(results, claims_files)   # every input read and checked before anything is written
     owned = OwnedFolder(out, REPORT_RECORD, adopt=out.resolve() == default.resolve()).claim()
     ctx = Context(results, design_runs(results), metric_columns, factors, out,
                   out / "figures", out / "tables", seed, [], {}, continuous_keys)
@@ -422,7 +424,7 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     for folder in (ctx.fig_dir, ctx.table_dir):
         folder.mkdir(parents=True, exist_ok=True)
     _overview(ctx)
-    _claims(ctx, claims_files)
+    _claims(ctx, declared)
     _leadership(ctx)
     if continuous and continuous.keys:
         sensitivity_section(ctx, continuous, _figure, _save_table)

@@ -158,3 +158,32 @@ def test_claims_are_stored_with_the_results_and_read_back(tmp_path):
     assert read_claims_file(CLAIMS / "hartman_benes.toml", table_columns(
         pd.DataFrame({"leadership.x": [0.0, 1.0]}), ["trigger_rate", "leaders_mean", "follow_corr_max",
                                                      "follow_corr_before", "n_groups_mean", "cohesion_mean"], ()))
+
+
+# -- expressions are data: hostile inputs (docs/errors.md, sweeps.expressions) -----------------------
+
+@pytest.mark.parametrize("text, kind, said", [
+    ("__import__('os').system('touch pwned')", "condition", "is not allowed here"),
+    ("open('/etc/passwd')", "metric", "is not allowed here"),
+    ("abs(cohesion_mean).__class__", "metric", "is not allowed here"),
+    ("(lambda: 1)()", "metric", "is not allowed here"),
+    ("cohesion_mean ** 10 ** 10", "metric", "is not allowed here"),
+    ("[x for x in ()]", "metric", "is not allowed here"),
+    ("cohesion_mean[0]", "metric", "is not allowed here"),
+    ("not " * 3000 + "fragmented", "condition", "at most 4,000"),
+    ("+".join(["cohesion_mean"] * 20000), "metric", "at most 4,000"),
+    ("not " * 200 + "fragmented", "condition", "nested more than 60 levels"),
+    ("+".join(["cohesion_mean"] * 100), "metric", "nested more than 60 levels"),
+    ("(" * 1000 + "cohesion_mean" + ")" * 1000, "metric", "cohesion_mean"),
+])
+def test_hostile_expressions_are_refused_as_config_errors(text, kind, said):
+    with pytest.raises(ConfigError) as info:
+        parse(text, "claims[0].condition", kind)
+    assert info.value.key == "claims[0].condition" and said in str(info.value)
+
+
+def test_a_dunder_column_name_is_only_a_name_that_no_table_has():
+    expression = parse("x.__class__ == 1", "k", "condition")
+    assert expression.names == ("x.__class__",)
+    with pytest.raises(ExpressionError, match="no column 'x.__class__'"):
+        expression.evaluate(pd.DataFrame({"x": [1.0]}))

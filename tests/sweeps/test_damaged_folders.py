@@ -15,6 +15,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -124,6 +125,103 @@ def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(t
     assert_frame_equal(results(out), results(reference), check_exact=True)   # no foreign column either
     assert_frame_equal(series(out), series(reference), check_exact=True)
     assert status(out)["missing"] == 0
+
+
+def _edit_part(out, kind, edit, name="part-000002.parquet"):
+    path = out / kind / name
+    edit(pd.read_parquet(path)).to_parquet(path, index=False)
+
+
+def _rename(frame):
+    return frame.rename(columns={"polarization_mean": "polarisation_mean"})
+
+
+def _nan(frame):
+    return frame.assign(cohesion_mean=float("nan"))
+
+
+def _strings(frame):
+    return frame.assign(cohesion_mean=frame["cohesion_mean"].astype(str))
+
+
+def _series_shifted(frame):
+    return frame.assign(**{c: frame[c] + 0.125 for c in frame.columns if c not in ("run_id", "t")})
+
+
+# (what is done to a finished sweep, the file a reader must name, the file the next run quarantines)
+DAMAGES = {
+    "a renamed metric column": (lambda out: _edit_part(out, "runs", _rename), "runs/part-000002", "runs/part-000002"),
+    "metric values overwritten with NaN": (lambda out: _edit_part(out, "runs", _nan), "runs/part-000002",
+                                           "runs/part-000002"),
+    "strings in a metric column": (lambda out: _edit_part(out, "runs", _strings), "runs/part-000002",
+                                   "runs/part-000002"),
+    "a part with zero rows": (lambda out: _edit_part(out, "runs", lambda f: f.iloc[:0]), "runs/part-000002",
+                              "runs/part-000002"),
+    "a time series part with other values": (lambda out: _edit_part(out, "timeseries", _series_shifted),
+                                             "timeseries/part-000002", "timeseries/part-000002"),
+    "runs.parquet overwritten with NaN": (lambda out: _nan(pd.read_parquet(out / "runs.parquet")).to_parquet(
+        out / "runs.parquet", index=False), "runs.parquet", None),
+    "a manifest holding a list": (lambda out: (out / "manifest.json").write_text("[1, 2]"), "manifest.json",
+                                  "manifest.json"),
+    "a manifest edited by hand": (lambda out: (out / "manifest.json").write_text(
+        (out / "manifest.json").read_text().replace('"ok": 6', '"ok": 7')), "manifest.json", "manifest.json"),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", list(DAMAGES))
+def test_a_changed_stored_file_is_detected_named_set_aside_and_recomputed(damage, tmp_path, reference, capsys,
+                                                                         one_part_per_run):
+    """Every stored file kind (runs part, time series part, runs table, manifest): status, load_results
+    and report name the changed file and never merge it; run quarantines it and recomputes what it held,
+    giving the uninterrupted result bit for bit."""
+    from sweeps.results import load_results
+
+    sweep = write_sweep(tmp_path)
+    out = tmp_path / "out"
+    run(sweep, out)
+    reference_runs = pd.read_parquet(reference / "runs.parquet")
+    apply, named, moved = DAMAGES[damage]
+    apply(out)
+    assert main(["status", str(out)]) == 0
+    loaded = load_results(out, timeseries=True)
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err
+    assert "polarisation_mean" not in loaded.runs and not loaded.runs["cohesion_mean"].isna().any()
+    assert loaded.runs["cohesion_mean"].dtype.kind == "f"
+    shown = set(loaded.series()["run_id"])
+    assert shown <= set(reference_runs["run_id"])
+    if "time series" in damage:   # the changed series are left out, never shown
+        changed = pd.read_parquet(out / "runs" / "part-000002.parquet")["run_id"]
+        assert not shown & set(changed)
+    assert main(["run", str(sweep), "--out", str(out), "--executor", "serial", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    if moved:
+        assert f"{moved}" in err and "moved to quarantine/" in err
+        assert list((out / "quarantine").rglob(Path(moved).name + "*"))
+    assert_frame_equal(results(out), results(reference), check_exact=True)
+    assert_frame_equal(series(out), series(reference), check_exact=True)
+    assert status(out)["missing"] == 0
+    assert main(["status", str(out)]) == 0 and capsys.readouterr().err == ""   # nothing damaged is left
+
+
+def test_checksums_are_recorded_as_parts_are_written_and_a_changed_part_is_skipped(tmp_path, caplog):
+    store = ResultsStore(tmp_path)
+    rows = [{"run_id": "a", "status": "ok", "error": "", "cohesion_mean": 0.5}]
+    store.write_part(1, rows, pd.DataFrame({"run_id": ["a"], "t": [0.0], "cohesion": [0.5]}))
+    store.write_part(2, [{**rows[0], "run_id": "b"}], pd.DataFrame({"run_id": ["b"], "t": [0.0], "cohesion": [0.5]}))
+    manifest = ResultsStore(tmp_path).manifest()
+    assert set(manifest["checksums"]) == {"runs/part-000001.parquet", "runs/part-000002.parquet",
+                                          "timeseries/part-000001.parquet", "timeseries/part-000002.parquet"}
+    assert list(ResultsStore(tmp_path).latest()["run_id"]) == ["a", "b"]
+    path = tmp_path / "runs" / "part-000002.parquet"
+    pd.read_parquet(path).assign(cohesion_mean=0.75).to_parquet(path, index=False)   # a valid, wrong value
+    assert list(ResultsStore(tmp_path).latest()["run_id"]) == ["a"]
+    assert "runs/part-000002.parquet changed since it was written" in caplog.text
+    store = ResultsStore(tmp_path)
+    assert store.repair()     # moved aside, and its checksum forgotten
+    assert not path.exists() and "runs/part-000002.parquet" not in store.checksums()
 
 
 def test_part_numbers_are_never_reused_after_quarantine(tmp_path, one_part_per_run):

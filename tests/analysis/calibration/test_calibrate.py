@@ -1,12 +1,13 @@
 """`flocksweep calibrate` end to end on a tiny configuration: targets made by the simulator at a known
 perception range, a short emcee chain, every output written (posterior.nc opened by ArviZ with the
-parameter named, the report); refusals for an existing chain and for methods this version does not
+parameter named, the report); an existing chain continued by the same command, refusals for a chain of other settings and for methods this version does not
 run."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pandas as pd
 import pytest
@@ -82,12 +83,20 @@ def test_calibrate_writes_posterior_diagnostics_and_figures(truth_targets, tmp_p
 
 
 @pytest.mark.slow
-def test_existing_chain_needs_resume_and_resume_extends_it(truth_targets, tmp_path):
+def test_an_existing_chain_is_continued_never_replaced_and_resume_extends_it(truth_targets, tmp_path):
     config = calibration_from_dict(tiny(truth_targets, steps=10), ROOT)
     calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)
+    def stored():
+        with h5py.File(tmp_path / "c" / "chain.h5", "r") as f:
+            return f["mcmc"].attrs["iteration"], f["mcmc"]["chain"][...]
+    steps, chain = stored()
+    calibrate(config, tmp_path / "c", progress=False, predictive_draws=4)   # the same command: nothing to add
+    again = stored()
+    assert again[0] == steps == 10 and np.array_equal(again[1], chain)
+    other = calibration_from_dict({**tiny(truth_targets, steps=10), "seed": 5}, ROOT)
     with pytest.raises(ConfigError) as info:
-        calibrate(config, tmp_path / "c", progress=False)
-    assert info.value.key == "--resume"
+        calibrate(other, tmp_path / "c", progress=False)
+    assert info.value.key == "--resume" and "bsl_seed: stored 4, now 5" in str(info.value)
     longer = calibration_from_dict(tiny(truth_targets, steps=16), ROOT)
     calibrate(longer, tmp_path / "c", resume=True, progress=False, predictive_draws=4)
     assert json.loads((tmp_path / "c" / "convergence.json").read_text())["steps"] == 16

@@ -76,3 +76,31 @@ def test_an_output_path_that_is_a_file_is_a_config_error(results, tmp_path):
     with pytest.raises(ConfigError) as info:
         build_report(results, target, formats=("md",))
     assert info.value.key == "--out" and target.read_text() == "x"
+
+
+@pytest.mark.slow
+def test_an_interrupted_build_is_rerun_by_the_same_command(results, tmp_path, monkeypatch, capsys):
+    from analysis.reports import report
+
+    out = tmp_path / "rep"
+    argv = ["report", str(results), "--out", str(out), "--format", "md"]
+
+    def stopped(ctx, cells):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(report, "_timeseries", stopped)
+    assert main(argv) == 130
+    assert any((out / "tables").iterdir())            # the stopped build had written some files
+    monkeypatch.undo()
+    assert main(argv) == 0, capsys.readouterr().err
+    recorded = set(json.loads((out / REPORT_RECORD).read_text())["files"])
+    assert "report.md" in recorded and "tables/design.csv" in recorded
+
+
+@pytest.mark.slow
+def test_a_bad_claims_file_is_refused_before_the_folder_is_written(results, tmp_path, capsys):
+    claims = tmp_path / "claims.toml"
+    claims.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    out = tmp_path / "rep"
+    assert main(["report", str(results), "--claims", str(claims), "--out", str(out)]) == 2
+    assert "claims.toml" in capsys.readouterr().err
+    assert not out.exists()
