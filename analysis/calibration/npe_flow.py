@@ -90,6 +90,22 @@ def _build(settings: FlowSettings, d: int, k: int, key):
                                       flow_layers=settings.layers, nn_width=settings.width)
 
 
+_SAMPLER = []
+
+
+def _sampler():
+    """One compiled vectorised sampler (flow, conditions (m, k), keys (m,), count) -> (m, count, d), kept
+    for the process: equinox's filter_jit compiles once per flow architecture, shape and count."""
+    if not _SAMPLER:
+        _, eqx = require_jax()
+        import jax
+
+        def sample(flow, conditions, keys, count):
+            return jax.vmap(lambda c, key: flow.sample(key, (count,), condition=c))(conditions, keys)
+        _SAMPLER.append(eqx.filter_jit(sample))
+    return _SAMPLER[0]
+
+
 def _scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mean, sd = values.mean(axis=0), values.std(axis=0)
     return mean, np.where(sd > 0, sd, 1.0)
@@ -132,8 +148,7 @@ class Estimator:
         import jax.numpy as jnp
 
         keys = jax.random.split(jax.random.key(int(seed)), len(conditions))
-        sample = jax.vmap(lambda c, key: self.flow.sample(key, (count,), condition=c))
-        draws = np.asarray(sample(jnp.asarray(conditions), keys), dtype=float)
+        draws = np.asarray(_sampler()(self.flow, jnp.asarray(conditions), keys, int(count)), dtype=float)
         return draws * self.theta_sd + self.theta_mean
 
     def sample_many(self, x, count: int, seed: int, support=None) -> np.ndarray:
