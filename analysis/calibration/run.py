@@ -345,8 +345,9 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predic
     report = json_ready({"name": config.name, "method": "npe", "settings": to_dict(config.method), "seed": config.seed,
                          "convergence": verdict, "warnings": warnings, "npe": result.info, "draws": len(draws),
                          "executor": pool.description, "wall_s": time.time() - started,
-                         "accounting": cost.block(training_runs_reused=0 if not result.info["reused"]
-                                                  else result.info["training_simulations"]),
+                         "accounting": cost.block(training_runs_reused=result.info["training_simulations"]
+                                                  + config.method.heldout - cost.simulations["training"]
+                                                  - cost.simulations["heldout"]),
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,

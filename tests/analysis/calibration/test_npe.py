@@ -141,7 +141,7 @@ def test_calibrate_trains_once_then_reuses_the_estimator_and_posterior_serves_ma
     first = json.loads((out / "convergence.json").read_text())
     assert first["accounting"]["simulations"]["training"] == 60
     assert first["accounting"]["simulations"]["heldout"] == 20
-    assert not first["npe"]["reused"]
+    assert not first["npe"]["reused"] and first["accounting"]["training_runs_reused"] == 0
     for name in ("posterior.nc", "posterior.csv", "corner.png", "coverage.csv", "coverage_ranks.png", "report.html"):
         assert (out / name).is_file(), name
     assert main(["calibrate", str(path), "--out", str(out), "--no-progress",
@@ -150,6 +150,7 @@ def test_calibrate_trains_once_then_reuses_the_estimator_and_posterior_serves_ma
     assert second["npe"]["reused"]
     assert "training" not in second["accounting"]["simulations"]
     assert "heldout" not in second["accounting"]["simulations"]
+    assert second["accounting"]["training_runs_reused"] == 80
     flocks = pd.DataFrame({"flight": ["a", "b", "c"], "visible_mean_mean": [2.5, 3.0, 4.0],
                            "binocular_share_mean": [0.15, 0.2, 0.25]})
     flocks.to_csv(tmp_path / "flocks.csv", index=False)
