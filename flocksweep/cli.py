@@ -12,11 +12,12 @@
     flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
-    flocksweep calibrate CALIB.toml [--method emcee|optimize|emulator] [--set key=value ...] [--out DIR]
+    flocksweep calibrate CALIB.toml [--method emcee|optimize|emulator|npe] [--set key=value ...] [--out DIR]
                          [--resume] [--no-progress]
                          [--executor serial|local|dask] [--workers K] [--scheduler ADDR]
     flocksweep targets CALIB.toml --truth NAME=VALUE ... [--set key=value ...] [--seed S] [--replicates R] [--sd SD,...]
     flocksweep targets CALIB.toml --from-tracks [TRACKS] [--set key=value ...]
+    flocksweep posterior ESTIMATOR --targets FLOCKS.csv [--draws S] [--seed S] [--out FILE.csv]
     flocksweep sbc CALIB.toml [--datasets L] [--draws S] [--workers K] [--out DIR] [--steps N] [--walkers W]
     flocksweep view MODEL.toml | RESULTS_DIR (--run ID | --where "K=V, ..." | --showcase NAME) | TRAJ.npz
                     [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--color-by MODE] ... (analysis/viewer/command.py)
@@ -356,13 +357,13 @@ def cmd_report(args) -> int:
 def _add_calibrate(sub) -> None:
     p = sub.add_parser("calibrate", help="fit model parameters to target flock statistics",
                        description="Fit the free parameters of a calibration TOML with its method (emcee BSL, "
-                                   "optimize or emulator; --method picks another the file has settings for); "
+                                   "optimize, emulator or npe; --method picks another the file has settings for); "
                                    "writes the posterior or optimum, diagnostics, figures and the cost.")
     p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of the calibration file, e.g. --set method.steps=500 (a flat [method] "
                         "table) or --set method.emcee.steps=500 (a [method.emcee] table)")
-    p.add_argument("--method", metavar="emcee|optimize|emulator",
+    p.add_argument("--method", metavar="emcee|optimize|emulator|npe",
                    help="run this method with its [method.<name>] settings instead of the file's method.kind; "
                         "its outputs go to results/calibration/<name>-<method> unless --out is given")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
@@ -484,6 +485,8 @@ DELEGATED = {"compile": ("sweeps.compile", "compile the simulation and metric ke
              "export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
              "sbc": ("analysis.calibration.sbc_command",
                      "simulation-based calibration check of a calibration's posterior"),
+             "posterior": ("analysis.calibration.posterior_command",
+                           "one posterior per observed flock from a trained npe estimator (no simulation)"),
              "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
              "measure": ("analysis.reports.measure_command", "flock metrics of measured tracks (tables and a report)")}
 
@@ -499,7 +502,8 @@ def cmd_delegated(args) -> int:
 
 ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
           "calibrate": _add_calibrate, "targets": _add_targets}
-ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "sbc", "view", "measure")
+ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior", "sbc", "view",
+         "measure")
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:

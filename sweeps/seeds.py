@@ -19,6 +19,7 @@ tag                    entropy                      seeds
 ``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
 ``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
 ``PRIOR``              [seed, 0x9A10]               the prior draws stored in a calibration's posterior.nc
+``NPE``                [seed, 0x4E5E, stream]       neural posterior estimation (:class:`NPEStream`)
 ``CLAIM_POWER``        [seed, 0xC1A1, sha256(test)]  the power simulation of a claim's test (``test`` its
                                                     path, e.g. "d.faster"; :func:`named_generator`)
 =====================  ===========================  =================================================
@@ -56,6 +57,17 @@ class Tag(IntEnum):
     DESIGN_SENSITIVITY = 0x5E45
     PRIOR = 0x9A10
     CLAIM_POWER = 0xC1A1
+    NPE = 0x4E5E
+
+
+@unique
+class NPEStream(IntEnum):
+    """The streams of the npe method: [seed, Tag.NPE, stream]."""
+    DESIGN = 0      # the prior draws of the training and held-out simulations (one sweep design)
+    NOISE = 1       # the targets' measurement noise added to those simulations
+    TRAIN = 2       # the flow's initial weights, batches and validation split (a JAX key)
+    POSTERIOR = 3   # the posterior draws at the targets (a JAX key)
+    COVERAGE = 4    # the posterior draws and rank ties of the held-out coverage check
 
 
 @unique

@@ -13,7 +13,8 @@ Modules: configuration (``config``: calibration files on the one schema engine, 
 method in ``settings``), priors and synthetic likelihoods (``priors``, ``likelihood``), the theta ->
 summaries simulator (``simulator``), the one emcee driver (``mcmc``) and the methods on it: BSL
 (``bsl``), the emulator (``training``, ``surrogates``, ``emulated``, its sequential design ``refine``),
-optimisation (``optimize``); ``flocksweep calibrate`` (``run``), diagnostics, ArviZ output and figures
+optimisation (``optimize``), neural posterior estimation (``npe`` on the flow of ``npe_flow``; the
+``sbi`` extra) and its amortised command ``flocksweep posterior`` (``posterior_command``); ``flocksweep calibrate`` (``run``), diagnostics, ArviZ output and figures
 (``diagnostics``, ``inference``, ``plots``), the calibration report (``calibration_report``),
 simulation-based calibration (``sbc``, ``sbc_report``), synthetic targets (``synthetic``) and targets
 from measured tracks with the ``[observation]`` block's checks (``tracks_targets``). This layer

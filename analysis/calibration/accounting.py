@@ -6,6 +6,8 @@ Contract
 (simulated runs: rows a simulator returned) and ``evaluations`` (synthetic-likelihood or objective
 evaluations, each ``n_sim`` runs) under ``phase``, one of :data:`PHASES`:
 
+* ``training``: the npe method's training simulations (prior draws run as a sweep), this invocation's;
+* ``heldout``: the npe method's held-out simulations for the coverage check;
 * ``observed``: SBC's synthetic observed datasets (one per dataset);
 * ``initial``: the emcee walkers' starting points (and their redraws);
 * ``search``: emcee's proposals, or the optimiser's evaluations (common seeds), or, for the emulator,
@@ -32,7 +34,7 @@ from __future__ import annotations
 
 import time
 
-PHASES = ("observed", "initial", "search", "reevaluation", "predictive", "recheck", "confirmation", "refinement")
+PHASES = ("training", "heldout", "observed", "initial", "search", "reevaluation", "predictive", "recheck", "confirmation", "refinement")
 
 
 class Accounting:
@@ -82,5 +84,6 @@ def lines(block: dict | None) -> list[str]:
     if block.get("resumed_from"):
         out.append(f"  (resumed from step {block['resumed_from']}: the simulations of earlier runs are not counted)")
     if block.get("training_runs_reused"):
-        out.append(f"  (the emulator was trained on {block['training_runs_reused']:,} sweep runs made before)")
+        out.append(f"  (the emulator or estimator was trained on {block['training_runs_reused']:,} sweep runs made "
+                   "before)")
     return out

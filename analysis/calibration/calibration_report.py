@@ -155,6 +155,25 @@ def _cost_blocks(block: dict | None) -> list:
             Para(" ".join(lines(block)))]
 
 
+def _npe_blocks(outcome, folder) -> list:
+    """npe: the posterior of independent draws, the estimator and its held-out coverage."""
+    info = outcome.report["npe"]
+    trained = ("reused from " if info["reused"] else "trained and stored in ") + f"`{info['estimator']}`"
+    blocks = [Heading("Posterior"),
+              Para(f"{outcome.report.get('draws')} independent draws of the neural posterior estimator at the targets "
+                   f"(split into 4 chains for ArviZ's r_hat and ESS); the estimator was {trained} (identity "
+                   f"{info['identity']}, {info['training_simulations']} training simulations)."),
+              Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
+    blocks += _figure(folder, "corner.png", "Pairwise posterior: 5%, 50% and 95% quantiles, contours holding "
+                                            "50% and 90% of the draws, the truth in red when known.")
+    blocks += [Heading("Coverage on held-out simulations"),
+               Table(pd.DataFrame(info["coverage"]["table"]), f"Share of {info['heldout_simulations']} held-out "
+                                                               "truths inside the central intervals (coverage.csv)")]
+    blocks += _figure(folder, "coverage_ranks.png", "SBC ranks of the held-out truths among 199 posterior draws: "
+                                                    "flat when calibrated, U-shaped when over-confident.")
+    return blocks
+
+
 def calibration_report(config, outcome, folder) -> dict:
     """Write report.html and report.md (see the module docstring)."""
     report = outcome.report
@@ -163,7 +182,9 @@ def calibration_report(config, outcome, folder) -> dict:
     if config.description:
         blocks.append(Para(config.description))
     blocks += [Heading("Verdicts")] + [Para(line) for line in verdicts]
-    if outcome.summary is not None:
+    if outcome.summary is not None and report.get("method") == "npe":
+        blocks += _npe_blocks(outcome, folder)
+    elif outcome.summary is not None:
         blocks += [Heading("Posterior"),
                    Para(f"{report.get('walkers')} walkers x {report.get('steps')} steps, burn-in {report.get('burn')} "
                         "steps (2 x the largest autocorrelation time). tau and ess: emcee's integrated "

@@ -51,7 +51,7 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
                                     # max_gap, detection_probability, position_sd, projection)
 
     [method]
-    kind = "emcee"                  # "emcee" | "optimize" | "emulator"
+    kind = "emcee"                  # "emcee" | "optimize" | "emulator" | "npe" (docs/calibration.md)
     n_sim = 50                      # replicates per likelihood evaluation (all kinds)
     likelihood = "gaussian"         # "gaussian" (n_sim >= k + 2) or "unbiased" (n_sim >= k + 4)
     # emcee:    walkers (even, >= 2 x parameters), steps (>= 1), reevaluate_every (0: never),
@@ -76,7 +76,7 @@ block all take them.
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
 preset the same way. ``[method]`` (:mod:`analysis.calibration.method_table`) becomes typed settings per kind (:mod:`analysis.calibration.settings`:
-``EmceeSettings``, ``OptimizeSettings`` or ``EmulatorSettings``; ``config.method.kind`` names it).
+``EmceeSettings``, ``OptimizeSettings``, ``EmulatorSettings`` or ``NpeSettings``; ``config.method.kind`` names it).
 
 Parameter keys are checked by setting each parameter to its prior mean (integer keys rounded) with
 :meth:`simcore.Preset.replace` on the fixed preset (model.set and run settings applied), which is

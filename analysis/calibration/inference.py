@@ -31,6 +31,9 @@ attrs=None) -> arviz.InferenceData``
 posterior: ``constant_data`` holds the optimum ``optimum_<name>``, ``posterior_predictive`` the re-check
 replicates at it (as above, chain 1), with ``observed_data``, ``prior`` and the constant data above.
 
+``draws_inference_data(config, draws, *, chains=4, predictive=None, attrs=None)``: independent
+posterior draws (npe) split into chains, with the same other groups.
+
 ``write_inference_data(idata, path)``: atomically (``sweeps.files.atomic_path``), engine h5netcdf.
 ``load_calibration_results(out_dir) -> InferenceData``: ``arviz.from_netcdf(out_dir / "posterior.nc")``.
 ``arviz_diagnostics(idata) -> DataFrame``: per parameter ``r_hat, ess_bulk, ess_tail, mcse_mean, mcse_sd``
@@ -170,6 +173,27 @@ def optimum_inference_data(config, theta, recheck, attrs: dict | None = None):
     groups = {"posterior_predictive": _predictive(config, recheck), "observed_data": _observed(config),
               "constant_data": _constant(config, optimum), "prior": _prior(config, 1000)}
     return az.InferenceData(**_with_attrs(groups, _base_attrs(config, attrs)))
+
+
+def draws_inference_data(config, draws, *, chains: int = 4, predictive=None, attrs: dict | None = None):
+    """InferenceData of independent posterior draws (S, d) (the npe method): ``posterior`` with the
+    draws split into ``chains`` chains of S // chains draws (R-hat and ESS then check them as any
+    sample), ``posterior_predictive``, ``observed_data``, ``constant_data``, ``prior``; attrs as above
+    with ``inference_library`` "flowjax"."""
+    az = arviz()
+    draws = np.asarray(draws, dtype=float)
+    per = len(draws) // chains
+    kept = draws[:per * chains].reshape(chains, per, draws.shape[1])
+    groups = {"posterior": _samples({name: kept[:, :, j] for j, name in enumerate(config.names)}),
+              "observed_data": _observed(config), "prior": _prior(config, 1000)}
+    for name, key in zip(config.names, config.keys):
+        groups["posterior"][name].attrs["key"] = key
+    constant = _constant(config)
+    if constant is not None:
+        groups["constant_data"] = constant
+    if predictive is not None:
+        groups["posterior_predictive"] = _predictive(config, predictive)
+    return az.InferenceData(**_with_attrs(groups, {**_base_attrs(config, attrs), "inference_library": "flowjax"}))
 
 
 def write_inference_data(idata, path) -> Path:

@@ -33,7 +33,7 @@ from pathlib import Path
 from simcore.schema import ConfigError, build, check_choice, field_names, resolve_path, unknown_key
 
 from .likelihood import min_replicates
-from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings
+from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings, NpeSettings
 
 SHARED = field_names(MethodSettings)
 
@@ -79,6 +79,9 @@ def _checked(cls, data: dict, from_flat, kind: str, base: Path, dim: int, k: int
     if isinstance(settings, EmulatorSettings):
         changes["results"] = resolve_path(str(settings.results), base, where("results"), "results folder",
                                           must_exist=False)
+    if isinstance(settings, NpeSettings) and settings.estimator is not None:
+        changes["estimator"] = resolve_path(str(settings.estimator), base, where("estimator"), "estimator folder",
+                                            must_exist=False)
     return dataclasses.replace(settings, **changes)
 
 

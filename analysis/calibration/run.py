@@ -95,10 +95,11 @@ from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
 from .emulated import confirm, observation_covariance, posterior_median, run_emulator_mcmc
-from .inference import (POSTERIOR_FILE, arviz_diagnostics, chain_inference_data, load_calibration_results,
-                        optimum_inference_data, write_inference_data)
+from .inference import (POSTERIOR_FILE, arviz_diagnostics, chain_inference_data, draws_inference_data,
+                        load_calibration_results, optimum_inference_data, write_inference_data)
+from .npe import run_npe
 from .optimize import run_optimize
-from .plots import corner_figure, predictive_figure, rank_figure, trace_figure
+from .plots import corner_figure, predictive_figure, rank_figure, sbc_figure, trace_figure
 from .refine import P_LIMIT, Z_LIMIT, confirmation_passed, refine_emulator
 from .simulator import SummarySimulator, summary_simulator
 from .surrogates import build_surrogate, prior_outside_box
@@ -234,10 +235,12 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     folder = OutputFolder(Path(out_dir) if out_dir else default)
     # the same command, run again after any interrupt, continues the stored chain (checked to have
     # been made with the same settings, else ChainMismatch)
-    resume = resume or (config.method.kind != "optimize" and folder.path("chain.h5").exists())
+    resume = resume or (config.method.kind not in ("optimize", "npe") and folder.path("chain.h5").exists())
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
             outcome = _optimize(config, folder, pool)
+        elif config.method.kind == "npe":
+            outcome = _npe(config, folder, progress, predictive_draws, pool, (executor, workers, scheduler))
         elif config.method.kind == "emulator":
             outcome = _emulator(config, folder, resume, progress, predictive_draws, pool,
                                 (executor, workers, scheduler))
@@ -308,6 +311,56 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
     return write_posterior(config, result, folder, pool, predictive_draws, started,
                            extra={"executor": pool.description}, cost=cost,
                            cost_extra={"resumed_from": resumed_from} if resumed_from else {})
+
+
+def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predictive_draws: int, pool: Executor,
+         sweep_executor: tuple) -> CalibrationRun:
+    """Neural posterior estimation (analysis.calibration.npe): the training sweep runs on the sweep
+    machinery (``local`` when the calibration runs ``serial``), the coverage check gates the verdict."""
+    started = time.time()
+    cost = Accounting()
+    executor, workers, scheduler = sweep_executor
+    result = run_npe(config, folder, "local" if executor == "serial" else executor, workers, scheduler, progress,
+                     cost)
+    draws, check = result.draws, result.coverage
+    chains = 4
+    summary = posterior_summary(draws[:len(draws) // chains * chains].reshape(-1, chains, config.dim), config.names,
+                                np.full(chains, np.nan), burn=0)
+    picked = generator(config.seed, Tag.PREDICTIVE).choice(len(draws), size=min(predictive_draws, len(draws)),
+                                                           replace=False)
+    predictive = posterior_predictive(config, draws[picked], pool)
+    cost.add("predictive", len(predictive))
+    predictive_table = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    idata = draws_inference_data(config, draws, chains=chains, predictive=predictive)
+    write_inference_data(idata, folder.path(POSTERIOR_FILE))
+    summary = summary.drop(columns=["tau", "ess", "acceptance"]).join(arviz_diagnostics(idata))
+    folder.write_csv("posterior.csv", summary)
+    folder.write_csv("predictive.csv", predictive_table)
+    folder.write_csv("coverage.csv", check["table"], index=False)
+    rank_figure(idata, folder.path("rank.png"))
+    sbc_figure(check["ranks"], check["draws"], 20, config.names, folder.path("coverage_ranks.png"))
+    truth = config.targets.truth
+    corner_figure(draws, config.names, folder.path("corner.png"),
+                  truths=[truth[n] for n in config.names] if truth else None,
+                  labels=[f"{name}: {parameter_label(key)}" for name, key in zip(config.names, config.keys)])
+    predictive_figure(predictive_table, predictive, config.targets.observed, config.targets.columns,
+                      folder.path("predictive.png"))
+    posterior_median_page(config, summary, folder.root)
+    warnings = prior_constraint_warnings(summary, config.prior)
+    if result.info["leakage"] > 0.1:
+        warnings.append(f"{result.info['leakage']:.0%} of the estimator's draws at the targets fell outside the prior "
+                        "(redrawn): the targets may lie outside what the simulations cover")
+    verdict = {"converged": check["passed"], "coverage_ok": check["passed"], "messages": check["messages"]}
+    report = json_ready({"name": config.name, "method": "npe", "settings": to_dict(config.method), "seed": config.seed,
+                         "convergence": verdict, "warnings": warnings, "npe": result.info, "draws": len(draws),
+                         "executor": pool.description, "wall_s": time.time() - started,
+                         "accounting": cost.block(training_runs_reused=result.info["training_simulations"]
+                                                  + config.method.heldout - cost.simulations["training"]
+                                                  - cost.simulations["heldout"]),
+                         **folder.provenance()})
+    folder.write_json("convergence.json", report)
+    return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
+                          warnings=warnings, predictive=predictive_table)
 
 
 def _emulator_mcmc(config: CalibrationConfig, surrogate, path, resume: bool, progress: bool, label: str):

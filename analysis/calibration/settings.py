@@ -1,6 +1,6 @@
 """Typed settings of each calibration method: the ``[method]`` table of a calibration file, read by the
 schema engine (:func:`simcore.schema.build`) into :class:`EmceeSettings`, :class:`OptimizeSettings`
-or :class:`EmulatorSettings` by its ``kind`` (:data:`METHODS`). Each checks its own ranges;
+or :class:`EmulatorSettings` or :class:`NpeSettings` by its ``kind`` (:data:`METHODS`). Each checks its own ranges;
 :mod:`analysis.calibration.config` adds the checks that need the rest of the file (``n_sim`` against the
 number of statistics, ``walkers`` against the number of parameters, ``results`` resolved against the
 file's folder).
@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import ClassVar, Literal
 
 from simcore.schema import ConfigError, check_at_least
+
+from .npe_flow import FlowSettings
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -113,4 +115,28 @@ class EmulatorSettings(ChainSettings):
                                                "passes: set confirm >= 2 (e.g. 50) or rounds = 0")
 
 
-METHODS = {cls.kind: cls for cls in (EmceeSettings, OptimizeSettings, EmulatorSettings)}
+@dataclass(frozen=True, kw_only=True)
+class NpeSettings(MethodSettings):
+    """Neural posterior estimation (analysis.calibration.npe): ``simulations`` prior draws run as a sweep
+    train a conditional flow, ``heldout`` more check its coverage; ``draws`` posterior draws at the
+    targets. ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's
+    folder); by default the output folder's ``estimator/``. ``n_sim`` and ``likelihood`` are unused."""
+
+    kind: ClassVar[str] = "npe"
+    simulations: int = 1000
+    heldout: int = 200
+    draws: int = 4000
+    coverage_tolerance: float = 0.05
+    flow: FlowSettings = field(default_factory=FlowSettings)   # [method.npe] flow = {width = 50, ...}
+    estimator: Path | None = None
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_at_least("simulations", self.simulations, 20)
+        check_at_least("heldout", self.heldout, 10)
+        check_at_least("draws", self.draws, 100)
+        if not 0 < self.coverage_tolerance < 0.5:
+            raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
+
+
+METHODS = {cls.kind: cls for cls in (EmceeSettings, OptimizeSettings, EmulatorSettings, NpeSettings)}

@@ -113,9 +113,11 @@ def test_set_kind_on_a_flat_file_says_to_use_method(tmp_path):
     assert "[method.optimize]" in str(err)
 
 
-def test_shipped_recovery_file_holds_emcee_and_optimize():
+def test_shipped_recovery_file_holds_emcee_optimize_and_npe():
     emcee = load_calibration(SHIPPED)
-    assert isinstance(emcee.method, EmceeSettings) and emcee.methods == ("emcee", "optimize")
+    assert isinstance(emcee.method, EmceeSettings) and emcee.methods == ("emcee", "optimize", "npe")
+    npe = load_calibration(SHIPPED, method="npe")
+    assert (npe.method.simulations, npe.method.heldout, npe.folder_name) == (1000, 200, "recover_holland-npe")
     optimize = load_calibration(SHIPPED, method="optimize")
     assert isinstance(optimize.method, OptimizeSettings)
     assert optimize.method.n_sim == emcee.method.n_sim   # the shared key

@@ -1,0 +1,268 @@
+"""The ``npe`` calibration method: neural posterior estimation (Papamakarios & Murray 2016; Greenberg et
+al. 2019), amortised, with its coverage checked on held-out simulations before it is trusted.
+
+Shapes: N training and H held-out simulations, d parameters, k statistics, S posterior draws.
+
+Contract
+--------
+``training_design(config) -> (N + H, d)``: prior draws from ``[seed, Tag.NPE, NPEStream.DESIGN]``; the
+first N train, the last H are held out.
+
+``training_sweep(config, theta) -> SweepConfig``: those draws as a sweep (one zipped axis over the free
+parameters' keys, one replicate, the calibration's ``[model]``, ``[run]`` and seed), so the training set
+runs on the sweep machinery: content-addressed runs, resumable (run the same command again), every
+executor, failures recorded. Its results folder is ``<out>/training``.
+
+``simulated_rows(config, theta, table) -> (N + H, k)``: the runs table's target columns in design
+order (a failed run's row is NaN), plus, for mean/sd targets, the targets' measurement noise N(0, cov)
+from ``[seed, Tag.NPE, NPEStream.NOISE]`` (the data model of every other method).
+
+``estimator_identity(config) -> dict``: what the trained estimator depends on (model and its version,
+metric settings, parameters and priors, target columns and their measurement covariance, seed,
+simulations, held-out count, the flow's settings): NOT the observed values. An estimator folder whose
+``identity.json`` equals it is reused: ``flocksweep calibrate`` with other targets (another flight,
+another flock) runs no training simulation.
+
+``coverage_check(estimator, theta (H, d), x (H, k), draws, seed, support, tolerance, names) -> dict``:
+per parameter the share of held-out truths inside the estimator's central 50% and 90% intervals (its
+expected coverage) and SBC ranks (Talts et al. 2018) of the truths among ``draws`` posterior draws;
+``passed`` when every coverage is within ``allowed`` of nominal, ``allowed = max(tolerance, 2.58 x
+sqrt(p (1 - p) / H))`` (a 99 % binomial band: a correct estimator on few held-out sets is not failed by
+chance). A failed check makes the calibration's verdict "NOT converged".
+
+``run_npe(config, folder, pool_kind, workers, scheduler, progress, cost) -> NpeResult``: the method as
+``flocksweep calibrate`` runs it (analysis.calibration.run writes the common outputs).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from simcore import MODEL_VERSION
+from simcore.schema import ConfigError
+from sweeps.config import SweepConfig
+from sweeps.files import json_ready
+from sweeps.runner import run_sweep
+from sweeps.seeds import NPEStream, Tag, generator
+
+from .diagnostics import sbc_ranks
+from .npe_flow import Estimator, FlowSettings, load_estimator, train_flow
+
+IDENTITY_FILE = "identity.json"
+LEVELS = (0.5, 0.9)
+
+
+def _stream(config, which: NPEStream) -> np.random.Generator:
+    return generator(config.seed, Tag.NPE, int(which))
+
+
+def _jax_seed(config, which: NPEStream) -> int:
+    return int(_stream(config, which).integers(0, 2 ** 31 - 1))
+
+
+def check_npe(config) -> None:
+    """What npe cannot do yet, as ConfigErrors naming the key."""
+    if config.observation is not None:
+        raise ConfigError("observation", "the npe method trains on sweep runs, which are not measured through an "
+                                         "[observation] block; use emcee or remove the block")
+    if len(config.targets.observed) != 1:
+        raise ConfigError("targets", f"npe gives the posterior of one observed flock; the targets hold "
+                                     f"{len(config.targets.observed)} rows: use flocksweep posterior ESTIMATOR "
+                                     "--targets FILE for one posterior per flock, or aggregate them")
+
+
+def training_design(config) -> np.ndarray:
+    settings = config.method
+    count = settings.simulations + settings.heldout
+    return np.asarray(config.prior.sample(_stream(config, NPEStream.DESIGN), count), dtype=float).reshape(count, -1)
+
+
+def training_sweep(config, theta: np.ndarray) -> SweepConfig:
+    source = config.source
+    values = [[float(v) for v in row] for row in theta] if config.dim > 1 else [float(row[0]) for row in theta]
+    axis = {"keys": list(config.keys)} if config.dim > 1 else {"key": config.keys[0]}
+    axis.update(name="prior_draw", values=values)
+    data = {"name": f"{config.name}-npe-training", "seed": int(config.seed), "replicates": 1,
+            "model": {"preset": str(config.preset_path), "set": dict(source.get("model", {}).get("set", {}))},
+            "run": dict(source.get("run", {})), "axes": [axis]}
+    return SweepConfig.from_dict(data, config.preset_path.parent)
+
+
+def simulated_rows(config, theta: np.ndarray, table: pd.DataFrame) -> np.ndarray:
+    columns = list(config.targets.columns)
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise ConfigError("targets.stats", f"the training runs have no column {missing[0]!r}")
+    rows = np.full((len(theta), len(columns)), np.nan)
+    ok = table[table["status"] == "ok"]
+    rows[ok["point_index"].to_numpy(dtype=int)] = ok[columns].to_numpy(dtype=float)
+    cov = config.targets.cov
+    if cov is not None:
+        rows = rows + _stream(config, NPEStream.NOISE).multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
+    return rows
+
+
+def flow_settings(config) -> FlowSettings:
+    return config.method.flow
+
+
+def estimator_identity(config) -> dict:
+    settings = config.method
+    m = config.metrics
+    return json_ready({"model": config.preset.to_dict(), "model_version": MODEL_VERSION,
+                       "metrics": {"warmup": m.warmup, "group_radius": m.group_radius,
+                                   "fragmentation_cohesion": m.fragmentation_cohesion},
+                       "parameters": [[p.name, p.key] for p in config.parameters], "prior": repr(config.prior),
+                       "bounds": [list(b) for b in config.prior.bounds],
+                       "columns": list(config.targets.columns),
+                       "observation_cov": None if config.targets.cov is None else np.asarray(config.targets.cov).tolist(),
+                       "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
+                       "flow": asdict(flow_settings(config))})
+
+
+def digest(identity: dict) -> str:
+    return hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def stored_identity(folder: Path) -> dict | None:
+    path = Path(folder) / IDENTITY_FILE
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def support_of(prior=None, bounds=None):
+    """(S, d) -> (S,) inside the prior's bounds (or the given (d, 2) bounds)."""
+    bounds = np.asarray(prior.bounds if prior is not None else bounds, dtype=float)
+
+    def inside(theta):
+        return np.all((theta >= bounds[:, 0]) & (theta <= bounds[:, 1]), axis=1)
+    return inside
+
+
+def coverage_check(estimator: Estimator, theta, x, draws: int, seed: int, support, tolerance: float,
+                   names) -> dict:
+    """Expected coverage and SBC ranks on held-out simulations (module docstring)."""
+    theta, x = np.asarray(theta, dtype=float), np.asarray(x, dtype=float)
+    samples = estimator.sample_many(x, draws, seed, support)
+    rows = []
+    held = len(theta)
+    for level in LEVELS:
+        low = np.quantile(samples, (1 - level) / 2, axis=1)
+        high = np.quantile(samples, (1 + level) / 2, axis=1)
+        inside = (theta >= low) & (theta <= high)
+        allowed = max(tolerance, 2.58 * np.sqrt(level * (1 - level) / held))
+        for j, name in enumerate(names):
+            rows.append({"parameter": name, "level": level, "coverage": float(inside[:, j].mean()),
+                         "allowed": float(allowed), "ok": bool(abs(inside[:, j].mean() - level) <= allowed)})
+    table = pd.DataFrame(rows)
+    ranks = sbc_ranks(theta, list(samples), np.random.default_rng(seed))
+    messages = [f"{r.parameter}: {r.level:.0%} intervals cover {r.coverage:.1%} of {held} held-out truths "
+                f"(allowed {r.level:.0%} +- {r.allowed:.1%})" for r in table.itertuples() if not r.ok]
+    passed = bool(table["ok"].all())
+    if passed:
+        messages = [f"coverage: the 50% and 90% intervals cover their share of {held} held-out truths "
+                    f"(within {table['allowed'].max():.1%})"]
+    else:
+        messages.insert(0, "coverage FAILED: the estimator's intervals do not cover their share of held-out "
+                           "truths; do not trust its posterior (more simulations, another flow)")
+    return {"table": table, "ranks": ranks, "draws": int(draws), "heldout": held, "passed": passed,
+            "messages": messages}
+
+
+@dataclass
+class NpeResult:
+    estimator: Estimator
+    draws: np.ndarray            # (S, d) at the targets
+    coverage: dict
+    info: dict                   # convergence.json's "npe" entry
+
+
+def _log(progress: bool, message: str) -> None:
+    if progress:
+        print(message, file=sys.stderr)
+
+
+def _train(config, folder, pool_kind, workers, scheduler, progress, cost):
+    """Run the training sweep (only its missing runs) and fit the flow; (estimator, heldout theta, x)."""
+    settings = config.method
+    theta = training_design(config)
+    sweep = training_sweep(config, theta)
+    result = run_sweep(sweep, None, folder.path("training"), executor=pool_kind, workers=workers,
+                       scheduler=scheduler, progress=progress)
+    computed = len(result.plan.todo)
+    train_new = sum(1 for spec in result.plan.todo if spec.point_index < settings.simulations)
+    cost.add("training", train_new)
+    cost.add("heldout", computed - train_new)
+    rows = simulated_rows(config, theta, result.table)
+    usable = np.isfinite(rows).all(axis=1)
+    n = settings.simulations
+    if usable[:n].sum() < 20:
+        raise ConfigError("method.simulations", f"only {int(usable[:n].sum())} of {n} training runs gave finite "
+                                                "statistics; choose statistics every run has")
+    _log(progress, f"{config.name}: training the flow on {int(usable[:n].sum())} simulations")
+    estimator = train_flow(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
+                           _jax_seed(config, NPEStream.TRAIN))
+    return estimator, theta[n:][usable[n:]], rows[n:][usable[n:]], int((~usable).sum())
+
+
+def _heldout(config, folder):
+    """The held-out simulations of a stored training sweep (runs found done, none computed)."""
+    from sweeps.results import load_results
+
+    theta = training_design(config)
+    table = load_results(folder.path("training")).runs
+    rows = simulated_rows(config, theta, table)
+    n = config.method.simulations
+    usable = np.isfinite(rows[n:]).all(axis=1)
+    return theta[n:][usable], rows[n:][usable]
+
+
+def run_npe(config, folder, pool_kind: str, workers, scheduler, progress: bool, cost) -> NpeResult:
+    """Train or reuse the estimator, check its coverage, draw the posterior at the targets."""
+    check_npe(config)
+    settings = config.method
+    identity = estimator_identity(config)
+    where = Path(settings.estimator) if settings.estimator is not None else folder.path("estimator")
+    reused = stored_identity(where) == identity
+    if settings.estimator is not None and not reused:
+        found = stored_identity(where)
+        raise ConfigError("method.estimator", f"{where} holds no estimator trained for this calibration "
+                                              f"({'no ' + IDENTITY_FILE if found is None else 'its identity differs'}"
+                                              "; the model, parameters, priors, statistics, their sd, seed and "
+                                              "flow settings must all be the same)")
+    failed = 0
+    if reused:
+        estimator = load_estimator(where)
+        heldout_theta, heldout_x = _heldout(config, folder) if settings.estimator is None else \
+            _heldout(config, _Folder(where.parent))
+        _log(progress, f"{config.name}: reusing the trained estimator in {where} (no simulation)")
+    else:
+        estimator, heldout_theta, heldout_x, failed = _train(config, folder, pool_kind, workers, scheduler,
+                                                             progress, cost)
+        estimator.save(where)
+        folder.write_json(str(Path(where.relative_to(folder.root)) / IDENTITY_FILE), identity)
+    support = support_of(config.prior)
+    check = coverage_check(estimator, heldout_theta, heldout_x, draws=199, seed=_jax_seed(config, NPEStream.COVERAGE),
+                           support=support, tolerance=settings.coverage_tolerance, names=config.names)
+    draws = estimator.sample(config.targets.observed[0], settings.draws, _jax_seed(config, NPEStream.POSTERIOR),
+                             support)
+    info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
+            "training_simulations": settings.simulations, "heldout_simulations": int(len(heldout_theta)),
+            "failed_runs": failed, "leakage": estimator.last_leakage, "flow": estimator.record(),
+            "coverage": {"passed": check["passed"], "table": check["table"].to_dict("records")}}
+    return NpeResult(estimator, draws, check, info)
+
+
+class _Folder:
+    """The one method of an OutputFolder that _heldout needs, for a foreign estimator's calibration folder."""
+
+    def __init__(self, root: Path):
+        self.root = Path(root)
+
+    def path(self, name: str) -> Path:
+        return self.root / name

@@ -1,0 +1,244 @@
+"""A conditional normalising flow q(theta | x) trained on simulations: the neural posterior estimator of
+the ``npe`` method (:mod:`analysis.calibration.npe`), on JAX through ``flowjax`` (the ``sbi`` extra:
+``pip install -e '.[sbi]'``; docs/calibration.md says why JAX and not PyTorch).
+
+Shapes: N training simulations, d parameters, k statistics, S draws.
+
+Contract
+--------
+``FlowSettings(width, layers, knots, max_epochs, patience, learning_rate, batch_size, validation)``: the
+architecture (a masked autoregressive flow of rational-quadratic splines, Durkan et al. 2019, on a
+standard normal base) and its training (Adam, early stopping on a validation share).
+
+``train_flow(theta (N, d), x (N, k), settings, seed) -> Estimator``: theta is standardised by its
+training mean and sd, x likewise (a statistic constant over the training set keeps sd 1), and the flow is
+fitted by maximum likelihood of theta given x. A deterministic function of its inputs and ``seed`` on
+CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
+
+:class:`Estimator` (frozen): ``sample(x (k,), count, seed, support=None) -> (count, d)`` draws of the
+posterior at one observed row; with ``support`` (a predicate on (S, d) -> (S,) bool, e.g. inside the
+prior's bounds) the draws outside it are redrawn (the flow leaks mass outside a bounded prior; the
+share is ``Estimator.last_leakage``); ``sample_many(X (m, k), count, seed, support=None) -> (m, count,
+d)`` one posterior per row in one vectorised call (an amortised estimator answers a new flock without
+simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
+weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
+standardisation), so a stored estimator rebuilds exactly.
+
+Every import of JAX happens inside these functions: without the extra, the rest of the calibration
+works and ``npe`` says how to install it (:func:`require_jax`).
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from simcore.schema import ConfigError, check_at_least
+from sweeps.files import atomic_path
+
+FLOW_WEIGHTS = "flow.eqx"
+FLOW_RECORD = "flow.json"
+MAX_REDRAWS = 50
+
+
+def require_jax():
+    """The jax, equinox and flowjax modules, or a ConfigError saying how to install them."""
+    os.environ.setdefault("JAX_PLATFORMS", "cpu")   # no accelerator probing: CPU, deterministic
+    try:
+        import equinox
+        import flowjax  # noqa: F401
+        import jax
+    except ImportError:
+        raise ConfigError("method.kind", "npe needs the sbi extra (JAX and flowjax, about 100 MB): "
+                                         "pip install -e '.[sbi]'") from None
+    return jax, equinox
+
+
+@dataclass(frozen=True, kw_only=True)
+class FlowSettings:
+    """The flow's architecture and training (module docstring)."""
+
+    width: int = 50
+    layers: int = 5
+    knots: int = 8
+    max_epochs: int = 500
+    patience: int = 20
+    learning_rate: float = 1e-3
+    batch_size: int = 50
+    validation: float = 0.1
+
+    def __post_init__(self):
+        for name in ("width", "layers", "knots", "max_epochs", "patience", "batch_size"):
+            check_at_least(name, getattr(self, name), 1)
+        if not 0 < self.validation < 0.5:
+            raise ConfigError("validation", f"got {self.validation}; expected a share in (0, 0.5)")
+        if not self.learning_rate > 0:
+            raise ConfigError("learning_rate", f"got {self.learning_rate}; expected a number > 0")
+
+
+def _build(settings: FlowSettings, d: int, k: int, key):
+    from flowjax.bijections import RationalQuadraticSpline
+    from flowjax.distributions import Normal
+    from flowjax.flows import masked_autoregressive_flow
+    import jax.numpy as jnp
+
+    return masked_autoregressive_flow(key, base_dist=Normal(jnp.zeros(d)), cond_dim=k,
+                                      transformer=RationalQuadraticSpline(knots=settings.knots, interval=5),
+                                      flow_layers=settings.layers, nn_width=settings.width)
+
+
+_SAMPLER = []
+
+
+def _sampler():
+    """One compiled vectorised sampler (flow, conditions (m, k), keys (m,), count) -> (m, count, d), kept
+    for the process: equinox's filter_jit compiles once per flow architecture, shape and count."""
+    if not _SAMPLER:
+        _, eqx = require_jax()
+        import jax
+
+        def sample(flow, conditions, keys, count):
+            return jax.vmap(lambda c, key: flow.sample(key, (count,), condition=c))(conditions, keys)
+        _SAMPLER.append(eqx.filter_jit(sample))
+    return _SAMPLER[0]
+
+
+def _scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    mean, sd = values.mean(axis=0), values.std(axis=0)
+    return mean, np.where(sd > 0, sd, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Estimator:
+    """A trained posterior estimator (module docstring)."""
+
+    flow: object
+    settings: FlowSettings
+    theta_mean: np.ndarray
+    theta_sd: np.ndarray
+    x_mean: np.ndarray
+    x_sd: np.ndarray
+    losses: dict = field(default_factory=dict)
+    leakage: list = field(default_factory=lambda: [0.0])
+
+    @property
+    def d(self) -> int:
+        return len(self.theta_mean)
+
+    @property
+    def k(self) -> int:
+        return len(self.x_mean)
+
+    @property
+    def last_leakage(self) -> float:
+        """Share of the last call's raw draws that fell outside the support (redrawn)."""
+        return self.leakage[0]
+
+    def _condition(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.shape[-1] != self.k:
+            raise ValueError(f"observed rows need {self.k} statistics, got shape {x.shape}")
+        return ((x - self.x_mean) / self.x_sd).astype(np.float32)
+
+    def _raw(self, conditions: np.ndarray, count: int, seed: int) -> np.ndarray:
+        import jax
+        import jax.numpy as jnp
+
+        keys = jax.random.split(jax.random.key(int(seed)), len(conditions))
+        draws = np.asarray(_sampler()(self.flow, jnp.asarray(conditions), keys, int(count)), dtype=float)
+        return draws * self.theta_sd + self.theta_mean
+
+    def sample_many(self, x, count: int, seed: int, support=None) -> np.ndarray:
+        """(m, count, d): ``count`` posterior draws for each of the m observed rows."""
+        conditions = np.atleast_2d(self._condition(x))
+        draws = self._raw(conditions, count, seed)
+        if support is None:
+            self.leakage[0] = 0.0
+            return draws
+        inside = support(draws.reshape(-1, self.d)).reshape(draws.shape[:2])
+        self.leakage[0] = float(1.0 - inside.mean())
+        for attempt in range(1, MAX_REDRAWS + 1):
+            if inside.all():
+                return draws
+            more = self._raw(conditions, count, seed + 7919 * attempt)
+            more_inside = support(more.reshape(-1, self.d)).reshape(more.shape[:2])
+            for i in np.flatnonzero(~inside.all(axis=1)):
+                pool = np.concatenate([draws[i][inside[i]], more[i][more_inside[i]]])[:count]
+                draws[i, :len(pool)] = pool
+                inside[i] = np.arange(count) < len(pool)
+        raise ValueError(f"the estimator puts almost no mass inside the prior's support (leakage "
+                         f"{self.leakage[0]:.3f}): the observed statistics are far outside the training set")
+
+    def sample(self, x, count: int, seed: int, support=None) -> np.ndarray:
+        """(count, d) posterior draws at one observed row ``x`` (k,)."""
+        return self.sample_many(np.asarray(x, dtype=float)[None, :], count, seed, support)[0]
+
+    def log_prob(self, theta, x) -> np.ndarray:
+        """log q(theta | x) in the parameters' own units, (N,) for theta (N, d) and x (k,) or (N, k)."""
+        import jax.numpy as jnp
+
+        theta = (np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd
+        conditions = np.broadcast_to(self._condition(x), (len(theta), self.k))
+        values = self.flow.log_prob(jnp.asarray(theta, dtype=jnp.float32), condition=jnp.asarray(conditions))
+        return np.asarray(values, dtype=float) - np.log(self.theta_sd).sum()
+
+    def record(self) -> dict:
+        return {"settings": asdict(self.settings), "d": self.d, "k": self.k,
+                "theta_mean": self.theta_mean.tolist(), "theta_sd": self.theta_sd.tolist(),
+                "x_mean": self.x_mean.tolist(), "x_sd": self.x_sd.tolist(),
+                "epochs": len(self.losses.get("train", [])),
+                "best_validation_loss": min(self.losses["val"]) if self.losses.get("val") else None}
+
+    def save(self, folder) -> Path:
+        """flow.eqx (weights) and flow.json (the rest) in ``folder``, each written atomically."""
+        _, eqx = require_jax()
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(folder / FLOW_WEIGHTS) as tmp:
+            eqx.tree_serialise_leaves(str(tmp), self.flow)
+        with atomic_path(folder / FLOW_RECORD) as tmp:
+            Path(tmp).write_text(json.dumps(self.record(), indent=1))
+        return folder
+
+
+def train_flow(theta, x, settings: FlowSettings, seed: int) -> Estimator:
+    """Fit q(theta | x) to the simulations (module docstring)."""
+    jax, _ = require_jax()
+    import jax.numpy as jnp
+    from flowjax.train import fit_to_data
+
+    theta, x = np.asarray(theta, dtype=float), np.asarray(x, dtype=float)
+    if theta.ndim != 2 or x.ndim != 2 or len(theta) != len(x):
+        raise ValueError(f"theta must be (N, d) and x (N, k) with the same N, got {theta.shape} and {x.shape}")
+    if not (np.isfinite(theta).all() and np.isfinite(x).all()):
+        raise ValueError("training simulations must be finite (drop the failed ones first)")
+    theta_mean, theta_sd = _scale(theta)
+    x_mean, x_sd = _scale(x)
+    build_key, train_key = jax.random.split(jax.random.key(int(seed)))
+    flow = _build(settings, theta.shape[1], x.shape[1], build_key)
+    data = (jnp.asarray((theta - theta_mean) / theta_sd, dtype=jnp.float32),
+            jnp.asarray((x - x_mean) / x_sd, dtype=jnp.float32))
+    flow, losses = fit_to_data(train_key, flow, data, learning_rate=settings.learning_rate,
+                               max_epochs=settings.max_epochs, max_patience=settings.patience,
+                               batch_size=min(settings.batch_size, max(1, int(len(theta) * (1 - settings.validation)))),
+                               val_prop=settings.validation, show_progress=False)
+    losses = {name: [float(v) for v in values] for name, values in losses.items()}
+    return Estimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses)
+
+
+def load_estimator(folder) -> Estimator:
+    """The estimator stored by :meth:`Estimator.save` in ``folder``."""
+    jax, eqx = require_jax()
+    folder = Path(folder)
+    if not (folder / FLOW_RECORD).is_file() or not (folder / FLOW_WEIGHTS).is_file():
+        raise FileNotFoundError(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
+                                "with flocksweep calibrate FILE --method npe")
+    record = json.loads((folder / FLOW_RECORD).read_text())
+    settings = FlowSettings(**record["settings"])
+    skeleton = _build(settings, record["d"], record["k"], jax.random.key(0))
+    flow = eqx.tree_deserialise_leaves(str(folder / FLOW_WEIGHTS), skeleton)
+    return Estimator(flow, settings, *(np.asarray(record[name], dtype=float)
+                                       for name in ("theta_mean", "theta_sd", "x_mean", "x_sd")))

@@ -1,0 +1,87 @@
+"""``flocksweep posterior ESTIMATOR --targets FLOCKS.csv``: one posterior per observed flock from a trained
+``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; a command module of the CLI
+(``DESCRIPTION``, ``add_arguments(parser)``, ``run(args)``; see ``flocksweep/cli.py``, ``DELEGATED``).
+
+``posteriors(estimator_dir, table, draws=4000, seed=0) -> DataFrame``: the table's rows (one observed
+flock or flight each: the estimator's statistic columns, e.g. the per-flight rows ``flocksweep
+measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids) -> one row per flock with, per parameter, the posterior
+mean, sd, median and 5% / 95% quantiles, and ``leakage`` (the share of raw draws outside the prior).
+All flocks are sampled in one vectorised call; flock i's draws depend only on ``seed`` and i.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from simcore.schema import ConfigError
+from sweeps.failures import check_count, check_out
+
+DESCRIPTION = ("Amortised inference: the estimator a `flocksweep calibrate` run of method npe trained (its "
+               "estimator/ folder) gives the posterior of every row of a table of observed flocks (one row "
+               "per flock or flight, a column per statistic) in seconds, without simulating.")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("estimator", type=Path, help="a trained estimator folder, e.g. results/calibration/NAME/estimator")
+    p.add_argument("--targets", type=Path, required=True,
+                   help="CSV or Parquet: one row per observed flock, a column per statistic of the estimator")
+    p.add_argument("--draws", type=int, default=4000, help="posterior draws per flock (default 4000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
+    p.add_argument("--out", type=Path, help="write the table here (CSV; default: print it)")
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    if not path.is_file():
+        raise ConfigError("--targets", f"file not found: {path}")
+    return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+
+
+def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int = 0) -> pd.DataFrame:
+    """One posterior summary per row of ``table`` (module docstring)."""
+    from .npe import IDENTITY_FILE, support_of
+    from .npe_flow import load_estimator
+
+    estimator_dir = Path(estimator_dir)
+    identity_path = estimator_dir / IDENTITY_FILE
+    if not identity_path.is_file():
+        raise ConfigError("ESTIMATOR", f"{estimator_dir}: no {IDENTITY_FILE}; give the estimator/ folder of an npe "
+                                       "calibration's output")
+    identity = json.loads(identity_path.read_text())
+    columns, names = identity["columns"], [name for name, _ in identity["parameters"]]
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise ConfigError("--targets", f"no column {missing[0]!r}; the estimator needs the columns {', '.join(columns)}")
+    x = table[columns].to_numpy(dtype=float)
+    bad = ~np.isfinite(x).all(axis=1)
+    if bad.any():
+        raise ConfigError("--targets", f"row {int(np.flatnonzero(bad)[0])} has a missing or non-finite statistic")
+    estimator = load_estimator(estimator_dir)
+    samples = estimator.sample_many(x, draws, seed, support_of(bounds=identity["bounds"]))
+    ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
+    out = table[ids].reset_index(drop=True).copy()
+    for j, name in enumerate(names):
+        values = samples[:, :, j]
+        out[f"{name}_mean"] = values.mean(axis=1)
+        out[f"{name}_sd"] = values.std(axis=1, ddof=1)
+        out[f"{name}_median"] = np.median(values, axis=1)
+        out[f"{name}_q5"] = np.quantile(values, 0.05, axis=1)
+        out[f"{name}_q95"] = np.quantile(values, 0.95, axis=1)
+    out["leakage"] = estimator.last_leakage
+    return out
+
+
+def run(args) -> int:
+    check_count("--draws", args.draws, 10)
+    check_out("--out", args.out)
+    started = time.time()
+    table = posteriors(args.estimator, _read_table(args.targets), args.draws, args.seed)
+    if args.out:
+        table.to_csv(args.out, index=False)
+        print(f"wrote {args.out}: {len(table)} posteriors in {time.time() - started:.1f} s")
+    else:
+        print(table.round(4).to_string())
+    return 0

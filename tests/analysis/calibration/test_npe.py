@@ -1,0 +1,162 @@
+"""The npe method (analysis.calibration.npe, npe_flow, posterior_command): a toy simulator with an
+analytic posterior, determinism of training, the coverage check catching a mis-specified estimator, and
+the amortised path (a stored estimator reused: no simulation counted; many flocks at once)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
+
+from analysis.calibration.config import load_calibration  # noqa: E402
+from analysis.calibration.npe import coverage_check, estimator_identity  # noqa: E402
+from analysis.calibration.npe_flow import FlowSettings, load_estimator, train_flow  # noqa: E402
+from flocksweep.cli import main  # noqa: E402
+from paths import ROOT  # noqa: E402
+from simcore.schema import ConfigError  # noqa: E402
+
+REPLICATES = 4          # x = mean of 4 unit-variance draws around theta: posterior N(x, 1/4) (flat prior)
+SMALL = FlowSettings(width=32, layers=2, max_epochs=400, patience=40, learning_rate=1e-3, batch_size=50)
+
+
+def toy(n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    theta = rng.uniform(-5, 5, (n, 1))
+    return theta, theta + rng.normal(0, 1, (n, 1)) / np.sqrt(REPLICATES)
+
+
+@pytest.fixture(scope="module")
+def trained():
+    theta, x = toy(2000, 0)
+    return train_flow(theta, x, SMALL, seed=3)
+
+
+@pytest.mark.slow
+def test_gaussian_mean_posterior_recovered(trained):
+    # analytic posterior at x = 1: N(1, 0.5^2) (the prior's edges at -5, 5 are 12 sd away)
+    draws = trained.sample([1.0], 4000, seed=1)
+    assert abs(draws.mean() - 1.0) < 0.1
+    assert 0.42 < draws.std() < 0.58
+
+
+@pytest.mark.slow
+def test_training_is_deterministic_given_the_seed_and_the_stored_estimator_rebuilds(tmp_path):
+    theta, x = toy(300, 0)
+    quick = FlowSettings(width=16, layers=2, max_epochs=15, patience=15)
+    trained = train_flow(theta, x, quick, seed=3)
+    again = train_flow(theta, x, quick, seed=3)
+    assert again.losses == trained.losses
+    assert np.array_equal(again.sample([0.5], 200, seed=2), trained.sample([0.5], 200, seed=2))
+    other = train_flow(theta, x, quick, seed=4)
+    assert not np.array_equal(other.sample([0.5], 200, seed=2), trained.sample([0.5], 200, seed=2))
+    trained.save(tmp_path / "est")
+    loaded = load_estimator(tmp_path / "est")
+    assert np.array_equal(loaded.sample_many([[0.5], [2.0]], 100, seed=5), trained.sample_many([[0.5], [2.0]], 100, seed=5))
+
+
+class Shrunk:
+    """A deliberately mis-specified estimator: the trained one's draws squeezed to a third of their spread
+    (over-confident), as a flow trained on too few simulations or the wrong noise model can be."""
+
+    def __init__(self, estimator):
+        self.estimator = estimator
+
+    def sample_many(self, x, count, seed, support=None):
+        draws = self.estimator.sample_many(x, count, seed, support)
+        centre = draws.mean(axis=1, keepdims=True)
+        return centre + (draws - centre) / 3
+
+
+@pytest.mark.slow
+def test_coverage_check_passes_the_trained_estimator_and_catches_a_misspecified_one(trained):
+    theta, x = toy(200, 99)   # held out: not in the training set
+    good = coverage_check(trained, theta, x, draws=199, seed=1, support=None, tolerance=0.05, names=["mu"])
+    assert good["passed"], good["messages"]
+    for level in (0.5, 0.9):   # the exact posterior N(x, 1/4) covers 46 % and 88 % of these 200 truths
+        exact = np.mean(np.abs(theta - x) <= stats.norm.ppf((1 + level) / 2) / np.sqrt(REPLICATES))
+        found = good["table"].query("level == @level")["coverage"].iloc[0]
+        assert abs(found - exact) <= 0.06, (level, found, exact)
+    bad = coverage_check(Shrunk(trained), theta, x, draws=199, seed=1, support=None, tolerance=0.05, names=["mu"])
+    assert not bad["passed"]
+    assert "coverage FAILED" in bad["messages"][0]
+    ninety = bad["table"].query("level == 0.9")["coverage"].iloc[0]
+    assert ninety < 0.6   # a third of the width covers about 2 x Phi(1.645 / 3) - 1 = 42 %
+
+
+CALIBRATION = f'''
+name = "npe_tiny"
+seed = 3
+[model]
+preset = "{ROOT / 'configs/models/holland.toml'}"
+[run]
+n = 10
+duration = 2.0
+record_interval = 0.5
+warmup = 1.0
+[parameters.field]
+key = "perception.field_deg"
+prior = {{ dist = "uniform", low = 60, high = 300 }}
+[targets]
+summary = "mean"
+stats = ["visible_mean", "binocular_share"]
+mean = [3.0, 0.2]
+sd = [0.1, 0.02]
+[method]
+kind = "npe"
+simulations = 60
+heldout = 20
+draws = 400
+flow = {{ width = 16, layers = 2, max_epochs = 20, patience = 5 }}
+'''
+
+
+def test_npe_settings_are_validated_before_anything_runs(tmp_path):
+    path = tmp_path / "cal.toml"
+    path.write_text(CALIBRATION.replace("simulations = 60", "simulations = 5"))
+    with pytest.raises(ConfigError, match="method.simulations"):
+        load_calibration(path)
+    path.write_text(CALIBRATION.replace("width = 16", "widht = 16"))
+    with pytest.raises(ConfigError, match="width"):
+        load_calibration(path)
+
+
+def test_the_estimator_identity_ignores_the_observed_values_but_not_their_sd(tmp_path):
+    path = tmp_path / "cal.toml"
+    path.write_text(CALIBRATION)
+    base = estimator_identity(load_calibration(path))
+    assert estimator_identity(load_calibration(path, ["targets.mean=[4.0, 0.3]"])) == base
+    assert estimator_identity(load_calibration(path, ["targets.sd=[0.2, 0.02]"])) != base
+
+
+@pytest.mark.slow
+def test_calibrate_trains_once_then_reuses_the_estimator_and_posterior_serves_many_flocks(tmp_path, capsys):
+    path = tmp_path / "cal.toml"
+    path.write_text(CALIBRATION)
+    out = tmp_path / "out"
+    assert main(["calibrate", str(path), "--out", str(out), "--no-progress"]) == 0
+    first = json.loads((out / "convergence.json").read_text())
+    assert first["accounting"]["simulations"]["training"] == 60
+    assert first["accounting"]["simulations"]["heldout"] == 20
+    assert not first["npe"]["reused"] and first["accounting"]["training_runs_reused"] == 0
+    for name in ("posterior.nc", "posterior.csv", "corner.png", "coverage.csv", "coverage_ranks.png", "report.html"):
+        assert (out / name).is_file(), name
+    assert main(["calibrate", str(path), "--out", str(out), "--no-progress",
+                 "--set", "targets.mean=[4.0, 0.25]"]) == 0
+    second = json.loads((out / "convergence.json").read_text())
+    assert second["npe"]["reused"]
+    assert "training" not in second["accounting"]["simulations"]
+    assert "heldout" not in second["accounting"]["simulations"]
+    assert second["accounting"]["training_runs_reused"] == 80
+    flocks = pd.DataFrame({"flight": ["a", "b", "c"], "visible_mean_mean": [2.5, 3.0, 4.0],
+                           "binocular_share_mean": [0.15, 0.2, 0.25]})
+    flocks.to_csv(tmp_path / "flocks.csv", index=False)
+    capsys.readouterr()
+    assert main(["posterior", str(out / "estimator"), "--targets", str(tmp_path / "flocks.csv"),
+                 "--out", str(tmp_path / "post.csv")]) == 0
+    table = pd.read_csv(tmp_path / "post.csv")
+    assert list(table["flight"]) == ["a", "b", "c"]
+    assert ((table["field_q5"] >= 60) & (table["field_q95"] <= 300)).all()
