@@ -76,7 +76,10 @@ def move_chunk(c, chunk, state, params, scratch, dynamics):
     move_range(c * chunk, min(state[0].shape[0], (c + 1) * chunk), state, params, scratch, dynamics)
 
 
-@nb.njit(cache=True, error_model="numpy", parallel=True)
+# No loop fusion: numba would fuse the perception and move phases (two parallel loops over the chunks),
+# running chunk c's moves before chunk c + 1 perceives, since it cannot see that the groups built in their
+# bodies share the state arrays.
+@nb.njit(cache=True, error_model="numpy", parallel={"fusion": False})
 def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, dynamics, kind):
     nb.literally(dynamics)  # compiled for this dynamics (simcore.hooks) ...
     nb.literally(kind)  # ... and this perception kind only (simcore.perception.perceive)
