@@ -18,8 +18,9 @@
   boid; None unless ``boidspp.predator.capture_radius`` is set
 
 Every dynamics runs in the same compiled loop (:mod:`simcore.kernel`), compiled per dynamics and
-perception kind with that dynamics' hooks (:mod:`simcore.hooks`). ``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
-result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
+perception kind with that dynamics' hooks (:mod:`simcore.hooks`). ``simulate_batch`` runs several seeds
+of one (model, init) in one compiled, threaded call; each run's result is bit-identical to ``simulate``
+with that seed. ``advance`` steps a given state (tests, tools).
 
 Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step of one synchronous run
 over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
