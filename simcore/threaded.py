@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+from numba.core.cpu_options import ParallelOptions
 
 from . import grid as cells
 from . import hooks
@@ -78,8 +79,12 @@ def move_chunk(c, chunk, state, params, scratch, dynamics):
 
 # No loop fusion: numba would fuse the perception and move phases (two parallel loops over the chunks),
 # running chunk c's moves before chunk c + 1 perceives, since it cannot see that the groups built in their
-# bodies share the state arrays.
-@nb.njit(cache=True, error_model="numpy", parallel={"fusion": False})
+# bodies share the state arrays. (An options object, not a dict: numba pops the keys of a dict when it
+# compiles, so the dynamics and kinds compiled after the first would be fused again.)
+NO_FUSION = ParallelOptions({"fusion": False})
+
+
+@nb.njit(cache=True, error_model="numpy", parallel=NO_FUSION)
 def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, dynamics, kind):
     nb.literally(dynamics)  # compiled for this dynamics (simcore.hooks) ...
     nb.literally(kind)  # ... and this perception kind only (simcore.perception.perceive)
