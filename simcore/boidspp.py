@@ -1,14 +1,12 @@
-"""The compiled whole-run loop of the Boids++ dynamics (docs/model.md section 6).
+"""The Boids++ dynamics (docs/model.md section 6), as run-loop hooks (:mod:`simcore.hooks`).
 
-``run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind)`` advances the
-state in place by ``n_steps`` steps and fills the records: ``rec_pos``, ``rec_vel`` (R, N, 3), ``rec_visible``,
-``rec_binocular`` (R, N) as in :mod:`simcore.kernel`, ``rec_agents`` float64 (R, 2, 3) (predator
-and prey positions, NaN while absent) and ``capture_step`` int64 (N,): the first step at which each boid was
-within the predator's capture radius (-1: never; only when a radius is set). ``agents`` is the state's
-agent array (:mod:`simcore.boidspp_layout`); ``fp``/``ip`` the shared slots (perception, world, dt,
-max_speed), ``bp``/``bi`` the Boids++ slots, ``table``/``kinds`` the obstacles, ``fan`` the ray fan and
-``kind`` the perception kind, a compile-time literal (:mod:`simcore.jit`).
+The run loops of :mod:`simcore.kernel` run it like every dynamics, with its per-step hooks
+(``begin_step``, ``record_extra``, ``before_boids``, ``after_boids``) for the agents, and fill, besides the
+common records, ``rec_agents`` float64 (R, 2, 3) (predator and prey positions, NaN while absent) and
+``capture_step`` int64 (N,): the first step at which each boid was within the predator's capture radius
+(-1: never; only when a radius is set). ``agents`` is the state's agent array
+(:mod:`simcore.boidspp_layout`); ``fp``/``ip`` the shared slots (perception, world, dt, max_speed), its
+``dyn`` group (``pack``) the Boids++ slots ``bp``/``bi``, the obstacles ``table``/``kinds`` and the ray fan.
 
 One step s (time s dt):
 
@@ -32,26 +30,23 @@ Synchronous order computes every velocity from the state at time t, then moves a
 moves boid i before boid i + 1 perceives (re-binned at once). In-loop draws are counter-based
 (:mod:`simcore.rng`): the random kick of boid i at step s uses stream ``STREAM_RANDOM_FORCE`` at
 (s, 2 i) and (s, 2 i + 1); the prey's k-th point and the predator's start direction use
-``STREAM_TARGETS`` at (k, 0..2) and (0, 3..4). ``run_boidspp_batch`` runs B runs in parallel threads,
-each by the same code as alone.
+``STREAM_TARGETS`` at (k, 0..2) and (0, 3..4). Batches run B runs in parallel threads, each by the same
+code as alone (:func:`simcore.kernel.run_batch`); one run is one thread (``THREADS``).
 """
 from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
-from . import grid as cells
 from .boidspp_layout import (B, BI, COUNTERS, PHASE_HUNTING, PHASE_LEAVING, PHASE_WAITING, PRED_POS, PRED_VEL,
-                             PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE, TARGET_NEAREST)
+                             PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE, TARGET_NEAREST,
+                             pack_boidspp)
 from .dynamics import apply_boundary, rebuild_frame
-from .jit import inline, kernel
-from .kernel import count_both_eyes, prepare_search
-from .layout import BOUNDARY_PERIODIC, F, I, ORDER_SEQUENTIAL
-from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, new_neighbours, offset_to
+from .jit import inline
+from .layout import BOUNDARY_PERIODIC, F, I
+from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, offset_to
 from .obstacle_avoidance import FAN_CLEAR, fan_avoid_direction
-from .perception import perceive
 from .rng import STREAM_RANDOM_FORCE, STREAM_TARGETS, uniform01
 
 
@@ -367,72 +362,69 @@ def mark_captures(step, pos, agents, fp, ip, bp, bi, capture_step):
                 capture_step[i] = step
 
 
-@inline
-def record(r, pos, vel, agents, rec_pos, rec_vel, rec_agents):
-    for i in range(pos.shape[0]):
-        for c in range(3):
-            rec_pos[r, i, c] = pos[i, c]
-            rec_vel[r, i, c] = vel[i, c]
+# run-loop hooks (simcore.hooks). Shared scratch rows: the flock sums (rows 0, 1; :func:`flock_sums`), then
+# the new predator (row 2) and prey (row 3) velocities of this step, from the state of time t.
+THREADS = False
+SUMS_POS, SUMS_VEL, PRED_NEW_VEL, PREY_NEW_VEL, SHARED_ROWS = range(5)
+assert (SUMS_POS, SUMS_VEL) == (0, 1)  # the rows flock_sums and flock_targets use
+
+
+def pack(model, dt):
+    """``dyn`` = (bp, bi, obstacle table, obstacle kinds, ray fan) (:mod:`simcore.boidspp_layout`)."""
+    return pack_boidspp(model, dt)
+
+
+def scratch(dynamics, n):
+    return np.zeros((n, 3), np.float64), np.zeros((SHARED_ROWS, 3), np.float64)
+
+
+def begin_step(dynamics, step, state, params, key):
+    """Step 1: the agents appear (or the predator leaves)."""
+    fp, ip, (bp, bi, table, kinds, fan) = params
+    place_agents(step, state[0], state[9], fp, ip, bp, bi, key)
+
+
+def record_extra(dynamics, r, state, records):
+    """The agents' positions with record r."""
+    agents, rec_agents = state[9], records[8]
     for c in range(3):
         rec_agents[r, 0, c] = agents[PRED_POS, c]
         rec_agents[r, 1, c] = agents[PREY_POS, c]
 
 
-@kernel
-def run_boidspp(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, key, n_steps,
-                record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
-    nb.literally(kind)  # compiled for this perception kind only (simcore.perception.perceive)
-    n = pos.shape[0]
-    nbrs = new_neighbours(n)
-    grid = cells.new_grid(n)
-    new_vel = np.zeros((n, 3))
-    sums = np.zeros((2, 3))
-    flock_scope = bi[BI.ALI_SCOPE] == SCOPE_FLOCK or bi[BI.COH_SCOPE] == SCOPE_FLOCK
-    sequential = ip[I.ORDER] == ORDER_SEQUENTIAL
-    r = 0
-    for step in range(n_steps + 1):
-        place_agents(step, pos, agents, fp, ip, bp, bi, key)
-        if step % record_every == 0:
-            record(r, pos, vel, agents, rec_pos, rec_vel, rec_agents)
-        use_grid = prepare_search(grid, pos, fp, ip)
-        recording = step % record_every == 0
-        if step == n_steps:
-            if recording:
-                for i in range(n):
-                    m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
-                    rec_visible[r, i] = m
-                    rec_binocular[r, i] = count_both_eyes(m, nbrs)
-            break
-        mark_captures(step, pos, agents, fp, ip, bp, bi, capture_step)
-        qx, qy, qz, yx, yy, yz = agent_velocities(pos, agents, fp, ip, bp, bi)
-        if flock_scope:
-            flock_sums(pos, vel, sums)
-        for i in range(n):
-            m = perceive(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
-            if recording:
-                rec_visible[r, i] = m
-                rec_binocular[r, i] = count_both_eyes(m, nbrs)
-            vx, vy, vz = boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, ip, bp, bi,
-                                       key, table, kinds, fan)
-            if sequential:
-                move_boid(i, vx, vy, vz, pos, vel, fwd, up, side, acc, fp, ip)
-                if use_grid:
-                    use_grid = cells.rebin(grid, i, pos)
-            else:
-                new_vel[i, 0], new_vel[i, 1], new_vel[i, 2] = vx, vy, vz
-        if not sequential:
-            for i in range(n):
-                move_boid(i, new_vel[i, 0], new_vel[i, 1], new_vel[i, 2], pos, vel, fwd, up, side, acc, fp, ip)
-        move_agents(qx, qy, qz, yx, yy, yz, agents, fp, ip, bp, bi, key)
-        if recording:
-            r += 1
+def before_boids(dynamics, step, state, params, key, scratch, records):
+    """Step 3, the agents' new velocities (step 5, from the state of time t) and the flock sums."""
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, (bp, bi, table, kinds, fan) = params
+    shared = scratch[1]
+    mark_captures(step, pos, agents, fp, ip, bp, bi, records[9])
+    (shared[PRED_NEW_VEL, 0], shared[PRED_NEW_VEL, 1], shared[PRED_NEW_VEL, 2], shared[PREY_NEW_VEL, 0],
+     shared[PREY_NEW_VEL, 1], shared[PREY_NEW_VEL, 2]) = agent_velocities(pos, agents, fp, ip, bp, bi)
+    if bi[BI.ALI_SCOPE] == SCOPE_FLOCK or bi[BI.COH_SCOPE] == SCOPE_FLOCK:
+        flock_sums(pos, vel, shared)
 
 
-@nb.njit(cache=True, error_model="numpy", parallel=True)
-def run_boidspp_batch(pos, vel, fwd, up, side, acc, agents, fp, ip, bp, bi, table, kinds, fan, keys, n_steps,
-                      record_every, rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step, kind):
-    nb.literally(kind)
-    for b in nb.prange(pos.shape[0]):
-        run_boidspp(pos[b], vel[b], fwd[b], up[b], side[b], acc[b], agents[b], fp, ip, bp, bi, table, kinds, fan,
-                    keys[b], n_steps, record_every, rec_pos[b], rec_vel[b], rec_visible[b], rec_binocular[b],
-                    rec_agents[b], capture_step[b], kind)
+def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
+    """Step 4: boid i's new velocity into its row of the per-boid buffer (no leadership: never triggers)."""
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, (bp, bi, table, kinds, fan) = params
+    new_vel, shared = scratch
+    new_vel[i, 0], new_vel[i, 1], new_vel[i, 2] = boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents,
+                                                                shared, fp, ip, bp, bi, key, table, kinds, fan)
+    return False
+
+
+def move(dynamics, i, state, params, scratch):
+    """Step 6 for boid i."""
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, dyn = params
+    new_vel = scratch[0]
+    move_boid(i, new_vel[i, 0], new_vel[i, 1], new_vel[i, 2], pos, vel, fwd, up, side, acc, fp, ip)
+
+
+def after_boids(dynamics, step, state, params, key, scratch):
+    """Step 5: the agents move."""
+    fp, ip, (bp, bi, table, kinds, fan) = params
+    shared = scratch[1]
+    move_agents(shared[PRED_NEW_VEL, 0], shared[PRED_NEW_VEL, 1], shared[PRED_NEW_VEL, 2], shared[PREY_NEW_VEL, 0],
+                shared[PREY_NEW_VEL, 1], shared[PREY_NEW_VEL, 2], state[9], fp, ip, bp, bi, key)

@@ -13,18 +13,30 @@
 Each ``@leaf`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
 cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
 
-A run loop takes the perception kind as its last argument, ``kind``, made a compile-time literal with
-``numba.literally`` (:func:`simcore.perception.perceive`): it is compiled once per kind used, with that
-kind's perception only. Python calls it through :func:`call_with_literal_kind`.
+A run loop takes the dynamics and the perception kind as its last two arguments, ``dynamics`` and
+``kind``, made compile-time literals with ``numba.literally`` (:func:`simcore.hooks.sense`,
+:func:`simcore.perception.perceive`): it is compiled once per (dynamics, kind) used, with that dynamics'
+hooks and that kind's perception only. Python calls it through :func:`call_with_literals`.
 """
 from __future__ import annotations
 
 import numba as nb
 
-kernel = nb.njit(cache=True, error_model="numpy")
+KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
+kernel = nb.njit(**KERNEL_OPTIONS)
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
 leaf = nb.njit(**LEAF_OPTIONS)
+
+
+def call_with_literals(dispatcher, args, n_literal):
+    """``dispatcher(*args)`` for a compiled function whose last ``n_literal`` arguments are compile-time
+    literals (``numba.literally``): the specialisation for their values is compiled (or loaded from the
+    cache) and called directly. A plain call would give the same results, but numba would first type the
+    whole function for int64 values on every call, only to be told to retry with the literals."""
+    head, tail = args[:len(args) - n_literal], tuple(int(a) for a in args[len(args) - n_literal:])
+    argtypes = tuple(dispatcher.typeof_pyval(a) for a in head) + tuple(nb.types.literal(a) for a in tail)
+    return dispatcher.compile(argtypes)(*head, *tail)
 
 
 def call_with_literal_kind(dispatcher, *args):
@@ -32,5 +44,4 @@ def call_with_literal_kind(dispatcher, *args):
     specialisation for that kind's value is compiled (or loaded from the cache) and called directly. A
     plain call would give the same results, but numba would first type the whole loop for an int64 kind on
     every call, only to be told to retry with the literal."""
-    argtypes = tuple(dispatcher.typeof_pyval(a) for a in args[:-1]) + (nb.types.literal(int(args[-1])),)
-    return dispatcher.compile(argtypes)(*args[:-1], int(args[-1]))
+    return call_with_literals(dispatcher, args, 1)

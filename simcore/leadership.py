@@ -119,3 +119,24 @@ def escape_step(i, vx, vy, vz, clock, escape, fp):
                 size = fp[F.LEAD_GAIN] * b * max(speed, fp[F.SLOW_SPEED])
                 dvx, dvy, dvz = size * dx, size * dy, size * dz
     return dvx, dvy, dvz, cap
+
+
+@inline
+def sense_trigger(i, step, kx, ky, kz, m_coh, vel, clock, escape, fp, ip, key):
+    """The trigger decision of boid i (with leadership on), from its cohesion offset k over m_coh
+    neighbours; a triggered boid starts its escape now. Returns whether it triggered."""
+    trigger, slow = decide(i, step, kx, ky, kz, m_coh, vel[i, 0], vel[i, 1], vel[i, 2], clock, fp, ip, key)
+    if trigger:
+        start(i, slow, kx, ky, kz, clock, escape)
+    return trigger
+
+
+@inline
+def escape_of(i, vel, clock, escape, fp, ip):
+    """(dvx, dvy, dvz, cap): what boid i's escape adds to its new velocity and its speed cap (no escape
+    and max_speed without leadership)."""
+    dvx = dvy = dvz = 0.0
+    cap = fp[F.MAX_SPEED]
+    if ip[I.LEADERSHIP] != 0:
+        dvx, dvy, dvz, cap = escape_step(i, vel[i, 0], vel[i, 1], vel[i, 2], clock, escape, fp)
+    return dvx, dvy, dvz, cap

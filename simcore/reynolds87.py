@@ -1,15 +1,12 @@
-"""The ``reynolds87`` dynamics: Reynolds' (1987) boids as one compiled whole-run loop (docs/model.md,
-"Reynolds 1987").
+"""The ``reynolds87`` dynamics: Reynolds' (1987) boids, as run-loop hooks (:mod:`simcore.hooks`;
+docs/model.md, "Reynolds 1987").
 
 ``pack_reynolds(model) -> (rp, ri, table, kinds)`` packs the ``[reynolds]`` table (float slots ``R.*``, int
-slots ``RI.*``) and the obstacles (:func:`simcore.obstacle_spec.pack_obstacles`). ``run_reynolds(pos, vel,
-fwd, up, side, acc, fp, ip, rp, ri, table, kinds, n_steps, record_every, rec_pos, rec_vel, rec_visible)``
-advances the state in place by ``n_steps`` steps of ``fp[F.DT]`` and records positions, velocities and
-visible-neighbour counts at steps 0, k, 2k, ... exactly as :func:`simcore.kernel.run_model` does (the last
-record perceives the final state without moving); ``fp, ip`` are the shared packed parameters
-(:func:`simcore.layout.pack`: perception sphere, boundary, update order, search). ``run_reynolds_batch``
-runs B independent runs (leading axis B) in parallel threads with the same code, so each run is
-bit-identical to its run alone.
+slots ``RI.*``) and the obstacles (:func:`simcore.obstacle_spec.pack_obstacles`); ``pack`` makes them this
+dynamics' ``dyn`` group. The run loops of :mod:`simcore.kernel` run it like every dynamics: ``sense``
+stores each boid's acceleration, ``move`` moves it; ``fp, ip`` are the shared packed parameters
+(:func:`simcore.layout.pack`: perception sphere, boundary, update order, search). It has no leadership
+(never triggers) and runs one thread per run (``THREADS``).
 
 Per boid and step (``boid_accel``), from the sphere neighbours of :func:`simcore.perception.perceive`
 (the same grid or all-pairs search as the other models; a neighbour at distance 0 is skipped: it has no
@@ -32,25 +29,20 @@ direction and an infinite weight), with w_j = |d_j|^-k:
 speed restarts at min_speed along f), p += v' dt, stores the realised acceleration (v' - v) / dt in ``acc``,
 rebuilds the banking frame (:func:`simcore.dynamics.rebuild_frame`) and applies the boundary.
 Synchronous order: every boid's acceleration from the state at t, then all move; sequential: boid i
-perceives, decides and moves before boid i + 1 (re-binned at once, as in :mod:`simcore.kernel`).
+perceives, decides and moves before boid i + 1 (re-binned at once; :mod:`simcore.kernel`).
 """
 from __future__ import annotations
 
 import math
 from enum import IntEnum
 
-import numba as nb
 import numpy as np
 
-from . import grid as cells
 from .dynamics import apply_boundary, rebuild_frame
-from .jit import inline, kernel
-from .kernel import prepare_search
-from .layout import ORDER_SEQUENTIAL, PERCEPTION_SPHERE, F, I
-from .neighbours import new_neighbours
+from .jit import inline
+from .layout import F
 from .obstacle_avoidance import steer_to_avoid
 from .obstacle_spec import pack_obstacles
-from .perception import perceive
 from .reynolds_params import ALLOCATIONS, MIGRATION_WHO
 
 R_SLOTS = {
@@ -140,7 +132,7 @@ def distance_weight(dd, dist, k):
     return dist ** -k
 
 
-@kernel
+@inline
 def boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds):
     """(ax, ay, az): the allocated acceleration of boid i from its m neighbours (module docstring)."""
     k = rp[R.FALLOFF]
@@ -227,54 +219,32 @@ def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp):
     apply_boundary(i, pos, fp, ip)
 
 
-@kernel
-def run_reynolds(pos, vel, fwd, up, side, acc, fp, ip, rp, ri, table, kinds, n_steps, record_every,
-                 rec_pos, rec_vel, rec_visible):
-    n = pos.shape[0]
-    nbrs = new_neighbours(n)
-    grid = cells.new_grid(n)
-    accel = np.zeros((n, 3), np.float64)
-    visible = np.zeros(n, np.int32)
-    sequential = ip[I.ORDER] == ORDER_SEQUENTIAL
-    r = 0
-    for step in range(n_steps + 1):
-        record = step % record_every == 0
-        if record:
-            for i in range(n):
-                for c in range(3):
-                    rec_pos[r, i, c] = pos[i, c]
-                    rec_vel[r, i, c] = vel[i, c]
-        use_grid = prepare_search(grid, pos, fp, ip)
-        if step == n_steps:
-            if record:
-                for i in range(n):
-                    rec_visible[r, i] = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
-            break
-        if sequential:
-            for i in range(n):
-                m = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
-                visible[i] = m
-                ax, ay, az = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds)
-                move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp)
-                if use_grid:
-                    use_grid = cells.rebin(grid, i, pos)
-        else:
-            for i in range(n):
-                m = perceive(PERCEPTION_SPHERE, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid)
-                visible[i] = m
-                accel[i, 0], accel[i, 1], accel[i, 2] = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table,
-                                                                   kinds)
-            for i in range(n):
-                move_boid(i, accel[i, 0], accel[i, 1], accel[i, 2], pos, vel, fwd, up, side, acc, fp, ip, rp)
-        if record:
-            for i in range(n):
-                rec_visible[r, i] = visible[i]
-            r += 1
+# run-loop hooks (simcore.hooks)
+THREADS = False
 
 
-@nb.njit(cache=True, error_model="numpy", parallel=True)
-def run_reynolds_batch(pos, vel, fwd, up, side, acc, fp, ip, rp, ri, table, kinds, n_steps, record_every,
-                       rec_pos, rec_vel, rec_visible):
-    for b in nb.prange(pos.shape[0]):
-        run_reynolds(pos[b], vel[b], fwd[b], up[b], side[b], acc[b], fp, ip, rp, ri, table, kinds, n_steps,
-                     record_every, rec_pos[b], rec_vel[b], rec_visible[b])
+def pack(model, dt):
+    """``dyn`` = (rp, ri, obstacle table, obstacle kinds, an empty ray fan)."""
+    rp, ri, table, kinds = pack_reynolds(model)
+    return rp, ri, table, kinds, np.zeros((0, 3))
+
+
+def scratch(dynamics, n):
+    return np.zeros((n, 3), np.float64), np.zeros((0, 3), np.float64)
+
+
+def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
+    """Boid i's allocated acceleration into its row of the per-boid buffer (no leadership: never triggers)."""
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, dyn = params
+    rp, ri, table, kinds, fan = dyn
+    accel = scratch[0]
+    accel[i, 0], accel[i, 1], accel[i, 2] = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds)
+    return False
+
+
+def move(dynamics, i, state, params, scratch):
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, dyn = params
+    accel = scratch[0]
+    move_boid(i, accel[i, 0], accel[i, 1], accel[i, 2], pos, vel, fwd, up, side, acc, fp, ip, dyn[0])

@@ -17,16 +17,17 @@
 * ``captures``   int64 (C, 2) or None: first captures (step, boid) by the Boids++ predator, by step then
   boid; None unless ``boidspp.predator.capture_radius`` is set
 
-Dynamics ``boidspp`` runs its own compiled loop (:mod:`simcore.boidspp`), one thread per run.
-``simulate_batch`` runs several seeds of one (model, init) in one compiled, threaded call; each run's
-result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
+Every dynamics runs in the same compiled loop (:mod:`simcore.kernel`), compiled per dynamics and
+perception kind with that dynamics' hooks (:mod:`simcore.hooks`). ``simulate_batch`` runs several seeds
+of one (model, init) in one compiled, threaded call; each run's result is bit-identical to ``simulate``
+with that seed. ``advance`` steps a given state (tests, tools).
 
 Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step of one synchronous run
 over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
 use numba's thread count and smaller ones one thread, and sequential runs are always serial (boid i
 waits for boid i - 1). Every boid is computed by the same code either way: results are bit-identical
-for any thread count. The ``reynolds87`` dynamics runs in its own compiled loop
-(:mod:`simcore.reynolds87`), one thread per run (``threads`` does not apply), batches in parallel.
+for any thread count. A dynamics whose module says ``THREADS = False`` (``reynolds87``, ``boidspp``) runs
+one thread per run (``threads`` does not apply); its batches run in parallel as every dynamics'.
 """
 from __future__ import annotations
 
@@ -37,10 +38,9 @@ import numba
 import numpy as np
 from numba.core import event as numba_event
 
-from . import boidspp, kernel, reynolds87
-from .boidspp_layout import pack_boidspp
-from .jit import call_with_literal_kind
-from .layout import I, pack
+from . import hooks, kernel
+from .jit import call_with_literals
+from .layout import I
 from .params import InitParams, ModelParams, Preset
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
@@ -94,26 +94,21 @@ class _CompileNotice(numba_event.Listener):
         pass
 
 
-def _run_loop(dispatcher, *args, kind: int | None = None) -> None:
-    """Call a compiled run loop, with the compile notice; ``kind``: the perception kind of a loop compiled
-    per kind (its last argument, :func:`simcore.jit.call_with_literal_kind`)."""
+def _run_loop(dispatcher, *args, params) -> None:
+    """Call a compiled run loop with the compile notice; its last two arguments, the dynamics and the
+    perception kind of ``params``, are compile-time literals (:func:`simcore.jit.call_with_literals`)."""
+    ip = params[1]
+    args = (*args, int(ip[I.DYNAMICS]), int(ip[I.PERCEPTION]))
     if _NOTICE_SHOWN:
-        _call(dispatcher, args, kind)
+        call_with_literals(dispatcher, args, 2)
         return
     with numba_event.install_listener("numba:compile", _CompileNotice()):
-        _call(dispatcher, args, kind)
+        call_with_literals(dispatcher, args, 2)
 
 
-def _call(dispatcher, args, kind) -> None:
-    if kind is None:
-        dispatcher(*args)
-    else:
-        call_with_literal_kind(dispatcher, *args, kind)
-
-
-def _kind(ip: np.ndarray) -> int:
-    """The perception kind a run loop is compiled for (``PERCEPTION_*``, see :mod:`simcore.jit`)."""
-    return int(ip[I.PERCEPTION])
+def _state_group(s: State) -> tuple:
+    """The ``state`` group of the run loops (:mod:`simcore.hooks`): the arrays of ``s``, in place."""
+    return tuple(getattr(s, f) for f in FIELDS) + (s.agents,)
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -124,12 +119,17 @@ def _n_steps(duration: float, dt: float) -> int:
     return int(round(duration / dt))
 
 
-def _records(n_records: int, n: int, n_events: int, lead: tuple = ()):
-    """(rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig)."""
+def _records(model: ModelParams, n_records: int, n: int, n_events: int, lead: tuple = ()):
+    """The ``records`` group of the run loops: (rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader,
+    trig_step, trig_boid, n_trig, rec_agents, capture_step); the last two are zero-length unless the
+    dynamics is ``boidspp``."""
+    agents = model.dynamics == "boidspp"
     return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
             np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32),
             np.zeros(lead + (n_records, n), np.bool_), np.zeros(lead + (n_events,), np.int64),
-            np.zeros(lead + (n_events,), np.int64), np.zeros(lead + (1,), np.int64))
+            np.zeros(lead + (n_events,), np.int64), np.zeros(lead + (1,), np.int64),
+            np.full(lead + (n_records if agents else 0, 2, 3), np.nan),
+            np.full(lead + (n if agents else 0,), -1, np.int64))
 
 
 def _n_events(model: ModelParams, n: int, n_steps: int, dt: float) -> int:
@@ -138,8 +138,10 @@ def _n_events(model: ModelParams, n: int, n_steps: int, dt: float) -> int:
     return int(kernel.max_triggers(n, n_steps, model.leadership.duration, dt))
 
 
-def _observations(times, rec, final: State, dt: float, record_every: int) -> Observations:
-    pos, vel, visible, binocular, leader, trig_step, trig_boid, n_trig = rec
+def _observations(model: ModelParams, times, rec, final: State, dt: float, record_every: int) -> Observations:
+    if model.dynamics == "boidspp":
+        return _boidspp_observations(model, times, rec, final, dt, record_every)
+    pos, vel, visible, binocular, leader, trig_step, trig_boid, n_trig = rec[:8]
     count = int(n_trig[0])
     if count > len(trig_step):
         raise RuntimeError(f"{count} leadership triggers exceed the bound of {len(trig_step)} (kernel bug)")
@@ -160,19 +162,13 @@ def _thread_count(model: ModelParams, n: int, threads) -> int:
         threads = numba.get_num_threads() if n >= THREADED_MIN_N else 1
     if isinstance(threads, bool) or int(threads) != threads or threads < 1:
         raise ValueError(f"threads: got {threads!r}; must be an integer >= 1 (or None: automatic)")
-    return 1 if model.world.update_order == "sequential" or model.dynamics == "boidspp" else int(threads)
-
-
-def _boidspp_records(model: ModelParams, n_records: int, n: int, lead: tuple = ()):
-    """(rec_pos, rec_vel, rec_visible, rec_binocular, rec_agents, capture_step) of a Boids++ run."""
-    return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
-            np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32),
-            np.full(lead + (n_records, 2, 3), np.nan), np.full(lead + (n,), -1, np.int64))
+    sequential = model.world.update_order == "sequential"
+    return 1 if sequential or not hooks.module_of(model.dynamics).THREADS else int(threads)
 
 
 def _boidspp_observations(model: ModelParams, times, rec, final: State, dt: float,
                           record_every: int) -> Observations:
-    pos, vel, visible, binocular, agents, capture_step = rec
+    pos, vel, visible, binocular, agents, capture_step = rec[:4] + rec[8:]
     table = model.boidspp
     captures = None
     if table.predator.enabled and table.predator.capture_radius is not None:
@@ -186,16 +182,6 @@ def _boidspp_observations(model: ModelParams, times, rec, final: State, dt: floa
                         prey=agents[:, 1].copy() if table.prey.enabled else None, captures=captures)
 
 
-def _advance_boidspp(model: ModelParams, s: State, n_steps: int, dt: float, record_every: int,
-                     key) -> Observations:
-    fp, ip = pack(model, dt)
-    rec = _boidspp_records(model, n_steps // record_every + 1, s.n)
-    _run_loop(boidspp.run_boidspp, s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.agents, fp, ip,
-              *pack_boidspp(model, dt), np.uint64(key), n_steps, record_every, *rec, kind=_kind(ip))
-    times = np.arange(len(rec[0])) * (record_every * dt)
-    return _boidspp_observations(model, times, rec, s, dt, record_every)
-
-
 def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
             key: int = 0, threads: int | None = None) -> Observations:
     """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched. ``key`` is the run's
@@ -203,29 +189,23 @@ def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_ev
     record_every = _check_record_every(record_every)
     threads = _thread_count(model, state.n, threads)
     s = state.copy()
-    if model.dynamics == "boidspp":
-        return _advance_boidspp(model, s, n_steps, dt, record_every, key)
-    fp, ip = pack(model, dt)
+    params = hooks.pack(model, dt)
     n_records = n_steps // record_every + 1
-    rec = _records(n_records, s.n, _n_events(model, s.n, n_steps, dt))
-    args = (s.pos, s.vel, s.fwd, s.up, s.side, s.acc, s.pattern, s.clock, s.escape, fp, ip, np.uint64(key),
-            n_steps, record_every, *rec)
-    if model.dynamics == "reynolds87":
-        _run_loop(reynolds87.run_reynolds, s.pos, s.vel, s.fwd, s.up, s.side, s.acc, fp, ip,
-                  *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
-    elif threads == 1:
-        _run_loop(kernel.run_model, *args, kind=_kind(ip))
+    rec = _records(model, n_records, s.n, _n_events(model, s.n, n_steps, dt))
+    args = (_state_group(s), params, np.uint64(key), n_steps, record_every, rec)
+    if threads == 1:
+        _run_loop(kernel.run_model, *args, params=params)
     else:
         from .threaded import run_threaded
 
         previous = numba.get_num_threads()
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         try:
-            _run_loop(run_threaded, *args, threads, kind=_kind(ip))
+            _run_loop(run_threaded, *args, threads, params=params)
         finally:
             numba.set_num_threads(previous)
     times = np.arange(n_records) * (record_every * dt)
-    return _observations(times, rec, s, dt, record_every)
+    return _observations(model, times, rec, s, dt, record_every)
 
 
 def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
@@ -319,24 +299,13 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     states = [initial_state(init, model.patterns, rng) for rng, _ in streams]
     keys = np.array([key for _, key in streams], dtype=np.uint64)
     stacked = {f: np.stack([getattr(s, f) for s in states]) for f in FIELDS}
-    fp, ip = pack(model, dt)
+    agents = np.stack([s.agents for s in states])
+    params = hooks.pack(model, dt)
     n_records = n_steps // record_every + 1
+    rec = _records(model, n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
+    _run_loop(kernel.run_batch, tuple(stacked[f] for f in FIELDS) + (agents,), params, keys, n_steps, record_every,
+              rec, params=params)
     times = np.arange(n_records) * (record_every * dt)
-    if model.dynamics == "boidspp":
-        agents = np.stack([s.agents for s in states])
-        rec = _boidspp_records(model, n_records, init.n, (len(states),))
-        _run_loop(boidspp.run_boidspp_batch, *(stacked[f] for f in FIELDS[:6]), agents, fp, ip,
-                  *pack_boidspp(model, dt), keys, n_steps, record_every, *rec, kind=_kind(ip))
-        return [_boidspp_observations(model, times, tuple(r[b] for r in rec),
-                                      State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)
-                for b in range(len(states))]
-    rec = _records(n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
-    if model.dynamics == "reynolds87":
-        _run_loop(reynolds87.run_reynolds_batch, *(stacked[f] for f in ("pos", "vel", "fwd", "up", "side", "acc")),
-                  fp, ip, *reynolds87.pack_reynolds(model), n_steps, record_every, *rec[:3])
-    else:
-        _run_loop(kernel.run_batch, *(stacked[f] for f in FIELDS), fp, ip, keys, n_steps, record_every, *rec,
-                  kind=_kind(ip))
-    times = np.arange(n_records) * (record_every * dt)
-    return [_observations(times, tuple(r[b] for r in rec), State(**{f: stacked[f][b] for f in FIELDS}), dt,
-                          record_every) for b in range(len(states))]
+    return [_observations(model, times, tuple(r[b] for r in rec),
+                          State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)
+            for b in range(len(states))]

@@ -1,8 +1,9 @@
 """The first compile, in fresh processes with an empty numba cache: a run compiles only the perception
-kind it uses (a holland run never compiles the topological kNN, an opensteer run neither the binocular
-view phase nor occlusion), every simcore kernel is compiled for one signature only (a second signature is
-a whole second compile; the run loop once per perception kind), a second process loads everything from
-the cache, and the notice that kernels are compiling is printed once per process that compiles."""
+kind and the dynamics it uses (a holland run never compiles the topological kNN nor another dynamics'
+hooks, an opensteer run neither the binocular view phase nor occlusion), every simcore kernel is compiled
+for one signature only (a second signature is a whole second compile; the run loop once per dynamics and
+perception kind), a second process loads everything from the cache, and the notice that kernels are
+compiling is printed once per process that compiles."""
 from __future__ import annotations
 
 import json
@@ -37,6 +38,7 @@ RUN_LOOP = "simcore.kernel.run_model"
 PERCEIVERS = {kind: f"simcore.perception.perceive_{kind}" for kind in ("sphere", "opensteer", "binocular",
                                                                         "topological")}
 NEAREST, OCCLUDE = "simcore.topological.nearest", "simcore.occlusion.occlude"
+OTHER_DYNAMICS = ("simcore.hartman_benes.", "simcore.reynolds87.", "simcore.boidspp.")
 
 
 def compiles(cache, *models) -> tuple[list[dict], str]:
@@ -53,7 +55,9 @@ def compiles(cache, *models) -> tuple[list[dict], str]:
 def test_a_run_compiles_its_own_perception_kind_once_and_the_notice_is_printed_once(tmp_path):
     cache = tmp_path / "cache"
     (holland, opensteer), stderr = compiles(cache, "holland.toml", "opensteer.toml")
-    assert {RUN_LOOP, PERCEIVERS["binocular"], OCCLUDE} <= set(holland)
+    assert {RUN_LOOP, PERCEIVERS["binocular"], OCCLUDE, "simcore.opensteer.sense",
+            "simcore.opensteer.move"} <= set(holland)
+    assert not [name for name in holland if name.startswith(OTHER_DYNAMICS)]
     assert set(holland).isdisjoint({PERCEIVERS["sphere"], PERCEIVERS["opensteer"], PERCEIVERS["topological"],
                                     NEAREST})
     # the second kind adds its run loop and its perceiver, nothing else (the other leaves are shared)
