@@ -47,6 +47,7 @@ from simcore.schema import ConfigError, suggest
 
 from sweeps.failures import check_count, check_out, check_workers, explain, parse_numbers, show_warnings
 from sweeps.interrupts import ignored, signals_as_exceptions
+from flocksweep import version
 from flocksweep.until_commands import parse_until_ci, report_lost, run_until_ci_command, run_until_claims_command
 
 
@@ -207,12 +208,15 @@ def cmd_run(args) -> int:
 
 
 def _add_status(sub) -> None:
-    p = sub.add_parser("status", help="done / failed / missing runs of a results directory")
+    p = sub.add_parser("status", help="done / failed / missing runs of a results directory",
+                       description="Count the done, failed and missing runs of a results directory, say whether "
+                                   "a runner is working there now, when its results were computed, and list "
+                                   "the failed runs with their reasons. Reads only; quick (simulates nothing).")
     p.add_argument("dir", type=Path, help="results directory of a sweep")
 
 
 def cmd_status(args) -> int:
-    from sweeps.runner import status
+    from sweeps.status import computed, status
 
     try:
         info = status(args.dir)
@@ -225,7 +229,7 @@ def cmd_status(args) -> int:
     if info["running"]:
         print(f"  a runner is working here now ({info['running']}), started {manifest.get('started')}")
     elif manifest.get("finished"):
-        print(f"  last run finished {manifest['finished']} (git {manifest.get('git_revision')})")
+        print(f"  results computed {computed(manifest)} (git {manifest.get('git_revision')})")
     elif manifest:
         print(f"  last run started {manifest.get('started')} and did not finish (resume with flocksweep run)")
     for run_id, error in info["failures"][:50]:
@@ -245,7 +249,9 @@ def _add_report(sub) -> None:
                         "names like cohesion or columns like cohesion_final")
     p.add_argument("--by", nargs="+", metavar="FACTOR", help="factors to analyse (default: all swept factors)")
     p.add_argument("--out", type=Path, help="output directory (default RESULTS_DIR/report)")
-    p.add_argument("--format", choices=("html", "md", "both"), default="both")
+    p.add_argument("--format", choices=("html", "md", "both"), default="both",
+                   help="html: report.html (self-contained); md: report.md with its figures as PNG files; "
+                        "both (default)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the bootstrap resampling and of the claims' power simulations (default 0)")
     p.add_argument("--claims", nargs="+", type=Path, default=[], metavar="FILE",
@@ -415,16 +421,24 @@ ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "re
 ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "sbc", "view", "measure")
 
 
+ALL = "*"   # build_parser(ALL): every command's arguments declared (tests and documentation)
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The whole parser; with ``command``, only that command's arguments are declared (the rest are listed
-    by name), so ``flocksweep simulate`` does not import the modules of the delegated commands (export, view,
-    measure)."""
-    parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
+    """The parser. Only the arguments of ``command`` (None: of none of the delegated commands) are declared
+    from the delegated commands' modules; the others are listed by name and help line, so neither
+    ``flocksweep simulate`` nor ``flocksweep --help`` imports the modules of export, view, measure, sbc or
+    compile. ``build_parser(ALL)`` declares every command's arguments."""
+    parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps: "
+                                     "simulate, sweep, report, calibrate, view. `flocksweep COMMAND --help` "
+                                     "describes a command.")
+    parser.add_argument("--version", action="version", version=f"flocksweep {version()}",
+                        help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in ORDER:
         if name in ADDERS:
             ADDERS[name](sub)
-        elif command is None or name == command:
+        elif name == command or command == ALL:
             _add_delegated(sub, name)
         else:   # listed by name only: its module (and what it imports) is not loaded
             sub.add_parser(name, help=DELEGATED[name][1])

@@ -19,8 +19,9 @@ def report_lost(args, result) -> int:
         print(f"  moved aside (unreadable): {path}")
     if not result.lost:
         return 0
-    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died (killed, out of "
-          f"memory or crashed) on every attempt; run the same command again to compute them", file=sys.stderr)
+    causes = "; ".join(result.lost_reasons) or "killed, out of memory or crashed"
+    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died on every attempt "
+          f"({causes}); run the same command again to compute them", file=sys.stderr)
     return INCOMPLETE
 
 

@@ -20,7 +20,7 @@ Failures, each kept apart (docs/errors.md):
 
 Finished runs are saved on time: at most :data:`FLUSH_SECONDS` after they finish (plus a heartbeat),
 whatever the executor is busy with, and all of them at the end or on an interrupt.
-``status(out_dir)`` counts done / failed / missing runs and says whether a runner holds the folder.
+``status(out_dir)`` and ``resume_hint`` live in :mod:`sweeps.status` (light: no simulator).
 ``run_until(config, ..., grow, max_replicates)`` adds replicates in rounds where a rule asks for them:
 ``run_until_ci`` (``--until-ci``) with :func:`ci_rule`, ``--until-claims`` with the rule of
 :mod:`analysis.reports.claims.until`.
@@ -50,9 +50,12 @@ from .config import SweepConfig, describe
 from .design import RunSpec, base_preset, expand
 from .executors import Executor, WorkerLost, check_scheduler
 from .files import WriteFailed
+from . import main_guard
 from .identity import canonical
 from .provenance import stamp
+from .status import resume_hint, status  # noqa: F401 - their home; imported from here too
 from .store import ResultsStore
+from .sweep_toml import portable, relocated
 
 FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
 HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
@@ -72,9 +75,12 @@ def design_table(specs: list[RunSpec]) -> pd.DataFrame:
                           "steps": s.preset.run.n_steps, **dict(s.columns)} for s in specs])
 
 
-def model_record(config: SweepConfig) -> dict:
-    """What is needed to rebuild any run of the design from its row: the base preset, the swept keys."""
-    return {"preset": config.preset_data, "preset_path": str(config.preset_path), "swept_keys": config.swept_keys,
+def model_record(config: SweepConfig, folder=None) -> dict:
+    """What is needed to rebuild any run of the design from its row: the base preset (its path relative to
+    the results ``folder``; absolute without one), the swept keys."""
+    path = portable(config.preset_path, folder) if folder is not None else str(config.preset_path)
+    return {"preset": config.preset_data, "preset_path": path,
+            "swept_keys": config.swept_keys,
             "analysis": config.analysis_record()}
 
 
@@ -217,6 +223,7 @@ class SweepResult:
     wall_s: float
     estimate: dict | None = None
     lost: list[RunSpec] = field(default_factory=list)   # runs whose worker died: left missing
+    lost_reasons: list[str] = field(default_factory=list)   # why (distinct messages), when runs were lost
     quarantined: list[Path] = field(default_factory=list)  # damaged files moved aside before computing
 
 
@@ -227,10 +234,13 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     """Run the sweep (or the given subset ``specs`` of its design); see the module docstring. ``sweep_text``
     is stored as ``sweep.toml``; None stores the text of the file the sweep was read from, or for a sweep
     built in Python :meth:`SweepConfig.to_toml`. The public entry point is :func:`sweeps.run_sweep`."""
+    main_guard.refuse_in_spawned_import()   # a worker re-running an unguarded script never runs its sweep
     if sweep_text is None:
         sweep_text = config.text if config.text is not None else config.to_toml()
     started = time.time()
     workers = workers or os.cpu_count() or 1
+    if not dry_run and ((executor == "local" and workers > 1) or (executor == "dask" and not scheduler)):
+        main_guard.check_caller_guarded()   # before anything is written: UnguardedScript
     if specs is None:
         base_preset(config)   # the base model must be valid: ConfigError naming the key
         check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
@@ -247,12 +257,15 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
         plan = make_plan(specs, store, force, retry_failed)
         effective = with_claims({**config.source, "replicates": config.replicates}, config.claims)
         design = design_table(specs)
-        store.write_inputs(sweep_text, effective, model_record(config), design)
+        store.write_inputs(relocated(sweep_text, config.preset_path, out_dir), effective,
+                           model_record(config, out_dir), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
-        lost = _compute(config, store, plan, executor, workers, scheduler, progress, batch_size) if plan.todo else []
+        lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
+                         if plan.todo else ([], []))
         table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
-    return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, quarantined=quarantined)
+    return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, lost_reasons=reasons,
+                       quarantined=quarantined)
 
 
 def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
@@ -265,9 +278,9 @@ def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
 
 
 def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
-             scheduler: str | None, progress: bool, batch_size: int | None) -> list[RunSpec]:
+             scheduler: str | None, progress: bool, batch_size: int | None) -> tuple[list[RunSpec], list[str]]:
     """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
-    with their workers (not recorded)."""
+    with their workers (not recorded) and the distinct reasons."""
     for spec in _one_per_run_loop(plan.todo):
         try:
             worker.warm_up(spec)
@@ -275,7 +288,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
             pass
     batches = make_batches(plan.todo, workers, batch_size)
     task = functools.partial(worker.execute_batch, out_dir=store.root)
-    failures, lost = 0, []
+    failures, lost, reasons = 0, [], []
     last_batch_s, clock = 0.0, time.monotonic()
     with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer, \
             Executor(executor, workers, scheduler) as pool:
@@ -288,6 +301,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
                 if isinstance(outcome.error, WriteFailed):
                     raise outcome.error   # a worker could not write (trajectories): stop, keep what is saved
                 lost += outcome.item
+                reasons += [outcome.reason] if outcome.reason not in reasons else []
                 bar.update(len(outcome.item))
                 continue
             rows, ts = outcome.value if outcome.error is None else (worker.failed_rows(outcome.item, outcome.reason),
@@ -296,32 +310,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
             failures += sum(r["status"] != "ok" for r in rows)
             bar.set_postfix(failed=failures, lost=len(lost), refresh=False)
             bar.update(len(rows))
-    return lost
-
-
-def status(out_dir) -> dict:
-    """Counts of done / failed / missing runs of the stored design, with the failures' reasons."""
-    store = ResultsStore(out_dir)
-    design = store.design()
-    if design is None:
-        raise FileNotFoundError(f"{out_dir}: no sweep stored here (design.parquet missing)")
-    latest = store.latest()
-    status_of = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
-    error_of = dict(zip(latest["run_id"], latest["error"])) if len(latest) else {}
-    states = [status_of.get(r, "missing") for r in design["run_id"]]
-    failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
-    return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
-            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest(),
-            "running": store.holder()}
-
-
-def resume_hint(sweep_path, out_dir) -> str:
-    """One line on what an interrupted sweep saved and how to resume it."""
-    if not (Path(out_dir) / "design.parquet").exists():
-        return "nothing was saved yet: run the same command again"
-    info = status(out_dir)
-    return (f"saved: {info['ok']} ok and {info['failed']} failed of {info['runs']} runs in {out_dir}; resume with: "
-            f"flocksweep run {sweep_path} --out {out_dir}")
+    return lost, reasons
 
 
 def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:

@@ -45,6 +45,7 @@ from sweeps.design import rebuild
 from sweeps.files import write_text
 from sweeps.owned import OwnedFolder
 from sweeps.results import Results, load_results
+from sweeps.status import computed
 from sweeps.store import ResultsStore
 
 from . import figures, stats
@@ -144,7 +145,7 @@ def _overview(ctx: Context) -> None:
         {"item": "config hash", "value": m.get("config_hash")},
         {"item": "git revision", "value": m.get("git_revision")},
         {"item": "model version", "value": m.get("model_version")},
-        {"item": "started / finished", "value": f"{m.get('started')} / {m.get('finished')}"},
+        {"item": "results computed", "value": computed(m)},
         {"item": "executor / workers", "value": f"{m.get('executor')} / {m.get('workers')}"},
         {"item": "machine", "value": str(m.get("machine", {}).get("platform"))},
         {"item": "packages", "value": ", ".join(f"{k} {v}" for k, v in pkgs.items() if v)}])

@@ -18,11 +18,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from simcore import ConfigError, load_preset, simulate_preset
-from simcore.params import read_toml
-from sweeps.budget import check_runs
+from simcore.schema import ConfigError
 
-from .encode import COLOR_MODES
+from .palette import COLOR_MODES
 
 DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
                "(simulated), a sweep run (re-simulated and checked bit for bit) or a saved trajectory; "
@@ -45,7 +43,10 @@ def add_arguments(p) -> None:
     model.add_argument("--duration", type=float, help="simulated seconds (run.duration)")
     model.add_argument("--dt", type=float, help="time step in seconds (run.dt)")
     page = p.add_argument_group("page and animation")
-    page.add_argument("--out", type=Path, help="page path (default: see flocksweep view --help)")
+    page.add_argument("--out", type=Path, metavar="PAGE.html",
+                      help="page path (default: results/view/<model>-seed<S>.html for a model, "
+                           "RESULTS_DIR/viewer/<run or showcase>.html for a sweep run, the .npz path with "
+                           ".html for a trajectory)")
     page.add_argument("--color-by", choices=("auto",) + COLOR_MODES, default="auto",
                       help="initial colouring (switchable in the page; auto: pattern in pattern mode, leader "
                            "with change of leadership, else boid)")
@@ -70,6 +71,8 @@ def _kind(source: Path) -> str:
     if source.suffix == ".npz":
         return "trajectory"
     if source.suffix == ".toml":
+        from simcore.params import read_toml
+
         data = read_toml(source)
         if "axes" in data or isinstance(data.get("model"), dict):
             name = data.get("name", "NAME")
@@ -107,6 +110,9 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _model_track(args):
+
+    from simcore import load_preset, simulate_preset
+    from sweeps.budget import check_runs
 
     from .resimulate import record_step_for
     from .track import from_observations

@@ -50,13 +50,11 @@ import zlib
 
 import numpy as np
 
+from .palette import AGENT_COLOURS, COLOR_MODES, TABLE_1_HEX  # noqa: F401 - part of this module's face
 from .track import Track
 
 FORMAT = "flocksweep-viewer/1"
-COLOR_MODES = ("boid", "pattern", "leader", "group", "speed")
 SCENE_TYPES = ("sphere", "plane", "box", "cylinder")
-AGENT_COLOURS = {"predator": "#d62728", "prey": "#2ca02c"}
-TABLE_1_HEX = {0b00000000: "#ffd700", 0b00111010: "#008000", 0b11000101: "#0000ff", 0b11111111: "#ff0000"}
 HEX = re.compile(r"^#[0-9a-fA-F]{6}$")
 
 
