@@ -112,7 +112,9 @@ def cmd_simulate(args) -> int:
         written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
                                    wrap_distance(preset.model), title, preset.model.world.obstacles,
                                    obs.predator, obs.prey))
-    print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s")
+    compiled = f" (+ {summary['compile_s']:.1f} s compiling its run loop, once)" if summary["compile_s"] else ""
+    print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s"
+          f"{compiled}")
     print(f"  final polarization     {summary['final_polarization']:.3f}")
     print(f"  final mean speed       {summary['final_mean_speed']:.3f}")
     print(f"  mean visible neighbours {summary['final_mean_visible']:.2f}"
@@ -192,8 +194,13 @@ def cmd_run(args) -> int:
         est = result.estimate
         print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "
               f"(kept; --retry-failed reruns them), {len(plan.todo)} to run")
-        print(f"  estimated cost: {est['boid_steps']:,} boid-steps, about {est['seconds']:.0f} s of compute "
-              f"on {args.workers or os.cpu_count()} worker(s) (from short pilot runs)")
+        workers = 1 if args.executor == "serial" else (args.workers or os.cpu_count())
+        print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
+              f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.0f} ms x {len(plan.todo)} runs, "
+              f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")
+        if est["compile_s"]:
+            print(f"  first compile: {est['compile_s']:.0f} s, done now by this dry run (numba's cache had no run loop "
+                  "for these models); the run will load them")
         print(f"  results directory: {out}")
         return 0
     table = result.table
@@ -256,6 +263,7 @@ def _add_report(sub) -> None:
                    help="seed of the bootstrap resampling and of the claims' power simulations (default 0)")
     p.add_argument("--claims", nargs="+", type=Path, default=[], metavar="FILE",
                    help="also test the claims of these claims files (or sweep files), e.g. configs/claims/holland.toml")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines (each section as it starts) on stderr")
 
 
 def cmd_report(args) -> int:
@@ -265,7 +273,8 @@ def cmd_report(args) -> int:
     check_out("--out", args.out)
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     try:
-        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims)
+        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims,
+                              progress=not args.no_progress)
     except (ReportError, FileNotFoundError) as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         return 2

@@ -31,6 +31,7 @@ for any thread count. The ``reynolds87`` dynamics runs in its own compiled loop
 from __future__ import annotations
 
 import sys
+import time
 from dataclasses import dataclass
 
 import numba
@@ -76,31 +77,53 @@ class Observations:
 
 
 _NOTICE_SHOWN = False
+_COMPILE_SECONDS = 0.0
+COMPILE_ESTIMATE = "about 45 s on the 2-core reference machine, longer on a busy one"   # bench/RESULTS.md
+_KIND_NAMES = ("sphere", "opensteer", "binocular", "topological")   # simcore.params.PERCEPTION_KINDS
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent compiling run loops (not loading them from the cache)."""
+    return _COMPILE_SECONDS
 
 
 class _CompileNotice(numba_event.Listener):
-    """Tells the user, once per process, when numba starts compiling a kernel rather than loading it from
-    its on-disk cache (the first run after installing or editing simcore, or of a perception kind or
-    dynamics not run before): numba signals only real compiles."""
+    """Tells the user on stderr when numba starts compiling a run loop rather than loading it from its
+    on-disk cache (the first run after installing or editing simcore, or of a perception kind or
+    dynamics not run before; numba signals only real compiles): one line per run loop, with an estimate,
+    and one when it is done, with its time (also counted by :func:`compile_seconds`)."""
+
+    def __init__(self, family: str):
+        self.family, self.depth, self.started = family, 0, 0.0
 
     def on_start(self, event) -> None:
         global _NOTICE_SHOWN
-        if not _NOTICE_SHOWN:
-            _NOTICE_SHOWN = True
-            print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
-                  "this takes a minute or so) ...", file=sys.stderr, flush=True)
+        self.depth += 1
+        if self.depth > 1:   # the run loop's own pieces, compiled inside it
+            return
+        self.started = time.perf_counter()
+        what = "the simulation kernels:" if not _NOTICE_SHOWN else "one more run loop:"
+        _NOTICE_SHOWN = True
+        print(f"simcore: compiling {what} {self.family} (once, after installing or editing simcore; "
+              f"{COMPILE_ESTIMATE}) ...", file=sys.stderr, flush=True)
 
     def on_end(self, event) -> None:
-        pass
+        global _COMPILE_SECONDS
+        self.depth -= 1
+        if self.depth == 0:
+            elapsed = time.perf_counter() - self.started
+            _COMPILE_SECONDS += elapsed
+            print(f"simcore: compiled {self.family} in {elapsed:.0f} s (cached for later runs)",
+                  file=sys.stderr, flush=True)
 
 
 def _run_loop(dispatcher, *args, kind: int | None = None) -> None:
     """Call a compiled run loop, with the compile notice; ``kind``: the perception kind of a loop compiled
     per kind (its last argument, :func:`simcore.jit.call_with_literal_kind`)."""
-    if _NOTICE_SHOWN:
-        _call(dispatcher, args, kind)
-        return
-    with numba_event.install_listener("numba:compile", _CompileNotice()):
+    family = getattr(dispatcher, "__name__", "run loop")
+    if kind is not None:
+        family += f" ({_KIND_NAMES[kind]} perception)"
+    with numba_event.install_listener("numba:compile", _CompileNotice(family)):
         _call(dispatcher, args, kind)
 
 

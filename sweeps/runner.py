@@ -108,12 +108,34 @@ def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = Non
     return [ordered[k:k + size] for k in range(0, len(ordered), size)]
 
 
-def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> dict:
-    """Boid-steps and seconds, timing short pilots of the cheapest, median and dearest runs to do (one
-    step first: a pilot whose one step already takes ``pilot_seconds / 4`` is timed on that step alone)."""
+def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool: bool = False) -> dict:
+    """What the user will wait for, measured here rather than assumed (docs/sweeps.md, "Dry runs"):
+
+    * ``seconds``: simulation, from short pilots of the cheapest, median and dearest runs to do (one step
+      first: a pilot whose one step already takes ``pilot_seconds / 4`` is timed on that step alone), per
+      unit of cost (n^2 x steps), over ``workers``;
+    * ``compile_s``: the run loops this dry run had to compile first (0 when numba's cache had them: the
+      real run then loads them; when it had to, the cache now holds them);
+    * ``startup_s``: this process's own start (imports, reading the sweep, loading the kernels), and with
+      a ``pool`` the time
+      its worker processes take to start and load the kernels (timed: the pool is started here, each
+      worker warms up, and it is stopped);
+    * ``per_run_s``: what a run costs besides its simulation (metrics, its row, the write), timed on the
+      cheapest run, once warm;
+    * ``total_s``: start-up + (simulation + per-run overhead x runs) / workers, without the compile.
+    """
+    from simcore.simulate import compile_seconds
+
     boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
+    startup = _process_age()
     if not todo:
-        return {"boid_steps": 0, "seconds": 0.0}
+        return {"boid_steps": 0, "seconds": 0.0, "compile_s": 0.0, "startup_s": startup, "per_run_s": 0.0,
+                "total_s": startup}
+    compiling, warming = compile_seconds(), time.perf_counter()
+    for spec in _one_per_run_loop(todo):
+        worker.warm_up(spec)   # compile (or load) what the runs need, as the real run's warm-up does
+    compile_s = compile_seconds() - compiling
+    startup += time.perf_counter() - warming - compile_s   # the run's own warm-up: loading the kernels
     ordered = sorted(todo, key=lambda s: s.cost)
     pilots = {id(s): s for s in (ordered[0], ordered[len(ordered) // 2], ordered[-1])}.values()
     rate = []  # seconds per unit of cost
@@ -126,7 +148,41 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> d
         rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
     per_cost = sorted(rate)[len(rate) // 2]
     seconds = sum(s.cost for s in todo) * per_cost / max(workers, 1)
-    return {"boid_steps": boid_steps, "seconds": seconds}
+    per_run = _per_run_overhead(ordered[0], per_cost, pilot_seconds)
+    startup_total = startup + (_pool_start(ordered[0], workers) if pool else 0.0)
+    total = startup_total + seconds + per_run * len(todo) / max(workers, 1)
+    return {"boid_steps": boid_steps, "seconds": seconds, "compile_s": compile_s, "startup_s": startup_total,
+            "per_run_s": per_run, "total_s": total}
+
+
+def _per_run_overhead(spec: RunSpec, per_cost: float, pilot_seconds: float) -> float:
+    """Seconds a run costs besides its simulation: the cheapest run done whole (when its simulation is
+    short) minus its simulation as the pilots predict it; 0 when it is too long to time here."""
+    predicted = spec.cost * per_cost
+    if predicted > pilot_seconds:
+        return 0.0
+    worker.execute_run(spec)   # warm: the metric kernels loaded or compiled
+    start = time.perf_counter()
+    worker.execute_run(spec)
+    return max(0.0, time.perf_counter() - start - predicted)
+
+
+def _pool_start(spec: RunSpec, workers: int) -> float:
+    """Seconds to start ``workers`` worker processes and have each load the kernels of ``spec``."""
+    start = time.perf_counter()
+    with Executor("local", workers) as pool:
+        pool.map(worker.warm_up, [spec] * workers)
+    return time.perf_counter() - start
+
+
+def _process_age() -> float:
+    """Seconds since this process started (its imports and reading the sweep), from /proc; else 0."""
+    try:
+        ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(0.0, uptime - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def _pilot(spec: RunSpec, steps: int) -> float:
@@ -251,7 +307,8 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     if dry_run:
         plan = make_plan(specs, store, force, retry_failed)
         return SweepResult(Path(out_dir), plan, None, time.time() - started,
-                           estimate(plan.todo, 1 if executor == "serial" else workers))
+                           estimate(plan.todo, 1 if executor == "serial" else workers,
+                                    pool=executor != "serial" and workers > 1))
     with store.lock():
         quarantined = store.repair()
         plan = make_plan(specs, store, force, retry_failed)

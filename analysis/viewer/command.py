@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from simcore.schema import ConfigError
+from sweeps.progress import Phases
 
 from .palette import COLOR_MODES
 
@@ -60,6 +61,8 @@ def add_arguments(p) -> None:
     page.add_argument("--rotate", action="store_true", help="animation camera turns slowly about the vertical")
     page.add_argument("--size", default="640x480", metavar="WxH", help="animation size in pixels (default 640x480)")
     page.add_argument("--dpi", type=int, default=100, help="animation dots per inch (text size; default 100)")
+    page.add_argument("--no-progress", action="store_true",
+                      help="no progress on stderr (the phases as they start, the animation's frames)")
 
 
 def _kind(source: Path) -> str:
@@ -166,9 +169,12 @@ def run(args) -> int:
     kind = _kind(source)
     _check_flags(args, kind)
     size = _size(args.size)
+    phases = Phases("view", 1 + (not args.no_page) + bool(args.animate), not args.no_progress)
     try:
         if args.animate and check_options(args.animate, args.fps, args.speed, size, args.dpi, args.color_by) == "mp4":
             ffmpeg_exe()  # before simulating: say now if MP4 cannot be written
+        phases.start({"model": "simulating the run", "sweep": "re-simulating the run and checking it bit for bit",
+                      "trajectory": "reading the trajectory"}[kind])
         if kind == "model":
             track, default = _model_track(args)
         elif kind == "sweep":
@@ -180,15 +186,17 @@ def run(args) -> int:
         else:
             track, default = from_npz(source), source.with_suffix(".html")
         if not args.no_page:
+            phases.start("building the page")
             page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
                               trail_s=args.trail)
             path = page.save(args.out or default)
             print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {page.n} boids, {page.frames} frames every "
                   f"{page.frame_interval:.3g} s, stride {page.stride}); open it in a browser, it works offline")
         if args.animate:
+            phases.start(f"drawing the animation {args.animate.name} frame by frame")
             anim = write_animation(track, args.animate, color_by=args.color_by, fps=args.fps,
                                    speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
-                                   size=size, dpi=args.dpi, progress=True)
+                                   size=size, dpi=args.dpi, progress=not args.no_progress)
             print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
     except ConfigError:
         raise
