@@ -95,8 +95,7 @@ def draw_traces(ax, pos: np.ndarray, pattern: np.ndarray | None = None, color_by
             ax.plot([], [], color=colour, label=f"pattern {int(value):0b}")
     if legend or agents:
         ax.legend(loc="upper left", fontsize=7)
-    if obstacles:
-        ax.set_aspect("equal")   # solids keep their shapes
+    ax.set_aspect("equal")   # one scale on all three axes: paths and solids keep their shapes
     ax.set_xlabel("x")
     ax.set_ylabel("z")
     ax.set_zlabel("y (up)")
