@@ -51,6 +51,9 @@ def add_arguments(p) -> None:
     page.add_argument("--color-by", choices=("auto",) + COLOR_MODES, default="auto",
                       help="initial colouring (switchable in the page; auto: pattern in pattern mode, leader "
                            "with change of leadership, else boid)")
+    page.add_argument("--start-time", type=float, metavar="SECONDS",
+                      help="the simulated second the page opens at (default: the start; the page's URL can also "
+                           "say it: PAGE.html#t=15&color=group)")
     page.add_argument("--trail", type=float, default=2.0, metavar="SECONDS", help="trail length (default 2 s)")
     page.add_argument("--max-mb", type=float, default=5.0, help="page size cap: frames are thinned to fit (default 5)")
     page.add_argument("--stride", type=int, help="keep every K-th recorded step (overrides --max-mb)")
@@ -98,6 +101,8 @@ def _check_flags(args, kind: str) -> None:
                 raise ConfigError(flag, f"only applies when SOURCE is {where} (got a {kind} source)")
     if not 0 <= args.trail < float("inf"):
         raise ConfigError("--trail", f"got {args.trail}; expected a number of seconds >= 0")
+    if args.start_time is not None and not 0 <= args.start_time < float("inf"):
+        raise ConfigError("--start-time", f"got {args.start_time}; expected a number of seconds >= 0")
     if args.no_page and not args.animate:
         raise ConfigError("--no-page", "only with --animate (otherwise nothing would be written)")
     if args.replicate < 0:
@@ -188,7 +193,7 @@ def run(args) -> int:
         if not args.no_page:
             phases.start("building the page")
             page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
-                              trail_s=args.trail)
+                              trail_s=args.trail, start_time=args.start_time)
             path = page.save(args.out or default)
             print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {page.n} boids, {page.frames} frames every "
                   f"{page.frame_interval:.3g} s, stride {page.stride}); open it in a browser, it works offline")

@@ -24,28 +24,26 @@ def captured(monkeypatch):
     return seen
 
 
-def test_the_checks_catch_small_text_overlapping_labels_and_a_legend_over_data(tmp_path):
+def crowded_figure():
+    """Tiny rotated-free tick labels that run into each other and a legend over the line."""
     plt = plotting.pyplot()
     fig, ax = plt.subplots(figsize=(12, 3))
     ax.plot(np.arange(40), np.arange(40), label="a line")
     ax.set_xticks(np.arange(40))
     ax.set_xticklabels([f"level {k}" for k in range(40)], fontsize=5)
     ax.legend(loc="center")
-    found = layout.problems(fig, 100)
+    return fig
+
+
+def test_the_checks_catch_small_text_overlapping_labels_and_a_legend_over_data():
+    found = layout.problems(crowded_figure(), 100)
     assert any("px tall" in p for p in found)
     assert any("overlap" in p for p in found)
     assert any("covers" in p and "data points" in p for p in found)
-    plotting.save(fig, tmp_path / "fixed.png")   # and save mends all three
 
 
 def test_save_mends_what_the_checks_find(tmp_path, captured):
-    plt = plotting.pyplot()
-    fig, ax = plt.subplots(figsize=(12, 3))
-    ax.plot(np.arange(40), np.arange(40), label="a line")
-    ax.set_xticks(np.arange(40))
-    ax.set_xticklabels([f"level {k}" for k in range(40)], fontsize=5)
-    ax.legend(loc="center")
-    plotting.save(fig, tmp_path / "fixed.png")
+    plotting.save(crowded_figure(), tmp_path / "fixed.png")
     assert captured[0][1] == []
 
 

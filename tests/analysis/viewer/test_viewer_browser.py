@@ -150,3 +150,21 @@ def test_a_single_frame_run_opens(browser, tmp_path):
     assert page.errors == [] and page.blocked == []
     assert page.state("frames") == 1
     page.page.close()
+
+
+@pytest.mark.slow
+def test_a_page_opens_at_its_start_time_or_at_the_time_and_colouring_its_url_says(browser, tmp_path):
+    track = milling_track(with_scene=False)
+    times = np.asarray(track.times)
+    middle = float(times[len(times) // 2])
+    path = view(track, tmp_path / "start.html", color_by="boid", max_mb=None, start_time=middle).path
+    page = browser.open(path)
+    assert page.errors == []
+    assert abs(page.state("time") - middle) < 1e-6 and page.state("colorBy") == "boid"
+    page.page.close()
+    late = float(times[-3])
+    page = browser.open(path, fragment=f"t={late}&color=group")
+    assert abs(page.state("time") - late) < 1e-6 and page.state("colorBy") == "group"
+    page.page.evaluate("window.flockViewer.seek(2)")            # a seek writes the fragment back
+    assert page.page.evaluate("window.location.hash") == f"#t={float(times[2]):.2f}&color=group"
+    page.page.close()
