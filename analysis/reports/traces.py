@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.viewer.palette import AGENT_COLOURS
+
 from .obstacle_artists import draw_obstacles
 from .plotting import pyplot, save
 
-AGENT_STYLES = {"predator": ("#d62728", "X"), "prey": ("#2ca02c", "*")}
+AGENT_STYLES = {"predator": (AGENT_COLOURS["predator"], "X"), "prey": (AGENT_COLOURS["prey"], "*")}
 TABLE_1_COLOURS = {0b00000000: "gold", 0b00111010: "green", 0b11000101: "blue", 0b11111111: "red"}
 
 
