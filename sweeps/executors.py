@@ -44,6 +44,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -278,11 +279,16 @@ class Executor:
         if "_dask_scheduler" in vars(self):   # set when a client was started
             _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
 
-    def _stop_pool(self, wait: bool) -> list[int]:
-        """Stop the pool; returns the exit statuses of the workers that had died before it was stopped."""
+    def _stop_pool(self, wait: bool, settle: bool = False) -> list[int]:
+        """Stop the pool; returns the exit statuses of the workers that had died before it was stopped
+        (``settle``: after a break, give a dying worker half a second to finish exiting first)."""
         pool, self._pool = self._pool, None
         processes = list((getattr(pool, "_processes", None) or {}).values())
         manager = getattr(pool, "_executor_manager_thread", None)
+        if settle:   # a worker whose death broke the pool may still be exiting: let it finish (its status)
+            deadline = time.monotonic() + 0.5
+            for process in processes:
+                process.join(timeout=max(0.0, deadline - time.monotonic()))
         dead = [process for process in processes if not process.is_alive()]
         if not wait:
             for process in processes:
@@ -406,7 +412,9 @@ class Executor:
     def _restart_pool(self) -> list[int]:
         """A new pool for a broken one; the dead workers' exit statuses. A worker that died importing an
         unguarded main script (:mod:`sweeps.main_guard`) stops everything: :class:`UnguardedScript`."""
-        statuses = self._stop_pool(wait=False)
+        statuses = self._stop_pool(wait=False, settle=True)
+        # a broken pool terminates (SIGTERM) its surviving workers itself: those are not the cause
+        statuses = [status for status in statuses if status != -signal.SIGTERM] or statuses
         if main_guard.UNGUARDED_EXIT in statuses:
             raise main_guard.UnguardedScript(main_guard.message())
         self.restarts += 1
