@@ -157,14 +157,17 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool
 
 def _per_run_overhead(spec: RunSpec, per_cost: float, pilot_seconds: float) -> float:
     """Seconds a run costs besides its simulation: the cheapest run done whole (when its simulation is
-    short) minus its simulation as the pilots predict it; 0 when it is too long to time here."""
-    predicted = spec.cost * per_cost
-    if predicted > pilot_seconds:
+    short) minus its simulation alone, best of three each, warm; 0 when it is too long to time here."""
+    if spec.cost * per_cost > pilot_seconds:
         return 0.0
     worker.execute_run(spec)   # warm: the metric kernels loaded or compiled
-    start = time.perf_counter()
-    worker.execute_run(spec)
-    return max(0.0, time.perf_counter() - start - predicted)
+    whole, alone = [], []
+    for _ in range(3):
+        start = time.perf_counter()
+        worker.execute_run(spec)
+        whole.append(time.perf_counter() - start)
+        alone.append(_pilot(spec, spec.preset.run.n_steps))
+    return max(0.0, min(whole) - min(alone))
 
 
 def _pool_start(spec: RunSpec, workers: int) -> float:

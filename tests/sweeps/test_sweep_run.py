@@ -170,7 +170,10 @@ def test_cli_run_writes_the_store_and_a_second_run_computes_nothing(tmp_path, ca
     design = pd.read_parquet(out / "design.parquet")
     assert list(design["run_id"]) == list(runs["run_id"])
     assert list(design["seed"]) == list(runs["seed"])
-    assert (out / "sweep.toml").read_text() == sweep.read_text()
+    # the file's text as written, but for the preset, named relative to the results folder (portable)
+    preset_line = next(line for line in sweep.read_text().splitlines() if line.startswith("preset = "))
+    relative = os.path.relpath(preset_line.split('"')[1], out)
+    assert (out / "sweep.toml").read_text() == sweep.read_text().replace(preset_line, f'preset = "{relative}"')
     assert json.loads((out / "sweep.effective.json").read_text())["replicates"] == 2
 
     manifest = json.loads((out / "manifest.json").read_text())
