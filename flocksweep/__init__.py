@@ -11,12 +11,13 @@ Python API (each name loads its home module on first use, so ``import flocksweep
     fs.report("results/smoke")                                       # analysis.reports
     idata = fs.calibrate(fs.Calibration.from_toml("configs/calibration/recover_holland.toml"))
 
+``fs.__version__`` (and ``flocksweep --version``) is the installed package's version, read from its
+metadata: pyproject.toml's ``version`` is the one place it is written.
+
 The same names stay importable from their layers (``from simcore import simulate``, ``from sweeps import
 run_sweep, load_results``, ``from analysis import calibrate, report``); this table only forwards to them.
 """
 from __future__ import annotations
-
-__version__ = "0.1.0"
 
 __all__ = ["Calibration", "Results", "Sweep", "__version__", "calibrate", "load_calibration_results",
            "load_preset", "load_results", "report", "run_calibration", "run_sweep", "simulate",
@@ -29,7 +30,19 @@ _HOMES.update({name: ("analysis", name) for name in ("Calibration", "calibrate",
                                                      "report", "run_calibration", "summary_simulator")})
 
 
+def version() -> str:
+    """This package's version, from its installed metadata (pyproject.toml's ``version``: one source)."""
+    from importlib.metadata import PackageNotFoundError, version as installed
+
+    try:
+        return installed("flocksweep")
+    except PackageNotFoundError:
+        return "0+unknown (not installed: pip install -e .)"
+
+
 def __getattr__(name: str):
+    if name == "__version__":
+        return version()
     if name in _HOMES:
         import importlib
 

@@ -48,6 +48,7 @@ from simcore.schema import ConfigError, suggest
 
 from sweeps.failures import INCOMPLETE, check_count, check_out, check_workers, explain, parse_numbers, show_warnings
 from sweeps.interrupts import ignored, signals_as_exceptions
+from flocksweep import version
 
 
 def _add_simulate(sub) -> None:
@@ -111,7 +112,9 @@ def cmd_simulate(args) -> int:
         written.append(plot_traces(obs.pos, Path(out) / "traces.png", obs.pattern, args.color_by,
                                    wrap_distance(preset.model), title, preset.model.world.obstacles,
                                    obs.predator, obs.prey))
-    print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s")
+    compiled = f" (+ {summary['compile_s']:.1f} s compiling its run loop, once)" if summary["compile_s"] else ""
+    print(f"{preset.model.name}: N={summary['n']}, {summary['time_s']:g} s simulated in {summary['wall_s']:.2f} s"
+          f"{compiled}")
     print(f"  final polarization     {summary['polarization_final']:.3f}")
     print(f"  final mean speed       {summary['speed_mean_final']:.3f}")
     print(f"  mean visible neighbours {summary['visible_mean_final']:.2f}"
@@ -192,8 +195,13 @@ def cmd_run(args) -> int:
         est = result.estimate
         print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "
               f"(kept; --retry-failed reruns them), {len(plan.todo)} to run")
-        print(f"  estimated cost: {est['boid_steps']:,} boid-steps, about {est['seconds']:.0f} s of compute "
-              f"on {args.workers or os.cpu_count()} worker(s) (from short pilot runs)")
+        workers = 1 if args.executor == "serial" else (args.workers or os.cpu_count())
+        print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
+              f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.0f} ms x {len(plan.todo)} runs, "
+              f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")
+        if est["compile_s"]:
+            print(f"  first compile: {est['compile_s']:.0f} s, done now by this dry run (numba's cache had no run loop "
+                  "for these models); the run will load them")
         print(f"  results directory: {out}")
         return 0
     table = result.table
@@ -217,8 +225,9 @@ def report_lost(args, result) -> int:
         print(f"  moved aside (unreadable): {path}")
     if not result.lost:
         return 0
-    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died (killed, out of "
-          f"memory or crashed) on every attempt; run the same command again to compute them", file=sys.stderr)
+    causes = "; ".join(result.lost_reasons) or "killed, out of memory or crashed"
+    print(f"flocksweep: {len(result.lost)} runs were left missing: their worker processes died on every attempt "
+          f"({causes}); run the same command again to compute them", file=sys.stderr)
     return INCOMPLETE
 
 
@@ -289,12 +298,15 @@ def _run_rounds(args, config, out, rule, note: str) -> int:
 
 
 def _add_status(sub) -> None:
-    p = sub.add_parser("status", help="done / failed / missing runs of a results directory")
+    p = sub.add_parser("status", help="done / failed / missing runs of a results directory",
+                       description="Count the done, failed and missing runs of a results directory, say whether "
+                                   "a runner is working there now, when its results were computed, and list "
+                                   "the failed runs with their reasons. Reads only; quick (simulates nothing).")
     p.add_argument("dir", type=Path, help="results directory of a sweep")
 
 
 def cmd_status(args) -> int:
-    from sweeps.runner import status
+    from sweeps.status import computed, status
 
     try:
         info = status(args.dir)
@@ -307,7 +319,7 @@ def cmd_status(args) -> int:
     if info["running"]:
         print(f"  a runner is working here now ({info['running']}), started {manifest.get('started')}")
     elif manifest.get("finished"):
-        print(f"  last run finished {manifest['finished']} (git {manifest.get('git_revision')})")
+        print(f"  results computed {computed(manifest)} (git {manifest.get('git_revision')})")
     elif manifest:
         print(f"  last run started {manifest.get('started')} and did not finish (resume with flocksweep run)")
     for run_id, error in info["failures"][:50]:
@@ -327,11 +339,14 @@ def _add_report(sub) -> None:
                         "names like cohesion or columns like cohesion_final")
     p.add_argument("--by", nargs="+", metavar="FACTOR", help="factors to analyse (default: all swept factors)")
     p.add_argument("--out", type=Path, help="output directory (default RESULTS_DIR/report)")
-    p.add_argument("--format", choices=("html", "md", "both"), default="both")
+    p.add_argument("--format", choices=("html", "md", "both"), default="both",
+                   help="html: report.html (self-contained); md: report.md with its figures as PNG files; "
+                        "both (default)")
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the bootstrap resampling and of the claims' power simulations (default 0)")
     p.add_argument("--claims", nargs="+", type=Path, default=[], metavar="FILE",
                    help="also test the claims of these claims files (or sweep files), e.g. configs/claims/holland.toml")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines (each section as it starts) on stderr")
 
 
 def cmd_report(args) -> int:
@@ -341,7 +356,8 @@ def cmd_report(args) -> int:
     check_out("--out", args.out)
     check_count("--seed", args.seed, 0, 2 ** 63 - 1)
     try:
-        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims)
+        result = build_report(args.dir, args.out, args.metrics, args.by, formats, args.seed, args.claims,
+                              progress=not args.no_progress)
     except (ReportError, FileNotFoundError) as err:
         print(f"flocksweep: {err}", file=sys.stderr)
         return 2
@@ -506,16 +522,24 @@ ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate"
          "measure")
 
 
+ALL = "*"   # build_parser(ALL): every command's arguments declared (tests and documentation)
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The whole parser; with ``command``, only that command's arguments are declared (the rest are listed
-    by name), so ``flocksweep simulate`` does not import the modules of the delegated commands (export, view,
-    measure)."""
-    parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps.")
+    """The parser. Only the arguments of ``command`` (None: of none of the delegated commands) are declared
+    from the delegated commands' modules; the others are listed by name and help line, so neither
+    ``flocksweep simulate`` nor ``flocksweep --help`` imports the modules of export, view, measure, sbc or
+    compile. ``build_parser(ALL)`` declares every command's arguments."""
+    parser = argparse.ArgumentParser(prog="flocksweep", description="Reproducible flocking-model sweeps: "
+                                     "simulate, sweep, report, calibrate, view. `flocksweep COMMAND --help` "
+                                     "describes a command.")
+    parser.add_argument("--version", action="version", version=f"flocksweep {version()}",
+                        help="print the installed version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in ORDER:
         if name in ADDERS:
             ADDERS[name](sub)
-        elif command is None or name == command:
+        elif name == command or command == ALL:
             _add_delegated(sub, name)
         else:   # listed by name only: its module (and what it imports) is not loaded
             sub.add_parser(name, help=DELEGATED[name][1])

@@ -12,7 +12,7 @@ Contract
   numbers, booleans, quoted strings, bare words as strings), ``linspace(START,STOP,NUM)`` (``linspace``)
   or ``range(START,STOP,STEP)`` (``range``). ``name`` defaults to ``<model stem>_<last part of each
   axis key>``; ``seed`` is 0 and ``replicates`` 1 unless ``--replicates`` or ``--set seed=...`` say
-  otherwise; the preset path is made absolute. Overrides (``--set``) apply to that dict as to a file's
+  otherwise; the preset path is made absolute (the runner stores it relative to the results folder). Overrides (``--set``) apply to that dict as to a file's
   (``model.<preset key>=v`` is ``model.set.<preset key>=v``; ``run.n=...``, ``seed=...``, ...).
 * Every axis is checked before anything runs: its key and every value against the preset
   (:meth:`simcore.Preset.replace`), and its form; errors are :class:`~simcore.schema.ConfigError` keyed

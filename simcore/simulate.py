@@ -32,6 +32,7 @@ one thread per run (``threads`` does not apply); its batches run in parallel as 
 from __future__ import annotations
 
 import sys
+import time
 from dataclasses import dataclass
 
 import numba
@@ -41,7 +42,7 @@ from numba.core import event as numba_event
 from . import hooks, kernel
 from .jit import call_with_literals
 from .layout import I
-from .params import InitParams, ModelParams, Preset
+from .params import DYNAMICS, PERCEPTION_KINDS, InitParams, ModelParams, Preset
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
 
@@ -76,34 +77,54 @@ class Observations:
 
 
 _NOTICE_SHOWN = False
+_COMPILE_SECONDS = 0.0
+COMPILE_ESTIMATE = "about 45 s on the 2-core reference machine, longer on a busy one"   # bench/RESULTS.md
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent compiling run loops (not loading them from the cache)."""
+    return _COMPILE_SECONDS
 
 
 class _CompileNotice(numba_event.Listener):
-    """Tells the user, once per process, when numba starts compiling a kernel rather than loading it from
-    its on-disk cache (the first run after installing or editing simcore, or of a perception kind or
-    dynamics not run before): numba signals only real compiles."""
+    """Tells the user on stderr when numba starts compiling a run loop rather than loading it from its
+    on-disk cache (the first run after installing or editing simcore, or of a perception kind or
+    dynamics not run before; numba signals only real compiles): one line per run loop, with an estimate,
+    and one when it is done, with its time (also counted by :func:`compile_seconds`)."""
+
+    def __init__(self, family: str):
+        self.family, self.depth, self.started = family, 0, 0.0
 
     def on_start(self, event) -> None:
         global _NOTICE_SHOWN
-        if not _NOTICE_SHOWN:
-            _NOTICE_SHOWN = True
-            print("simcore: compiling the simulation kernels (once, after installing or editing simcore; "
-                  "this takes a minute or so) ...", file=sys.stderr, flush=True)
+        self.depth += 1
+        if self.depth > 1:   # the run loop's own pieces, compiled inside it
+            return
+        self.started = time.perf_counter()
+        what = "the simulation kernels:" if not _NOTICE_SHOWN else "one more run loop:"
+        _NOTICE_SHOWN = True
+        print(f"simcore: compiling {what} {self.family} (once, after installing or editing simcore; "
+              f"{COMPILE_ESTIMATE}) ...", file=sys.stderr, flush=True)
 
     def on_end(self, event) -> None:
-        pass
+        global _COMPILE_SECONDS
+        self.depth -= 1
+        if self.depth == 0:
+            elapsed = time.perf_counter() - self.started
+            _COMPILE_SECONDS += elapsed
+            print(f"simcore: compiled {self.family} in {elapsed:.0f} s (cached for later runs)",
+                  file=sys.stderr, flush=True)
 
 
 def _run_loop(dispatcher, *args, params) -> None:
     """Call a compiled run loop with the compile notice; its last two arguments, the dynamics and the
     perception kind of ``params``, are compile-time literals (:func:`simcore.jit.call_with_literals`)."""
     ip = params[1]
-    args = (*args, int(ip[I.DYNAMICS]), int(ip[I.PERCEPTION]))
-    if _NOTICE_SHOWN:
-        call_with_literals(dispatcher, args, 2)
-        return
-    with numba_event.install_listener("numba:compile", _CompileNotice()):
-        call_with_literals(dispatcher, args, 2)
+    dynamics, kind = int(ip[I.DYNAMICS]), int(ip[I.PERCEPTION])
+    family = (f"{getattr(dispatcher, '__name__', 'run loop')} ({DYNAMICS[dynamics]} dynamics, "
+              f"{PERCEPTION_KINDS[kind]} perception)")
+    with numba_event.install_listener("numba:compile", _CompileNotice(family)):
+        call_with_literals(dispatcher, (*args, dynamics, kind), 2)
 
 
 def _state_group(s: State) -> tuple:

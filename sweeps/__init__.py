@@ -12,22 +12,28 @@ Python API (loaded on first use, so ``import sweeps`` loads nothing)::
 * :func:`run_sweep`: run or resume it into a results folder (:mod:`sweeps.api`);
 * :func:`load_results`: a results folder as :class:`Results` (pandas runs table, lazy pyarrow time
   series; :mod:`sweeps.results`);
-* :class:`ResultsStore`: the folder's files, :class:`SweepResult`: what a run of a sweep returns.
+* :class:`ResultsStore`: the folder's files, :class:`SweepResult`: what a run of a sweep returns;
+* :class:`RunsLost` (runs left missing by dead workers) and :class:`UnguardedScript` (a script that
+  starts workers outside ``if __name__ == "__main__":``): what ``run_sweep`` raises rather than go on
+  silently.
 """
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
-    from .api import run_sweep
+    from .api import RunsLost, run_sweep
+    from .main_guard import UnguardedScript
     from .config import SweepConfig, SweepConfig as Sweep
     from .results import Results, load_results
     from .runner import SweepResult
     from .store import ResultsStore
 
-__all__ = ["Results", "ResultsStore", "Sweep", "SweepConfig", "SweepResult", "load_results", "run_sweep"]
+__all__ = ["Results", "ResultsStore", "RunsLost", "Sweep", "SweepConfig", "SweepResult", "UnguardedScript", "load_results",
+           "run_sweep"]
 
-_HOMES = {"run_sweep": ("api", "run_sweep"), "Sweep": ("config", "SweepConfig"),
+_HOMES = {"run_sweep": ("api", "run_sweep"), "RunsLost": ("api", "RunsLost"),
+          "UnguardedScript": ("main_guard", "UnguardedScript"), "Sweep": ("config", "SweepConfig"),
           "SweepConfig": ("config", "SweepConfig"), "Results": ("results", "Results"),
           "load_results": ("results", "load_results"), "SweepResult": ("runner", "SweepResult"),
           "ResultsStore": ("store", "ResultsStore")}

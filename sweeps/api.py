@@ -5,6 +5,11 @@ does, from Python: a sweep read from a file (``Sweep.from_toml``) stores that fi
 ``sweep.toml``, a sweep built from a dict (``Sweep.from_dict``) its faithful TOML
 (:meth:`~sweeps.config.SweepConfig.to_toml`), so every results folder can be run again from its
 ``sweep.toml``. The work is :func:`sweeps.runner.run_sweep` (resume, failures, atomic parts, lock).
+
+Never silent: runs left missing because their worker processes died raise :class:`RunsLost` (its
+``result`` holds what was saved; running the sweep again computes the missing runs), and a script that
+runs a sweep on worker processes from its top level, outside ``if __name__ == "__main__":``, raises
+:class:`~sweeps.main_guard.UnguardedScript` before anything is written (:mod:`sweeps.main_guard`).
 """
 from __future__ import annotations
 
@@ -12,6 +17,17 @@ from pathlib import Path
 
 from .config import SweepConfig
 from .runner import SweepResult, run_sweep as _run
+
+
+class RunsLost(RuntimeError):
+    """Runs were left missing: their worker processes died on every attempt. ``result`` is the
+    :class:`SweepResult` (what was saved); the message gives the count and the cause."""
+
+    def __init__(self, result: SweepResult):
+        self.result = result
+        causes = "; ".join(result.lost_reasons) or "cause unknown"
+        super().__init__(f"{len(result.lost)} of {len(result.plan.specs)} runs were left missing in "
+                         f"{result.out_dir}: {causes}. Run the sweep again to compute them")
 
 
 def run_sweep(sweep: SweepConfig, out: str | Path, executor: str = "local", workers: int | None = None, *,
@@ -55,10 +71,18 @@ def run_sweep(sweep: SweepConfig, out: str | Path, executor: str = "local", work
 
     Raises
     ------
+    RunsLost
+        Runs were left missing because their worker processes died (``err.result`` is the result).
+    sweeps.main_guard.UnguardedScript
+        The calling script starts worker processes from its top level: guard it with
+        ``if __name__ == "__main__":``.
     simcore.ConfigError
         A bad design, naming the key, before anything is written.
     sweeps.store.StoreLocked
         Another runner is working in ``out``.
     """
-    return _run(sweep, None, out, executor, workers, scheduler, force, retry_failed, dry_run, progress,
-                batch_size, yes=yes)
+    result = _run(sweep, None, out, executor, workers, scheduler, force, retry_failed, dry_run, progress,
+                  batch_size, yes=yes)
+    if result.lost:
+        raise RunsLost(result)
+    return result

@@ -44,6 +44,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -52,6 +53,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
 
 from .interrupts import deferred, raise_if_received
+from . import main_guard
 
 EXECUTORS = ("serial", "local", "dask")
 START_METHOD = "spawn"
@@ -154,6 +156,20 @@ def _call_pickled(payload):
     return cloudpickle.loads(blob)(item)
 
 
+def describe_exit(statuses: list[int]) -> str:
+    """'exit status 1', 'killed by SIGKILL', ... of dead workers (``Process.exitcode``: -N is signal N)."""
+    words = []
+    for status in sorted(set(statuses)):
+        if status < 0:
+            try:
+                words.append(f"killed by {signal.Signals(-status).name}")
+            except ValueError:
+                words.append(f"killed by signal {-status}")
+        else:
+            words.append(f"exit status {status}")
+    return "worker " + ", ".join(words) if words else "worker exit status unknown"
+
+
 def _is_lost_worker(error: BaseException) -> bool:
     """A dask error that means the task's worker went away (not the task's own exception)."""
     return type(error).__name__ in ("KilledWorker", "FutureCancelledError") or isinstance(error, BrokenProcessPool)
@@ -212,6 +228,9 @@ class Executor:
 
     # -- life cycle ----------------------------------------------------------------------------------
     def __enter__(self) -> "Executor":
+        if (self.kind == "local" and self.workers > 1) or (self.kind == "dask" and not self.scheduler):
+            main_guard.refuse_in_spawned_import()   # a worker re-running an unguarded script: one line, exit
+            main_guard.check_caller_guarded()       # the script itself: UnguardedScript before any worker starts
         if self.kind == "local" and self.workers > 1:
             self._start_pool()
         elif self.kind == "dask":
@@ -260,10 +279,17 @@ class Executor:
         if "_dask_scheduler" in vars(self):   # set when a client was started
             _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
 
-    def _stop_pool(self, wait: bool) -> None:
+    def _stop_pool(self, wait: bool, settle: bool = False) -> list[int]:
+        """Stop the pool; returns the exit statuses of the workers that had died before it was stopped
+        (``settle``: after a break, give a dying worker half a second to finish exiting first)."""
         pool, self._pool = self._pool, None
         processes = list((getattr(pool, "_processes", None) or {}).values())
         manager = getattr(pool, "_executor_manager_thread", None)
+        if settle:   # a worker whose death broke the pool may still be exiting: let it finish (its status)
+            deadline = time.monotonic() + 0.5
+            for process in processes:
+                process.join(timeout=max(0.0, deadline - time.monotonic()))
+        dead = [process for process in processes if not process.is_alive()]
         if not wait:
             for process in processes:
                 if process.is_alive():
@@ -273,6 +299,7 @@ class Executor:
             process.join(timeout=10)
         if manager is not None:   # else, at exit, Python may wake it through a pipe it is closing:
             manager.join(timeout=10)   # "Exception ignored ... OSError: [Errno 9] Bad file descriptor"
+        return [process.exitcode for process in dead if process.exitcode is not None]
 
     @property
     def in_process(self) -> bool:
@@ -356,13 +383,13 @@ class Executor:
                 else:
                     yield Outcome(index, items[index], None if error else future.result(), error)
             running.clear()
-            self._restart_pool()
+            statuses = self._restart_pool()
             for index in sorted(lost):
                 attempts[index] += 1
                 if attempts[index] >= MAX_ATTEMPTS:
                     yield Outcome(index, items[index], None, WorkerLost(
                         f"the worker running this task died {attempts[index]} times (killed, out of memory "
-                        "or crashed)", attempts[index]))
+                        f"or crashed; last {describe_exit(statuses)})", attempts[index]))
                 else:
                     suspects.append(index)
 
@@ -382,10 +409,17 @@ class Executor:
                 return True
         return False
 
-    def _restart_pool(self) -> None:
-        self._stop_pool(wait=False)
+    def _restart_pool(self) -> list[int]:
+        """A new pool for a broken one; the dead workers' exit statuses. A worker that died importing an
+        unguarded main script (:mod:`sweeps.main_guard`) stops everything: :class:`UnguardedScript`."""
+        statuses = self._stop_pool(wait=False, settle=True)
+        # a broken pool terminates (SIGTERM) its surviving workers itself: those are not the cause
+        statuses = [status for status in statuses if status != -signal.SIGTERM] or statuses
+        if main_guard.UNGUARDED_EXIT in statuses:
+            raise main_guard.UnguardedScript(main_guard.message())
         self.restarts += 1
         self._start_pool()
+        return statuses
 
     def _dask(self, fn, items, idle):
         from dask.distributed import TimeoutError as DaskTimeout

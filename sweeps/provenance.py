@@ -10,7 +10,6 @@ import platform
 import subprocess
 from pathlib import Path
 
-from simcore import MODEL_VERSION
 
 PACKAGES = ("flocksweep", "numpy", "numba", "llvmlite", "scipy", "pandas", "pyarrow", "matplotlib")
 
@@ -44,5 +43,7 @@ def machine() -> dict:
 
 
 def stamp() -> dict:
+    from simcore.simulate import MODEL_VERSION   # here: importing the simulator loads numba (status stays quick)
+
     return {"model_version": MODEL_VERSION, "packages": package_versions(), "git_revision": git_revision(),
             "machine": machine()}

@@ -20,7 +20,7 @@ Failures, each kept apart (docs/errors.md):
 
 Finished runs are saved on time: at most :data:`FLUSH_SECONDS` after they finish (plus a heartbeat),
 whatever the executor is busy with, and all of them at the end or on an interrupt.
-``status(out_dir)`` counts done / failed / missing runs and says whether a runner holds the folder.
+``status(out_dir)`` and ``resume_hint`` live in :mod:`sweeps.status` (light: no simulator).
 ``run_until(config, ..., grow, max_replicates)`` adds replicates in rounds where a rule asks for them:
 ``run_until_ci`` (``--until-ci``) with :func:`ci_rule`, ``--until-claims`` with the rule of
 :mod:`analysis.reports.claims.until`.
@@ -51,9 +51,12 @@ from .config import SweepConfig, describe
 from .design import RunSpec, base_preset, expand
 from .executors import Executor, WorkerLost, check_scheduler
 from .files import WriteFailed
+from . import main_guard
 from .identity import canonical
 from .provenance import stamp
+from .status import resume_hint, status  # noqa: F401 - their home; imported from here too
 from .store import ResultsStore
+from .sweep_toml import portable, relocated
 
 FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
 HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
@@ -73,9 +76,12 @@ def design_table(specs: list[RunSpec]) -> pd.DataFrame:
                           "steps": s.preset.run.n_steps, **dict(s.columns)} for s in specs])
 
 
-def model_record(config: SweepConfig) -> dict:
-    """What is needed to rebuild any run of the design from its row: the base preset, the swept keys."""
-    return {"preset": config.preset_data, "preset_path": str(config.preset_path), "swept_keys": config.swept_keys,
+def model_record(config: SweepConfig, folder=None) -> dict:
+    """What is needed to rebuild any run of the design from its row: the base preset (its path relative to
+    the results ``folder``; absolute without one), the swept keys."""
+    path = portable(config.preset_path, folder) if folder is not None else str(config.preset_path)
+    return {"preset": config.preset_data, "preset_path": path,
+            "swept_keys": config.swept_keys,
             "analysis": config.analysis_record()}
 
 
@@ -103,12 +109,34 @@ def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = Non
     return [ordered[k:k + size] for k in range(0, len(ordered), size)]
 
 
-def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> dict:
-    """Boid-steps and seconds, timing short pilots of the cheapest, median and dearest runs to do (one
-    step first: a pilot whose one step already takes ``pilot_seconds / 4`` is timed on that step alone)."""
+def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool: bool = False) -> dict:
+    """What the user will wait for, measured here rather than assumed (docs/sweeps.md, "Dry runs"):
+
+    * ``seconds``: simulation, from short pilots of the cheapest, median and dearest runs to do (one step
+      first: a pilot whose one step already takes ``pilot_seconds / 4`` is timed on that step alone), per
+      unit of cost (n^2 x steps), over ``workers``;
+    * ``compile_s``: the run loops this dry run had to compile first (0 when numba's cache had them: the
+      real run then loads them; when it had to, the cache now holds them);
+    * ``startup_s``: this process's own start (imports, reading the sweep, loading the kernels), and with
+      a ``pool`` the time
+      its worker processes take to start and load the kernels (timed: the pool is started here, each
+      worker warms up, and it is stopped);
+    * ``per_run_s``: what a run costs besides its simulation (metrics, its row, the write), timed on the
+      cheapest run, once warm;
+    * ``total_s``: start-up + (simulation + per-run overhead x runs) / workers, without the compile.
+    """
+    from simcore.simulate import compile_seconds
+
     boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
+    startup = _process_age()
     if not todo:
-        return {"boid_steps": 0, "seconds": 0.0}
+        return {"boid_steps": 0, "seconds": 0.0, "compile_s": 0.0, "startup_s": startup, "per_run_s": 0.0,
+                "total_s": startup}
+    compiling, warming = compile_seconds(), time.perf_counter()
+    for spec in _one_per_run_loop(todo):
+        worker.warm_up(spec)   # compile (or load) what the runs need, as the real run's warm-up does
+    compile_s = compile_seconds() - compiling
+    startup += time.perf_counter() - warming - compile_s   # the run's own warm-up: loading the kernels
     ordered = sorted(todo, key=lambda s: s.cost)
     pilots = {id(s): s for s in (ordered[0], ordered[len(ordered) // 2], ordered[-1])}.values()
     rate = []  # seconds per unit of cost
@@ -121,7 +149,44 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0) -> d
         rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
     per_cost = sorted(rate)[len(rate) // 2]
     seconds = sum(s.cost for s in todo) * per_cost / max(workers, 1)
-    return {"boid_steps": boid_steps, "seconds": seconds}
+    per_run = _per_run_overhead(ordered[0], per_cost, pilot_seconds)
+    startup_total = startup + (_pool_start(ordered[0], workers) if pool else 0.0)
+    total = startup_total + seconds + per_run * len(todo) / max(workers, 1)
+    return {"boid_steps": boid_steps, "seconds": seconds, "compile_s": compile_s, "startup_s": startup_total,
+            "per_run_s": per_run, "total_s": total}
+
+
+def _per_run_overhead(spec: RunSpec, per_cost: float, pilot_seconds: float) -> float:
+    """Seconds a run costs besides its simulation: the cheapest run done whole (when its simulation is
+    short) minus its simulation alone, best of three each, warm; 0 when it is too long to time here."""
+    if spec.cost * per_cost > pilot_seconds:
+        return 0.0
+    worker.execute_run(spec)   # warm: the metric kernels loaded or compiled
+    whole, alone = [], []
+    for _ in range(3):
+        start = time.perf_counter()
+        worker.execute_run(spec)
+        whole.append(time.perf_counter() - start)
+        alone.append(_pilot(spec, spec.preset.run.n_steps))
+    return max(0.0, min(whole) - min(alone))
+
+
+def _pool_start(spec: RunSpec, workers: int) -> float:
+    """Seconds to start ``workers`` worker processes and have each load the kernels of ``spec``."""
+    start = time.perf_counter()
+    with Executor("local", workers) as pool:
+        pool.map(worker.warm_up, [spec] * workers)
+    return time.perf_counter() - start
+
+
+def _process_age() -> float:
+    """Seconds since this process started (its imports and reading the sweep), from /proc; else 0."""
+    try:
+        ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(0.0, uptime - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def _pilot(spec: RunSpec, steps: int) -> float:
@@ -218,6 +283,7 @@ class SweepResult:
     wall_s: float
     estimate: dict | None = None
     lost: list[RunSpec] = field(default_factory=list)   # runs whose worker died: left missing
+    lost_reasons: list[str] = field(default_factory=list)   # why (distinct messages), when runs were lost
     quarantined: list[Path] = field(default_factory=list)  # damaged files moved aside before computing
 
 
@@ -228,10 +294,13 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     """Run the sweep (or the given subset ``specs`` of its design); see the module docstring. ``sweep_text``
     is stored as ``sweep.toml``; None stores the text of the file the sweep was read from, or for a sweep
     built in Python :meth:`SweepConfig.to_toml`. The public entry point is :func:`sweeps.run_sweep`."""
+    main_guard.refuse_in_spawned_import()   # a worker re-running an unguarded script never runs its sweep
     if sweep_text is None:
         sweep_text = config.text if config.text is not None else config.to_toml()
     started = time.time()
     workers = workers or os.cpu_count() or 1
+    if not dry_run and ((executor == "local" and workers > 1) or (executor == "dask" and not scheduler)):
+        main_guard.check_caller_guarded()   # before anything is written: UnguardedScript
     if specs is None:
         base_preset(config)   # the base model must be valid: ConfigError naming the key
         check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
@@ -242,18 +311,22 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     if dry_run:
         plan = make_plan(specs, store, force, retry_failed)
         return SweepResult(Path(out_dir), plan, None, time.time() - started,
-                           estimate(plan.todo, 1 if executor == "serial" else workers))
+                           estimate(plan.todo, 1 if executor == "serial" else workers,
+                                    pool=executor != "serial" and workers > 1))
     with store.lock():
         quarantined = store.repair()
         plan = make_plan(specs, store, force, retry_failed)
         effective = with_claims({**config.source, "replicates": config.replicates}, config.claims)
         design = design_table(specs)
-        store.write_inputs(sweep_text, effective, model_record(config), design)
+        store.write_inputs(relocated(sweep_text, config.preset_path, out_dir), effective,
+                           model_record(config, out_dir), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
-        lost = _compute(config, store, plan, executor, workers, scheduler, progress, batch_size) if plan.todo else []
+        lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
+                         if plan.todo else ([], []))
         table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
-    return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, quarantined=quarantined)
+    return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, lost_reasons=reasons,
+                       quarantined=quarantined)
 
 
 def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
@@ -266,9 +339,9 @@ def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
 
 
 def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
-             scheduler: str | None, progress: bool, batch_size: int | None) -> list[RunSpec]:
+             scheduler: str | None, progress: bool, batch_size: int | None) -> tuple[list[RunSpec], list[str]]:
     """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
-    with their workers (not recorded)."""
+    with their workers (not recorded) and the distinct reasons."""
     for spec in _one_per_run_loop(plan.todo):
         try:
             worker.warm_up(spec)
@@ -276,7 +349,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
             pass
     batches = make_batches(plan.todo, workers, batch_size)
     task = functools.partial(worker.execute_batch, out_dir=store.root)
-    failures, lost = 0, []
+    failures, lost, reasons = 0, [], []
     last_batch_s, clock = 0.0, time.monotonic()
     with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer, \
             Executor(executor, workers, scheduler) as pool:
@@ -289,6 +362,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
                 if isinstance(outcome.error, WriteFailed):
                     raise outcome.error   # a worker could not write (trajectories): stop, keep what is saved
                 lost += outcome.item
+                reasons += [outcome.reason] if outcome.reason not in reasons else []
                 bar.update(len(outcome.item))
                 continue
             rows, ts = outcome.value if outcome.error is None else (worker.failed_rows(outcome.item, outcome.reason),
@@ -297,32 +371,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
             failures += sum(r["status"] != "ok" for r in rows)
             bar.set_postfix(failed=failures, lost=len(lost), refresh=False)
             bar.update(len(rows))
-    return lost
-
-
-def status(out_dir) -> dict:
-    """Counts of done / failed / missing runs of the stored design, with the failures' reasons."""
-    store = ResultsStore(out_dir)
-    design = store.design()
-    if design is None:
-        raise FileNotFoundError(f"{out_dir}: no sweep stored here (design.parquet missing)")
-    latest = store.latest()
-    status_of = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
-    error_of = dict(zip(latest["run_id"], latest["error"])) if len(latest) else {}
-    states = [status_of.get(r, "missing") for r in design["run_id"]]
-    failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
-    return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
-            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest(),
-            "running": store.holder()}
-
-
-def resume_hint(sweep_path, out_dir) -> str:
-    """One line on what an interrupted sweep saved and how to resume it."""
-    if not (Path(out_dir) / "design.parquet").exists():
-        return "nothing was saved yet: run the same command again"
-    info = status(out_dir)
-    return (f"saved: {info['ok']} ok and {info['failed']} failed of {info['runs']} runs in {out_dir}; resume with: "
-            f"flocksweep run {sweep_path} --out {out_dir}")
+    return lost, reasons
 
 
 def halfwidths(table: pd.DataFrame, metric: str, confidence: float = 0.95) -> pd.DataFrame:

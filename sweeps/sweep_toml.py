@@ -4,14 +4,17 @@
 built from, with ``--set`` overrides and ``replicates`` applied) so that
 ``SweepConfig.from_toml`` of the text gives the same sweep: the same design and run ids. Two things
 change so the file runs from any folder: ``model.preset`` becomes the absolute path of the preset that
-was read, and ``include_claims`` are written out as ``[[claims]]`` tables (as in
+was read (stored in a results folder, :func:`relocated` makes it relative to that folder), and ``include_claims`` are written out as ``[[claims]]`` tables (as in
 ``sweep.effective.json``). Values TOML cannot hold (``None``, objects) raise
 :class:`~simcore.schema.ConfigError` naming the dotted key. The writer is ``tomli_w``.
 """
 from __future__ import annotations
 
 import math
-from pathlib import PurePath
+import os
+import re
+import tomllib
+from pathlib import Path, PurePath
 
 import numpy as np
 import tomli_w
@@ -46,3 +49,26 @@ def sweep_toml(config) -> str:
     data = with_claims({**config.source, "replicates": config.replicates}, config.claims)
     data["model"] = {**data.get("model", {}), "preset": str(config.preset_path)}
     return HEADER + tomli_w.dumps(toml_value(data, ""))
+
+
+def portable(path, folder) -> str:
+    """``path`` relative to ``folder`` (POSIX separators), for files stored in ``folder``."""
+    return Path(os.path.relpath(Path(path).resolve(), Path(folder).resolve())).as_posix()
+
+
+def relocated(text: str, preset_path, folder) -> str:
+    """``text`` with ``model.preset`` relative to ``folder`` (see the module docstring). A preset that is
+    not a plain ``preset = "..."`` line of the ``[model]`` table is left as it is."""
+    try:
+        given = tomllib.loads(text).get("model", {}).get("preset")
+    except tomllib.TOMLDecodeError:
+        return text
+    if not isinstance(given, str):
+        return text
+    line = re.compile(r"^(\s*preset\s*=\s*)(" + re.escape(tomli_w.dumps({"p": given})[4:].strip())
+                      + "|'" + re.escape(given) + "')(.*)$", re.M)
+    new = tomli_w.dumps({"p": portable(preset_path, folder)})[4:].strip()
+    changed, count = line.subn(lambda m: m.group(1) + new + m.group(3), text)
+    if count != 1 or tomllib.loads(changed).get("model", {}).get("preset") != portable(preset_path, folder):
+        return text
+    return changed

@@ -64,7 +64,8 @@ class Browser:
             self._profile.name, executable_path=chromium_path(), headless=True, args=FLAGS, viewport=VIEWPORT,
             service_workers="block")
 
-    def open(self, html_path, timeout_s: float = 60.0) -> Opened:
+    def open(self, html_path, timeout_s: float = 60.0, fragment: str = "") -> Opened:
+        """Load the page (with ``fragment``, e.g. ``"t=15&color=group"``, as its URL fragment)."""
         page = self.context.new_page()
         opened = Opened(page, 0.0)
 
@@ -79,7 +80,7 @@ class Browser:
         page.on("console", lambda m: opened.errors.append(m.text) if m.type == "error" else None)
         page.on("pageerror", lambda e: opened.errors.append(f"uncaught: {e}"))
         start = time.perf_counter()
-        page.goto(Path(html_path).resolve().as_uri())
+        page.goto(Path(html_path).resolve().as_uri() + (f"#{fragment}" if fragment else ""))
         page.wait_for_function("window.flockViewer && window.flockViewer.ready", timeout=timeout_s * 1000)
         opened.load_s = time.perf_counter() - start
         return opened

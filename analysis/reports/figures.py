@@ -354,29 +354,26 @@ def thumbnails_figure(items: list[tuple], path, ncols: int = 3,
         raise ValueError("thumbnails_figure: no items")
     plt = pyplot()
     nrows, ncols = _grid_shape(len(checked), ncols)
-    fig = plt.figure(figsize=(3.3 * ncols, 3.1 * nrows + 0.3))
+    fig = plt.figure(figsize=(3.3 * ncols, 3.1 * nrows + 0.3), layout="constrained")
     legend = {}
     for k, (name, pos, pattern) in enumerate(checked):
         mode = "boid" if pattern is None and color_by == "pattern" else color_by
         ax = fig.add_subplot(nrows, ncols, k + 1, projection="3d")
+        by_pattern = boid_colours(pos.shape[1], pattern, mode)[1] or {}
         draw_traces(ax, pos, pattern, mode, wrap_jump, str(name), **scenes[k])
         if ax.get_legend() is not None:
             ax.get_legend().remove()
-        legend.update(boid_colours(pos.shape[1], pattern, mode)[1] or {})
-        ax.tick_params(labelsize=5, pad=0)
-        for axis_label in (ax.xaxis.label, ax.yaxis.label, ax.zaxis.label):
-            axis_label.set_fontsize(6)
-        ax.xaxis.labelpad = ax.yaxis.labelpad = ax.zaxis.labelpad = -6
-    if legend:
+        legend.update(by_pattern)
+        ax.tick_params(pad=0)
+        ax.xaxis.labelpad = ax.yaxis.labelpad = ax.zaxis.labelpad = -2
+    if legend:   # above the panels, for those coloured by pattern only (the others: one colour per boid)
         handles = [plt.Line2D([], [], color=colour, linewidth=2) for colour in legend.values()]
         names = [f"pattern {int(value):08b}" for value in legend]
-        fig.legend(handles, names, loc="lower center", ncols=min(len(names), 4), fontsize=7, frameon=False)
+        fig.legend(handles, names, loc="outside upper center", ncols=min(len(names), 4), frameon=False,
+                   title="colour in pattern-mode runs (others: one colour per boid)")
     if title:
-        fig.suptitle(title, fontsize=10)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        fig.tight_layout(rect=(0, 0.05 if legend else 0, 1, 1))
-    return save(fig, path, tight=False)
+        fig.suptitle(title)
+    return save(fig, path)
 
 
 # -- 5. effect sizes ----------------------------------------------------------------------------------

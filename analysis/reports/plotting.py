@@ -4,7 +4,9 @@
 import matplotlib). ``save(fig, path, tight=True)`` lays the figure out (tight layout unless it has a
 layout engine or ``tight`` is False), writes it atomically (:func:`sweeps.files.atomic_path`; the
 format follows the extension: ``.png`` at up to 150 dpi with the longest side at most 3600 pixels,
-``.svg`` vector, anything else matplotlib knows), closes it and returns the ``Path``.
+``.svg`` vector, anything else matplotlib knows), closes it and returns the ``Path``. Before writing it
+makes the figure readable at the size it is shown (:mod:`analysis.reports.layout`: fonts raised to the
+minimum, overlapping tick labels thinned, legends that cover data moved out).
 """
 from __future__ import annotations
 
@@ -12,6 +14,8 @@ import warnings
 from pathlib import Path
 
 from sweeps.files import atomic_path
+
+from .layout import fix_overlaps, raise_fonts
 
 PNG_DPI = 150
 MAX_PIXELS = 3600          # longest side of a PNG; large figures get a lower dpi
@@ -28,19 +32,30 @@ def pyplot():
 
 def save(fig, path, tight: bool = True) -> Path:
     """Lay out, save by extension (atomically), close; see the module docstring."""
-    plt = pyplot()
     path = Path(path)
+    dpi = PNG_DPI
     try:
         constrained = fig.get_layout_engine() is not None
-        if tight and not constrained:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)   # 3-D axes: "not compatible with tight_layout"
-                fig.tight_layout()
         width, height = fig.get_size_inches()
         dpi = min(PNG_DPI, MAX_PIXELS / max(width, height))
-        with atomic_path(path) as tmp:
-            # constrained layout already fits the canvas; a tight bbox would cost a second full draw
-            fig.savefig(tmp, dpi=dpi, bbox_inches=None if constrained else "tight", pad_inches=0.05)
+        raise_fonts(fig, dpi)            # readable at the size it is shown (analysis.reports.layout)
+        _layout(fig, tight and not constrained)
+        fix_overlaps(fig, dpi)
+        _layout(fig, tight and not constrained)
+        with atomic_path(path) as tmp:   # a tight box: nothing cut off (3-D axis labels escape constrained layout)
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", pad_inches=0.05)
     finally:
-        plt.close(fig)
+        _finish(fig, dpi)
     return path
+
+
+def _layout(fig, tight: bool) -> None:
+    if tight:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)   # 3-D axes: "not compatible with tight_layout"
+            fig.tight_layout()
+
+
+def _finish(fig, dpi: float) -> None:
+    """Close the saved figure (the layout tests look at it here first)."""
+    pyplot().close(fig)

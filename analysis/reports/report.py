@@ -44,7 +44,9 @@ from simcore.params import canonical_key
 from sweeps.design import rebuild
 from sweeps.files import write_text
 from sweeps.owned import OwnedFolder
+from sweeps.progress import Phases
 from sweeps.results import Results, load_results
+from sweeps.status import computed
 from sweeps.store import ResultsStore
 
 from . import figures, stats
@@ -103,6 +105,28 @@ class Context:
     blocks: list
     tables: dict
     continuous: list = None  # the continuous factors (a [design] or [sample] block's keys)
+    cells: list = None       # the runs shown as time series, 3-D traces and viewer pages
+
+
+def _shown_runs(ctx: Context) -> None:
+    """The showcase (or default) runs, re-simulated; their time series."""
+    ctx.cells = _showcase_rows(ctx) or _default_cells(ctx)
+    _timeseries(ctx, ctx.cells)
+
+
+def _sections(ctx: Context, continuous, declared) -> list[tuple[str, object]]:
+    """The report's sections in order: (name shown in the progress lines, function of the context);
+    ``declared`` is ``claims_of``'s answer, read and checked before anything was written."""
+    steps = [("overview", _overview), ("claims", lambda c: _claims(c, declared)), ("leadership", _leadership)]
+    if continuous and continuous.keys:
+        steps.append(("sensitivity analysis", lambda c: sensitivity_section(c, continuous, _figure, _save_table)))
+    if ctx.factors or not continuous:
+        steps += [("statistics and main effects", lambda c: _metric_sections(c, _statistics(c))),
+                  ("heatmaps", _heatmaps)]
+    return steps + [("showcase runs re-simulated, time series", _shown_runs),
+                    ("3-D traces", lambda c: _thumbnails(c, c.cells)),
+                    ("viewer pages", lambda c: c.blocks.extend(viewer_blocks(c.results.path, c.out, c.cells))),
+                    ("replicate adequacy", _adequacy)]
 
 
 def _save_table(ctx: Context, name: str, df: pd.DataFrame) -> pd.DataFrame:
@@ -144,7 +168,7 @@ def _overview(ctx: Context) -> None:
         {"item": "config hash", "value": m.get("config_hash")},
         {"item": "git revision", "value": m.get("git_revision")},
         {"item": "model version", "value": m.get("model_version")},
-        {"item": "started / finished", "value": f"{m.get('started')} / {m.get('finished')}"},
+        {"item": "results computed", "value": computed(m)},
         {"item": "executor / workers", "value": f"{m.get('executor')} / {m.get('workers')}"},
         {"item": "machine", "value": str(m.get("machine", {}).get("platform"))},
         {"item": "packages", "value": ", ".join(f"{k} {v}" for k, v in pkgs.items() if v)}])
@@ -376,7 +400,7 @@ def _leadership(ctx: Context) -> None:
 
 
 def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("html", "md"), seed: int = 0,
-                 claims_files=()) -> dict:
+                 claims_files=(), progress: bool = False) -> dict:
     """Write a sweep's report (``flocksweep report``; docs/report.md): statistics, figures, tested claims.
 
     Parameters
@@ -395,6 +419,8 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
         Seed of the bootstrap resampling and of the claims' power simulations.
     claims_files : sequence of path, optional
         Claims files (or sweep files) whose claims are tested too.
+    progress : bool, default False
+        Print each section on stderr as it starts (``report: [3/11] heatmaps (12 s so far)``).
 
     Returns
     -------
@@ -423,20 +449,12 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
         stale.unlink()  # a rebuilt report holds only what this build wrote (never a file it did not write)
     for folder in (ctx.fig_dir, ctx.table_dir):
         folder.mkdir(parents=True, exist_ok=True)
-    _overview(ctx)
-    _claims(ctx, declared)
-    _leadership(ctx)
-    if continuous and continuous.keys:
-        sensitivity_section(ctx, continuous, _figure, _save_table)
-    if ctx.factors or not continuous:
-        st = _statistics(ctx)
-        _metric_sections(ctx, st)
-        _heatmaps(ctx)
-    cells = _showcase_rows(ctx) or _default_cells(ctx)
-    _timeseries(ctx, cells)
-    _thumbnails(ctx, cells)
-    ctx.blocks += viewer_blocks(ctx.results.path, ctx.out, cells)  # interactive 3-D pages of those runs
-    _adequacy(ctx)
+    steps = _sections(ctx, continuous, declared)
+    phases = Phases("report", len(steps) + 1, progress)
+    for name, step in steps:
+        phases.start(name)
+        step(ctx)
+    phases.start("writing " + " and ".join(formats))
     written = {}
     if "md" in formats:
         written["md"] = out / "report.md"
@@ -444,5 +462,6 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     if "html" in formats:
         written["html"] = out / "report.html"
         write_text(written["html"], to_html(ctx.blocks, f"flocksweep report: {results.name}"))
+    phases.done()
     owned.finish()
     return {"paths": written, "tables": ctx.tables, "seconds": time.perf_counter() - started, "out": out}

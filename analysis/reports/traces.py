@@ -20,10 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.viewer.palette import AGENT_COLOURS
+
 from .obstacle_artists import draw_obstacles
 from .plotting import pyplot, save
 
-AGENT_STYLES = {"predator": ("#d62728", "X"), "prey": ("#2ca02c", "*")}
+AGENT_STYLES = {"predator": (AGENT_COLOURS["predator"], "X"), "prey": (AGENT_COLOURS["prey"], "*")}
 TABLE_1_COLOURS = {0b00000000: "gold", 0b00111010: "green", 0b11000101: "blue", 0b11111111: "red"}
 
 
@@ -95,8 +97,7 @@ def draw_traces(ax, pos: np.ndarray, pattern: np.ndarray | None = None, color_by
             ax.plot([], [], color=colour, label=f"pattern {int(value):0b}")
     if legend or agents:
         ax.legend(loc="upper left", fontsize=7)
-    if obstacles:
-        ax.set_aspect("equal")   # solids keep their shapes
+    ax.set_aspect("equal")   # one scale on all three axes: paths and solids keep their shapes
     ax.set_xlabel("x")
     ax.set_ylabel("z")
     ax.set_zlabel("y (up)")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 def view(source, path=None, *, preset=None, title: str | None = None, color_by: str = "auto",
          trail_s: float = 2.0, boid_scale: float = 1.0, follow: bool | None = None, max_mb: float | None = 5.0,
-         stride: int | None = None, scene=(), agents=(), info: dict | None = None):
+         stride: int | None = None, scene=(), agents=(), info: dict | None = None, start_time: float | None = None):
     """Write (when ``path`` is given) and return the viewer page of ``source``.
 
     ``source``: simulator ``Observations`` (with ``preset`` for its parameters, group radius and world),
@@ -33,7 +33,8 @@ def view(source, path=None, *, preset=None, title: str | None = None, color_by: 
     pattern mode, leader state with change of leadership, else boid), ``boid``, ``pattern``, ``leader``,
     ``group`` or ``speed`` (switchable in the page). ``max_mb`` caps the page size by thinning frames
     (``stride`` fixes the thinning instead). ``scene``/``agents``: obstacles and extra agents
-    (format in ``analysis/viewer/encode.py``)."""
+    (format in ``analysis/viewer/encode.py``). ``start_time``: the simulated second the page opens at
+    (a URL fragment ``#t=SECONDS&color=MODE`` overrides it when the page is opened)."""
     from dataclasses import replace
 
     from .page import build_page
@@ -51,7 +52,7 @@ def view(source, path=None, *, preset=None, title: str | None = None, color_by: 
         extra["info"] = {**track.info, **info}
     track = replace(track, **extra) if extra else track
     page = build_page(track, max_mb=max_mb, stride=stride, color_by=color_by, trail_s=trail_s,
-                      boid_scale=boid_scale, follow=follow)
+                      boid_scale=boid_scale, follow=follow, start_time=start_time)
     if path is not None:
         page.save(path)
     return page

@@ -139,7 +139,7 @@ def _view_box(track: Track, labels: np.ndarray) -> tuple[np.ndarray, float]:
     largest = labels == 0
     centre = (track.pos * largest[..., None]).sum(axis=1) / largest.sum(axis=1)[:, None]
     spread = np.linalg.norm(track.pos - centre[:, None], axis=-1)[largest]
-    return centre, max(float(np.percentile(spread, 95)) * 1.3, 5.0)
+    return centre, max(float(spread.max()) * 1.1, 5.0)   # every boid of the largest group in view, always
 
 
 def _trail_segments(pos: np.ndarray, frame: int, length: int, jump: float | None) -> tuple[np.ndarray, np.ndarray]:
@@ -176,12 +176,15 @@ class _Drawing:
         self.trail = int(round(trail_s / track.frame_interval)) if track.frames > 1 else 0
         self.arrow = max(self.half / 12, 1.5)
         self.fig = plt.figure(figsize=(int(size[0]) / dpi, int(size[1]) / dpi), dpi=dpi)
-        self.ax = self.fig.add_axes((0, 0, 1, 0.94), projection="3d")
-        self.fig.suptitle(title or track.title, fontsize=9, y=0.985)
-        self.stamp = self.fig.text(0.02, 0.02, "", fontsize=8, family="monospace")
+        # the caption gets its own strip below the axes (it never sits on tick labels); text >= 9 px
+        self.ax = self.fig.add_axes((0, 0.08, 1, 0.84), projection="3d")
+        self.fig.suptitle(title or track.title, fontsize=max(9, 7.5 * 100 / dpi), y=0.985)
+        self.stamp = self.fig.text(0.02, 0.015, "", fontsize=max(8, 7 * 100 / dpi), family="monospace")
         for axis_label, text in ((self.ax.set_xlabel, "x"), (self.ax.set_ylabel, "z"), (self.ax.set_zlabel, "y (up)")):
-            axis_label(text, fontsize=7)
-        self.ax.tick_params(labelsize=6)
+            axis_label(text, fontsize=max(8, 7 * 100 / dpi))
+        self.ax.tick_params(labelsize=max(7, 6.5 * 100 / dpi))
+        for axis in (self.ax.xaxis, self.ax.yaxis, self.ax.zaxis):
+            axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
         self.trails = Line3DCollection([], linewidths=0.6, alpha=0.45)
         self.ax.add_collection3d(self.trails, autolim=False)
         self.quiver = None
@@ -198,7 +201,7 @@ class _Drawing:
 
             self.ax.legend(handles=[Line2D([], [], color=a["color"], marker="o", markeredgecolor="black",
                                            linewidth=1.8, label=a["label"]) for a in self.agents],
-                           loc="upper right", fontsize=7)
+                           loc="upper right", fontsize=max(8, 7 * 100 / dpi))
 
     def draw(self, k: int, f: int) -> None:
         track, ax = self.track, self.ax

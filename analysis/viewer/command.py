@@ -18,11 +18,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from simcore import ConfigError, load_preset, simulate_preset
-from simcore.params import read_toml
-from sweeps.budget import check_runs
+from simcore.schema import ConfigError
+from sweeps.progress import Phases
 
-from .encode import COLOR_MODES
+from .palette import COLOR_MODES
 
 DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
                "(simulated), a sweep run (re-simulated and checked bit for bit) or a saved trajectory; "
@@ -45,10 +44,16 @@ def add_arguments(p) -> None:
     model.add_argument("--duration", type=float, help="simulated seconds (run.duration)")
     model.add_argument("--dt", type=float, help="time step in seconds (run.dt)")
     page = p.add_argument_group("page and animation")
-    page.add_argument("--out", type=Path, help="page path (default: see flocksweep view --help)")
+    page.add_argument("--out", type=Path, metavar="PAGE.html",
+                      help="page path (default: results/view/<model>-seed<S>.html for a model, "
+                           "RESULTS_DIR/viewer/<run or showcase>.html for a sweep run, the .npz path with "
+                           ".html for a trajectory)")
     page.add_argument("--color-by", choices=("auto",) + COLOR_MODES, default="auto",
                       help="initial colouring (switchable in the page; auto: pattern in pattern mode, leader "
                            "with change of leadership, else boid)")
+    page.add_argument("--start-time", type=float, metavar="SECONDS",
+                      help="the simulated second the page opens at (default: the start; the page's URL can also "
+                           "say it: PAGE.html#t=15&color=group)")
     page.add_argument("--trail", type=float, default=2.0, metavar="SECONDS", help="trail length (default 2 s)")
     page.add_argument("--max-mb", type=float, default=5.0, help="page size cap: frames are thinned to fit (default 5)")
     page.add_argument("--stride", type=int, help="keep every K-th recorded step (overrides --max-mb)")
@@ -59,6 +64,8 @@ def add_arguments(p) -> None:
     page.add_argument("--rotate", action="store_true", help="animation camera turns slowly about the vertical")
     page.add_argument("--size", default="640x480", metavar="WxH", help="animation size in pixels (default 640x480)")
     page.add_argument("--dpi", type=int, default=100, help="animation dots per inch (text size; default 100)")
+    page.add_argument("--no-progress", action="store_true",
+                      help="no progress on stderr (the phases as they start, the animation's frames)")
 
 
 def _kind(source: Path) -> str:
@@ -70,6 +77,8 @@ def _kind(source: Path) -> str:
     if source.suffix == ".npz":
         return "trajectory"
     if source.suffix == ".toml":
+        from simcore.params import read_toml
+
         data = read_toml(source)
         if "axes" in data or isinstance(data.get("model"), dict):
             name = data.get("name", "NAME")
@@ -92,6 +101,8 @@ def _check_flags(args, kind: str) -> None:
                 raise ConfigError(flag, f"only applies when SOURCE is {where} (got a {kind} source)")
     if not 0 <= args.trail < float("inf"):
         raise ConfigError("--trail", f"got {args.trail}; expected a number of seconds >= 0")
+    if args.start_time is not None and not 0 <= args.start_time < float("inf"):
+        raise ConfigError("--start-time", f"got {args.start_time}; expected a number of seconds >= 0")
     if args.no_page and not args.animate:
         raise ConfigError("--no-page", "only with --animate (otherwise nothing would be written)")
     if args.replicate < 0:
@@ -107,6 +118,9 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _model_track(args):
+
+    from simcore import load_preset, simulate_preset
+    from sweeps.budget import check_runs
 
     from .resimulate import record_step_for
     from .track import from_observations
@@ -160,9 +174,12 @@ def run(args) -> int:
     kind = _kind(source)
     _check_flags(args, kind)
     size = _size(args.size)
+    phases = Phases("view", 1 + (not args.no_page) + bool(args.animate), not args.no_progress)
     try:
         if args.animate and check_options(args.animate, args.fps, args.speed, size, args.dpi, args.color_by) == "mp4":
             ffmpeg_exe()  # before simulating: say now if MP4 cannot be written
+        phases.start({"model": "simulating the run", "sweep": "re-simulating the run and checking it bit for bit",
+                      "trajectory": "reading the trajectory"}[kind])
         if kind == "model":
             track, default = _model_track(args)
         elif kind == "sweep":
@@ -174,15 +191,17 @@ def run(args) -> int:
         else:
             track, default = from_npz(source), source.with_suffix(".html")
         if not args.no_page:
+            phases.start("building the page")
             page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
-                              trail_s=args.trail)
+                              trail_s=args.trail, start_time=args.start_time)
             path = page.save(args.out or default)
             print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {page.n} boids, {page.frames} frames every "
                   f"{page.frame_interval:.3g} s, stride {page.stride}); open it in a browser, it works offline")
         if args.animate:
+            phases.start(f"drawing the animation {args.animate.name} frame by frame")
             anim = write_animation(track, args.animate, color_by=args.color_by, fps=args.fps,
                                    speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
-                                   size=size, dpi=args.dpi, progress=True)
+                                   size=size, dpi=args.dpi, progress=not args.no_progress)
             print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
     except ConfigError:
         raise

@@ -18,7 +18,7 @@ Top-level keys (F frames, N boids; lengths in world units, times in seconds; y i
     wrap_jump    float or null: a frame-to-frame step longer than this is a wrap (no trail, no interpolation)
     bounds       {"min": [3], "max": [3]} of every boid and agent over the run
     palettes     {"turbo" | "viridis": 64 hex colours, "tab10": 10}; pattern_colours {str(value): hex}
-    defaults     {"color_by", "trail_s", "boid_scale", "follow"}
+    defaults     {"color_by", "trail_s", "boid_scale", "follow", "start_time"}
     encoding     {"stride": frames of the source per frame here, "position_quantum": [3] (max error 1/2 of it)}
     scene        [scene objects]; agents [agents]   (both may be empty)
 
@@ -50,13 +50,11 @@ import zlib
 
 import numpy as np
 
+from .palette import AGENT_COLOURS, COLOR_MODES, TABLE_1_HEX  # noqa: F401 - part of this module's face
 from .track import Track
 
 FORMAT = "flocksweep-viewer/1"
-COLOR_MODES = ("boid", "pattern", "leader", "group", "speed")
 SCENE_TYPES = ("sphere", "plane", "box", "cylinder")
-AGENT_COLOURS = {"predator": "#d62728", "prey": "#2ca02c"}
-TABLE_1_HEX = {0b00000000: "#ffd700", 0b00111010: "#008000", 0b11000101: "#0000ff", 0b11111111: "#ff0000"}
 HEX = re.compile(r"^#[0-9a-fA-F]{6}$")
 
 
@@ -276,9 +274,12 @@ def core_streams(track: Track, agents: list[dict]) -> tuple[dict, dict]:
 
 
 def page_data(track: Track, observables: dict, stride: int = 1, color_by: str = "auto", trail_s: float = 2.0,
-              boid_scale: float = 1.0, follow: bool | None = None) -> dict:
+              boid_scale: float = 1.0, follow: bool | None = None, start_time: float | None = None) -> dict:
     """The page's JSON object for ``track`` (already thinned to every ``stride``-th source frame) and
-    its :func:`~analysis.viewer.observables.frame_observables`."""
+    its :func:`~analysis.viewer.observables.frame_observables`. ``start_time``: the simulated second the
+    page opens at (None: the first frame; a URL fragment ``#t=SECONDS`` overrides it)."""
+    if start_time is not None and not (math.isfinite(start_time) and start_time >= 0):
+        raise ValueError(f"start_time: got {start_time!r}; expected a number of seconds >= 0")
     if color_by == "auto":
         color_by = default_color_by(track)
     if color_by not in COLOR_MODES:
@@ -303,7 +304,8 @@ def page_data(track: Track, observables: dict, stride: int = 1, color_by: str = 
         "bounds": {"min": lo.tolist(), "max": hi.tolist()},
         "palettes": palettes(), "pattern_colours": pattern_colours(track.pattern),
         "defaults": {"color_by": color_by, "trail_s": float(trail_s), "boid_scale": float(boid_scale),
-                     "follow": (not wrapped) if follow is None else bool(follow)},
+                     "follow": (not wrapped) if follow is None else bool(follow),
+                     "start_time": None if start_time is None else float(start_time)},
         "encoding": {"stride": int(stride), "position_quantum": streams["pos"]["scale"]},
         "scene": scene,
         "agents": [{"kind": a["kind"], "label": a["label"], "color": a["color"], "size": a["size"],

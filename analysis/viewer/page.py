@@ -180,7 +180,8 @@ class ViewerPage:
 
 
 def build_page(track: Track, max_mb: float | None = 5.0, stride: int | None = None, color_by: str = "auto",
-               trail_s: float = 2.0, boid_scale: float = 1.0, follow: bool | None = None) -> ViewerPage:
+               trail_s: float = 2.0, boid_scale: float = 1.0, follow: bool | None = None,
+               start_time: float | None = None) -> ViewerPage:
     if stride is not None and (isinstance(stride, bool) or int(stride) != stride or stride < 1):
         raise ValueError(f"stride: got {stride!r}; expected an integer >= 1")
     if max_mb is not None and not (max_mb > 0 and math.isfinite(max_mb)):
@@ -190,7 +191,8 @@ def build_page(track: Track, max_mb: float | None = 5.0, stride: int | None = No
         stride = 1 if max_mb is None else choose_stride(track, max_mb * MB)
     while True:
         thin = track.every(int(stride))
-        data = page_data(thin, frame_observables(thin), int(stride), color_by, trail_s, boid_scale, follow)
+        data = page_data(thin, frame_observables(thin), int(stride), color_by, trail_s, boid_scale, follow,
+                         start_time)
         page = ViewerPage(render_html(data), track.title, track.n, thin.frames, int(stride), thin.frame_interval)
         if fixed or page.size_bytes <= max_mb * MB or thin.frames <= 2:
             return page

@@ -5,6 +5,8 @@ equal to the store."""
 from __future__ import annotations
 
 import json
+import os
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -47,11 +49,9 @@ def test_a_dict_built_sweep_stores_a_sweep_toml_that_reads_back_as_the_same_swee
     again = Sweep.from_toml(out / "sweep.toml")
     assert [s.run_id for s in expand(again)] == [s.run_id for s in expand(sweep)]
     assert again.text == text
-    # ... from any folder (the preset path is absolute), and it finds every run already done
-    copy = tmp_path / "elsewhere" / "sweep.toml"
-    copy.parent.mkdir()
-    copy.write_text(text)
-    rerun = run_sweep(Sweep.from_toml(copy), out, executor="serial", progress=False)
+    # ... where it is stored (the preset path is relative to the results folder), finding every run done
+    assert f'preset = "{os.path.relpath(HOLLAND, out)}"' in text
+    rerun = run_sweep(Sweep.from_toml(out / "sweep.toml"), out, executor="serial", progress=False)
     assert not rerun.plan.todo and len(rerun.plan.done) == 8
 
 
@@ -169,3 +169,28 @@ def test_fixed_columns_of_a_preset_that_no_longer_validates_are_its_stored_keys(
     results = load_results(copy, with_fixed=True)
     assert (results.runs["init.from_file"] == str(tmp_path / "moved.npz")).all()
     assert (results.runs["perception.range"] == 18).all() and "perception.field_deg" not in results.fixed
+
+
+def test_a_results_folder_moved_with_its_repository_runs_again_from_its_sweep_toml(tmp_path):
+    """Stored paths are relative to the results folder: sweep.toml and model.json of a file sweep and of
+    a command line (--model/--axis) work after the repository (configs and results) has moved."""
+    repo = tmp_path / "repo"
+    (repo / "configs/models").mkdir(parents=True)
+    (repo / "configs/sweeps").mkdir()
+    shutil.copy(HOLLAND, repo / "configs/models/holland.toml")
+    sweep_file = repo / "configs/sweeps/tiny.toml"
+    sweep_file.write_text(Sweep.from_dict(tiny(replicates=1), ROOT).to_toml().replace(HOLLAND, "../models/holland.toml"))
+    assert main(["run", str(sweep_file), "--out", str(repo / "results/tiny"), "--executor", "serial",
+                 "--no-progress"]) == 0
+    assert main(["run", "--model", str(repo / "configs/models/holland.toml"), "--axis", "perception.field_deg=60,90",
+                 "--set", "run.n=6", "--set", "run.duration=1.0", "--set", "run.record_interval=0.5",
+                 "--set", "run.warmup=0.25", "--out", str(repo / "results/axis"), "--executor", "serial",
+                 "--no-progress"]) == 0
+    moved = tmp_path / "elsewhere" / "moved"
+    shutil.move(repo, moved)
+    for name, runs in (("tiny", 4), ("axis", 2)):
+        folder = moved / "results" / name
+        assert json.loads((folder / "model.json").read_text())["preset_path"] == "../../configs/models/holland.toml"
+        assert 'preset = "../../configs/models/holland.toml"' in (folder / "sweep.toml").read_text()
+        again = run_sweep(Sweep.from_toml(folder / "sweep.toml"), folder, executor="serial", progress=False)
+        assert not again.plan.todo and len(again.plan.done) == runs

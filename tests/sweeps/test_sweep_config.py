@@ -384,7 +384,8 @@ def test_cli_set_and_replicates_reach_the_runner(monkeypatch, tmp_path, capsys):
         seen.update(signature.bind(*args, **kwargs).arguments)
         plan = Plan(specs=expand(seen["config"]))
         plan.todo = list(plan.specs)
-        return SweepResult(Path(seen["out_dir"]), plan, None, 0.0, {"boid_steps": 0, "seconds": 0.0})
+        return SweepResult(Path(seen["out_dir"]), plan, None, 0.0, {"boid_steps": 0, "seconds": 0.0, "compile_s": 0.0,
+                                                                   "startup_s": 0.0, "per_run_s": 0.0, "total_s": 0.0})
 
     monkeypatch.setattr(runner, "run_sweep", fake_run_sweep)
     out = tmp_path / "results"

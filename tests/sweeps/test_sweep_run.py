@@ -5,6 +5,8 @@ runner can be killed halfway). The sweep files are written into ``tmp_path`` at 
 """
 from __future__ import annotations
 
+import re
+
 import json
 import os
 import signal
@@ -168,7 +170,10 @@ def test_cli_run_writes_the_store_and_a_second_run_computes_nothing(tmp_path, ca
     design = pd.read_parquet(out / "design.parquet")
     assert list(design["run_id"]) == list(runs["run_id"])
     assert list(design["seed"]) == list(runs["seed"])
-    assert (out / "sweep.toml").read_text() == sweep.read_text()
+    # the file's text as written, but for the preset, named relative to the results folder (portable)
+    preset_line = next(line for line in sweep.read_text().splitlines() if line.startswith("preset = "))
+    relative = os.path.relpath(preset_line.split('"')[1], out)
+    assert (out / "sweep.toml").read_text() == sweep.read_text().replace(preset_line, f'preset = "{relative}"')
     assert json.loads((out / "sweep.effective.json").read_text())["replicates"] == 2
 
     manifest = json.loads((out / "manifest.json").read_text())
@@ -396,7 +401,13 @@ def test_dry_run_counts_runs_and_cost_and_writes_nothing(tmp_path, capsys):
     assert main(dry) == 0
     printed = capsys.readouterr().out
     assert "tiny: 8 runs; 0 done, 0 failed" in printed and "8 to run" in printed
-    assert "estimated cost: 5,760 boid-steps" in printed  # 8 runs x 8 boids x 90 steps
+    assert "(5,760 boid-steps;" in printed  # 8 runs x 8 boids x 90 steps
+    wall = re.search(r"estimated wall time: about (\d+) s = start-up ([\d.]+) s \+ simulation ([\d.]+) s \+ "
+                     r"per-run overhead (\d+) ms x 8 runs, on 1 worker", printed)
+    assert wall, printed   # what the user waits for: start-up and per-run overhead, not the simulation alone
+    total, startup, simulation, per_run = (float(g) for g in wall.groups())
+    assert startup > 0 and per_run > 0
+    assert abs(total - (startup + simulation + per_run / 1000 * 8)) <= 1.0
     assert not out.exists()
 
     run(sweep, out)
@@ -404,7 +415,7 @@ def test_dry_run_counts_runs_and_cost_and_writes_nothing(tmp_path, capsys):
     assert main(dry + ["--replicates", "3"]) == 0
     printed = capsys.readouterr().out
     assert "tiny: 12 runs; 8 done, 0 failed" in printed and "4 to run" in printed
-    assert "estimated cost: 2,880 boid-steps" in printed
+    assert "(2,880 boid-steps;" in printed and "x 4 runs" in printed
     assert main(dry + ["--set", "seed=4"]) == 0
     assert "tiny: 8 runs; 0 done" in capsys.readouterr().out
     assert snapshot(out) == before

@@ -49,7 +49,7 @@ const CHART_LINES = [["polarization", "#1f77b4", 1], ["cohesion", "#ff7f0e", 1],
 function drawChart(v, f) {
   const { data: DATA, frames: F } = v;
   const cv = $("chart"), g = cv.getContext("2d");
-  const W = cv.width, H = cv.height, pad = 8;
+  const W = cv.width, H = cv.height, pad = 8, head = 34;  // the legend has its own strip: never on a line
   g.clearRect(0, 0, W, H);
   g.fillStyle = "#fbfcfd";
   g.fillRect(0, 0, W, H);
@@ -66,7 +66,7 @@ function drawChart(v, f) {
     let pen = false;
     ys.forEach((v, k) => {
       if (v === null) { pen = false; return; }
-      const y = H - pad - (H - 2 * pad) * Math.min(1, v / hi);
+      const y = H - pad - (H - head - pad) * Math.min(1, v / hi);
       if (pen) g.lineTo(xOf(k), y); else g.moveTo(xOf(k), y);
       pen = true;
     });
@@ -76,7 +76,7 @@ function drawChart(v, f) {
   g.strokeStyle = "#d62728";
   g.lineWidth = 2;
   g.beginPath();
-  g.moveTo(xOf(f), 0);
+  g.moveTo(xOf(f), head);
   g.lineTo(xOf(f), H);
   g.stroke();
   g.font = "22px system-ui, sans-serif";

@@ -391,12 +391,32 @@ function setPlaying(on) {
   S.playing = on;
   $("play").innerHTML = on ? "&#10074;&#10074; pause" : "&#9654; play";
   lastNow = null;
+  rememberInUrl();
 }
 
 function seekFrame(f) {
   f = Math.max(0, Math.min(F - 1, f));
   S.t = TIMES[f];  // a following camera jumps with the flock
   S.dirty = true;
+  rememberInUrl();
+}
+
+// The URL fragment #t=SECONDS&color=MODE opens the page at that time and colouring (else the page's
+// defaults.start_time); pausing, stepping and recolouring write it back, so the address can be shared.
+function fromUrl() {
+  const said = new URLSearchParams(window.location.hash.replace(/^#/, ""));
+  const t = parseFloat(said.has("t") ? said.get("t") : DATA.defaults.start_time);
+  if (Number.isFinite(t)) S.t = Math.max(T0, Math.min(T1, t));
+  const colour = said.get("color");
+  if (colour && COLOUR_MODES.includes(colour)) S.colorBy = colour;
+  S.dirty = true;
+}
+
+function rememberInUrl() {
+  if (S.playing || !window.history || !window.history.replaceState) return;
+  try {
+    window.history.replaceState(null, "", `#t=${S.t.toFixed(2)}&color=${S.colorBy}`);
+  } catch (err) { /* a page opened where the address cannot change: nothing to remember */ }
 }
 
 function bindControls() {
@@ -408,7 +428,8 @@ function bindControls() {
   $("slider").addEventListener("input", (e) => { seekFrame(Number(e.target.value)); });
   const colorby = $("colorby");
   colorby.value = S.colorBy;
-  colorby.addEventListener("change", (e) => { S.colorBy = e.target.value; drawLegend(panelState()); S.dirty = true; });
+  colorby.addEventListener("change", (e) => { S.colorBy = e.target.value; drawLegend(panelState()); S.dirty = true;
+                                               rememberInUrl(); });
   const trail = $("trail");
   trail.value = String(S.trailS);
   $("trail-v").textContent = S.trailS + " s";
@@ -452,8 +473,10 @@ async function start() {
     agentData.push({ ...a, pos: p, heading: h });
   }
   prepareColours();
+  fromUrl();
   if (!setupScene()) return;
   bindControls();
+  window.addEventListener("hashchange", () => { fromUrl(); $("colorby").value = S.colorBy; drawLegend(panelState()); });
   drawLegend(panelState());
   fillTables(panelState());
   drawPanel(panelState(), 0);

@@ -74,6 +74,18 @@ def test_report_renders_every_figure_and_table(smoke_results, tmp_path):
     for section in ("Overview", "Claims, tested", "Which factor matters", "Heatmaps", "Time series",
                     "Replicate adequacy"):
         assert section in md and section in unescape(html)
+    assert_smoke_comment_matches(pd.read_csv(tmp_path / "report" / "tables" / "claim_tests.csv"))
+
+
+def assert_smoke_comment_matches(claim_tests: pd.DataFrame) -> None:
+    """smoke.toml's comment on its claim says what its report shows: the verdict, p (Holm) and power."""
+    text = (ROOT / "configs/sweeps/smoke.toml").read_text()
+    comment = " ".join(line.lstrip("# ").strip() for line in text.splitlines() if line.startswith("#"))
+    said = re.search(r'the report says "([a-z ]+)" \(p = ([0-9.]+), power ([0-9.]+)\)', comment)
+    assert said, "smoke.toml's comment states the claim's verdict, p and power"
+    row = claim_tests.set_index("claim").loc["wider-is-aligned"]
+    assert said.group(1) == row["claim_verdict"]
+    assert f"{row['p_holm']:.2g}" == f"{float(said.group(2)):.2g}" and f"{row['power']:.2f}" == said.group(3)
 
 
 @pytest.mark.slow

@@ -150,3 +150,43 @@ def test_a_single_frame_run_opens(browser, tmp_path):
     assert page.errors == [] and page.blocked == []
     assert page.state("frames") == 1
     page.page.close()
+
+
+@pytest.mark.slow
+def test_a_page_opens_at_its_start_time_or_at_the_time_and_colouring_its_url_says(browser, tmp_path):
+    track = milling_track(with_scene=False)
+    times = np.asarray(track.times)
+    middle = float(times[len(times) // 2])
+    path = view(track, tmp_path / "start.html", color_by="boid", max_mb=None, start_time=middle).path
+    page = browser.open(path)
+    assert page.errors == []
+    assert abs(page.state("time") - middle) < 1e-6 and page.state("colorBy") == "boid"
+    page.page.close()
+    late = float(times[-3])
+    page = browser.open(path, fragment=f"t={late}&color=group")
+    assert abs(page.state("time") - late) < 1e-6 and page.state("colorBy") == "group"
+    page.page.evaluate("window.flockViewer.seek(2)")            # a seek writes the fragment back
+    assert page.page.evaluate("window.location.hash") == f"#t={float(times[2]):.2f}&color=group"
+    page.page.close()
+
+
+@pytest.mark.slow
+def test_the_metrics_chart_keeps_its_legend_off_the_lines(opened):
+    """The chart's legend has its own strip: right of the legend text, the strip is background only
+    (the lines, cohesion near 1 at the top, start below it)."""
+    drawn = opened.page.evaluate("""() => {
+        const cv = document.getElementById("chart"), g = cv.getContext("2d");
+        g.font = "22px system-ui, sans-serif";
+        const legend = 12 + ["polarization", "cohesion", "NND (scaled)"]
+            .map((t) => g.measureText(t).width + 16).reduce((a, b) => a + b, 0);
+        const img = g.getImageData(0, 0, cv.width, 34).data;
+        let foreign = 0;
+        for (let y = 0; y < 30; y++) for (let x = Math.ceil(legend); x < cv.width; x++) {  // 2-px lines end at 33
+            const i = 4 * (y * cv.width + x);
+            const dx = Math.abs(img[i] - 0xfb) + Math.abs(img[i + 1] - 0xfc) + Math.abs(img[i + 2] - 0xfd);
+            if (dx > 30) foreign++;
+        }
+        return {foreign, width: cv.width, legend};
+    }""")
+    assert drawn["legend"] < drawn["width"] - 20
+    assert drawn["foreign"] == 0

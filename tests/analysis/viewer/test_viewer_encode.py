@@ -15,6 +15,7 @@ from analysis.viewer import view
 from analysis.viewer.encode import (check_agents, check_scene, decode_stream, heading_stream, label_stream,
                                     position_stream, speed_stream, stream)
 from analysis.viewer.observables import frame_observables
+from analysis.viewer.palette import AGENT_COLOURS
 from analysis.viewer.page import build_page, choose_stride, estimate_bytes
 from analysis.viewer.track import Track, as_track, from_arrays, from_npz
 from viewer_data import milling_arrays, milling_track
@@ -101,7 +102,7 @@ def test_scene_objects_are_validated_with_the_key_named():
 def test_agents_need_a_track_on_the_flock_frames():
     arrays = milling_arrays(frames=11)
     out = check_agents([{"kind": "predator", "pos": arrays["pos"][:, 0]}], 11)
-    assert out[0]["pos"].shape == (11, 1, 3) and out[0]["color"] == "#d62728" and out[0]["size"] == 2.0
+    assert out[0]["pos"].shape == (11, 1, 3) and out[0]["color"] == AGENT_COLOURS["predator"] and out[0]["size"] == 2.0
     with pytest.raises(ValueError, match=r"agents\[0\]\.pos"):
         check_agents([{"kind": "prey", "pos": arrays["pos"][:5]}], 11)
     with pytest.raises(ValueError, match=r"agents\[0\]"):
@@ -219,3 +220,20 @@ def test_wrapped_world_breaks_trails_and_frames_the_world():
                   world={"boundary": "periodic_box", "box_size": 40.0}, box=40.0, group_radius=5.0)
     data = page_json(view(track).html)
     assert data["wrap_jump"] == 20.0 and data["defaults"]["follow"] is False
+
+
+def test_predator_and_prey_colours_lie_outside_every_boid_colouring():
+    """Neither agent colour is near a colour a boid can take: the turbo (per boid) and viridis (speed)
+    maps sampled finely, and Table 1's pattern colours (RGB distance > 60 of 441)."""
+    import matplotlib
+
+    from analysis.viewer.palette import TABLE_1_HEX
+
+    def rgb(hex_colour):
+        return np.array(matplotlib.colors.to_rgb(hex_colour)) * 255
+
+    boid = [np.array(matplotlib.colormaps[name](x)[:3]) * 255 for name in ("turbo", "viridis")
+            for x in np.linspace(0, 1, 256)] + [rgb(c) for c in TABLE_1_HEX.values()]
+    for kind, colour in AGENT_COLOURS.items():
+        nearest = min(np.linalg.norm(rgb(colour) - c) for c in boid)
+        assert nearest > 60, (kind, colour, nearest)
