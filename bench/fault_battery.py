@@ -7,9 +7,9 @@
    it gets its documented exit status and message, no traceback, and no file is written.
 2. Kill trials: the small sweep and the short calibration of ``tests/faults.py`` are stopped at random
    (seeded) moments by SIGINT to the process group, SIGTERM or SIGKILL to the runner, and SIGKILL to one
-   worker (each seed draws its own moment), then the same command is run again with no cleanup; a trial
-   is a lossless resume when the stop gave its documented exit status without a traceback, left no
-   process behind, and the rerun's results equal an uninterrupted run's bit for bit.
+   worker or to multiprocessing's resource tracker (each seed draws its own moment), then the same command
+   is run again with no cleanup; a trial is a lossless resume when the stop gave its documented exit
+   status without a traceback, left no process behind, and the rerun's results equal an uninterrupted run's bit for bit.
 
 Prints one line per failure and the totals; exit status 1 when anything failed.
 """

@@ -38,7 +38,7 @@ from tqdm import tqdm
 from .directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
-from .resample import MAX_GAP_INTERVALS, RECORDED, resample
+from .resample import MAX_GAP_INTERVALS, RECORDED, check_size, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .validation import Issue, TrackError, check_flock, infer_interval
@@ -90,6 +90,11 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
     for raw in raws:
         try:
             step = interval if interval is not None else infer_interval(raw)
+        except ValueError as err:
+            errors.append(Issue("error", "interval", str(err), flock=raw.name))
+            continue
+        try:
+            check_size(raw.t, len(raw.ids), step)
         except ValueError as err:
             errors.append(Issue("error", "interval", str(err), flock=raw.name))
             continue

@@ -5,6 +5,8 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
 
 ``resample(raw, interval, max_gap=None, velocity_interval=None) -> ObservedFlock``:
 
+* **size**: records x individuals is counted before anything is allocated and refused beyond
+  :data:`MAX_RECORD_VALUES` (``check_size``: the figure and the smallest interval that fits);
 * **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
   flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
   the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
@@ -36,6 +38,7 @@ from .observed import ObservedFlock
 
 SNAP = 1e-6          # grid and sample times closer than SNAP x interval are the same time
 RECORDED = "recorded"
+MAX_RECORD_VALUES = 20_000_000   # records x individuals of one flock (positions and velocities: ~0.9 GiB)
 MAX_GAP_INTERVALS = 2.5  # default max_gap, in sampling intervals
 
 
@@ -73,11 +76,31 @@ def grid_phase(t: np.ndarray, interval: float) -> float:
     return 0.0 if offset <= SNAP * interval or offset >= (1 - SNAP) * interval else float(offset)
 
 
+def _grid_start_count(times: np.ndarray, interval: float) -> tuple[float, int]:
+    start = times[0] + grid_phase(times, interval)
+    return start, max(int(np.floor((times[-1] - start) / interval + SNAP)) + 1, 1)
+
+
+def check_size(t: np.ndarray, individuals: int, interval: float) -> int:
+    """The number of grid times over the sample times ``t``, counted before anything is allocated;
+    ValueError when records x individuals exceeds :data:`MAX_RECORD_VALUES` (the figure and what to
+    change in the message)."""
+    times = np.unique(t)
+    span = float(times[-1] - times[0]) if len(times) else 0.0
+    estimate = span / interval + 2   # the count of _grid_start_count, without its float overflow
+    if estimate * max(individuals, 1) > MAX_RECORD_VALUES:
+        raise ValueError(f"interval: {interval:g} s over {span:g} s of tracks gives {estimate:.3g} records x "
+                         f"{individuals} individuals = {estimate * max(individuals, 1):.3g} positions, over the limit "
+                         f"of {MAX_RECORD_VALUES:,} (about {MAX_RECORD_VALUES * 48 / 2**30:.1f} GiB); choose a "
+                         f"larger --interval (at least {span * max(individuals, 1) / MAX_RECORD_VALUES:.3g} s) or "
+                         "measure a shorter stretch")
+    return _grid_start_count(times, interval)[1] if len(times) else 0
+
+
 def record_grid(t: np.ndarray, interval: float) -> np.ndarray:
     """The grid over the sample times ``t``, in phase with them and snapped to them (module docstring)."""
     times = np.unique(t)
-    start = times[0] + grid_phase(times, interval)
-    count = int(np.floor((times[-1] - start) / interval + SNAP)) + 1
+    start, count = _grid_start_count(times, interval)
     grid = start + np.arange(max(count, 1)) * interval
     j = np.clip(np.searchsorted(times, grid), 1, len(times) - 1) if len(times) > 1 else np.zeros(len(grid), int)
     for candidate in (times[j - 1] if len(times) > 1 else times[j], times[j]):
@@ -119,6 +142,7 @@ def resample(raw, interval: float, max_gap: float | None = None, velocity_interv
     m = velocity_steps(velocity_interval, interval)
     if m is None and raw.vel is None:
         raise ValueError(f'flock {raw.name!r}: velocity_interval = "recorded" but the tracks have no velocities')
+    check_size(raw.t, len(raw.ids), interval)
     grid = record_grid(raw.t, interval)
     n = len(raw.ids)
     pos = np.full((len(grid), n, 3), np.nan)

@@ -28,6 +28,10 @@ Kinds:
 * ``dask``: a ``dask.distributed`` Client at ``scheduler`` (``tcp://host:8786``; a scheduler that does
   not answer within :data:`CONNECT_TIMEOUT` seconds is :class:`SchedulerUnreachable`), or a
   ``LocalCluster`` of ``workers`` single-threaded processes started here when no address is given.
+  Its processes start with SIGINT ignored (:func:`_workers_ignore_sigint`: Ctrl-C is this process's to
+  handle, and one pressed while the cluster starts is raised once it is whole, so it is closed whole,
+  never lost); their logs are silenced (a task's error reaches the caller as its outcome), and so are
+  this process's distributed loggers while an interrupted cluster is closed.
 
 Lost workers are an infrastructure fault, never a task's failure. When a local worker dies (killed,
 out of memory, a crash in compiled code), the pool is restarted and the tasks it was running are run
@@ -35,16 +39,25 @@ again, each alone, so a task that kills its worker is singled out; a task whose 
 :data:`MAX_ATTEMPTS` times is an outcome whose error is :class:`WorkerLost` (``map`` raises it). Dask
 retries tasks of lost workers itself; its ``KilledWorker`` becomes :class:`WorkerLost` too.
 
+The pool's queues hold named semaphores that multiprocessing's resource tracker (a helper process)
+unlinks if this process dies. When the tracker itself is killed, the next use of it starts a new one
+(with a warning) which does not know those names and prints a ``KeyError`` traceback for each one
+later released: so before every start, turn and stop of the pool the executor checks the tracker, and
+when it died starts a new one quietly and registers the live names with it again (the semaphores stay
+tracked, nothing is printed).
+
 ``close(wait=False)`` (also on leaving the ``with`` block by an exception, e.g. Ctrl-C) kills the
 workers at once instead of waiting for their tasks.
 """
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
 import signal
 import threading
 import time
+import warnings
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -123,21 +136,74 @@ def _sigint_blocked():
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
+IMMUNE_PYTHON = """#!/bin/sh
+# flocksweep: start a dask worker process with SIGINT ignored (Ctrl-C is its parent's to handle)
+trap '' INT
+exec "$FLOCKSWEEP_PYTHON" "$@"
+"""
+
+
 @contextmanager
-def _cluster_starting():
-    """While a dask LocalCluster starts: SIGINT ignored (its processes inherit that, so a Ctrl-C to the
-    process group cannot kill them half-started; one pressed in these seconds is lost) and SIGTERM held
-    until the cluster is complete (then raised, so the cluster is closed whole)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        with deferred():
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _workers_ignore_sigint():
+    """Inside the block, processes started by multiprocessing's spawn (dask's workers and nannies) begin
+    with SIGINT ignored: their interpreter is started through a two-line shell script that ignores it and
+    execs Python, so a Ctrl-C to the process group (the terminal's) never reaches them, whether
+    half-started, running or restarted after a death; stopping them is the parent's to do. This process
+    keeps its own handlers, so nothing pressed meanwhile is lost."""
+    import tempfile
+    from multiprocessing import spawn
+
+    python = spawn.get_executable()
+    with tempfile.TemporaryDirectory(prefix="flocksweep-") as folder:
+        script = os.path.join(folder, "python")
+        with open(script, "w") as out:
+            out.write(IMMUNE_PYTHON)
+        os.chmod(script, 0o700)
+        os.environ["FLOCKSWEEP_PYTHON"] = os.fsdecode(python)
+        spawn.set_executable(script)
+        try:
             yield
+        finally:
+            spawn.set_executable(python)
+
+
+@contextmanager
+def _quiet_distributed():
+    """dask.distributed's loggers in this process silenced (an interrupted shutdown makes them log
+    "Stream is closed" errors of connections being closed on purpose)."""
+    logger = logging.getLogger("distributed")
+    before = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
     finally:
-        signal.signal(signal.SIGINT, before)
+        logger.setLevel(before)
+
+
+def _semaphore_names() -> list[str]:
+    """The names of the named semaphores alive in this process (a process pool's or dask's queues)."""
+    import gc
+    from multiprocessing.synchronize import SemLock
+
+    return [part._semlock.name for part in gc.get_objects()
+            if isinstance(part, SemLock) and getattr(part, "_semlock", None) is not None and part._semlock.name]
+
+
+def mend_resource_tracker() -> bool:
+    """Restart multiprocessing's resource tracker if it died, quietly, and register this process's named
+    semaphores with the new one (else it prints a KeyError traceback for each name released later). True
+    when it had died. A tracker never started (no spawn-context semaphore yet) is left alone."""
+    from multiprocessing import resource_tracker
+
+    tracker = resource_tracker._resource_tracker
+    if getattr(tracker, "_fd", None) is None or tracker._check_alive():
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # "resource_tracker: process died unexpectedly, relaunching"
+        tracker.ensure_running()
+    for name in _semaphore_names():
+        resource_tracker.register(name, "semaphore")
+    return True
 
 
 def _init_worker(threads: int) -> None:
@@ -173,6 +239,23 @@ def describe_exit(statuses: list[int]) -> str:
 def _is_lost_worker(error: BaseException) -> bool:
     """A dask error that means the task's worker went away (not the task's own exception)."""
     return type(error).__name__ in ("KilledWorker", "FutureCancelledError") or isinstance(error, BrokenProcessPool)
+
+
+def _local_cluster(workers: int):
+    """A dask LocalCluster of ``workers`` single-threaded processes; a worker process that dies while it
+    starts (killed, out of memory) fails the whole start ("Nanny failed to start"), which is tried again
+    (:data:`MAX_ATTEMPTS` times in all) before it is :class:`WorkerLost`."""
+    from dask.distributed import LocalCluster
+
+    for attempt in range(1, MAX_ATTEMPTS + 1):
+        try:
+            with _quiet_distributed():
+                return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                    dashboard_address=None, silence_logs=logging.CRITICAL)
+        except RuntimeError as err:   # the cluster closes what it had started before raising
+            if attempt == MAX_ATTEMPTS:
+                raise WorkerLost(f"dask's workers died while the cluster started, {attempt} times ({err})",
+                                 attempt) from None
 
 
 def connect(address: str):
@@ -238,6 +321,7 @@ class Executor:
         return self
 
     def _start_pool(self) -> None:
+        mend_resource_tracker()
         threads = max(1, (os.cpu_count() or 1) // self.workers)
         self._pool = ProcessPoolExecutor(max_workers=self.workers,
                                          mp_context=multiprocessing.get_context(START_METHOD),
@@ -245,16 +329,21 @@ class Executor:
 
     def _start_dask(self) -> None:
         import dask
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
 
         self._dask_scheduler = dask.config.get("scheduler", None)   # the client becomes dask's default
-        if self.scheduler:
-            self._client = connect(self.scheduler)
-        else:
-            with _cluster_starting():
-                self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                             dashboard_address=None, silence_logs=40)
-            self._client = Client(self._cluster)
+        try:
+            if self.scheduler:
+                self._client = connect(self.scheduler)
+            else:
+                self._immune = _workers_ignore_sigint()
+                self._immune.__enter__()
+                with deferred():   # a Ctrl-C while the cluster starts: raised once it is whole, to close it
+                    self._cluster = _local_cluster(self.workers)
+                self._client = Client(self._cluster)
+        except BaseException:   # an interrupt held while the cluster started: __exit__ will not run
+            self.close(wait=False)
+            raise
 
     def __exit__(self, exc_type, *exc) -> None:
         self.close(wait=exc_type is None)
@@ -262,6 +351,7 @@ class Executor:
     def close(self, wait: bool = True) -> None:
         """Stop the pool or cluster; ``wait=False`` (after an error or an interrupt) kills the workers
         instead of waiting for their tasks."""
+        mend_resource_tracker()
         if self._pool is not None:
             self._stop_pool(wait)
         for name in ("_client", "_cluster"):
@@ -273,9 +363,12 @@ class Executor:
                 part.close(timeout=timeout)
                 continue
             try:   # after an error or an interrupt: best effort, the original exception is what matters
-                part.close(timeout=timeout)
+                with _quiet_distributed():
+                    part.close(timeout=timeout)
             except Exception:  # noqa: BLE001 - dask may complain about workers still starting
                 pass
+        if "_immune" in vars(self):   # the cluster is gone: spawn starts Python directly again
+            vars(self).pop("_immune").__exit__(None, None, None)
         if "_dask_scheduler" in vars(self):   # set when a client was started
             _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
 
@@ -283,6 +376,7 @@ class Executor:
         """Stop the pool; returns the exit statuses of the workers that had died before it was stopped
         (``settle``: after a break, give a dying worker half a second to finish exiting first)."""
         pool, self._pool = self._pool, None
+        mend_resource_tracker()
         processes = list((getattr(pool, "_processes", None) or {}).values())
         manager = getattr(pool, "_executor_manager_thread", None)
         if settle:   # a worker whose death broke the pool may still be exiting: let it finish (its status)
@@ -359,6 +453,7 @@ class Executor:
         running: dict = {}
         while fresh or suspects or running:
             raise_if_received()
+            mend_resource_tracker()
             lost: list[int] = []
             if not self._submit(blob, items, fresh, suspects, running):
                 done, _ = wait(running, timeout=idle, return_when=FIRST_COMPLETED)
@@ -431,6 +526,7 @@ class Executor:
         try:
             while pending:
                 raise_if_received()
+                mend_resource_tracker()
                 try:
                     done, pending = dask_wait(list(pending), timeout=idle, return_when="FIRST_COMPLETED")
                 except DaskTimeout:

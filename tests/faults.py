@@ -7,7 +7,12 @@ session, waits until ``ready()`` (the command is computing), then after a delay 
 * ``"sigint"``: SIGINT to the whole process group, as Ctrl-C in a terminal does;
 * ``"sigterm"``: SIGTERM to the runner (a scheduler or ``kill`` stopping it);
 * ``"sigkill"``: SIGKILL to the runner (nothing can be saved then, nor cleaned up);
-* ``"worker"``: SIGKILL to one of its worker processes (the runner goes on).
+* ``"worker"``: SIGKILL to one of its worker processes (the runner goes on);
+* ``"tracker"``: SIGKILL to multiprocessing's resource tracker (the helper process that unlinks the pool's
+  semaphores; the runner goes on, quietly starting a new one).
+
+``sweep_argv(folder, executor)`` runs the sweep on the local pool (``"local"``) or on a dask LocalCluster
+(``"dask"``): every way applies to both.
 
 It returns a :class:`Trial`: the exit status (``EXPECTED_EXIT`` documents the one each way must give),
 stderr, whether the command was still running when the signal went (``hit``), and the processes it
@@ -33,8 +38,8 @@ import pandas as pd
 
 from paths import ROOT
 
-HOW = ("sigint", "sigterm", "sigkill", "worker")
-EXPECTED_EXIT = {"sigint": 130, "sigterm": 143, "sigkill": -signal.SIGKILL, "worker": 0}
+HOW = ("sigint", "sigterm", "sigkill", "worker", "tracker")
+EXPECTED_EXIT = {"sigint": 130, "sigterm": 143, "sigkill": -signal.SIGKILL, "worker": 0, "tracker": 0}
 TIMING = ("wall_s", "sim_s", "part")
 
 
@@ -93,17 +98,26 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
-def workers_of(pid: int) -> list[int]:
-    """The executor's worker processes among ``pid``'s descendants (spawned interpreters)."""
+def _descendants_running(pid: int, marker: str) -> list[int]:
     out = []
     for child in sorted(descendants(pid)):
         try:
             cmdline = Path(f"/proc/{child}/cmdline").read_bytes().decode(errors="replace")
         except OSError:
             continue
-        if "spawn_main" in cmdline:
+        if marker in cmdline:
             out.append(child)
     return out
+
+
+def workers_of(pid: int) -> list[int]:
+    """The executor's worker processes among ``pid``'s descendants (spawned interpreters)."""
+    return _descendants_running(pid, "spawn_main")
+
+
+def trackers_of(pid: int) -> list[int]:
+    """multiprocessing's resource tracker among ``pid``'s descendants."""
+    return _descendants_running(pid, "resource_tracker")
 
 
 def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float], timeout: float = 300) -> Trial:
@@ -121,8 +135,9 @@ def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float
                 seen |= descendants(proc.pid)
                 time.sleep(0.05)
             until = time.monotonic() + trial.delay   # the delay counts from ready(), whatever the signal
-            if how == "worker":
-                while not workers_of(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+            targets_of = {"worker": workers_of, "tracker": trackers_of}.get(how)
+            if targets_of is not None:
+                while not targets_of(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
                     time.sleep(0.05)
             while time.monotonic() < until and proc.poll() is None:
                 seen |= descendants(proc.pid)
@@ -138,7 +153,7 @@ def kill_trial(argv, cwd, ready, how: str, seed: int, window: tuple[float, float
                 elif how == "sigkill":
                     os.kill(proc.pid, signal.SIGKILL)
                 else:
-                    workers = workers_of(proc.pid)
+                    workers = targets_of(proc.pid)
                     if workers:
                         os.kill(rng.choice(workers), signal.SIGKILL)
                     else:
@@ -268,11 +283,12 @@ steps = 12
 """
 
 
-def sweep_argv(folder: Path) -> list:
+def sweep_argv(folder: Path, executor: str = "local") -> list:
     path = folder / "faults.toml"
     if not path.exists():
         path.write_text(SWEEP.format(holland=ROOT / "configs" / "models" / "holland.toml"))
-    return ["run", path, "--out", folder / "out", "--workers", "2", "--batch-size", "1", "--no-progress"]
+    return ["run", path, "--out", folder / "out", "--executor", executor, "--workers", "2", "--batch-size", "1",
+            "--no-progress"]
 
 
 def calibration_argv(folder: Path) -> list:
@@ -308,7 +324,8 @@ def completed_before(kind: str, out: Path, when: float) -> bool:
     return written <= when
 
 
-def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, window) -> tuple[Trial, object, str]:
+def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, window,
+               executor: str = "local") -> tuple[Trial, object, str]:
     """Run the trial; when the command had finished before the signal (a busy machine ran it faster than
     the window assumed; or it had written its final result and was exiting, see
     :func:`completed_before`), run it again in a fresh folder with the window halved (at most 3
@@ -318,9 +335,9 @@ def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, wi
     for attempt in range(3):
         where = folder / f"attempt{attempt}"
         where.mkdir()
-        argv = argv_of(where)
+        argv = argv_of(where, executor) if kind == "sweep" else argv_of(where)
         trial = kill_trial(argv, where, ready_of(where), how, seed, (window[0] / 2 ** attempt, window[1] / 2 ** attempt))
-        if trial.hit and how != "worker" and completed_before(kind, where / "out", trial.sent_at):
+        if trial.hit and how not in ("worker", "tracker") and completed_before(kind, where / "out", trial.sent_at):
             trial.hit = False
         if trial.hit:
             break
@@ -328,10 +345,11 @@ def _until_hit(kind: str, folder: Path, reference: Path, how: str, seed: int, wi
     return trial, rerun, same(reference, where / "out") if rerun.returncode == 0 else rerun.stderr[-300:]
 
 
-def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0, 6.0)) -> tuple[Trial, object, str]:
-    """One kill trial of the small sweep in ``folder``, then the same command again; (trial, the rerun,
-    '' or how its results differ from ``reference``)."""
-    return _until_hit("sweep", folder, reference, how, seed, window)
+def sweep_trial(folder: Path, reference: Path, how: str, seed: int, window=(0.0, 6.0),
+                executor: str = "local") -> tuple[Trial, object, str]:
+    """One kill trial of the small sweep in ``folder`` on ``executor`` (local or dask), then the same
+    command again; (trial, the rerun, '' or how its results differ from ``reference``)."""
+    return _until_hit("sweep", folder, reference, how, seed, window, executor)
 
 
 def calibration_trial(folder: Path, reference: Path, how: str, seed: int,

@@ -7,7 +7,7 @@ import pytest
 
 from observables.metrics import METRIC_NAMES, frame_metrics
 from observables.observed import ObservedFlock, present_metrics
-from observables.resample import record_grid, resample, velocity_steps
+from observables.resample import MAX_RECORD_VALUES, check_size, record_grid, resample, velocity_steps
 from observables.summary import MetricSettings, measure_run
 from observables.tracks import RawFlock
 
@@ -144,3 +144,13 @@ def test_max_gap_below_the_interval_is_refused():
     raw = raw_from([np.arange(5) * 0.1], curve)
     with pytest.raises(ValueError, match="max_gap: got 0.05; must be at least the sampling interval"):
         resample(raw, 0.1, max_gap=0.05)
+
+
+def test_the_record_count_is_checked_before_the_grid_is_allocated():
+    t = np.array([0.0, 1.0, 2.0])
+    assert check_size(t, 2, 0.5) == len(record_grid(t, 0.5)) == 5
+    with pytest.raises(ValueError, match=r"2e\+09 records x 2 individuals = 4e\+09 positions, over the limit of "
+                                         r"20,000,000 .*at least 2e-07 s"):
+        check_size(t, 2, 1e-9)
+    largest = 2.0 * 2 / MAX_RECORD_VALUES   # at the stated smallest interval the flock fits
+    assert check_size(t, 2, largest * 1.01) <= MAX_RECORD_VALUES // 2

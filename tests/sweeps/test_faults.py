@@ -275,11 +275,13 @@ def uninterrupted(tmp_path_factory):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 2])
-@pytest.mark.parametrize("how", faults.HOW)
-def test_a_sweep_killed_at_a_random_moment_resumes_bit_for_bit(how, seed, tmp_path, uninterrupted):
+@pytest.mark.parametrize("executor, seed, how", [("local", seed, how) for how in faults.HOW for seed in (1, 2)]
+                         + [("dask", 1, how) for how in faults.HOW])
+def test_a_sweep_killed_at_a_random_moment_resumes_bit_for_bit(executor, how, seed, tmp_path, uninterrupted):
     reference, seconds = uninterrupted
-    trial, rerun, difference = faults.sweep_trial(tmp_path, reference, how, seed, window=(0.1, 0.8 * seconds))
+    # dask's cluster starts after design.parquet is written: its window starts at once, to catch the start
+    window = (0.1, 0.8 * seconds) if executor == "local" else (0.0, 0.8 * seconds + 3.0)
+    trial, rerun, difference = faults.sweep_trial(tmp_path, reference, how, seed, window=window, executor=executor)
     assert trial.hit, f"the sweep had finished before the signal ({trial.delay:.1f} s)"
     assert trial.exit_code == faults.EXPECTED_EXIT[how], trial.stderr
     assert not trial.traceback, trial.stderr
@@ -289,3 +291,44 @@ def test_a_sweep_killed_at_a_random_moment_resumes_bit_for_bit(how, seed, tmp_pa
     assert trial.orphans == []
     assert rerun.returncode == 0 and "Traceback" not in rerun.stderr, rerun.stderr
     assert difference == ""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.0, 1.0, 2.0])
+def test_ctrl_c_while_the_dask_cluster_starts_is_never_lost_nor_a_traceback(delay, tmp_path, uninterrupted):
+    """The cluster starts a second or more after design.parquet is written: a Ctrl-C in those seconds
+    used to be ignored (exit 0), or printed the workers' "Stream is closed" tracebacks."""
+    reference, _ = uninterrupted
+    argv = faults.sweep_argv(tmp_path, "dask")
+    trial = faults.kill_trial(argv, tmp_path, faults.sweep_ready(tmp_path), "sigint", 0, (delay, delay))
+    assert trial.hit
+    if faults.completed_before("sweep", tmp_path / "out", trial.sent_at):
+        pytest.skip("the sweep had finished before the signal")
+    assert trial.exit_code == 130, trial.stderr
+    assert "Traceback" not in trial.stderr and "ERROR" not in trial.stderr, trial.stderr
+    assert trial.stderr.startswith("flocksweep: interrupted (SIGINT)") or \
+        trial.stderr.split("\n", 1)[1].startswith("flocksweep: interrupted (SIGINT)"), trial.stderr
+    assert trial.orphans == []
+    rerun = faults.run_command(argv, tmp_path)
+    assert rerun.returncode == 0 and faults.same_sweep(reference, tmp_path / "out") == ""
+
+
+def _square(x):
+    return x * x
+
+
+@pytest.mark.slow
+def test_a_killed_resource_tracker_is_restarted_quietly_and_keeps_the_pool_semaphores(capfd):
+    from multiprocessing import resource_tracker
+
+    from sweeps.executors import Executor, mend_resource_tracker
+
+    with Executor("local", workers=2) as pool:
+        assert pool.map(_square, range(4)) == [0, 1, 4, 9]
+        os.kill(resource_tracker._resource_tracker._pid, signal.SIGKILL)
+        time.sleep(0.5)
+        assert pool.map(_square, range(4, 8)) == [16, 25, 36, 49]
+        assert not mend_resource_tracker()   # mended at the loop's first turn
+    time.sleep(1.0)   # the tracker prints what it is told to release as it reads it
+    err = capfd.readouterr().err
+    assert "KeyError" not in err and "Traceback" not in err and "relaunching" not in err, err
