@@ -60,7 +60,6 @@ from pathlib import Path
 import pandas as pd
 
 
-from .config import METRIC_COLUMNS, RESERVED_COLUMNS
 from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
@@ -234,6 +233,10 @@ class ResultsStore(OutputFolder):
     def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
         """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
         docstring)."""
+        # deferred: the metric names come from the observables (which load numba); commands that never
+        # read a part (status of an empty folder, --help) stay light
+        from .config import METRIC_COLUMNS, RESERVED_COLUMNS
+
         try:
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged

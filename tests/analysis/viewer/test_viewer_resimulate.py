@@ -105,6 +105,11 @@ def test_a_run_that_does_not_reproduce_is_refused(sweep, tmp_path):
     row = runs.iloc[3].to_dict()
     runs.loc[3, "cohesion_mean"] = np.nextafter(runs.loc[3, "cohesion_mean"], 2.0)  # one ulp off
     runs.to_parquet(copy / "runs.parquet", index=False)
+    # as a folder written before checksums were recorded: the changed value is read, not quarantined
+    manifest = json.loads((copy / "manifest.json").read_text())
+    for key in ("checksums", "manifest_checksum"):
+        manifest.pop(key, None)
+    (copy / "manifest.json").write_text(json.dumps(manifest))
     tampered = select_run(copy, run_id=row["run_id"])
     with pytest.raises(NotReproduced, match="cohesion_mean: stored"):
         reproduce(copy, tampered)
