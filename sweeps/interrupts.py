@@ -8,7 +8,9 @@
   finalised by the garbage collector (Python prints "Exception ignored in ..." and goes on). So the
   handlers also record the signal: ``raise_if_received()``, called by the executor at every turn of
   its loops, raises it again, and a block that ends normally after one raises it on exit. An
-  interrupted command always ends as interrupted, as a rule at its next task.
+  interrupted command always ends as interrupted, as a rule at its next task. A signal that lands in
+  a C callback (numba's compiler calls Python back while it caches objects) would be printed there as
+  "Exception ignored ...": the handler sends it again 50 ms later instead of raising it in the callback.
 * ``deferred()``: a context manager whose block is not interrupted by SIGINT or SIGTERM: a signal that
   arrives inside is held and delivered (to the handler in force before the block) when the block ends.
   Used around writes that must be whole (a results part with its time series, a chain step).
@@ -23,6 +25,7 @@ lock recognising a dead holder (:mod:`sweeps.lock`).
 """
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from contextlib import contextmanager
@@ -60,6 +63,23 @@ def raise_if_received() -> None:
         raise _exception(_received[-1][0])
 
 
+CALLBACK_FILES = ("/llvmlite/",)   # code that runs as a ctypes callback (numba's compiler caching objects)
+REDELIVER_S = 0.05
+
+
+def _inside_a_callback(frame) -> bool:
+    """Whether the interrupted Python frame runs inside a C callback, where an exception is printed as
+    "Exception ignored on calling ctypes callback function" and dropped."""
+    return frame is not None and any(part in frame.f_code.co_filename for part in CALLBACK_FILES)
+
+
+def _redeliver(signum: int) -> None:
+    """Send ``signum`` to this process again shortly, once the callback has returned."""
+    timer = threading.Timer(REDELIVER_S, os.kill, (os.getpid(), signum))
+    timer.daemon = True
+    timer.start()
+
+
 @contextmanager
 def signals_as_exceptions():
     """SIGINT -> KeyboardInterrupt, SIGTERM -> Terminated inside the block (main thread only); a signal
@@ -71,6 +91,9 @@ def signals_as_exceptions():
 
     def handler(signum, frame):
         received.append(signum)
+        if _inside_a_callback(frame):   # raised there, Python would print "Exception ignored" and go on
+            _redeliver(signum)
+            return
         raise _exception(signum)
 
     before = {sig: signal.getsignal(sig) for sig in HANDLED}

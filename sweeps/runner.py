@@ -158,11 +158,16 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool
 
 def _per_run_overhead(spec: RunSpec, per_cost: float, pilot_seconds: float) -> float:
     """Seconds a run costs besides its simulation: the cheapest run done whole (when its simulation is
-    short) minus its simulation alone, best of three each, warm; 0 when it is too long to time here."""
-    if spec.cost * per_cost > pilot_seconds:
+    short) minus its simulation alone, best of three each, warm; 0 when it is too long to time here
+    (its extrapolated simulation, and then its simulation timed once, longer than ``pilot_seconds``: the
+    extrapolation alone overstates a tiny run on a busy machine)."""
+    if spec.cost * per_cost > 20 * pilot_seconds:
+        return 0.0
+    alone = [_pilot(spec, spec.preset.run.n_steps)]
+    if alone[0] > pilot_seconds:
         return 0.0
     worker.execute_run(spec)   # warm: the metric kernels loaded or compiled
-    whole, alone = [], []
+    whole = []
     for _ in range(3):
         start = time.perf_counter()
         worker.execute_run(spec)

@@ -421,6 +421,9 @@ SIZES = [
                                                     "{d}/out", "--no-progress"), "split it"),
     run_case("saltelli n of 2^40", "design.n", axes=SALTELLI.format(n=2 ** 40)),
     cal_case("10^7 walkers without --yes", "--yes", walkers=10_000_000),
+    Case("calibrate: npe of 3e7 simulations without --yes", ("calibrate", "{d}/c.toml", "--out", "{d}/out"),
+         {"c.toml": calibration_text().split("[method]")[0] + '[method]\nkind = "npe"\n[method.npe]\n'
+                                                             'simulations = 30000000\n'}, 2, "--yes"),
 ]
 
 SPECIAL_FILES = [

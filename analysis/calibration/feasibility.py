@@ -42,6 +42,14 @@ def check_chain_size(walkers: int, steps: int, n_sim: int, dim: int, yes: bool =
                                             "long: use fewer walkers, steps or n_sim, or pass --yes to go ahead")
 
 
+def check_simulation_count(key: str, simulations: int, yes: bool = False) -> None:
+    """Gate a method that runs a known number of simulations (npe's training and held-out sets) as a chain
+    is gated: more than ``MAX_SIMULATIONS`` needs ``yes``."""
+    if simulations > MAX_SIMULATIONS and not yes:
+        raise BudgetError(key, f"{simulations:,} simulations (more than {MAX_SIMULATIONS:,}); that takes long: "
+                               "use fewer, or pass --yes to go ahead")
+
+
 def check_support(where: str, key: str, support: tuple[float, float], preset: Preset, integer: bool) -> None:
     """Both ends of the support the chain explores must be allowed values of ``key`` (see the module
     docstring); the message names ``where`` and the offending end."""

@@ -90,7 +90,7 @@ from .accounting import Accounting
 from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
-from .feasibility import check_chain_size
+from .feasibility import check_chain_size, check_simulation_count
 from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
@@ -227,7 +227,9 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     A chain too large to hold is refused, one of more than ``MAX_SIMULATIONS`` simulations needs ``yes``
     (:func:`~analysis.calibration.feasibility.check_chain_size`), before anything is written."""
     settings = config.method
-    if settings.kind != "optimize":
+    if settings.kind == "npe":
+        check_simulation_count("method.npe.simulations", settings.simulations + settings.heldout, yes)
+    elif settings.kind != "optimize":
         dim = len(config.names)
         check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
                          settings.n_sim if settings.kind == "emcee" else 0, dim, yes)

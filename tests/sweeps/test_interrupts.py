@@ -4,6 +4,7 @@ from __future__ import annotations
 import gc
 import os
 import signal
+import time
 
 import pytest
 
@@ -96,3 +97,21 @@ def test_a_deferred_block_is_finished_before_the_signal_is_raised():
                 steps.append("written whole")
             steps.append("after the block")
     assert steps == ["written whole"]
+
+
+def test_a_signal_inside_a_compiler_callback_is_delivered_after_it_returns():
+    """numba's compiler calls Python back from C (llvmlite's object cache); an exception raised there is
+    printed as "Exception ignored" and dropped, so the signal comes again once the callback returned."""
+    namespace: dict = {}
+    exec(compile("import signal\ndef callback(log):\n    signal.raise_signal(signal.SIGINT)\n"
+                 "    log.append('callback finished')\n", "/site-packages/llvmlite/binding/fake.py", "exec"),
+         namespace)
+    log: list[str] = []
+    with pytest.raises(KeyboardInterrupt):
+        with signals_as_exceptions():
+            namespace["callback"](log)
+            log.append("back in Python")
+            deadline = time.monotonic() + 5
+            while time.monotonic() < deadline:
+                time.sleep(0.01)
+    assert log == ["callback finished", "back in Python"]
