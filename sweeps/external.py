@@ -42,8 +42,9 @@ so a moved repository keeps its run ids and a changed script or program file cha
 closed, stdout and stderr to files there, in its own process group, killed with the group after
 ``timeout_s``. A timeout, a non-zero exit status (with the last lines of stderr), a missing output or an
 output that is not long-format tracks of one flock (:class:`CommandFailed`, :class:`MalformedOutput`) is
-the run's failure: the worker records it as failed with that reason and the sweep goes on. The scratch
-folder is removed afterwards.
+the run's failure: the worker records it as failed with that reason (the scratch folder's path written
+``{scratch}``, so a reason does not depend on where it ran) and the sweep goes on. The scratch folder is
+removed afterwards.
 """
 from __future__ import annotations
 
@@ -255,6 +256,11 @@ class CommandModel:
         argv[0] = str(self.program)
         return argv
 
+    @property
+    def label(self) -> str:
+        """The name of the last file the command names (the script an interpreter runs, else the program)."""
+        return Path(self.template[self.files[-1][0]]).name
+
     def uses(self, placeholder: str) -> bool:
         return any(placeholder in _fields(arg) for arg in self.template)
 
@@ -436,10 +442,10 @@ def run_command(model: CommandModel, values: dict, seed: int, scratch: Path) -> 
     if status != 0:
         tail = _tail(scratch / "stderr.txt")
         how = f"killed by signal {-status}" if status < 0 else f"exit status {status}"
-        raise CommandFailed(f"{Path(argv[0]).name} failed: {how}" + (f"; stderr ends:\n{tail}" if tail else
+        raise CommandFailed(f"{model.label} failed: {how}" + (f"; stderr ends:\n{tail}" if tail else
                                                                       "; nothing on stderr"))
     if not out.is_file():
-        raise CommandFailed(f"{Path(argv[0]).name} exited 0 but wrote no output: {model.output} ({{out}}) is missing")
+        raise CommandFailed(f"{model.label} exited 0 but wrote no output: {model.output} ({{out}}) is missing")
     return out
 
 
@@ -473,7 +479,10 @@ def run_external(run: ExternalRun, seed: int, settings: MetricSettings, label: s
     with tempfile.TemporaryDirectory(prefix=f"flocksweep-{label[:12]}-" if label else "flocksweep-") as folder:
         scratch = Path(folder)
         start = time.perf_counter()
-        out = run_command(run.model, dict(run.values), seed, scratch)
-        seconds = time.perf_counter() - start
-        times, series, summary = measure_output(out, run.model, settings)
+        try:
+            out = run_command(run.model, dict(run.values), seed, scratch)
+            seconds = time.perf_counter() - start
+            times, series, summary = measure_output(out, run.model, settings)
+        except (CommandFailed, MalformedOutput) as err:   # the same reason wherever the scratch folder was
+            raise type(err)(str(err).replace(str(scratch), "{scratch}")) from None
     return times, series, summary, seconds
