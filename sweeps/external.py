@@ -40,7 +40,7 @@ so a moved repository keeps its run ids and a changed script or program file cha
 
 **A run** (:func:`run_external`): a fresh scratch folder, the parameter files, the command with stdin
 closed, stdout and stderr to files there, in its own process group, killed with the group after
-``timeout_s``. A timeout, a non-zero exit status (with the last lines of stderr), a missing output or an
+``timeout_s`` or when the run is interrupted (and on Linux by the kernel when its worker dies). A timeout, a non-zero exit status (with the last lines of stderr), a missing output or an
 output that is not long-format tracks of one flock (:class:`CommandFailed`, :class:`MalformedOutput`) is
 the run's failure: the worker records it as failed with that reason (the scratch folder's path written
 ``{scratch}``, so a reason does not depend on where it ran) and the sweep goes on. The scratch folder is
@@ -48,6 +48,7 @@ removed afterwards.
 """
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import hashlib
 import json
@@ -59,6 +60,7 @@ import shutil
 import signal
 import string
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -78,6 +80,7 @@ NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 OUTPUT_SUFFIXES = (".csv", ".csv.gz", ".parquet")
 STDERR_LINES = 12          # the last lines of stderr kept in a failed run's reason
 STDERR_CHARS = 2000
+PR_SET_PDEATHSIG = 1       # linux/prctl.h
 
 
 class CommandFailed(RuntimeError):
@@ -412,6 +415,21 @@ def _write_params(model: CommandModel, values: dict, scratch: Path) -> None:
         (scratch / "params.toml").write_text(tomli_w.dumps(values))
 
 
+def _dies_with_parent():
+    """A ``preexec_fn`` that has the kernel kill the command when the worker that started it dies (Linux's
+    PR_SET_PDEATHSIG; a worker killed outright, e.g. by the pool on Ctrl-C, cannot kill it itself); None
+    elsewhere. Resolved before the fork, so the child only makes the one system call."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    args = (ctypes.c_int(PR_SET_PDEATHSIG), ctypes.c_ulong(signal.SIGKILL), ctypes.c_ulong(0), ctypes.c_ulong(0),
+            ctypes.c_ulong(0))
+    return lambda: prctl(*args)
+
+
 def _kill(process: subprocess.Popen) -> None:
     """Kill the command and everything it started (its own process group)."""
     try:
@@ -428,7 +446,7 @@ def run_command(model: CommandModel, values: dict, seed: int, scratch: Path) -> 
     argv = model.arguments(values, seed, out, scratch)
     with open(scratch / "stdout.txt", "wb") as stdout, open(scratch / "stderr.txt", "wb") as stderr:
         process = subprocess.Popen(argv, cwd=model.workdir, stdin=subprocess.DEVNULL, stdout=stdout, stderr=stderr,
-                                   start_new_session=True)
+                                   start_new_session=True, preexec_fn=_dies_with_parent())
         try:
             status = process.wait(timeout=model.timeout_s)
         except subprocess.TimeoutExpired:

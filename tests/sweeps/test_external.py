@@ -5,7 +5,11 @@ the stored sweep, and the same rows from the serial and the local executor."""
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -65,16 +69,16 @@ def write_sweep(folder: Path, body: str = FAULTS_AXIS, model_lines: str = "", cm
     return path
 
 
-def hanging() -> list[str]:
-    """Processes the hanging fault started that are still there."""
-    found = []
+def processes_with(marker: str) -> dict[int, str]:
+    """{pid: command line} of the running processes whose command line holds ``marker``."""
+    found = {}
     for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
         try:
             text = cmdline.read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if "faulty-sim-grandchild" in text:
-            found.append(text)
+        if marker in text:
+            found[int(cmdline.parent.name)] = text
     return found
 
 
@@ -214,7 +218,7 @@ def test_a_sweep_with_faults_records_them_and_completes_the_rest(tmp_path):
     assert ok["polarization_mean"].between(0, 1).all() and ok["polarization_mean"].is_monotonic_decreasing
     assert ok["visible_mean_mean"].isna().all()   # nobody measures perception from tracks
     assert table.loc["crash", metrics].isna().all()
-    assert not hanging(), "the timed-out command's own child was left running"
+    assert not processes_with("faulty-sim-grandchild"), "the timed-out command's own child was left running"
 
     # each ok row is what `flocksweep measure` makes of that run's output: rerun the command by hand
     spec = [s for s in expand(load_sweep(sweep)) if dict(s.command.values)["noise"] == 0.5][0]
@@ -256,3 +260,28 @@ def test_the_shipped_example_sweep_runs_from_the_command_line(tmp_path, capsys):
     # more noise, less order, at either radius (3 levels, fixed seeds)
     for _, group in table.groupby("radius"):
         assert group.sort_values("noise")["polarization_mean"].is_monotonic_decreasing
+
+
+def test_a_command_dies_with_the_worker_that_started_it(tmp_path):
+    """A worker killed outright (as the pool kills its workers on Ctrl-C) takes its command along (Linux)."""
+    marker = f"external-orphan-{tmp_path.name}"
+    sweep = write_sweep(tmp_path, "", cmd=json.dumps([sys.executable, "-c", "import time; time.sleep(600)",
+                                                      "{out}", marker]))
+    script = ("import sys; from pathlib import Path; from sweeps.config import load_sweep; "
+              "from sweeps.external import run_command; c = load_sweep(sys.argv[1]).command; "
+              "s = Path(sys.argv[2]); s.mkdir(); run_command(c, c.values({}), 1, s)")
+    worker = subprocess.Popen([sys.executable, "-c", script, str(sweep), str(tmp_path / "scratch")],
+                              env={**os.environ, "PYTHONPATH": str(ROOT)})
+    deadline = time.monotonic() + 60
+    while not processes_with(marker) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert processes_with(marker), "the command never started"
+    worker.kill()
+    worker.wait()
+    deadline = time.monotonic() + 10
+    while processes_with(marker) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = processes_with(marker)
+    for pid in left:   # this test's own orphans, so that a failure leaves nothing running
+        os.kill(pid, signal.SIGKILL)
+    assert not left
