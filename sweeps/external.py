@@ -261,8 +261,9 @@ class CommandModel:
 
     @property
     def label(self) -> str:
-        """The name of the last file the command names (the script an interpreter runs, else the program)."""
-        return Path(self.template[self.files[-1][0]]).name
+        """The name of the first file the command names after the program (the script an interpreter runs),
+        else the program's."""
+        return Path(self.template[self.files[min(1, len(self.files) - 1)][0]]).name
 
     def uses(self, placeholder: str) -> bool:
         return any(placeholder in _fields(arg) for arg in self.template)

@@ -285,3 +285,25 @@ def test_a_command_dies_with_the_worker_that_started_it(tmp_path):
     for pid in left:   # this test's own orphans, so that a failure leaves nothing running
         os.kill(pid, signal.SIGKILL)
     assert not left
+
+
+def test_the_netlogo_wrapper_pattern(tmp_path):
+    """configs/external/netlogo_flock.py drives a stand-in for netlogo-headless.sh (tests/sweeps/fake_netlogo.py:
+    turtles marching one patch per tick, slowed by 0.1 x vision's fraction, across the edges of a wrapping
+    world): the tracks come out unwrapped (no impossible speeds), and NetLogo's failure is the run's."""
+    cmd = [sys.executable, str(ROOT / "configs" / "external" / "netlogo_flock.py"), "--netlogo",
+           str(TESTS / "sweeps" / "fake_netlogo.py"), "--model", "Flocking.nlogo", "--seed", "{seed}",
+           "--out", "{out}", "--scratch", "{scratch}", "--ticks", "40", "{params}"]
+    parameters = ('\n[model.parameters]\npopulation = { default = 5, bounds = [1, 100], integer = true }\n'
+                  'vision = { default = 3.0, bounds = [0.0, 10.0] }\n[run]\ngroup_radius = 3.0\nwarmup = 0.0\n')
+    body = '[[axes]]\nkey = "vision"\nvalues = [1.0, 1.5]\n[[axes]]\nkey = "population"\nvalues = [6, 60]\n'
+    sweep = write_sweep(tmp_path, body, cmd=json.dumps(cmd), parameters=parameters)
+    table = run_sweep(load_sweep(sweep), None, tmp_path / "out", executor="serial", progress=False).table
+    ok = table[table["population"] == 6].set_index("vision")
+    assert list(ok["status"]) == ["ok", "ok"]
+    assert ok["speed_mean_mean"].to_numpy() == pytest.approx([1.0, 0.95], abs=1e-9)
+    assert ok["polarization_mean"].to_numpy() == pytest.approx([1.0, 1.0], abs=1e-12)
+    failed = table[table["population"] == 60]
+    assert (failed["status"] == "failed").all()
+    assert failed["error"].str.endswith("netlogo_flock.py failed: exit status 1; stderr ends:\nfake netlogo: "
+                                        "population too large\nnetlogo-headless failed with exit status 1").all()
