@@ -15,6 +15,12 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
                                              # into the preset's (set.perception.range = 30 changes
                                              # only that key), it does not replace it
 
+    # or, for an external simulator run as a command (sweeps.external; docs/sweeps.md):
+    # [model]
+    # command = ["mysim", "--seed", "{seed}", "--out", "{out}", "{params}"]
+    # [model.parameters]
+    # noise = { default = 0.3, bounds = [0, 3] }   # axes and bounds then name these parameters
+
     [run]                           # all optional; defaults from the preset / analysis
     n = 100                         # init.n
     duration = 30.0                 # seconds      (run.duration)
@@ -79,6 +85,11 @@ summarise (:func:`check_window`: ``record_interval <= duration`` and a record at
 Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is short for
 ``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`).
 ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, <= :data:`NAME_MAX` chars).
+
+A ``[model]`` table with ``command`` (:func:`model_table`) is an external simulator instead of a preset:
+:class:`SweepConfig` then has ``command`` (a validated :class:`~sweeps.external.CommandModel`), no preset
+(``preset_path`` None), swept keys that are its declared parameters (:func:`check_parameters`) and the
+metric settings of measured tracks (:func:`sweeps.external.command_metrics`).
 
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
