@@ -121,9 +121,9 @@ class Parameter:
         """``value`` if this parameter allows it (an integer parameter's whole float becomes an int), else a
         ConfigError at ``key`` saying what is allowed."""
         if self.choices is not None:
-            for choice in self.choices:
-                if type(choice) is type(value) and choice == value:
-                    return value
+            for choice in self.choices:   # the declared choice: 2.0 given for a choice 2 is 2, never True
+                if (type(choice) is type(value) or (_number(choice) and _number(value))) and choice == value:
+                    return choice
             raise ConfigError(key, f"got {value!r}; allowed: {', '.join(map(repr, self.choices))}")
         if not _number(value) or not math.isfinite(value):
             raise ConfigError(key, f"got {value!r}; expected a finite number")

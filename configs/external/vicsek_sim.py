@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """A noisy Vicsek-like flock in 3-D open space: the example external simulator of docs/sweeps.md.
 
-Each step every agent takes the mean heading of the agents within ``--radius`` (itself included), turns
-towards their centre with weight ``--cohesion``, adds Gaussian noise of sd ``--noise`` to the heading and
-moves at ``--speed`` for ``--dt`` seconds. The run is a pure function of its arguments and ``--seed``.
+Each step every agent takes the mean direction of the headings of the agents within ``--radius`` (itself
+included), turns towards their centre with weight ``--cohesion``, adds Gaussian noise of sd ``--noise`` to
+each component of that unit heading and moves at ``--speed`` for ``--dt`` seconds. The run is a pure function of its arguments and ``--seed``.
 It writes long-format tracks (CSV, one row per agent and record: id, t, x, y, z, vx, vy, vz in body
 lengths and seconds), the format ``flocksweep measure`` and a sweep's ``[model] command`` read.
 
@@ -41,7 +41,7 @@ def simulate(a):
         yield step * a.dt, pos.copy(), a.speed * heading
         near = np.linalg.norm(pos[:, None] - pos[None], axis=-1) < a.radius
         towards = near @ pos / near.sum(1, keepdims=True) - pos
-        heading = unit(near @ heading + a.cohesion * towards + a.noise * rng.normal(size=heading.shape))
+        heading = unit(unit(near @ heading) + a.cohesion * towards + a.noise * rng.normal(size=heading.shape))
         pos = pos + a.speed * heading * a.dt
 
 

@@ -307,3 +307,13 @@ def test_the_netlogo_wrapper_pattern(tmp_path):
     assert (failed["status"] == "failed").all()
     assert failed["error"].str.endswith("netlogo_flock.py failed: exit status 1; stderr ends:\nfake netlogo: "
                                         "population too large\nnetlogo-headless failed with exit status 1").all()
+
+
+def test_a_value_is_one_of_the_declared_choices():
+    from sweeps.external import Parameter
+
+    choice = Parameter(default=2, choices=(1, 2, "a", True))
+    assert [repr(choice.check(v, "k")) for v in (2.0, True, 1, "a")] == ["2", "True", "1", "'a'"]
+    for bad in (1.5, "A", False, None):
+        with pytest.raises(ConfigError, match=r"k: got .*; allowed: 1, 2, 'a', True"):
+            choice.check(bad, "k")
