@@ -73,7 +73,7 @@ from observables.measured import measure_tracks, track_settings
 from observables.resample import RECORDED
 from observables.summary import MetricSettings, summary_columns
 from observables.tracks import TrackSource, load_tracks
-from simcore.schema import ConfigError, build, suggest
+from simcore.schema import ConfigError, suggest
 
 PLACEHOLDERS = ("seed", "out", "scratch", "params", "params_json", "params_toml")
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")

@@ -23,7 +23,7 @@ from observables.resample import RECORDED
 from observables.summary import summary_columns
 from observables.tracks import TrackSource, load_tracks
 from simcore.schema import ConfigError
-from sweeps.config import SweepConfig, load_sweep
+from sweeps.config import load_sweep
 from sweeps.design import expand
 from sweeps.external import CommandFailed, run_command
 from sweeps.runner import run_sweep
