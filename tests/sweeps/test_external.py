@@ -250,6 +250,17 @@ def test_a_sweep_with_faults_records_them_and_completes_the_rest(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_dask_cluster_gives_the_serial_rows(tmp_path):
+    pytest.importorskip("dask.distributed")
+    config = load_sweep(ROOT / "configs" / "external" / "vicsek.toml",
+                        ["replicates=1", "model.parameters.duration.default=3.0"])
+    run_sweep(config, None, tmp_path / "serial", executor="serial", progress=False)
+    run_sweep(config, None, tmp_path / "dask", executor="dask", workers=2, progress=False)
+    assert (rows(tmp_path / "dask")["status"] == "ok").all() and len(rows(tmp_path / "dask")) == 6
+    assert_frame_equal(rows(tmp_path / "dask"), rows(tmp_path / "serial"), check_exact=True)
+
+
+@pytest.mark.slow
 def test_the_shipped_example_sweep_runs_from_the_command_line(tmp_path, capsys):
     sweep = ROOT / "configs" / "external" / "vicsek.toml"
     out = tmp_path / "vicsek"
