@@ -273,6 +273,8 @@ def test_the_shipped_example_sweep_runs_from_the_command_line(tmp_path, capsys):
         assert group.sort_values("noise")["polarization_mean"].is_monotonic_decreasing
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
 def test_a_command_dies_with_the_worker_that_started_it(tmp_path):
     """A worker killed outright (as the pool kills its workers on Ctrl-C) takes its command along (Linux)."""
     marker = f"external-orphan-{tmp_path.name}"
@@ -298,6 +300,7 @@ def test_a_command_dies_with_the_worker_that_started_it(tmp_path):
     assert not left
 
 
+@pytest.mark.slow
 def test_the_netlogo_wrapper_pattern(tmp_path):
     """configs/external/netlogo_flock.py drives a stand-in for netlogo-headless.sh (tests/sweeps/fake_netlogo.py:
     turtles marching one patch per tick, slowed by 0.1 x vision's fraction, across the edges of a wrapping
