@@ -196,6 +196,12 @@ def cmd_run(args) -> int:
         print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "
               f"(kept; --retry-failed reruns them), {len(plan.todo)} to run")
         workers = 1 if args.executor == "serial" else (args.workers or os.cpu_count())
+        if est.get("command"):
+            print(f"  estimated wall time: unknown: the runs are an external command's, and a dry run executes "
+                  f"nothing (each run may take up to model.timeout_s = {config.command.timeout_s:g} s; on "
+                  f"{workers} worker(s))")
+            print(f"  results directory: {out}")
+            return 0
         print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
               f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.0f} ms x {len(plan.todo)} runs, "
               f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")

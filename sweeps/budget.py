@@ -16,7 +16,8 @@ or a flock of 10^12 boids is refused in milliseconds, before any file is written
 * ``check_sweep(config, workers, yes=False, available=None)``: :class:`BudgetError` (a ConfigError
   naming the key) when one run needs more memory than the machine has available, when ``workers`` runs
   at once do (saying how many fit), when the design has more than :data:`MAX_RUNS` runs and ``yes`` is
-  not given, or when even building its list of runs would not fit in memory.
+  not given, or when even building its list of runs would not fit in memory (for a command model,
+  :mod:`sweeps.external`, only the last two: what its runs need is the command's business).
 * ``check_runs(key, n, n_steps, record_every, copies=1, available=None)``: the same memory check for
   ``copies`` runs at once of a single configuration (``flocksweep simulate``, a calibration's batch of
   ``n_sim`` replicates).
@@ -167,6 +168,8 @@ def check_sweep(config, workers: int, yes: bool = False, available: int | None =
     if runs > MAX_RUNS and not yes:
         raise BudgetError("axes", f"the design has {runs:,} runs (more than {MAX_RUNS:,}); building and running "
                                   "them takes long and a large results folder: pass --yes to go ahead")
+    if getattr(config, "command", None) is not None:
+        return runs   # a command's memory is its own: only the design's size is checked
     worst = worst_run(config)
     key = worst.origin["n"]
     one = check_runs(key, worst.n, worst.n_steps, worst.record_every, 1, available,

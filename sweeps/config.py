@@ -15,6 +15,12 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
                                              # into the preset's (set.perception.range = 30 changes
                                              # only that key), it does not replace it
 
+    # or, for an external simulator run as a command (sweeps.external; docs/sweeps.md):
+    # [model]
+    # command = ["mysim", "--seed", "{seed}", "--out", "{out}", "{params}"]
+    # [model.parameters]
+    # noise = { default = 0.3, bounds = [0, 3] }   # axes and bounds then name these parameters
+
     [run]                           # all optional; defaults from the preset / analysis
     n = 100                         # init.n
     duration = 30.0                 # seconds      (run.duration)
@@ -80,6 +86,11 @@ Overrides (``--set``) change keys of the file; ``model.<preset key>=value`` is s
 ``model.set.<preset key>=value``, and either changes that one key of the preset (:mod:`sweeps.model_set`).
 ``name`` is a plain folder name (no ``/``, ``\\``, control characters or leading dot, <= :data:`NAME_MAX` chars).
 
+A ``[model]`` table with ``command`` (:func:`model_table`) is an external simulator instead of a preset:
+:class:`SweepConfig` then has ``command`` (a validated :class:`~sweeps.external.CommandModel`), no preset
+(``preset_path`` None), swept keys that are its declared parameters (:func:`check_parameters`) and the
+metric settings of measured tracks (:func:`sweeps.external.command_metrics`).
+
 The file is read by the schema engine (:mod:`simcore.schema`) into the tables below; the ``[model]``
 and ``[run]`` tables (:class:`ModelTable`, :class:`RunTable`) are shared with calibration files, and
 :func:`model_data` applies them to the preset the same way for both. ``warmup``, ``group_radius`` and
@@ -103,6 +114,7 @@ from simcore.schema import (ConfigError, FileConfig, build, check_at_least, chec
                             set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns
+from .external import CommandModel, CommandTable, command_metrics, command_model
 from .model_set import flat_changes, model_overrides
 from .sensitivity import DesignTable, SensitivityDesign
 from .sweep_toml import sweep_toml
@@ -177,6 +189,25 @@ class SweepRunTable(RunTable):
         if not self.dcd_metrics and self.dcd_max_delay != DCD_MAX_DELAY:
             raise ConfigError("dcd_max_delay", "sets the directional correlation delays, which a sweep computes only "
                                                "with dcd_metrics = true: add it, or leave dcd_max_delay out")
+
+
+def model_table(data) -> ModelTable | CommandTable:
+    """A sweep file's ``[model]``: a :class:`~sweeps.external.CommandTable` when it gives ``command`` (an
+    external simulator), else a :class:`ModelTable` (a preset); never both."""
+    if not isinstance(data, dict):
+        raise ConfigError("model", f"expected a table, got {data!r}")
+    if "command" not in data:
+        return build(ModelTable, data, "model")
+    if "preset" in data or "set" in data:
+        raise ConfigError("model.preset" if "preset" in data else "model.set",
+                          "a [model] table names either a preset (a built-in model) or a command (an external "
+                          "simulator), not both")
+    table = build(CommandTable, data, "model")
+    for name in table.parameters:
+        if name in RESERVED_COLUMNS or name in METRIC_COLUMNS:
+            raise ConfigError(f"model.parameters.{name}", f"{name!r} is a column of the results; name the "
+                                                          "parameter otherwise (e.g. n_agents for n)")
+    return table
 
 
 MAX_AXIS_VALUES = 1_000_000   # an axis holds at most this many values: counted before any is listed
@@ -254,7 +285,8 @@ class SweepFile:
     """A sweep file's tables, type-checked (see the module docstring)."""
 
     name: str = field(metadata={"expected": "a non-empty string naming the sweep"})
-    model: ModelTable = field(metadata={"expected": 'a table naming a preset: [model] preset = "..."'})
+    model: Any = field(metadata={"expected": 'a table naming a preset ([model] preset = "...") or a command '
+                                             '([model] command = [...], sweeps.external)'})
     description: str = ""
     seed: int = 0
     replicates: int = 1
@@ -270,6 +302,7 @@ class SweepFile:
         "expected": 'a list of claims files, e.g. ["../claims/holland.toml"]'})
 
     def __post_init__(self):
+        object.__setattr__(self, "model", model_table(self.model))   # ModelTable or external.CommandTable
         check_name(self.name, "the sweep")
         check_at_least("seed", self.seed, 0)
         check_at_least("replicates", self.replicates, 1)
@@ -351,7 +384,7 @@ class SweepConfig(FileConfig, loader="load_sweep"):
     seed: int
     replicates: int
     common_random_numbers: bool
-    preset_path: Path
+    preset_path: Path | None                                          # None for a command model
     preset_data: dict = field(repr=False, compare=False, hash=False)  # preset TOML with all overrides
     metrics: MetricSettings
     storage: Storage
@@ -369,6 +402,7 @@ class SweepConfig(FileConfig, loader="load_sweep"):
         return [key for key, _, _ in block.bounds] if block else []
     claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
     text: str | None = field(default=None, repr=False, compare=False, hash=False)  # the file's text, if read from one
+    command: CommandModel | None = None   # an external simulator ([model] command, sweeps.external) instead of a preset
 
     @classmethod
     def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
@@ -525,7 +559,8 @@ def _leadership_on(setting, preset_data: dict, swept: list[str]) -> bool:
 def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
     """Validated sweep from a parsed TOML dict; ``base`` is the folder relative paths start from."""
     table = build(SweepFile, data)
-    preset_path, preset_data, _ = model_data(table.model, table.run, base)
+    command = command_model(table.model, base) if isinstance(table.model, CommandTable) else None
+    preset_path, preset_data, _ = model_data(table.model, table.run, base) if command is None else (None, {}, {})
     axes = tuple(parse_axis(a, k) for k, a in enumerate(table.axes))
     sample = parse_sample(table.sample) if table.sample else None
     design = parse_design(table.design) if table.design else None
@@ -539,7 +574,12 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
         dupes = sorted({x for x in items if items.count(x) > 1})
         if dupes:
             raise ConfigError("axes", f"{label} {dupes[0]!r} is swept twice")
-    metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys), table.run.dcd_metrics)
+    if command is None:
+        metrics = table.run.metrics(_leadership_on(table.run.leadership_metrics, preset_data, keys),
+                                    table.run.dcd_metrics)
+    else:
+        check_parameters(command, axes, sample or design)
+        metrics = command_metrics(table.run)
     claims = load_claims(table.claims, table.include_claims, base,
                          sweep_columns(axes, sample or design, metrics.leadership, metrics.dcd))
     return SweepConfig(name=table.name, description=table.description, seed=table.seed,
@@ -547,7 +587,20 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
                        report=table.report, source=data, design=design,
-                       points=parse_points(table.points, axes, keys), claims=claims)
+                       points=parse_points(table.points, axes, keys), claims=claims, command=command)
+
+
+def check_parameters(command: CommandModel, axes: tuple[Axis, ...], block) -> None:
+    """Every key a command model's design sweeps is one of its declared parameters."""
+    swept = [(f"axes[{i}].key{'s' if len(axis.keys) > 1 else ''}", key) for i, axis in enumerate(axes)
+             for key in axis.keys]
+    if block is not None:
+        table = "sample" if isinstance(block, Sample) else "design"
+        swept += [(f"{table}.bounds.{key}", key) for key, _, _ in block.bounds]
+    for where, key in swept:
+        if key not in command.names:
+            raise ConfigError(where, f"got {key!r}; not a parameter of the command{suggest(key, command.names)}: "
+                                     f"declared in [model.parameters]: {', '.join(command.names) or 'none'}")
 
 
 def load_sweep(path, overrides=(), replicates: int | None = None) -> SweepConfig:

@@ -36,6 +36,7 @@ from simcore.params import Preset, preset_from_dict
 from simcore.schema import ConfigError, get_dotted
 
 from .config import Storage, SweepConfig, check_window
+from .external import ExternalRun
 from .identity import canonical, point_key, run_id
 from .seeds import Tag, generator, run_seed
 from .sensitivity import unique_rows
@@ -49,18 +50,24 @@ class RunSpec:
     replicate: int
     seed: int
     columns: tuple[tuple[str, object], ...]  # swept parameters as (column, value), in factor order
-    preset: Preset
+    preset: Preset | None   # None for a run of a command model
     metrics: MetricSettings  # resolved for this run's model
     storage: Storage
+    command: ExternalRun | None = None   # a command model's run: the command and the run's parameter values
 
     @property
     def cost(self) -> float:
-        """Relative cost estimate (pairwise perception): steps x N^2."""
+        """Relative cost estimate (pairwise perception): steps x N^2; 1 for a command, whose cost is unknown."""
+        if self.preset is None:
+            return 1.0
         return self.preset.run.n_steps * float(self.preset.init.n) ** 2
 
 
-def base_preset(config: SweepConfig) -> Preset:
-    """The preset every design point starts from (ConfigError naming the key when it is invalid)."""
+def base_preset(config: SweepConfig) -> Preset | None:
+    """The preset every design point starts from (ConfigError naming the key when it is invalid); None for
+    a command model."""
+    if config.command is not None:
+        return None
     return preset_from_dict(copy.deepcopy(config.preset_data))
 
 
@@ -71,11 +78,18 @@ def integer_keys(base: Preset, keys) -> list[bool]:
             for key in keys]
 
 
-def sample_points(config: SweepConfig, base: Preset) -> list[tuple]:
+def _integer_keys(config: SweepConfig, base: Preset | None, keys) -> list[bool]:
+    """:func:`integer_keys` of the base preset, or of a command model's declared parameters."""
+    if config.command is not None:
+        return [config.command.parameter(key).integer for key in keys]
+    return integer_keys(base, keys)
+
+
+def sample_points(config: SweepConfig, base: Preset | None) -> list[tuple]:
     """The sampled block's points (tuples in bounds order), integer keys rounded; for a ``[design]``
     block the distinct rows of its sensitivity sample."""
     if config.design:
-        return unique_rows(config.design.rows(config.seed, integer_keys(base, config.design.keys)))
+        return unique_rows(config.design.rows(config.seed, _integer_keys(config, base, config.design.keys)))
     from scipy.stats import qmc  # imported here: scipy.stats takes most of a second to import
 
     sample = config.sample
@@ -90,7 +104,7 @@ def sample_points(config: SweepConfig, base: Preset) -> list[tuple]:
     lows = [lo for _, lo, _ in sample.bounds]
     highs = [hi for _, _, hi in sample.bounds]
     scaled = qmc.scale(unit, lows, highs) if d else unit
-    integer = integer_keys(base, [key for key, _, _ in sample.bounds])
+    integer = _integer_keys(config, base, [key for key, _, _ in sample.bounds])
     return [tuple(int(round(v)) if is_int else float(v) for v, is_int in zip(row, integer)) for row in scaled]
 
 
@@ -144,6 +158,9 @@ def _point_preset(base: Preset, overrides: list[tuple[str, object]], where: str)
 
 def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
     """(preset, resolved metric settings) of a stored run from ``model.json`` and its design/runs row."""
+    if "command" in model_record:
+        raise ValueError("a run of an external command cannot be rebuilt from model.json: it has no preset, and "
+                         "its output was measured and not kept")
     changes = {}
     for key in model_record["swept_keys"]:
         value = row[key]
@@ -191,21 +208,27 @@ def expand(config: SweepConfig) -> list[RunSpec]:
     seen: dict[str, str] = {}
     for point_index, (overrides, combo, origin) in enumerate(_design_points(config, base)):
         where = ", ".join(f"{k}={v!r}" for k, v in overrides) or "(the base model)"
-        preset = _point_preset(base, overrides, where)
-        check_window(config.metrics.warmup, preset.run, f" (at design point {where})" if overrides else "")
-        resolved = preset.to_dict()
-        values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
+        if config.command is None:
+            preset = _point_preset(base, overrides, where)
+            check_window(config.metrics.warmup, preset.run, f" (at design point {where})" if overrides else "")
+            resolved = preset.to_dict()
+            values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
+            metrics, command = config.metrics.resolve(preset.model), None
+        else:   # a command model: its declared parameters, each value checked before it is ever substituted
+            values = config.command.values(dict(overrides), where if overrides else "")
+            preset, metrics = None, config.metrics
+            resolved = {"command": config.command.identity, "parameters": values}
+            command = ExternalRun(config.command, tuple(values.items()))
         point = point_key({k: get_dotted(values, k) for k, _ in overrides})
         if point in seen:
             raise ConfigError(origin, f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")
         seen[point] = where
-        metrics = config.metrics.resolve(preset.model)
         columns = tuple(_columns(config, combo, values))
         for replicate in range(config.replicates):
             seed = run_seed(config.seed, None if config.common_random_numbers else point, replicate)
             rid = run_id(resolved, metrics, config.storage, seed)
             specs.append(RunSpec(run_id=rid, index=point_index * config.replicates + replicate,
                                  point_index=point_index, replicate=replicate, seed=seed, columns=columns,
-                                 preset=preset, metrics=metrics, storage=config.storage))
+                                 preset=preset, metrics=metrics, storage=config.storage, command=command))
     return specs

@@ -56,6 +56,9 @@ def stored_sweep(results_dir) -> tuple[SweepConfig, str]:
     if not record or source is None or design is None:
         raise FileNotFoundError(f"{results_dir}: not a sweep results folder (model.json, sweep.effective.json or "
                                 "design.parquet missing)")
+    if "command" in record:
+        raise ValueError(f"{results_dir}: a sweep of an external command (model.json names a command, not a preset):"
+                         " add points by adding them to its sweep file's [[points]] and running it again")
     source = _ordered_bounds(source, [str(k) for k in record.get("swept_keys", [])])
     rebuilt = copy.deepcopy(source)
     rebuilt["model"] = {**rebuilt.get("model", {}), "preset": record["preset_path"]}

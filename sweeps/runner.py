@@ -56,7 +56,7 @@ from .identity import canonical
 from .provenance import stamp
 from .status import resume_hint, status  # noqa: F401 - their home; imported from here too
 from .store import ResultsStore
-from .sweep_toml import portable, relocated
+from .sweep_toml import portable, relocated, relocated_workdir
 
 FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
 HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
@@ -71,14 +71,21 @@ class Plan:
 
 
 def design_table(specs: list[RunSpec]) -> pd.DataFrame:
+    """One row per run; ``n`` and ``steps`` for runs of a preset (a command's are its own business)."""
     return pd.DataFrame([{"run_id": s.run_id, "index": s.index, "point_index": s.point_index,
-                          "replicate": s.replicate, "seed": s.seed, "n": s.preset.init.n,
-                          "steps": s.preset.run.n_steps, **dict(s.columns)} for s in specs])
+                          "replicate": s.replicate, "seed": s.seed,
+                          **({"n": s.preset.init.n, "steps": s.preset.run.n_steps} if s.preset else {}),
+                          **dict(s.columns)} for s in specs])
 
 
 def model_record(config: SweepConfig, folder=None) -> dict:
     """What is needed to rebuild any run of the design from its row: the base preset (its path relative to
-    the results ``folder``; absolute without one), the swept keys."""
+    the results ``folder``; absolute without one), the swept keys. For a command model: the command
+    (:meth:`~sweeps.external.CommandModel.record`, its folder relative to ``folder``) instead of a preset."""
+    if config.command is not None:
+        workdir = portable(config.command.workdir, folder) if folder is not None else None
+        return {"command": config.command.record(workdir), "swept_keys": config.swept_keys,
+                "analysis": config.analysis_record()}
     path = portable(config.preset_path, folder) if folder is not None else str(config.preset_path)
     return {"preset": config.preset_data, "preset_path": path,
             "swept_keys": config.swept_keys,
@@ -127,8 +134,11 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool
     """
     from simcore.simulate import compile_seconds
 
-    boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
     startup = _process_age()
+    if any(s.command is not None for s in todo):   # a dry run executes nothing: a command's time is unknown
+        return {"boid_steps": 0, "seconds": math.nan, "compile_s": 0.0, "startup_s": startup,
+                "per_run_s": math.nan, "total_s": math.nan, "command": True}
+    boid_steps = sum(s.preset.init.n * s.preset.run.n_steps for s in todo)
     if not todo:
         return {"boid_steps": 0, "seconds": 0.0, "compile_s": 0.0, "startup_s": startup, "per_run_s": 0.0,
                 "total_s": startup}
@@ -323,8 +333,9 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
         plan = make_plan(specs, store, force, retry_failed)
         effective = with_claims({**config.source, "replicates": config.replicates}, config.claims)
         design = design_table(specs)
-        store.write_inputs(relocated(sweep_text, config.preset_path, out_dir), effective,
-                           model_record(config, out_dir), design)
+        stored_text = (relocated(sweep_text, config.preset_path, out_dir) if config.command is None
+                       else relocated_workdir(sweep_text, config.command.workdir, out_dir))
+        store.write_inputs(stored_text, effective, model_record(config, out_dir), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
         lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
                          if plan.todo else ([], []))
@@ -338,6 +349,9 @@ def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
     """The first run of each (dynamics, perception kind): simcore compiles a run loop for each."""
     first = {}
     for spec in specs:
+        if spec.preset is None:   # a command model: the metric kernels only
+            first.setdefault(("command",), spec)
+            continue
         model = spec.preset.model
         first.setdefault((model.dynamics, model.perception.kind), spec)
     return list(first.values())

@@ -4,7 +4,8 @@
 built from, with ``--set`` overrides and ``replicates`` applied) so that
 ``SweepConfig.from_toml`` of the text gives the same sweep: the same design and run ids. Two things
 change so the file runs from any folder: ``model.preset`` becomes the absolute path of the preset that
-was read (stored in a results folder, :func:`relocated` makes it relative to that folder), and ``include_claims`` are written out as ``[[claims]]`` tables (as in
+was read (stored in a results folder, :func:`relocated` makes it relative to that folder; a command
+model's ``model.workdir`` likewise, :func:`relocated_workdir`), and ``include_claims`` are written out as ``[[claims]]`` tables (as in
 ``sweep.effective.json``). Values TOML cannot hold (``None``, objects) raise
 :class:`~simcore.schema.ConfigError` naming the dotted key. The writer is ``tomli_w``.
 """
@@ -47,7 +48,10 @@ def toml_value(value, key: str):
 def sweep_toml(config) -> str:
     """TOML text of the sweep ``config`` (a :class:`sweeps.config.SweepConfig`); see the module docstring."""
     data = with_claims({**config.source, "replicates": config.replicates}, config.claims)
-    data["model"] = {**data.get("model", {}), "preset": str(config.preset_path)}
+    if config.command is not None:   # a command model: the folder it runs in (and its files are found from)
+        data["model"] = {**data.get("model", {}), "workdir": str(config.command.workdir)}
+    else:
+        data["model"] = {**data.get("model", {}), "preset": str(config.preset_path)}
     return HEADER + tomli_w.dumps(toml_value(data, ""))
 
 
@@ -72,3 +76,26 @@ def relocated(text: str, preset_path, folder) -> str:
     if count != 1 or tomllib.loads(changed).get("model", {}).get("preset") != portable(preset_path, folder):
         return text
     return changed
+
+
+def relocated_workdir(text: str, workdir, folder) -> str:
+    """A command model's sweep ``text`` with ``model.workdir`` (the folder its command runs in) relative to
+    ``folder``: a line added under ``[model]`` when the file has none, else the file written anew (its
+    comments lost). The stored sweep then runs the same command, with the same run ids, from ``folder``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        return text
+    if not isinstance(data.get("model"), dict):
+        return text
+    new = portable(workdir, folder)
+    wanted = {**data, "model": {**data["model"], "workdir": new}}
+    line = "workdir = " + tomli_w.dumps({"p": new})[4:].strip()
+    changed, count = re.compile(r"^(\[model\][ \t]*(#.*)?)$", re.M).subn(lambda m: m.group(1) + "\n" + line, text)
+    if "workdir" not in data["model"] and count == 1:
+        try:
+            if tomllib.loads(changed) == wanted:
+                return changed
+        except tomllib.TOMLDecodeError:
+            pass
+    return HEADER + tomli_w.dumps(toml_value(wanted, ""))

@@ -9,7 +9,9 @@ run's failure: it is raised, and the runner stops.
 
 A row is the run's identity and swept parameters, then ``status``, ``error``, ``sim_s``, ``wall_s``,
 then its summary (:func:`observables.summary.measure_run` of the records at the run's record
-interval). Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
+interval). A run of a command model (``spec.command``, :mod:`sweeps.external`) runs the command and
+measures its output as tracks instead (``sim_s``: the command's seconds); its timeout, non-zero exit or
+malformed output is the run's failure, recorded like any other. Trajectories (``keep = "trajectories"``) are written by the worker itself, atomically, to
 ``<out_dir>/trajectories/<run_id>.npz`` (:mod:`sweeps.trajectory`, every ``trajectory_every`` steps);
 on a cluster ``out_dir`` must be on a shared file system.
 """
@@ -23,10 +25,14 @@ from pathlib import Path
 
 import pandas as pd
 
+import numpy as np
+
+from observables.observed import ObservedFlock
 from observables.summary import check_finite, every_nth, measure_run
 from simcore import simulate
 
 from .design import RunSpec
+from .external import run_external
 from .files import WriteFailed
 from .trajectory import write_trajectory
 
@@ -66,20 +72,29 @@ def failed_rows(specs, reason: str) -> list[dict]:
     return rows
 
 
+def _simulated(spec: RunSpec, out_dir, start: float) -> tuple:
+    """(record times, series, summary row, simulation seconds) of a run of a preset."""
+    obs = _simulate(spec)
+    sim_s = time.perf_counter() - start
+    check_finite(obs)
+    if spec.storage.keep == "trajectories" and out_dir is not None:
+        _save_trajectory(spec, obs, out_dir)
+    records = every_nth(obs, spec.preset.run.record_every // obs.record_every)
+    series, summary = measure_run(records, spec.metrics)
+    return records.times, series, summary, sim_s
+
+
 def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]:
     row = base_row(spec)
     start = time.perf_counter()
     try:
-        obs = _simulate(spec)
-        sim_s = time.perf_counter() - start
-        check_finite(obs)
-        if spec.storage.keep == "trajectories" and out_dir is not None:
-            _save_trajectory(spec, obs, out_dir)
-        records = every_nth(obs, spec.preset.run.record_every // obs.record_every)
-        series, summary = measure_run(records, spec.metrics)
+        if spec.command is None:
+            times, series, summary, sim_s = _simulated(spec, out_dir, start)
+        else:   # an external command: its output measured as tracks (sim_s: the command's seconds)
+            times, series, summary, sim_s = run_external(spec.command, spec.seed, spec.metrics, spec.run_id)
         row.update(summary)
         row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
-        return row, pd.DataFrame({"run_id": spec.run_id, "t": records.times, **series})
+        return row, pd.DataFrame({"run_id": spec.run_id, "t": times, **series})
     except WriteFailed:
         raise   # the disk's fault, not the run's
     except Exception as err:  # a failing run is recorded, never fatal to the sweep
@@ -89,11 +104,26 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
 
 
 def warm_up(spec: RunSpec) -> None:
-    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run, so that
-    workers find them in the cache instead of each compiling its own."""
+    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run (for a command
+    model: the metric kernels, on a 3-individual observed flock), so that workers find them in the cache
+    instead of each compiling its own."""
+    if spec.command is not None:
+        measure_run(_tiny_flock(), spec.metrics)
+        return
     run = spec.preset.run
     obs = simulate(spec.preset.model, dataclasses.replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
     measure_run(obs, spec.metrics)
+
+
+def _tiny_flock() -> ObservedFlock:
+    """Three individuals flying along x for three records, all seen."""
+    times = np.arange(3) * 0.5
+    pos = np.zeros((3, 3, 3))
+    pos[:, :, 0] = times[:, None] + np.arange(3)[None, :]
+    vel = np.zeros((3, 3, 3))
+    vel[:, :, 0] = 2.0
+    return ObservedFlock(name="warm-up", ids=np.arange(3), times=times, pos=pos, vel=vel,
+                         present=np.ones((3, 3), dtype=bool), interval=0.5)
 
 
 def execute_batch(specs: list[RunSpec], out_dir=None) -> tuple[list[dict], pd.DataFrame | None]:

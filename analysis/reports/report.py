@@ -125,7 +125,8 @@ def _sections(ctx: Context, continuous, declared) -> list[tuple[str, object]]:
                   ("heatmaps", _heatmaps)]
     return steps + [("showcase runs re-simulated, time series", _shown_runs),
                     ("3-D traces", lambda c: _thumbnails(c, c.cells)),
-                    ("viewer pages", lambda c: c.blocks.extend(viewer_blocks(c.results.path, c.out, c.cells))),
+                    ("viewer pages", lambda c: c.blocks.extend(viewer_blocks(c.results.path, c.out, c.cells)
+                                                               if _resimulable(c) else [])),
                     ("replicate adequacy", _adequacy)]
 
 
@@ -308,9 +309,15 @@ def _timeseries(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
             "Metrics over time (mean over the cell's replicates, band: +-1 sd or min-max).")
 
 
+def _resimulable(ctx: Context) -> bool:
+    """Whether the sweep's runs can be re-simulated: not those of an external command (sweeps.external),
+    whose output was measured and not kept."""
+    return "command" not in ResultsStore(ctx.results.path).model()
+
+
 def _thumbnails(ctx: Context, cells: list[tuple[str, pd.DataFrame]]) -> None:
     record = ResultsStore(ctx.results.path).model()
-    if not record or not cells:
+    if not record or not cells or not _resimulable(ctx):
         return
     items, checks = [], []
     for name, rows in cells:
