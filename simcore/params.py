@@ -212,6 +212,57 @@ class Leadership:
 
 
 @dataclass(frozen=True)
+class Noise:
+    """Intrinsic noise on every boid's new velocity (docs/model.md section 3.5, :mod:`simcore.noise`): a von
+    Mises-Fisher turn of the heading each step, of concentration ``kappa`` per step or of angular sd
+    ``angular_sd_deg`` per sqrt(second) (kappa = 1 / (sd^2 dt), sd in radians), and a normal speed kick of
+    sd ``speed_sd`` per sqrt(second). Off (all unset / 0) by default."""
+
+    kappa: float | None = None
+    angular_sd_deg: float | None = None
+    speed_sd: float = 0.0
+
+    def __post_init__(self):
+        if self.kappa is not None:
+            _positive("noise.kappa", self.kappa)
+        if self.angular_sd_deg is not None:
+            _positive("noise.angular_sd_deg", self.angular_sd_deg)
+            if self.kappa is not None:
+                raise ConfigError("noise.angular_sd_deg", "give either noise.kappa or noise.angular_sd_deg, not both")
+        _non_negative("noise.speed_sd", self.speed_sd)
+
+    @property
+    def enabled(self) -> bool:
+        return self.kappa is not None or self.angular_sd_deg is not None or self.speed_sd > 0.0
+
+    def kappa_per_step(self, dt: float) -> float:
+        """The concentration of one step's turn; 0 without angular noise."""
+        if self.kappa is not None:
+            return self.kappa
+        if self.angular_sd_deg is not None:
+            return 1.0 / (math.radians(self.angular_sd_deg) ** 2 * dt)
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Cruise:
+    """A preferred speed (docs/model.md section 3.5): the speed relaxes to ``speed`` with time constant
+    ``tau`` seconds (a force along the heading). Off (``speed`` unset) by default."""
+
+    speed: float | None = None
+    tau: float = 1.0
+
+    def __post_init__(self):
+        if self.speed is not None:
+            _positive("cruise.speed", self.speed)
+        _positive("cruise.tau", self.tau)
+
+    @property
+    def enabled(self) -> bool:
+        return self.speed is not None
+
+
+@dataclass(frozen=True)
 class ModelParams:
     """Everything that defines the model (not the run): perception, rules, physics, world."""
 
@@ -227,6 +278,8 @@ class ModelParams:
     leadership: Leadership = field(default_factory=Leadership)
     reynolds: Reynolds = field(default_factory=Reynolds)
     boidspp: BoidsPP = field(default_factory=BoidsPP)
+    noise: Noise = field(default_factory=Noise)
+    cruise: Cruise = field(default_factory=Cruise)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
@@ -440,6 +493,10 @@ def model_dict(model: ModelParams) -> dict:
         del out["boidspp"]
     if not model.leadership.enabled:
         del out["leadership"]
+    if not model.noise.enabled:
+        del out["noise"]
+    if not model.cruise.enabled:
+        del out["cruise"]
     if model.world.obstacles:
         out["world"]["obstacles"] = canonical_obstacles(model.world.obstacles)
     else:
