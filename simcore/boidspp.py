@@ -19,8 +19,8 @@ One step s (time s dt):
    the predator it flees and skips the rules and the prey; else the blends alignment, cohesion,
    separation (alignment and cohesion over the neighbours, or with scope ``flock`` over every other
    boid, from sums over the flock taken once at the start of the step), then the prey seek; then the
-   random kick (steps that are multiples of ``every``), the obstacle fan avoidance, and the clamp to
-   [min_speed, max_speed];
+   random kick (steps that are multiples of ``every``), the obstacle fan avoidance, cruise and noise
+   when on (:func:`simcore.noise.drive`, drawn here), and the clamp to [min_speed, max_speed];
 5. the agents move, steered by the flock of time t: the predator toward (hunting) the mean offset to
    the boids (or, with ``target = "nearest"``, the offset to the nearest boid), or away from (leaving)
    the mean offset, the prey straight to its target (a new one on arrival);
@@ -47,7 +47,8 @@ from .jit import inline
 from .layout import BOUNDARY_PERIODIC, F, I
 from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, offset_to
 from .obstacle_avoidance import FAN_CLEAR, fan_avoid_direction
-from .rng import STREAM_RANDOM_FORCE, STREAM_TARGETS, uniform01
+from .noise import drive
+from .rng import STREAM_HEADING_NOISE, STREAM_RANDOM_FORCE, STREAM_SPEED_NOISE, STREAM_TARGETS, normal, uniform01
 
 
 @inline
@@ -331,6 +332,10 @@ def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, i
         if ray != FAN_CLEAR:
             w = bp[B.AVOID_W] * dt
             vx, vy, vz = vx + w * dx, vy + w * dy, vz + w * dz
+    if ip[I.DRIVE] != 0:
+        vx, vy, vz = drive(vx, vy, vz, fwd[i, 0], fwd[i, 1], fwd[i, 2], uniform01(key, STREAM_HEADING_NOISE, step, 2 * i),
+                           uniform01(key, STREAM_HEADING_NOISE, step, 2 * i + 1),
+                           normal(key, STREAM_SPEED_NOISE, step, i), fp)
     return clamp_speed(vx, vy, vz, fwd[i, 0], fwd[i, 1], fwd[i, 2], bp[B.MIN_SPEED], max_speed)
 
 

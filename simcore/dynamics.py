@@ -15,6 +15,9 @@ Compiled with numba.
    always orthonormal; when f is parallel to u, s falls back to the old side made orthogonal to f);
    then the boundary (sphere wrap or periodic box).
 
+With cruise or noise (docs/model.md section 3.5) the velocity of step 4 is driven by
+:func:`simcore.noise.drive` before its truncation (off: not a bit changes).
+
 All arrays are float64 (N, 3); ``vel`` holds v = speed f.
 """
 from __future__ import annotations
@@ -24,6 +27,7 @@ import math
 
 from .jit import inline
 from .layout import BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F, I
+from .noise import drive_row
 from .rules import normalized
 
 SMOOTH_MIN, SMOOTH_MAX = 0.15, 0.4
@@ -105,9 +109,11 @@ def apply_boundary(i, pos, fp, ip):
 
 
 @inline
-def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0, dvy=0.0, dvz=0.0, cap=-1.0):
+def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx, dvy, dvz, cap, draws, col):
     """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz). A leader's escape
-    adds (dvx, dvy, dvz) to the new velocity before truncation to ``cap`` (default: max_speed)."""
+    adds (dvx, dvy, dvz) to the new velocity before truncation to ``cap`` (< 0: max_speed); with cruise or
+    noise (``ip[I.DRIVE]``) the new velocity is driven (:func:`simcore.noise.drive`, boid i's draws in
+    ``draws[i, col:]``) before the truncation."""
     dt = fp[F.DT]
     max_speed = fp[F.MAX_SPEED]
     speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
@@ -126,6 +132,8 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0,
     vz = speed * fwd[i, 2] + acc[i, 2] * dt
     if dvx != 0.0 or dvy != 0.0 or dvz != 0.0:
         vx, vy, vz = vx + dvx, vy + dvy, vz + dvz
+    if ip[I.DRIVE] != 0:
+        vx, vy, vz = drive_row(vx, vy, vz, i, fwd, draws, col, fp)
     vx, vy, vz = truncated(vx, vy, vz, max_speed if cap < 0.0 else cap)
     vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
     pos[i, 0] += vx * dt
@@ -138,9 +146,10 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx=0.0,
 
 @inline
 def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up, side, acc, fp, ip,
-                       dvx, dvy, dvz, cap):
+                       dvx, dvy, dvz, cap, draws, col):
     """One Hartman-Benes frame of boid i (docs/model.md section 5): p' = p + dt v (the old velocity), then
-    v' = v + (S s + K k) / dt + M m (+ a leader's escape), clamped to ``cap``. ``acc`` holds the
+    v' = v + (S s + K k) / dt + M m (+ a leader's escape), driven by cruise and noise when on
+    (:func:`simcore.noise.drive`, draws in ``draws[i, col:]``), clamped to ``cap``. ``acc`` holds the
     realised acceleration (v' - v) / dt, which drives the banking frame as in OpenSteer."""
     dt = fp[F.DT]
     vx0, vy0, vz0 = vel[i, 0], vel[i, 1], vel[i, 2]
@@ -153,6 +162,8 @@ def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up,
     vz = vz0 + (gs * sz + gk * kz) / dt + gm * mz
     if dvx != 0.0 or dvy != 0.0 or dvz != 0.0:
         vx, vy, vz = vx + dvx, vy + dvy, vz + dvz
+    if ip[I.DRIVE] != 0:
+        vx, vy, vz = drive_row(vx, vy, vz, i, fwd, draws, col, fp)
     vx, vy, vz = truncated(vx, vy, vz, cap)
     vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
     acc[i, 0], acc[i, 1], acc[i, 2] = (vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt

@@ -42,6 +42,18 @@ def sin_deg(angle_deg: float) -> float:
     return math.sin(math.radians(angle_deg))
 
 
+def speed_kick(model: ModelParams, dt: float) -> float:
+    """The sd of one step's speed kick (:mod:`simcore.noise`, step 3): the exact Ornstein-Uhlenbeck step
+    with cruise, sigma sqrt(dt) without."""
+    sigma = model.noise.speed_sd
+    if sigma == 0.0:
+        return 0.0
+    if not model.cruise.enabled:
+        return sigma * math.sqrt(dt)
+    tau = model.cruise.tau
+    return sigma * math.sqrt(-0.5 * tau * math.expm1(-2.0 * dt / tau))
+
+
 # float parameters: slot name -> its value from the validated model and the step dt
 FLOAT_SLOTS = {
     "SEP_W": lambda m, dt: m.steering.separation_weight,
@@ -83,6 +95,10 @@ FLOAT_SLOTS = {
     "LEAD_REFRACTORY": lambda m, dt: m.leadership.refractory,
     "SLOW_SPEED": lambda m, dt: m.slow_speed,
     "PERCEPTION_RANGE": lambda m, dt: m.perception_range,
+    "NOISE_KAPPA": lambda m, dt: m.noise.kappa_per_step(dt),
+    "SPEED_KICK": lambda m, dt: speed_kick(m, dt),
+    "CRUISE_SPEED": lambda m, dt: m.cruise.speed if m.cruise.enabled else 0.0,
+    "CRUISE_DECAY": lambda m, dt: math.exp(-dt / m.cruise.tau) if m.cruise.enabled else 1.0,
 }
 
 # integer parameters (choices as their position in the params tuples, flags as 0/1)
@@ -101,6 +117,7 @@ INT_SLOTS = {
     "DYNAMICS": lambda m, dt: DYNAMICS.index(m.dynamics),
     "LEADERSHIP": lambda m, dt: int(m.leadership.enabled),
     "FRONT_GATE": lambda m, dt: FRONT_GATES.index(m.leadership.front_gate),
+    "DRIVE": lambda m, dt: int(m.noise.enabled or m.cruise.enabled),
 }
 
 F = IntEnum("F", list(FLOAT_SLOTS), start=0)

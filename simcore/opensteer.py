@@ -4,7 +4,8 @@ the change of leadership (section 5.4, :mod:`simcore.leadership`).
 
 ``sense`` stores boid i's raw steering force in its ``OS`` columns of the per-boid buffer (and, with
 leadership, decides its trigger from its cohesion offset); ``move`` applies the vehicle physics with that
-force (plus a leader's escape). The shared slots ``fp``/``ip`` hold every parameter: its own group
+force (plus a leader's escape), driven by cruise and noise when on (:mod:`simcore.noise`: ``sense`` stores
+the boid's draws after its force). The shared slots ``fp``/``ip`` hold every parameter: its own group
 ``dyn`` is empty.
 """
 from __future__ import annotations
@@ -14,10 +15,12 @@ import numpy as np
 from .dynamics import apply_steering
 from .layout import I, OS
 from .leadership import escape_of, sense_trigger
+from .noise import DRAWS, store_draws
 from .rules import cohesion_offset, opensteer_force
 
 THREADS = True
-WIDTH = len(OS)  # per-boid scratch columns
+DRAWS_AT = len(OS)  # the first column of the noise draws
+WIDTH = DRAWS_AT + DRAWS  # per-boid scratch columns: the force, then the noise draws (simcore.noise)
 
 
 def empty_dyn():
@@ -39,6 +42,8 @@ def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
     steer = scratch[0]
     steer[i, OS.FX], steer[i, OS.FY], steer[i, OS.FZ] = opensteer_force(i, m, fwd, pattern, fp, ip, nbrs.idx,
                                                                        nbrs.off, nbrs.mask)
+    if ip[I.DRIVE] != 0:
+        store_draws(steer, i, DRAWS_AT, key, step)
     if ip[I.LEADERSHIP] == 0:
         return False
     kx, ky, kz, m_coh = cohesion_offset(m, nbrs.off, nbrs.mask)
@@ -51,4 +56,4 @@ def move(dynamics, i, state, params, scratch):
     steer = scratch[0]
     dvx, dvy, dvz, cap = escape_of(i, vel, clock, escape, fp, ip)
     apply_steering(i, steer[i, OS.FX], steer[i, OS.FY], steer[i, OS.FZ], pos, vel, fwd, up, side, acc, fp, ip,
-                   dvx, dvy, dvz, cap)
+                   dvx, dvy, dvz, cap, steer, DRAWS_AT)

@@ -11,7 +11,8 @@ Preset keys have one alias, ``n`` for ``init.n`` (:data:`KEY_ALIASES`, :func:`ca
 ``[run]`` tables of sweep and calibration files set four preset keys by short names
 (:data:`RUN_SHORTHANDS`).
 
-Angles are in degrees, lengths in world units (body radius 0.5), times in seconds.
+Angles are in degrees, lengths in world units (body lengths: body radius 0.5), times in seconds; a file
+may state its lengths in metres with a ``[units]`` table (:mod:`simcore.units`), converted when it is read.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
 from .obstacle_spec import Obstacle, canonical_obstacles
 from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
 from .reynolds_params import ALLOCATIONS, MIGRATION_WHO, Reynolds  # noqa: F401
+from .units import Units, to_body_lengths
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
@@ -212,6 +214,57 @@ class Leadership:
 
 
 @dataclass(frozen=True)
+class Noise:
+    """Intrinsic noise on every boid's new velocity (docs/model.md section 3.5, :mod:`simcore.noise`): a von
+    Mises-Fisher turn of the heading each step, of concentration ``kappa`` per step or of angular sd
+    ``angular_sd_deg`` per sqrt(second) (kappa = 1 / (sd^2 dt), sd in radians), and a normal speed kick of
+    sd ``speed_sd`` per sqrt(second). Off (all unset / 0) by default."""
+
+    kappa: float | None = None
+    angular_sd_deg: float | None = None
+    speed_sd: float = 0.0
+
+    def __post_init__(self):
+        if self.kappa is not None:
+            _positive("noise.kappa", self.kappa)
+        if self.angular_sd_deg is not None:
+            _positive("noise.angular_sd_deg", self.angular_sd_deg)
+            if self.kappa is not None:
+                raise ConfigError("noise.angular_sd_deg", "give either noise.kappa or noise.angular_sd_deg, not both")
+        _non_negative("noise.speed_sd", self.speed_sd)
+
+    @property
+    def enabled(self) -> bool:
+        return self.kappa is not None or self.angular_sd_deg is not None or self.speed_sd > 0.0
+
+    def kappa_per_step(self, dt: float) -> float:
+        """The concentration of one step's turn; 0 without angular noise."""
+        if self.kappa is not None:
+            return self.kappa
+        if self.angular_sd_deg is not None:
+            return 1.0 / (math.radians(self.angular_sd_deg) ** 2 * dt)
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Cruise:
+    """A preferred speed (docs/model.md section 3.5): the speed relaxes to ``speed`` with time constant
+    ``tau`` seconds (a force along the heading). Off (``speed`` unset) by default."""
+
+    speed: float | None = None
+    tau: float = 1.0
+
+    def __post_init__(self):
+        if self.speed is not None:
+            _positive("cruise.speed", self.speed)
+        _positive("cruise.tau", self.tau)
+
+    @property
+    def enabled(self) -> bool:
+        return self.speed is not None
+
+
+@dataclass(frozen=True)
 class ModelParams:
     """Everything that defines the model (not the run): perception, rules, physics, world."""
 
@@ -227,6 +280,8 @@ class ModelParams:
     leadership: Leadership = field(default_factory=Leadership)
     reynolds: Reynolds = field(default_factory=Reynolds)
     boidspp: BoidsPP = field(default_factory=BoidsPP)
+    noise: Noise = field(default_factory=Noise)
+    cruise: Cruise = field(default_factory=Cruise)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
@@ -368,6 +423,7 @@ class Preset:
     model: ModelParams
     init: InitParams
     run: RunSettings
+    units: Units = field(default_factory=Units)  # what the file was written in (section 12); not part of identity
 
     def full_dict(self) -> dict:
         """Every key with its resolved value (nothing left out), for reading swept values back."""
@@ -403,7 +459,7 @@ class Preset:
         model = replace_fields(self.model, sections["model"], "")
         _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
         return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
-                      run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"))
+                      run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"), units=self.units)
 
 
 def _perception_keys(changes) -> list[str]:
@@ -440,6 +496,10 @@ def model_dict(model: ModelParams) -> dict:
         del out["boidspp"]
     if not model.leadership.enabled:
         del out["leadership"]
+    if not model.noise.enabled:
+        del out["noise"]
+    if not model.cruise.enabled:
+        del out["cruise"]
     if model.world.obstacles:
         out["world"]["obstacles"] = canonical_obstacles(model.world.obstacles)
     else:
@@ -467,11 +527,16 @@ def _check_kind_keys(kind, keys) -> None:
 def preset_from_dict(data: dict) -> Preset:
     """Validated :class:`Preset` from a parsed preset dict (see module docstring)."""
     data = dict(data)
+    units_table = data.pop("units", {})
+    if not isinstance(units_table, dict):
+        raise ConfigError("units", f"expected a table, got {units_table!r}")
+    units = build(Units, units_table, "units")
+    data = to_body_lengths(data, units)
     init = data.pop("init", {})
     run = data.pop("run", {})
     for key in data:
         if key not in _MODEL_KEYS:
-            raise unknown_key(key, _MODEL_KEYS + ("init", "run"))
+            raise unknown_key(key, _MODEL_KEYS + ("init", "run", "units"))
     if isinstance(data.get("perception"), dict):
         _check_kind_keys(data["perception"].get("kind", Perception.kind), data["perception"])
     for name, table in (("init", init), ("run", run)):
@@ -482,7 +547,7 @@ def preset_from_dict(data: dict) -> Preset:
 
         init = {**init, "n": boid_count(init["from_file"])}
     return Preset(model=build(ModelParams, data), init=build(InitParams, init, "init"),
-                  run=build(RunSettings, run, "run"))
+                  run=build(RunSettings, run, "run"), units=units)
 
 
 def read_toml(path) -> dict:

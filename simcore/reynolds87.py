@@ -25,7 +25,7 @@ direction and an infinite weight), with w_j = |d_j|^-k:
    the requests' magnitudes (Reynolds' accumulator); ``weighted_sum`` adds all and truncates to
    ``max_accel``.
 
-``move_boid`` then sets v' = v + a dt, its length clamped into [min_speed, max_speed] (a boid at zero
+``move_boid`` then sets v' = v + a dt (driven by cruise and noise when on, :mod:`simcore.noise`), its length clamped into [min_speed, max_speed] (a boid at zero
 speed restarts at min_speed along f), p += v' dt, stores the realised acceleration (v' - v) / dt in ``acc``,
 rebuilds the banking frame (:func:`simcore.dynamics.rebuild_frame`) and applies the boundary.
 Synchronous order: every boid's acceleration from the state at t, then all move; sequential: boid i
@@ -40,7 +40,8 @@ import numpy as np
 
 from .dynamics import apply_boundary, rebuild_frame
 from .jit import inline
-from .layout import F
+from .layout import F, I
+from .noise import DRAWS, drive_row, store_draws
 from .obstacle_avoidance import steer_to_avoid
 from .obstacle_spec import pack_obstacles
 from .reynolds_params import ALLOCATIONS, MIGRATION_WHO
@@ -194,11 +195,14 @@ def boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds):
 
 
 @inline
-def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp):
-    """Velocity, position, frame and boundary update of boid i under acceleration a (module docstring)."""
+def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp, draws, col):
+    """Velocity, position, frame and boundary update of boid i under acceleration a (module docstring);
+    boid i's noise draws (when cruise or noise is on) are in ``draws[i, col:]``."""
     dt = fp[F.DT]
     vx0, vy0, vz0 = vel[i, 0], vel[i, 1], vel[i, 2]
     vx, vy, vz = vx0 + ax * dt, vy0 + ay * dt, vz0 + az * dt
+    if ip[I.DRIVE] != 0:
+        vx, vy, vz = drive_row(vx, vy, vz, i, fwd, draws, col, fp)
     speed = math.sqrt(vx * vx + vy * vy + vz * vz)
     lo, hi = rp[R.MIN_SPEED], rp[R.MAX_SPEED]
     if speed > hi:
@@ -230,7 +234,8 @@ def pack(model, dt):
 
 
 def scratch(dynamics, n):
-    return np.zeros((n, 3), np.float64), np.zeros((0, 3), np.float64)
+    """Per boid: its acceleration (columns 0-2), then its noise draws (:mod:`simcore.noise`)."""
+    return np.zeros((n, 3 + DRAWS), np.float64), np.zeros((0, 3), np.float64)
 
 
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
@@ -240,6 +245,8 @@ def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
     rp, ri, table, kinds, fan = dyn
     accel = scratch[0]
     accel[i, 0], accel[i, 1], accel[i, 2] = boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds)
+    if ip[I.DRIVE] != 0:
+        store_draws(accel, i, 3, key, step)
     return False
 
 
@@ -247,4 +254,4 @@ def move(dynamics, i, state, params, scratch):
     pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
     fp, ip, dyn = params
     accel = scratch[0]
-    move_boid(i, accel[i, 0], accel[i, 1], accel[i, 2], pos, vel, fwd, up, side, acc, fp, ip, dyn[0])
+    move_boid(i, accel[i, 0], accel[i, 1], accel[i, 2], pos, vel, fwd, up, side, acc, fp, ip, dyn[0], accel, 3)

@@ -6,7 +6,7 @@
   still cite the external specification, so that test is an expected failure (``strict``): it turns
   into a failure the day the last such docstring is fixed, and then its marker must go.
 * Every key of simcore's parameter dataclasses (``ModelParams`` and its tables, ``InitParams``,
-  ``RunSettings``) has a row in section 9 of docs/model.md, with its true default and, for keys with a
+  ``RunSettings``, ``Units``) has a row in section 9 of docs/model.md, with its true default and, for keys with a
   fixed set of values, exactly those values; and no row documents a key that does not exist.
   Keys inside a list of tables are written ``list[k].field`` (``patterns.set[k].bits``).
 """
@@ -23,6 +23,7 @@ import pytest
 
 from simcore import boidspp_params, params
 from simcore.params import InitParams, ModelParams, RunSettings
+from simcore.units import Units
 from paths import ROOT
 
 MODEL_DOC = ROOT / "docs" / "model.md"
@@ -107,7 +108,7 @@ def _keys_of(cls, prefix: str):
 
 def config_keys() -> dict[str, dataclasses.Field]:
     keys = {}
-    for cls, prefix in ((ModelParams, ""), (InitParams, "init."), (RunSettings, "run.")):
+    for cls, prefix in ((ModelParams, ""), (InitParams, "init."), (RunSettings, "run."), (Units, "units.")):
         for key, field in _keys_of(cls, prefix):
             assert key not in keys, f"key {key} defined twice"
             keys[key] = field

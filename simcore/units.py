@@ -1,0 +1,111 @@
+"""The units a preset file is written in: body lengths (the simulator's own) or metres (docs/model.md section 12).
+
+The simulator's length unit is the body length (BL: a boid's body radius is 0.5), its time unit the
+second. A preset file may instead state its lengths in metres with a ``[units]`` table::
+
+    [units]
+    length = "m"            # "bl" (default): body lengths; "m": metres
+    body_length_m = 0.3     # the species' body length in metres (required with length = "m")
+
+:func:`to_body_lengths` then divides every value that carries length by ``body_length_m`` to the power
+it carries (:data:`LENGTH_POWER`: 1 for a length, a speed or an acceleration; the separation weights,
+whose request sums ``d / |d|^k``, carry ``1 + k`` in Reynolds 1987 and ``k`` in Hartman-Beneš), before
+the model is validated: a preset in metres and its twin in body lengths are the same :class:`Preset`,
+bit for bit. Times, angles, counts and dimensionless gains are unchanged (:data:`NO_LENGTH`). Only the
+file (and ``--set`` overrides of it) is in metres: the loaded preset, ``Preset.replace`` and sweep values
+are in body lengths. Tables this module does not convert (``[boidspp]``, ``world.obstacles``) are refused
+in a file in metres, naming the key. ``tests/simcore/test_units.py`` checks that every numeric key of the
+model is classified here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .schema import ConfigError, check_choice, check_positive
+
+LENGTH_UNITS = ("bl", "m")
+
+
+@dataclass(frozen=True)
+class Units:
+    """The ``[units]`` table: ``length`` ("bl" or "m") and ``body_length_m`` (metres; required for "m")."""
+
+    length: str = "bl"
+    body_length_m: float | None = None
+
+    def __post_init__(self):
+        check_choice("units.length", self.length, LENGTH_UNITS)
+        if self.body_length_m is not None:
+            check_positive("units.body_length_m", self.body_length_m)
+        elif self.length == "m":
+            raise ConfigError("units.body_length_m", "required with units.length = 'm': the body length of "
+                                                     "the species in metres (e.g. 0.3 for a homing pigeon)")
+
+
+def _reynolds_separation(data: dict) -> float:
+    return 1.0 + _number(data.get("reynolds", {}).get("falloff_exponent", 2.0))
+
+
+def _hb_separation(data: dict) -> float:
+    return _number(data.get("gains", {}).get("separation_falloff_exponent", 2.0))
+
+
+# dotted key -> the power of length it carries (a number, or a function of the file's data)
+LENGTH_POWER = {
+    **{f"perception.{k}": 1 for k in ("radius", "near_radius", "separation_radius", "alignment_radius",
+                                      "cohesion_radius", "range", "head_radius", "body_radius", "max_distance")},
+    **{f"steering.{k}": 1 for k in ("separation_weight", "alignment_weight", "cohesion_weight")},
+    "vehicle.max_speed": 1, "vehicle.max_force": 1,
+    "world.sphere_radius": 1, "world.box_size": 1,
+    "gains.separation": _hb_separation,
+    "leadership.slow_speed": 1,
+    **{f"reynolds.{k}": 1 for k in ("max_accel", "min_speed", "max_speed", "obstacle_weight", "lookahead",
+                                    "avoid_margin", "body_radius", "migration_weight")},
+    "reynolds.separation_weight": _reynolds_separation,
+    "noise.speed_sd": 1,
+    "cruise.speed": 1,
+    "init.radius": 1, "init.speed": 1,
+}
+
+# numeric keys that carry no length: times, angles, cosines, counts, dimensionless gains
+NO_LENGTH = {
+    *(f"perception.{k}" for k in ("separation_cos", "alignment_cos", "cohesion_cos", "direction_deg",
+                                  "eye_position_deg", "field_deg", "neighbours", "blind_deg")),
+    "vehicle.mass", "gains.cohesion", "gains.alignment", "gains.separation_falloff_exponent",
+    *(f"leadership.{k}" for k in ("x", "sigma", "duration", "gain", "boost", "refractory")),
+    "reynolds.falloff_exponent", "reynolds.alignment_weight", "reynolds.cohesion_weight",
+    "reynolds.migration_direction", "noise.kappa", "noise.angular_sd_deg", "cruise.tau",
+    "init.n", "run.duration", "run.dt", "run.record_interval",
+}
+
+# what a file in metres may not hold (not converted here)
+REFUSED = ("boidspp", "world.obstacles")
+
+
+def _number(value) -> float:
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else 2.0
+
+
+def to_body_lengths(data: dict, units: Units) -> dict:
+    """The preset dict ``data`` (model keys, ``init``, ``run``) with every length-carrying value in body
+    lengths; unchanged when ``units.length`` is "bl". Values that are not numbers are left for validation."""
+    if units.length == "bl":
+        return data
+    if "boidspp" in data or data.get("dynamics") == "boidspp":
+        raise ConfigError("units.length", "got 'm', but the Boids++ dynamics' keys are not converted from metres: "
+                                          "state this model in body lengths (units.length = 'bl')")
+    if isinstance(data.get("world"), dict) and data["world"].get("obstacles"):
+        raise ConfigError("units.length", "got 'm', but world.obstacles are not converted from metres: state "
+                                          "this model in body lengths (units.length = 'bl')")
+    scale = units.body_length_m
+    out = {key: dict(value) if isinstance(value, dict) else value for key, value in data.items()}
+    for dotted, power in LENGTH_POWER.items():
+        table, key = dotted.split(".")
+        section = out.get(table)
+        if not isinstance(section, dict) or key not in section:
+            continue
+        value = section[key]
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            exponent = power(data) if callable(power) else power
+            section[key] = value / scale ** exponent
+    return out
