@@ -25,6 +25,8 @@ from .jit import inline
 STREAM_LEADERSHIP = 1
 STREAM_RANDOM_FORCE = 2
 STREAM_TARGETS = 3
+STREAM_COUZIN_NOISE = 8   # couzin2002: the angular noise (normals)
+STREAM_VICSEK_NOISE = 9   # vicsek: the angular noise (uniforms)
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

@@ -89,10 +89,13 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
 
 
 def warm_up(spec: RunSpec) -> None:
-    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run, so that
-    workers find them in the cache instead of each compiling its own."""
-    run = spec.preset.run
-    obs = simulate(spec.preset.model, dataclasses.replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
+    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run (the file's
+    boids when the run starts from ``init.from_file``: its count is fixed), so that workers find them in
+    the cache instead of each compiling its own."""
+    run, init = spec.preset.run, spec.preset.init
+    if init.from_file is None:
+        init = dataclasses.replace(init, n=3)
+    obs = simulate(spec.preset.model, init, 0, 2 * run.dt, run.dt, 1)
     measure_run(obs, spec.metrics)
 
 
