@@ -32,7 +32,7 @@ import numpy as np
 
 from .dynamics import apply_boundary
 from .jit import inline
-from .headings import rotate_planar, set_heading, tilt, turn_toward
+from .headings import float_dyn, heading_scratch, rotate_planar, set_heading, tilt, turn_toward, unit_heading
 from .layout import F, I, cos_deg
 from .rng import STREAM_COUZIN_NOISE, normal
 
@@ -124,24 +124,19 @@ def new_heading(i, step, m, nbrs, fwd, side, cp, dt, key, planar):
     dx, dy, dz = noisy(dx, dy, dz, cp[C.NOISE_SD], key, step, i, planar)
     hx, hy, hz = turn_toward(fwd[i, 0], fwd[i, 1], fwd[i, 2], dx, dy, dz, cp[C.TURN_RATE] * dt, side[i, 0],
                              side[i, 1], side[i, 2])
-    if planar:
-        hz = 0.0
-    norm = math.sqrt(hx * hx + hy * hy + hz * hz)
-    return hx / norm, hy / norm, hz / norm
+    return unit_heading(hx, hy, hz, planar)
 
 
 # run-loop hooks (simcore.hooks)
 THREADS = True
 
 
+scratch = heading_scratch   # per boid: its new heading
+
+
 def pack(model, dt):
     """``dyn`` = (the ``C`` slots, no int slots, no obstacles, no ray fan)."""
-    return (pack_couzin(model.couzin), np.zeros(0, np.int64), np.zeros((0, 1)), np.zeros(0, np.int64),
-            np.zeros((0, 3)))
-
-
-def scratch(dynamics, n):
-    return np.zeros((n, 3), np.float64), np.zeros((0, 3), np.float64)
+    return float_dyn(pack_couzin(model.couzin))
 
 
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):

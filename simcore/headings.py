@@ -9,14 +9,21 @@ and the move at constant speed, in 3-D or in the plane z = 0. Compiled (inlined 
 * ``turn_toward(f, d, max_turn, side)``: d when the angle from f to d is at most ``max_turn`` (or
   max_turn >= pi), else f turned by ``max_turn`` towards d in the plane of f and d (towards ``side``
   when d is opposite to f and that plane is undefined).
+* ``unit_heading(h, planar)``: h made unit (its z set to 0 first in the plane).
 * ``set_heading(i, h, speed, ...)``: vel = speed h, acc = the realised acceleration (v' - v) / dt and the
   frame: in 2-D fwd = h, up = +z, side = f x up; in 3-D the banking frame of
   :func:`simcore.dynamics.rebuild_frame`. The position is the caller's (the models differ in which
   velocity moves a boid).
+
+Shared hook pieces of these dynamics (:mod:`simcore.hooks`): ``float_dyn(slots)``, the ``dyn`` group of a
+dynamics whose parameters are float slots only, and ``heading_scratch``, the per-boid buffer of the new
+headings ``sense`` leaves for ``move`` (N, 3).
 """
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from .dynamics import rebuild_frame
 from .jit import inline
@@ -62,6 +69,22 @@ def turn_toward(fx, fy, fz, dx, dy, dz, max_turn, sx, sy, sz):
         wx, wy, wz = sx, sy, sz
     c, s = math.cos(max_turn), math.sin(max_turn)
     return c * fx + s * wx, c * fy + s * wy, c * fz + s * wz
+
+
+@inline
+def unit_heading(hx, hy, hz, planar):
+    if planar:
+        hz = 0.0
+    norm = math.sqrt(hx * hx + hy * hy + hz * hz)
+    return hx / norm, hy / norm, hz / norm
+
+
+def float_dyn(slots):
+    return slots, np.zeros(0, np.int64), np.zeros((0, 1)), np.zeros(0, np.int64), np.zeros((0, 3))
+
+
+def heading_scratch(dynamics, n):
+    return np.zeros((n, 3), np.float64), np.zeros((0, 3), np.float64)
 
 
 @inline

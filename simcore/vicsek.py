@@ -26,7 +26,7 @@ from enum import IntEnum
 import numpy as np
 
 from .dynamics import apply_boundary
-from .headings import rotate_planar, set_heading, tilt
+from .headings import float_dyn, heading_scratch, rotate_planar, set_heading, tilt, unit_heading
 from .jit import inline
 from .layout import F, I
 from .rng import STREAM_VICSEK_NOISE, uniform01
@@ -66,29 +66,25 @@ def new_heading(i, step, m, nbrs, fwd, eta, key, planar):
         return mx, my, mz
     if planar:
         hx, hy = rotate_planar(mx, my, eta * (uniform01(key, STREAM_VICSEK_NOISE, step, i) - 0.5))
-        norm = math.sqrt(hx * hx + hy * hy)
-        return hx / norm, hy / norm, 0.0
+        return unit_heading(hx, hy, 0.0, planar)
     u0 = uniform01(key, STREAM_VICSEK_NOISE, step, 2 * i)
     u1 = uniform01(key, STREAM_VICSEK_NOISE, step, 2 * i + 1)
     polar = math.acos(max(-1.0, 1.0 - u0 * eta / math.pi))
     azimuth = 2.0 * math.pi * u1
     hx, hy, hz = tilt(mx, my, mz, polar, math.cos(azimuth), math.sin(azimuth))
-    norm = math.sqrt(hx * hx + hy * hy + hz * hz)
-    return hx / norm, hy / norm, hz / norm
+    return unit_heading(hx, hy, hz, planar)
 
 
 # run-loop hooks (simcore.hooks)
 THREADS = True
 
 
+scratch = heading_scratch   # per boid: its new heading
+
+
 def pack(model, dt):
     """``dyn`` = (the ``V`` slots, no int slots, no obstacles, no ray fan)."""
-    return (pack_vicsek(model.vicsek), np.zeros(0, np.int64), np.zeros((0, 1)), np.zeros(0, np.int64),
-            np.zeros((0, 3)))
-
-
-def scratch(dynamics, n):
-    return np.zeros((n, 3), np.float64), np.zeros((0, 3), np.float64)
+    return float_dyn(pack_vicsek(model.vicsek))
 
 
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
