@@ -129,8 +129,6 @@ def new_heading(i, step, m, nbrs, fwd, side, cp, dt, key, planar):
 
 # run-loop hooks (simcore.hooks)
 THREADS = True
-
-
 scratch = heading_scratch   # per boid: its new heading
 
 

@@ -77,8 +77,6 @@ def new_heading(i, step, m, nbrs, fwd, eta, key, planar):
 
 # run-loop hooks (simcore.hooks)
 THREADS = True
-
-
 scratch = heading_scratch   # per boid: its new heading
 
 
