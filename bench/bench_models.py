@@ -1,11 +1,13 @@
 """Throughput of one model from its preset: boid-steps per second, single thread, after compilation.
 
     python bench/bench_models.py --model reynolds87 [--sizes 100 1000] [--obstacles 10] [--repeats 5]
+                                 [--set KEY=VALUE ...]
 
 ``--model`` names a preset in configs/models/ (``reynolds87``, ``reynolds87_obstacles``, ``hartman_benes``,
 ...; a model added later needs only its preset). ``--obstacles K`` keeps the first K obstacles of
 configs/models/reynolds87_obstacles.toml's course in the model's world (only for dynamics that avoid
-obstacles; 0 removes them). For each flock size N (``init.scale_with_n`` keeps the preset's density) it
+obstacles; 0 removes them; a model of another dynamics runs as its preset says). ``--set`` overrides preset
+keys for every size (e.g. the box of a periodic world, to keep a density). For each flock size N (``init.scale_with_n`` keeps the preset's density) it
 times whole ``simulate`` runs (``--duration`` simulated seconds at the preset's step) with different seeds,
 the obstacle and obstacle-free variants interleaved run by run, and prints the median boid-steps/s over the
 repeats with the mean number of visible neighbours.
@@ -22,14 +24,15 @@ ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 from simcore import load_preset, simulate_preset  # noqa: E402
+from simcore.params import OBSTACLE_DYNAMICS  # noqa: E402
 
 COURSE = ROOT / "configs/models/reynolds87_obstacles.toml"
 
 
-def variant(model: str, n: int, duration: float, obstacles: int | None):
+def variant(model: str, n: int, duration: float, obstacles: int | None, overrides=()):
     preset = load_preset(ROOT / f"configs/models/{model}.toml", [f"init.n={n}", f"run.duration={duration}",
-                                                                 "run.record_interval=1.0"])
-    if obstacles is None:
+                                                                 "run.record_interval=1.0", *overrides])
+    if obstacles is None or preset.model.dynamics not in OBSTACLE_DYNAMICS:
         return preset
     course = load_preset(COURSE).model.world.obstacles[:obstacles]
     world = preset.model.world
@@ -52,14 +55,16 @@ def main() -> None:
     parser.add_argument("--obstacles", type=int, default=10)
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="preset overrides")
     args = parser.parse_args()
-    print(f"model {args.model}, {args.duration:g} s runs, median of {args.repeats}, NUMBA_NUM_THREADS="
-          f"{os.environ['NUMBA_NUM_THREADS']}")
+    print(f"model {args.model} {' '.join(args.set)}, {args.duration:g} s runs, median of {args.repeats}, "
+          f"NUMBA_NUM_THREADS={os.environ['NUMBA_NUM_THREADS']}")
     print("| N | obstacles | boid-steps/s | visible neighbours |")
     print("|---:|---:|---:|---:|")
     for n in args.sizes:
-        variants = {0: variant(args.model, n, args.duration, 0), args.obstacles: variant(args.model, n, args.duration,
-                                                                                         args.obstacles)}
+        variants = {k: variant(args.model, n, args.duration, k, args.set) for k in (0, args.obstacles)}
+        if variants[0].model.dynamics not in OBSTACLE_DYNAMICS:
+            variants = {0: variants[0]}
         for preset in variants.values():
             simulate_preset(preset.replace({"run.duration": preset.run.dt * 10}), seed=999)  # compile or load
         rates = {k: [] for k in variants}

@@ -214,13 +214,14 @@ def every_nth(obs, k: int):
 
 
 def default_group_radius(model) -> float:
-    """The model's perception range: ``perception.range`` (binocular), ``perception.radius`` (sphere),
-    or the largest of the separation, alignment and cohesion radii (opensteer)."""
+    """The model's perception range: ``perception.range`` (binocular), the perception sphere's radius
+    (``perception.radius``, or the one the dynamics sets: the outer zone of ``couzin2002``, the alignment
+    radius of ``vicsek``), or the largest of the separation, alignment and cohesion radii (opensteer)."""
     p = model.perception
     if p.kind == "binocular":
         return float(p.range)
     if p.kind == "sphere":
-        return float(p.radius)
+        return float(model.sphere_radius)
     if p.kind == "opensteer":
         return float(max(p.separation_radius, p.alignment_radius, p.cohesion_radius))
     raise ValueError(f"perception.kind: no group radius for {p.kind!r}")

@@ -1,8 +1,8 @@
 """The hooks of a dynamics, chosen at compile time: the one place the run loops learn what a dynamics does.
 
 A dynamics is one module (``simcore/opensteer.py``, ``hartman_benes.py``, ``reynolds87.py``,
-``boidspp.py``), registered in ``MODULES`` below under its ``DYNAMICS_*`` number (its position in
-:data:`simcore.params.DYNAMICS`). The run loops of :mod:`simcore.kernel` and :mod:`simcore.threaded` take
+``boidspp.py``, ``couzin2002.py``, ``vicsek.py``), registered in ``MODULES`` below under its ``DYNAMICS_*``
+number (its position in :data:`simcore.params.DYNAMICS`). The run loops of :mod:`simcore.kernel` and :mod:`simcore.threaded` take
 the dynamics as a compile-time literal (``numba.literally``, as the perception kind, :mod:`simcore.jit`)
 and call the stubs below with it as first argument; numba's typing of a stub gives that dynamics' own
 function, so a run compiles only its dynamics. The groups the hooks receive (plain tuples of arrays,
@@ -38,13 +38,15 @@ import inspect
 from numba import types
 from numba.extending import overload
 
-from . import boidspp, hartman_benes, opensteer, reynolds87
+from . import boidspp, couzin2002, hartman_benes, opensteer, reynolds87, vicsek
 from .jit import KERNEL_OPTIONS, LEAF_OPTIONS
-from .layout import DYNAMICS_BOIDSPP, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER, DYNAMICS_REYNOLDS87
+from .layout import (DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER,
+                     DYNAMICS_REYNOLDS87, DYNAMICS_VICSEK)
 from .params import DYNAMICS
 
 MODULES = {DYNAMICS_OPENSTEER: opensteer, DYNAMICS_HARTMAN_BENES: hartman_benes,
-           DYNAMICS_REYNOLDS87: reynolds87, DYNAMICS_BOIDSPP: boidspp}
+           DYNAMICS_REYNOLDS87: reynolds87, DYNAMICS_BOIDSPP: boidspp, DYNAMICS_COUZIN2002: couzin2002,
+           DYNAMICS_VICSEK: vicsek}
 assert sorted(MODULES) == list(range(len(DYNAMICS)))
 
 

@@ -63,7 +63,7 @@ FLOAT_SLOTS = {
     "MAX_FORCE": lambda m, dt: m.vehicle.max_force,
     "MASS": lambda m, dt: m.vehicle.mass,
     "DT": lambda m, dt: dt,
-    "SPHERE_RADIUS": lambda m, dt: m.perception.radius,
+    "SPHERE_RADIUS": lambda m, dt: m.sphere_radius,
     "NEAR_R": lambda m, dt: m.perception.near_radius,
     "SEP_R": lambda m, dt: m.perception.separation_radius,
     "SEP_COS": lambda m, dt: m.perception.separation_cos,
@@ -118,6 +118,7 @@ INT_SLOTS = {
     "LEADERSHIP": lambda m, dt: int(m.leadership.enabled),
     "FRONT_GATE": lambda m, dt: FRONT_GATES.index(m.leadership.front_gate),
     "DRIVE": lambda m, dt: int(m.noise.enabled or m.cruise.enabled),
+    "DIMENSIONS": lambda m, dt: m.world.dimensions,
 }
 
 F = IntEnum("F", list(FLOAT_SLOTS), start=0)
@@ -134,7 +135,8 @@ SEARCH_AUTO, SEARCH_GRID, SEARCH_ALL_PAIRS = range(3)
 BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
 ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
 SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
-DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES, DYNAMICS_REYNOLDS87, DYNAMICS_BOIDSPP = range(4)
+(DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES, DYNAMICS_REYNOLDS87, DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002,
+ DYNAMICS_VICSEK) = range(6)
 GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
 
 assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular", "topological")
@@ -142,7 +144,7 @@ assert SEARCHES == ("auto", "grid", "all_pairs")
 assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
 assert UPDATE_ORDERS == ("synchronous", "sequential")
 assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
-assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87", "boidspp")
+assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
 assert FRONT_GATES == ("positive", "weighted", "none")
 
 

@@ -20,21 +20,26 @@ import math
 from dataclasses import dataclass, field, fields
 
 from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
+from .couzin_params import Couzin
 from .obstacle_spec import Obstacle, canonical_obstacles
 from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
 from .reynolds_params import ALLOCATIONS, MIGRATION_WHO, Reynolds  # noqa: F401
 from .units import Units, to_body_lengths
+from .vicsek_params import Vicsek
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
-DYNAMICS = ("opensteer", "hartman_benes", "reynolds87", "boidspp")
+DYNAMICS = ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
+HEADING_DYNAMICS = ("couzin2002", "vicsek")  # constant-speed heading models: sphere perception, 2-D or 3-D
+PLANAR_DYNAMICS: tuple[str, ...] = HEADING_DYNAMICS  # the dynamics that run with world.dimensions = 2
 OBSTACLE_DYNAMICS: tuple[str, ...] = ("reynolds87", "boidspp")  # the dynamics whose kernels read world.obstacles
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
+INIT_REGIONS = ("ball", "cube")
 
 KEY_ALIASES = {"n": "init.n"}  # the one alias table of preset keys
 RUN_SHORTHANDS = {"n": "init.n", "duration": "run.duration", "dt": "run.dt",
@@ -159,9 +164,11 @@ class World:
     box_size: float = 100.0
     update_order: str = "synchronous"
     obstacles: tuple[Obstacle, ...] = ()
+    dimensions: int = 3  # 2: motion in the plane z = 0 (PLANAR_DYNAMICS)
 
     def __post_init__(self):
         _choice("world.boundary", self.boundary, BOUNDARIES)
+        _choice("world.dimensions", self.dimensions, (2, 3))
         _positive("world.sphere_radius", self.sphere_radius)
         _positive("world.box_size", self.box_size)
         _choice("world.update_order", self.update_order, UPDATE_ORDERS)
@@ -282,9 +289,16 @@ class ModelParams:
     boidspp: BoidsPP = field(default_factory=BoidsPP)
     noise: Noise = field(default_factory=Noise)
     cruise: Cruise = field(default_factory=Cruise)
+    couzin: Couzin = field(default_factory=Couzin)
+    vicsek: Vicsek = field(default_factory=Vicsek)
 
     def __post_init__(self):
         _choice("dynamics", self.dynamics, DYNAMICS)
+        if self.world.dimensions == 2 and self.dynamics not in PLANAR_DYNAMICS:
+            raise ConfigError("world.dimensions", f"got 2; dynamics {self.dynamics!r} runs in 3-D only: 2-D "
+                                                  f"motion is available for dynamics {PLANAR_DYNAMICS}")
+        if self.dynamics in HEADING_DYNAMICS:
+            _check_heading_model(self)
         if self.dynamics == "reynolds87":
             _check_reynolds(self)
         if self.dynamics == "boidspp":
@@ -292,7 +306,7 @@ class ModelParams:
         if self.world.obstacles and self.dynamics not in OBSTACLE_DYNAMICS:
             raise ConfigError("world.obstacles", f"dynamics {self.dynamics!r} does not avoid obstacles; obstacles "
                                                  f"are read by dynamics {OBSTACLE_DYNAMICS}")
-        if self.dynamics in ("hartman_benes", "reynolds87") and self.perception.kind != "sphere":
+        if self.dynamics in ("hartman_benes", "reynolds87") + HEADING_DYNAMICS and self.perception.kind != "sphere":
             raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics {self.dynamics!r} "
                                                  "uses the perception sphere: set perception.kind = 'sphere'")
         if self.leadership.enabled and not math.isfinite(self.perception_range):
@@ -305,13 +319,23 @@ class ModelParams:
         return 0.05 * self.vehicle.max_speed if lead.slow_speed is None else lead.slow_speed
 
     @property
+    def sphere_radius(self) -> float:
+        """The radius of the perception sphere: ``perception.radius``, or what the dynamics derives it from
+        (couzin2002: the outer edge of the zone of attraction; vicsek: its alignment radius)."""
+        if self.dynamics == "couzin2002":
+            return self.couzin.outer_radius
+        if self.dynamics == "vicsek":
+            return self.vicsek.radius
+        return self.perception.radius
+
+    @property
     def perception_range(self) -> float:
         """e: the distance the flock is judged over (sphere radius, binocular range, opensteer cohesion radius,
         topological max_distance; infinite for a topological perception without one)."""
         per = self.perception
         if per.kind == "topological":
             return math.inf if per.max_distance is None else per.max_distance
-        return {"sphere": per.radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
+        return {"sphere": self.sphere_radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
 
 
 def _check_reynolds(model: ModelParams) -> None:
@@ -323,17 +347,31 @@ def _check_reynolds(model: ModelParams) -> None:
         raise ConfigError("patterns.enabled", "dynamics 'reynolds87' has no pattern mode: set patterns.enabled = false")
 
 
+def _check_heading_model(model: ModelParams) -> None:
+    """couzin2002 and vicsek: no change of leadership, no pattern mode (docs/model.md)."""
+    if model.leadership.enabled:
+        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; dynamics {model.dynamics!r} has no change "
+                                          "of leadership: set leadership.x = 0")
+    if model.patterns.enabled:
+        raise ConfigError("patterns.enabled", f"dynamics {model.dynamics!r} has no pattern mode: set "
+                                              "patterns.enabled = false")
+
+
 @dataclass(frozen=True)
 class InitParams:
     """Initial conditions (docs/model.md section 0.5): N boids uniform in a ball, headings uniform on the
     sphere, all at ``speed``; the ball radius grows as (N/100)^(1/3) when ``scale_with_n``. Or the state
     in ``from_file`` (:mod:`simcore.initfile`): then ``n`` must be the file's boid count (a preset may
-    leave it out) and ``from_file_sha256`` is the file's digest (filled in; checked when given)."""
+    leave it out) and ``from_file_sha256`` is the file's digest (filled in; checked when given).
+    ``region = "cube"`` draws the positions uniform in the cube [-radius, radius)^3 instead of the ball
+    (a periodic box of side 2 radius filled evenly); in 2-D (``world.dimensions = 2``) the ball is a disc
+    and the cube a square in the plane z = 0, headings uniform on the circle."""
 
     n: int = 100
     radius: float = 20.0
     speed: float = 2.7
     scale_with_n: bool = False
+    region: str = "ball"
     from_file: str | None = None
     from_file_sha256: str | None = None
 
@@ -341,6 +379,7 @@ class InitParams:
         if self.n < 1:
             raise ConfigError("init.n", f"got {self.n!r}; must be an integer >= 1")
         _positive("init.radius", self.radius)
+        _choice("init.region", self.region, INIT_REGIONS)
         _non_negative("init.speed", self.speed)
         if self.from_file is None:
             if self.from_file_sha256 is not None:
@@ -360,7 +399,12 @@ class InitParams:
 
     @property
     def ball_radius(self) -> float:
-        return self.radius * (self.n / 100.0) ** (1.0 / 3.0) if self.scale_with_n else self.radius
+        return self.region_radius(3)
+
+    def region_radius(self, dimensions: int) -> float:
+        """The radius (half side of the cube) of the start region: ``radius``, times (N/100)^(1/dimensions)
+        with ``scale_with_n`` (the same density for every N)."""
+        return self.radius * (self.n / 100.0) ** (1.0 / dimensions) if self.scale_with_n else self.radius
 
 
 def init_dict(init: InitParams) -> dict:
@@ -369,8 +413,10 @@ def init_dict(init: InitParams) -> dict:
     out = to_dict(init)
     if init.from_file is None:
         del out["from_file"], out["from_file_sha256"]
+        if init.region == "ball":
+            del out["region"]
     else:
-        for key in ("radius", "speed", "scale_with_n"):
+        for key in ("radius", "speed", "scale_with_n", "region"):
             del out[key]
     return out
 
@@ -481,6 +527,19 @@ def model_dict(model: ModelParams) -> dict:
     never changes the identity of runs that do not use it."""
     out = to_dict(model)
     out["perception"] = model.perception.resolved()
+    if model.world.dimensions == 3:
+        del out["world"]["dimensions"]
+    for table in ("couzin", "vicsek"):
+        if model.dynamics != {"couzin": "couzin2002", "vicsek": "vicsek"}[table]:
+            del out[table]
+    if model.dynamics in HEADING_DYNAMICS:
+        out["perception"] = {"kind": "sphere"}   # the dynamics' own table sets the sphere
+        del out["steering"], out["gains"], out["vehicle"], out["patterns"], out["reynolds"]
+        out.pop("boidspp")
+        if not model.leadership.enabled:
+            del out["leadership"]
+        del out["world"]["obstacles"]
+        return out
     if model.dynamics == "reynolds87":
         del out["steering"], out["gains"], out["vehicle"], out["patterns"]
         out["reynolds"] = model.reynolds.canonical()

@@ -27,6 +27,8 @@ STREAM_RANDOM_FORCE = 2
 STREAM_TARGETS = 3
 STREAM_HEADING_NOISE = 4  # simcore.noise: the von Mises-Fisher turn (uniforms at 2 boid, 2 boid + 1)
 STREAM_SPEED_NOISE = 5  # simcore.noise: the speed kick (normal at boid)
+STREAM_COUZIN_NOISE = 8   # couzin2002: the angular noise (normals)
+STREAM_VICSEK_NOISE = 9   # vicsek: the angular noise (uniforms)
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

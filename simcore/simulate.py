@@ -203,12 +203,25 @@ def _boidspp_observations(model: ModelParams, times, rec, final: State, dt: floa
                         prey=agents[:, 1].copy() if table.prey.enabled else None, captures=captures)
 
 
+def check_planar(model: ModelParams, state: State) -> None:
+    """A 2-D model (``world.dimensions = 2``) runs only from a state in the plane z = 0 (ValueError naming
+    the first boid off it, e.g. from an ``init.from_file`` state of a 3-D run)."""
+    if model.world.dimensions != 2:
+        return
+    for name in ("pos", "vel", "fwd"):
+        off = np.flatnonzero(getattr(state, name)[:, 2] != 0.0)
+        if off.size:
+            raise ValueError(f"world.dimensions = 2, but the initial state's {name} of boid {off[0]} has z = "
+                             f"{getattr(state, name)[off[0], 2]!r}: a 2-D run starts in the plane z = 0")
+
+
 def advance(model: ModelParams, state: State, n_steps: int, dt: float, record_every: int = 1,
             key: int = 0, threads: int | None = None) -> Observations:
     """Run ``n_steps`` steps from a copy of ``state``; the input is left untouched. ``key`` is the run's
     key for in-loop draws (leadership); ``threads`` as in the module docstring."""
     record_every = _check_record_every(record_every)
     threads = _thread_count(model, state.n, threads)
+    check_planar(model, state)
     s = state.copy()
     params = hooks.pack(model, dt)
     n_records = n_steps // record_every + 1
@@ -259,7 +272,8 @@ def simulate(model: ModelParams, init: InitParams, seed, duration: float, dt: fl
     """
     n_steps = _n_steps(duration, dt)
     rng, loop_key = run_streams(seed)
-    return advance(model, initial_state(init, model.patterns, rng), n_steps, dt, record_every, loop_key, threads)
+    state = initial_state(init, model.patterns, rng, model.world.dimensions)
+    return advance(model, state, n_steps, dt, record_every, loop_key, threads)
 
 
 def simulate_preset(preset: Preset, seed, record_every: int | None = None,
@@ -317,7 +331,9 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     record_every = _check_record_every(record_every)
     n_steps = _n_steps(duration, dt)
     streams = [run_streams(seed) for seed in seeds]
-    states = [initial_state(init, model.patterns, rng) for rng, _ in streams]
+    states = [initial_state(init, model.patterns, rng, model.world.dimensions) for rng, _ in streams]
+    for state in states[:1]:   # every state of a batch comes from the same file or draw
+        check_planar(model, state)
     keys = np.array([key for _, key in streams], dtype=np.uint64)
     stacked = {f: np.stack([getattr(s, f) for s in states]) for f in FIELDS}
     agents = np.stack([s.agents for s in states])

@@ -9,7 +9,8 @@ positions until the kernel places them, untouched by the other dynamics). No per
 :func:`initial_state` draws it from the run's init generator (``numpy.random.Generator``): positions
 uniform in a ball (radius ``InitParams.ball_radius``, centred at the origin), headings uniform on the
 sphere, speed ``InitParams.speed``, up = world y made orthogonal to the heading (OpenSteer's reset),
-zero smoothed acceleration. Patterns: counts are fraction x N rounded by largest remainder (ties to the
+zero smoothed acceleration (or uniform in a cube with ``init.region = "cube"``; in the plane z = 0 for
+2-D models, :func:`planar_state`). Patterns: counts are fraction x N rounded by largest remainder (ties to the
 earlier entry), and which boid gets which pattern is a random permutation from the same generator.
 """
 from __future__ import annotations
@@ -110,16 +111,21 @@ def state_from_file(init: InitParams, patterns: Patterns, rng: np.random.Generat
                   side=side, acc=acc.copy(), pattern=np.ascontiguousarray(pattern, dtype=np.uint32))
 
 
-def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator) -> State:
+def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator, dimensions: int = 3) -> State:
     """Initial state of ``init.n`` boids drawn from ``rng`` (see module docstring), or read from
-    ``init.from_file``."""
+    ``init.from_file``. With ``dimensions = 2`` the draw is in the plane z = 0 (:func:`planar_state`)."""
     if init.from_file is not None:
         return state_from_file(init, patterns, rng)
+    if dimensions == 2:
+        return planar_state(init, rng)
     n = init.n
-    direction = rng.standard_normal((n, 3))
-    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    radius = init.ball_radius * rng.random(n) ** (1.0 / 3.0)
-    pos = direction * radius[:, None]
+    if init.region == "cube":
+        pos = init.region_radius(3) * (2.0 * rng.random((n, 3)) - 1.0)
+    else:
+        direction = rng.standard_normal((n, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        radius = init.ball_radius * rng.random(n) ** (1.0 / 3.0)
+        pos = direction * radius[:, None]
     fwd = rng.standard_normal((n, 3))
     fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
     up, side = frame_from_forward(fwd)
@@ -128,3 +134,23 @@ def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator
         pattern = np.zeros(n, dtype=np.uint32)
     return State(pos=pos, vel=fwd * init.speed, fwd=fwd, up=up, side=side, acc=np.zeros((n, 3)),
                  pattern=np.ascontiguousarray(pattern, dtype=np.uint32))
+
+
+def planar_state(init: InitParams, rng: np.random.Generator) -> State:
+    """A start in the plane z = 0: positions uniform in the disc of radius ``init.region_radius(2)`` (or the
+    square of that half side, ``region = "cube"``), headings uniform on the circle, up = +z, side = f x up
+    (the frame of the 2-D models, :mod:`simcore.headings`); no patterns (no 2-D model has them)."""
+    n = init.n
+    half = init.region_radius(2)
+    pos = np.zeros((n, 3))
+    if init.region == "cube":
+        pos[:, :2] = half * (2.0 * rng.random((n, 2)) - 1.0)
+    else:
+        angle, radius = 2.0 * np.pi * rng.random(n), half * np.sqrt(rng.random(n))
+        pos[:, 0], pos[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
+    heading = 2.0 * np.pi * rng.random(n)
+    fwd = np.stack([np.cos(heading), np.sin(heading), np.zeros(n)], axis=1)
+    up = np.tile([0.0, 0.0, 1.0], (n, 1))
+    side = np.stack([fwd[:, 1], -fwd[:, 0], np.zeros(n)], axis=1)
+    return State(pos=pos, vel=fwd * init.speed, fwd=fwd, up=up, side=side, acc=np.zeros((n, 3)),
+                 pattern=np.zeros(n, dtype=np.uint32))

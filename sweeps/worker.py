@@ -104,14 +104,17 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
 
 
 def warm_up(spec: RunSpec) -> None:
-    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run (for a command
-    model: the metric kernels, on a 3-individual observed flock), so that workers find them in the cache
-    instead of each compiling its own."""
+    """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run (the file's
+    boids when the run starts from ``init.from_file``: its count is fixed; for a command model: the metric
+    kernels, on a 3-individual observed flock), so that workers find them in the cache instead of each
+    compiling its own."""
     if spec.command is not None:
         measure_run(_tiny_flock(), spec.metrics)
         return
-    run = spec.preset.run
-    obs = simulate(spec.preset.model, dataclasses.replace(spec.preset.init, n=3), 0, 2 * run.dt, run.dt, 1)
+    run, init = spec.preset.run, spec.preset.init
+    if init.from_file is None:
+        init = dataclasses.replace(init, n=3)
+    obs = simulate(spec.preset.model, init, 0, 2 * run.dt, run.dt, 1)
     measure_run(obs, spec.metrics)
 
 

@@ -38,7 +38,8 @@ RUN_LOOP = "simcore.kernel.run_model"
 PERCEIVERS = {kind: f"simcore.perception.perceive_{kind}" for kind in ("sphere", "opensteer", "binocular",
                                                                         "topological")}
 NEAREST, OCCLUDE = "simcore.topological.nearest", "simcore.occlusion.occlude"
-OTHER_DYNAMICS = ("simcore.hartman_benes.", "simcore.reynolds87.", "simcore.boidspp.")
+OTHER_DYNAMICS = ("simcore.hartman_benes.", "simcore.reynolds87.", "simcore.boidspp.", "simcore.couzin2002.",
+                  "simcore.vicsek.", "simcore.headings.")
 
 
 def compiles(cache, *models) -> tuple[list[dict], str]:
