@@ -64,6 +64,8 @@ LENGTH_POWER = {
     "reynolds.separation_weight": _reynolds_separation,
     "noise.speed_sd": 1,
     "cruise.speed": 1,
+    **{f"couzin.{k}": 1 for k in ("repulsion_radius", "orientation_width", "attraction_width", "speed")},
+    "vicsek.radius": 1, "vicsek.speed": 1,
     "init.radius": 1, "init.speed": 1,
 }
 
@@ -75,6 +77,7 @@ NO_LENGTH = {
     *(f"leadership.{k}" for k in ("x", "sigma", "duration", "gain", "boost", "refractory")),
     "reynolds.falloff_exponent", "reynolds.alignment_weight", "reynolds.cohesion_weight",
     "reynolds.migration_direction", "noise.kappa", "noise.angular_sd_deg", "cruise.tau",
+    "couzin.blind_deg", "couzin.turning_rate_deg", "couzin.noise_sd", "vicsek.noise", "world.dimensions",
     "init.n", "run.duration", "run.dt", "run.record_interval",
 }
 
