@@ -348,13 +348,22 @@ def _check_reynolds(model: ModelParams) -> None:
 
 
 def _check_heading_model(model: ModelParams) -> None:
-    """couzin2002 and vicsek: no change of leadership, no pattern mode (docs/model.md)."""
+    """couzin2002 and vicsek: no change of leadership, no pattern mode, no [noise] or [cruise] (their own noise
+    and constant speed; docs/model.md)."""
     if model.leadership.enabled:
         raise ConfigError("leadership.x", f"got {model.leadership.x!r}; dynamics {model.dynamics!r} has no change "
                                           "of leadership: set leadership.x = 0")
     if model.patterns.enabled:
         raise ConfigError("patterns.enabled", f"dynamics {model.dynamics!r} has no pattern mode: set "
                                               "patterns.enabled = false")
+    table = "couzin" if model.dynamics == "couzin2002" else "vicsek"
+    own = "couzin.noise_sd" if table == "couzin" else "vicsek.noise"
+    if model.noise.enabled:
+        raise ConfigError("noise", f"dynamics {model.dynamics!r} has its own angular noise ({own}) and a constant "
+                                   "speed: leave [noise] out")
+    if model.cruise.enabled:
+        raise ConfigError("cruise.speed", f"got {model.cruise.speed!r}; dynamics {model.dynamics!r} flies at a "
+                                          f"constant speed ({table}.speed): leave [cruise] out")
 
 
 @dataclass(frozen=True)

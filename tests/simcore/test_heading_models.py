@@ -17,6 +17,7 @@ from scipy import stats
 
 import reference_headings as ref
 from conftest import state_from, unit_vectors
+from paths import ROOT
 from simcore import InitParams, advance, simulate, simulate_batch
 from simcore.couzin_params import Couzin
 from simcore.params import ModelParams, Perception, World, model_dict
@@ -236,3 +237,13 @@ def test_canonical_form_and_sphere():
     plain = model_dict(ModelParams())
     assert "couzin" not in plain and "vicsek" not in plain and "dimensions" not in plain["world"]
     assert vicsek_model(radius=1.5).sphere_radius == 1.5
+
+
+@pytest.mark.parametrize("preset, key", [("vicsek.toml", "noise.kappa=10"), ("couzin2002_swarm.toml", "cruise.speed=3"),
+                                         ("couzin2002_torus.toml", "noise.speed_sd=0.1")])
+def test_the_shared_noise_and_cruise_are_refused_where_the_model_has_its_own(preset, key):
+    from simcore import load_preset
+    from simcore.schema import ConfigError
+
+    with pytest.raises(ConfigError, match=key.split(".")[0]):
+        load_preset(ROOT / "configs" / "models" / preset, [key])
