@@ -123,6 +123,8 @@ NAME_MAX = 100
 METRIC_COLUMNS = frozenset(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))   # any run's
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
+# the statistics beside the factors in the report's cell tables (analysis.reports.stats.cell_summary)
+REPORT_COLUMNS = ("n_missing", "mean", "sd", "ci_halfwidth")
 
 
 # ----------------------------------------------------------------------------------------- the file
@@ -204,7 +206,7 @@ def model_table(data) -> ModelTable | CommandTable:
                           "simulator), not both")
     table = build(CommandTable, data, "model")
     for name in table.parameters:
-        if name in RESERVED_COLUMNS or name in METRIC_COLUMNS:
+        if name in RESERVED_COLUMNS or name in METRIC_COLUMNS or name in REPORT_COLUMNS:
             raise ConfigError(f"model.parameters.{name}", f"{name!r} is a column of the results; name the "
                                                           "parameter otherwise (e.g. n_agents for n)")
     return table
@@ -526,6 +528,9 @@ def parse_axis(axis: AxisTable, index: int) -> Axis:
     if name in METRIC_COLUMNS:
         raise ConfigError(f"{where}.name", f"got {name!r}; that name is a metric column of the results; choose "
                                            "another")
+    if name in REPORT_COLUMNS:
+        raise ConfigError(f"{where}.name", f"got {name!r}; the report's tables use that name beside the axes "
+                                           f"({', '.join(REPORT_COLUMNS)}); choose another")
     if not isinstance(name, str) or not name.strip():
         raise ConfigError(f"{where}.name", f"got {name!r}; expected a non-empty name for the axis' column")
     if axis.labels is not None and len(axis.labels) != len(points):

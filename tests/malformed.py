@@ -453,6 +453,8 @@ NUMBERS = [
 TABLES = [
     run_case("an axis named like a metric column", "axes[0].name",
              axes='[[axes]]\nname = "cohesion_mean"\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
+    run_case("an axis named like a report statistic", "axes[0].name",
+             axes='[[axes]]\nname = "mean"\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
     run_case("an axis named ''", "axes[0].name",
              axes='[[axes]]\nname = ""\nkey = "perception.field_deg"\nvalues = [60, 180]\n'),
     run_case("labels that repeat", "labels repeat",

@@ -333,9 +333,12 @@ def cell_summary(runs: pd.DataFrame, factors, metric: str, confidence: float = 0
     factors = [factors] if isinstance(factors, str) else list(factors)
     frame = runs[factors + [metric]]
     grouped = frame.groupby(factors, sort=True, dropna=True, observed=True)[metric]
-    table = grouped.agg(n="count", size="size", mean="mean", sd="std").reset_index()
-    table["n"] = table["n"].astype(int)
-    table["n_missing"] = table.pop("size").astype(int) - table["n"]
+    stats = grouped.agg(["count", "size", "mean", "std"])
+    table = stats.index.to_frame(index=False)   # the factors' levels; then the statistics (names never collide)
+    table["n"] = stats["count"].to_numpy().astype(int)
+    table["n_missing"] = stats["size"].to_numpy().astype(int) - table["n"]
+    table["mean"] = stats["mean"].to_numpy()
+    table["sd"] = stats["std"].to_numpy()
     n = table["n"].to_numpy(dtype=float)
     sd = table["sd"].to_numpy(dtype=float)
     table["sd"] = np.where(n >= 2, sd, np.nan)

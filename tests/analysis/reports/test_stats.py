@@ -281,6 +281,15 @@ def test_cell_summary_single_factor_name():
     assert cells["f"].tolist() == [2.0, 10.0] and cells["n"].tolist() == [5, 5]
 
 
+def test_cell_summary_takes_factors_named_like_pandas_aggregations():
+    """An axis may be called size, count or std (pandas' own aggregation names); n, mean and sd are refused
+    when the sweep file is read (sweeps.config.REPORT_COLUMNS, RESERVED_COLUMNS)."""
+    table = pd.DataFrame({"size": [1, 1, 2, 2], "count": ["a", "a", "a", "a"], "m": [1.0, 3.0, 5.0, 9.0]})
+    cells = S.cell_summary(table, ["size", "count"], "m")
+    assert cells["size"].tolist() == [1, 2] and cells["mean"].tolist() == [2.0, 7.0]
+    assert cells["n"].tolist() == [2, 2] and cells["sd"].tolist() == pytest.approx([np.sqrt(2), np.sqrt(8)])
+
+
 # ------------------------------------------------------------------------------------- monotone_trend
 
 def test_monotone_trend_direction_and_significance():
