@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
 from .obstacle_spec import Obstacle, canonical_obstacles
@@ -227,9 +228,16 @@ class ModelParams:
     leadership: Leadership = field(default_factory=Leadership)
     reynolds: Reynolds = field(default_factory=Reynolds)
     boidspp: BoidsPP = field(default_factory=BoidsPP)
+    plugin: Any = None                 # a plug-in dynamics' parameters (simcore.plugin): its Params
+    plugin_sha256: str | None = None   # the plug-in module's SHA-256 (filled in; checked when given)
 
     def __post_init__(self):
-        _choice("dynamics", self.dynamics, DYNAMICS)
+        if not isinstance(self.dynamics, str):
+            raise ConfigError("dynamics", f"expected a string, got {self.dynamics!r}")
+        if self.dynamics in DYNAMICS:
+            _check_builtin(self)
+        else:
+            _check_plugin(self)
         if self.dynamics == "reynolds87":
             _check_reynolds(self)
         if self.dynamics == "boidspp":
@@ -257,6 +265,28 @@ class ModelParams:
         if per.kind == "topological":
             return math.inf if per.max_distance is None else per.max_distance
         return {"sphere": per.radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
+
+
+def _check_builtin(model: ModelParams) -> None:
+    """A built-in dynamics has no [plugin] table."""
+    if model.plugin not in (None, {}):
+        raise ConfigError("plugin", f"applies only to a plug-in dynamics, not {model.dynamics!r} (docs/plugins.md)")
+    if model.plugin_sha256 is not None:
+        raise ConfigError("plugin_sha256", f"applies only to a plug-in dynamics, not {model.dynamics!r}")
+    object.__setattr__(model, "plugin", None)
+
+
+def _check_plugin(model: ModelParams) -> None:
+    """A plug-in dynamics (simcore.plugin): its module loaded, its [plugin] table built and its source hash
+    recorded; it has no change of leadership."""
+    from .plugin import validate
+
+    values, sha = validate(model, DYNAMICS)
+    object.__setattr__(model, "plugin", values)
+    object.__setattr__(model, "plugin_sha256", sha)
+    if model.leadership.enabled:
+        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; a plug-in dynamics has no change of "
+                                          "leadership: set leadership.x = 0")
 
 
 def _check_reynolds(model: ModelParams) -> None:
@@ -438,6 +468,8 @@ def model_dict(model: ModelParams) -> dict:
         out["boidspp"] = boidspp_dict(model.boidspp, to_dict)
     else:
         del out["boidspp"]
+    if model.dynamics in DYNAMICS:   # added later: absent for built-ins, so their run ids stay valid
+        del out["plugin"], out["plugin_sha256"]
     if not model.leadership.enabled:
         del out["leadership"]
     if model.world.obstacles:

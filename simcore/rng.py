@@ -25,6 +25,7 @@ from .jit import inline
 STREAM_LEADERSHIP = 1
 STREAM_RANDOM_FORCE = 2
 STREAM_TARGETS = 3
+STREAM_PLUGIN = 16   # a plug-in dynamics' own draws (simcore.plugin); far from the built-ins' next numbers
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

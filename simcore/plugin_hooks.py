@@ -1,0 +1,77 @@
+"""The run-loop hooks (:mod:`simcore.hooks`) of every plug-in dynamics (:mod:`simcore.plugin`, docs/plugins.md).
+
+``sense`` calls the plug-in's ``steer`` for boid i and stores its raw steering force in the per-boid
+buffer; ``move`` applies the OpenSteer vehicle physics of ``[vehicle]`` with it
+(:func:`simcore.dynamics.apply_steering`). ``pack`` puts the plug-in's parameters, in field order, in
+the ``dyn`` group's float slots (``p``). A plug-in has no change of leadership: ``sense`` never triggers.
+
+The plug-in's function is reached through :func:`plugin_steer`, a stub whose numba typing gives, for the
+literal dynamics number of a loaded plug-in, that plug-in's ``steer`` (compiled as a leaf without a cache
+of its own, :mod:`simcore.plugin`). The hooks here are compiled once per plug-in number, as every
+dynamics' hooks are per dynamics. ``THREADS``: ``steer`` writes nothing, so a synchronous run splits over
+threads (:mod:`simcore.threaded`) with bit-identical results.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import types
+from numba.extending import overload
+
+from .dynamics import apply_steering
+from .jit import LEAF_OPTIONS
+from .plugin import BY_NUMBER, load
+
+THREADS = True
+WIDTH = 3   # per-boid scratch columns: the steering force
+STEER_OPTIONS = {key: value for key, value in LEAF_OPTIONS.items() if key != "cache"}
+
+
+def pack(model, dt):
+    values = load(model.dynamics).values(model.plugin)
+    return (np.array(values, np.float64), np.zeros(0, np.int64), np.zeros((0, 1)), np.zeros(0, np.int64),
+            np.zeros((0, 3)))
+
+
+def scratch(dynamics, n):
+    return np.zeros((n, WIDTH), np.float64), np.zeros((0, 3), np.float64)
+
+
+def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
+    fp, ip, dyn = params
+    force = scratch[0]
+    force[i, 0], force[i, 1], force[i, 2] = plugin_steer(dynamics, i, step, m, nbrs, state, fp, dyn[0], key)
+    return False
+
+
+def move(dynamics, i, state, params, scratch):
+    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
+    fp, ip, dyn = params
+    force = scratch[0]
+    apply_steering(i, force[i, 0], force[i, 1], force[i, 2], pos, vel, fwd, up, side, acc, fp, ip)
+
+
+def plugin_steer(dynamics, i, step, m, nbrs, state, fp, p, key):
+    raise NotImplementedError("a compiled hook: call it from a run loop")
+
+
+_COMPILED: dict[int, object] = {}
+
+
+def _adapter(number):
+    """The implementation of :func:`plugin_steer` for plug-in ``number``: its ``steer``, compiled once."""
+    if number not in _COMPILED:
+        steer = numba.njit(**STEER_OPTIONS)(BY_NUMBER[number].module.steer)
+
+        def call(dynamics, i, step, m, nbrs, state, fp, p, key):
+            return steer(i, step, m, nbrs, state, fp, p, key)
+
+        _COMPILED[number] = call
+    return _COMPILED[number]
+
+
+@overload(plugin_steer, jit_options=STEER_OPTIONS, prefer_literal=True)
+def _plugin_steer_typing(dynamics, i, step, m, nbrs, state, fp, p, key):
+    if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in BY_NUMBER:
+        return _adapter(dynamics.literal_value)
+    return None
