@@ -30,7 +30,7 @@ class Params(PluginParams):
 P = slots(Params)
 
 
-def steer(i, step, m, nbrs, state, fp, p, key):
+def steer(i, step, m, nbrs, state, fp, ip, p, key):
     pos, vel, fwd = state[0], state[1], state[2]
     rx = ry = rz = ox = oy = oz = ax = ay = az = 0.0
     repel = False

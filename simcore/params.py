@@ -430,10 +430,19 @@ class Preset:
         if whole["init"] or whole["run"]:
             init = build(InitParams, whole["init"][-1], "init") if whole["init"] else init
             run = build(RunSettings, whole["run"][-1], "run") if whole["run"] else run
-        model = replace_fields(self.model, sections["model"], "")
+        model = replace_fields(self.model, _new_dynamics(sections["model"]), "")
         _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
         return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
                       run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"))
+
+
+def _new_dynamics(changes) -> list:
+    """Model changes, plus: a change of dynamics drops the plug-in table and hash of the old one (unless the
+    changes set them), so the new dynamics' are built and recorded afresh."""
+    touched = {parts[0] for parts, value in changes}
+    if "dynamics" not in touched:
+        return changes
+    return changes + [((name,), None) for name in ("plugin", "plugin_sha256") if name not in touched]
 
 
 def _perception_keys(changes) -> list[str]:
@@ -460,9 +469,10 @@ def model_dict(model: ModelParams) -> dict:
         out["reynolds"] = model.reynolds.canonical()
     else:
         del out["reynolds"]
-        if model.dynamics != "opensteer":
+        plugin = model.dynamics not in DYNAMICS   # a plug-in's steer receives every shared slot (fp)
+        if model.dynamics != "opensteer" and not plugin:
             del out["steering"]
-        if model.dynamics != "hartman_benes":
+        if model.dynamics != "hartman_benes" and not plugin:
             del out["gains"]
     if model.dynamics == "boidspp":
         out["boidspp"] = boidspp_dict(model.boidspp, to_dict)

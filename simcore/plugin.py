@@ -10,9 +10,9 @@ and only it, checks its interface and registers it. The module defines:
   ``[plugin]`` table sets them; the schema engine (:mod:`simcore.schema`) converts and checks them like
   every built-in key (errors name ``plugin.<key>``), so sweeps and calibrations address them as
   ``plugin.<key>``;
-* ``steer(i, step, m, nbrs, state, fp, p, key) -> (fx, fy, fz)``: boid i's raw steering force from its m
+* ``steer(i, step, m, nbrs, state, fp, ip, p, key) -> (fx, fy, fz)``: boid i's raw steering force from its m
   perceived neighbours (``nbrs.idx[a]``, offsets ``nbrs.off[a]`` = p_j - p_i, a < m), the run-loop groups
-  of :mod:`simcore.hooks` (``state``, the shared slots ``fp`` of :mod:`simcore.layout`), ``p`` its
+  of :mod:`simcore.hooks` (``state``, the shared slots ``fp``, ``ip`` of :mod:`simcore.layout`), ``p`` its
   parameters as float64 in field order (index it with ``slots(Params)``) and the run's ``key`` for
   counter-based draws (:func:`simcore.rng.normal` with ``STREAM_PLUGIN``). A plain Python function that
   numba can compile as a leaf (:mod:`simcore.jit`): it reads, never allocates, and writes nothing.

@@ -40,7 +40,7 @@ def scratch(dynamics, n):
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
     fp, ip, dyn = params
     force = scratch[0]
-    force[i, 0], force[i, 1], force[i, 2] = plugin_steer(dynamics, i, step, m, nbrs, state, fp, dyn[0], key)
+    force[i, 0], force[i, 1], force[i, 2] = plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip, dyn[0], key)
     return False
 
 
@@ -51,7 +51,7 @@ def move(dynamics, i, state, params, scratch):
     apply_steering(i, force[i, 0], force[i, 1], force[i, 2], pos, vel, fwd, up, side, acc, fp, ip)
 
 
-def plugin_steer(dynamics, i, step, m, nbrs, state, fp, p, key):
+def plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip, p, key):
     raise NotImplementedError("a compiled hook: call it from a run loop")
 
 
@@ -63,15 +63,15 @@ def _adapter(number):
     if number not in _COMPILED:
         steer = numba.njit(**STEER_OPTIONS)(BY_NUMBER[number].module.steer)
 
-        def call(dynamics, i, step, m, nbrs, state, fp, p, key):
-            return steer(i, step, m, nbrs, state, fp, p, key)
+        def call(dynamics, i, step, m, nbrs, state, fp, ip, p, key):
+            return steer(i, step, m, nbrs, state, fp, ip, p, key)
 
         _COMPILED[number] = call
     return _COMPILED[number]
 
 
 @overload(plugin_steer, jit_options=STEER_OPTIONS, prefer_literal=True)
-def _plugin_steer_typing(dynamics, i, step, m, nbrs, state, fp, p, key):
+def _plugin_steer_typing(dynamics, i, step, m, nbrs, state, fp, ip, p, key):
     if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in BY_NUMBER:
         return _adapter(dynamics.literal_value)
     return None
