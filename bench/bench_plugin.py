@@ -31,8 +31,8 @@ def models(n: int, duration: float) -> dict:
     built_in = load_preset(ROOT / "configs/models/opensteer.toml", settings)
     couzin = load_preset(ROOT / "examples/couzin_like.toml", settings + ["run.dt=0.016666666666666666"])
     couzin = couzin.replace({"init": built_in.to_dict()["init"]})   # the same initial flock
-    return {"opensteer (built-in)": built_in,
-            "examples.opensteer_rules (plug-in, same rules)": built_in.replace({"dynamics": "examples.opensteer_rules"}),
+    same_rules = built_in.replace({"dynamics": "examples.opensteer_rules"})
+    return {"opensteer (built-in)": built_in, "examples.opensteer_rules (plug-in, same rules)": same_rules,
             "examples.couzin_like (plug-in)": couzin}
 
 

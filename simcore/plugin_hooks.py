@@ -1,9 +1,11 @@
 """The run-loop hooks (:mod:`simcore.hooks`) of every plug-in dynamics (:mod:`simcore.plugin`, docs/plugins.md).
 
 ``sense`` calls the plug-in's ``steer`` for boid i and stores its raw steering force in the per-boid
-buffer; ``move`` applies the OpenSteer vehicle physics of ``[vehicle]`` with it
-(:func:`simcore.dynamics.apply_steering`). ``pack`` puts the plug-in's parameters, in field order, in
-the ``dyn`` group's float slots (``p``). A plug-in has no change of leadership: ``sense`` never triggers.
+buffer, in the columns the ``opensteer`` dynamics uses; ``scratch`` and ``move`` are that dynamics' own
+(:mod:`simcore.opensteer`: the OpenSteer vehicle physics of ``[vehicle]``,
+:func:`simcore.dynamics.apply_steering`; without leadership there is no escape). ``pack`` puts the
+plug-in's parameters, in field order, in the ``dyn`` group's float slots (``p``). A plug-in has no change
+of leadership: ``sense`` never triggers.
 
 The plug-in's function is reached through :func:`plugin_steer`, a stub whose numba typing gives, for the
 literal dynamics number of a loaded plug-in, that plug-in's ``steer`` (compiled as a leaf without a cache
@@ -18,12 +20,12 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from .dynamics import apply_steering
 from .jit import LEAF_OPTIONS
+from .layout import OS
+from .opensteer import move, scratch  # noqa: F401 (hooks: the force in OpenSteer's columns, moved as OpenSteer's)
 from .plugin import BY_NUMBER, load
 
 THREADS = True
-WIDTH = 3   # per-boid scratch columns: the steering force
 STEER_OPTIONS = {key: value for key, value in LEAF_OPTIONS.items() if key != "cache"}
 
 
@@ -33,22 +35,12 @@ def pack(model, dt):
             np.zeros((0, 3)))
 
 
-def scratch(dynamics, n):
-    return np.zeros((n, WIDTH), np.float64), np.zeros((0, 3), np.float64)
-
-
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
     fp, ip, dyn = params
     force = scratch[0]
-    force[i, 0], force[i, 1], force[i, 2] = plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip, dyn[0], key)
+    force[i, OS.FX], force[i, OS.FY], force[i, OS.FZ] = plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip,
+                                                                     dyn[0], key)
     return False
-
-
-def move(dynamics, i, state, params, scratch):
-    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
-    fp, ip, dyn = params
-    force = scratch[0]
-    apply_steering(i, force[i, 0], force[i, 1], force[i, 2], pos, vel, fwd, up, side, acc, fp, ip)
 
 
 def plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip, p, key):

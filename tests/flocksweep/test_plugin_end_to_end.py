@@ -1,9 +1,10 @@
 """The worked plug-in example (examples/couzin_like*.toml, docs/plugins.md) through the command line: a grid
 over two of its parameters runs, resumes without recomputing, is reported with its claims file (the claim
 reaches its verdict from the data), and a stored run is viewed (re-simulated bit for bit from its stored
-spec, which names the module and its hash)."""
+spec), but refused once the module's source hash differs from the one its run id was made with."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -12,6 +13,7 @@ import pytest
 
 from flocksweep.cli import main
 from paths import ROOT
+from simcore import plugin as plugins
 
 SWEEP = ROOT / "examples" / "couzin_like_sweep.toml"
 SMALL = ["--set", "run.n=12", "--set", "run.duration=8.0", "--set", "run.warmup=2.0"]
@@ -22,15 +24,14 @@ def page_json(path) -> dict:
 
 
 @pytest.mark.slow
-def test_the_example_plugin_is_swept_reported_and_viewed(tmp_path, capsys):
+def test_the_example_plugin_is_swept_reported_and_viewed(tmp_path, capsys, monkeypatch):
     out = tmp_path / "results"
     argv = ["run", str(SWEEP), *SMALL, "--out", str(out), "--executor", "serial", "--no-progress"]
     assert main(argv) == 0
     runs = pd.read_parquet(out / "runs.parquet")
     assert len(runs) == 12 and (runs["status"] == "ok").all()
     assert set(runs["plugin.zor"]) == {0.5, 1.0, 2.0} and set(runs["plugin.gain"]) == {2.0, 6.0}
-    stored = json.loads((out / "model.json").read_text())["preset"]
-    assert stored["dynamics"] == "examples.couzin_like" and len(stored["plugin_sha256"]) == 64
+    assert json.loads((out / "model.json").read_text())["preset"]["dynamics"] == "examples.couzin_like"
 
     capsys.readouterr()
     assert main(argv) == 0                                  # resume: nothing recomputed
@@ -49,3 +50,11 @@ def test_the_example_plugin_is_swept_reported_and_viewed(tmp_path, capsys):
     data = page_json(page)
     assert data["n"] == 12 and data["info"]["run id"] == run_id
     assert data["params"]["plugin.zor"] in (0.5, 1.0, 2.0)
+
+    # the module edited since (its source hash differs): the stored run no longer hashes to its id, refused
+    edited = dataclasses.replace(plugins.load("examples.couzin_like"), sha256="0" * 64)
+    monkeypatch.setitem(plugins.LOADED, "examples.couzin_like", edited)
+    capsys.readouterr()
+    assert main(["view", str(out), "--run", run_id, "--out", str(tmp_path / "edited.html")]) == 2
+    assert "hashes to" in capsys.readouterr().err
+    assert not (tmp_path / "edited.html").exists()
