@@ -34,7 +34,7 @@ def test_a_plugin_sweep_is_bit_identical_across_executors_and_worker_counts(tmp_
     run(tmp_path / "serial", executor="serial")
     reference = rows(tmp_path / "serial")
     assert len(reference) == 6 and (reference["status"] == "ok").all()
-    assert sorted(reference["plugin.zor"].unique()) == [0.5, 1.0, 2.0]
+    assert sorted(reference["plugin.zor"].unique()) == [1.0, 2.0, 3.0]
     assert sorted(reference["plugin.gain"].unique()) == [2.0, 6.0]
     assert reference["nn_distance_mean"].nunique() == 6      # the parameters act
     for workers in (1, 2):
