@@ -212,8 +212,11 @@ def test_the_compiled_run_matches_its_numpy_twin():
 
 
 @pytest.mark.slow
-def test_a_plugin_with_opensteer_rules_is_the_built_in_bit_for_bit():
+@pytest.mark.parametrize("world", [{}, {"world.update_order": "sequential", "world.boundary": "periodic_box",
+                                       "world.box_size": 30.0}], ids=["synchronous-open", "sequential-box"])
+def test_a_plugin_with_opensteer_rules_is_the_built_in_bit_for_bit(world):
     preset = load_preset(ROOT / "configs" / "models" / "opensteer.toml", ["init.n=40", "run.duration=3"])
+    preset = preset.replace(world) if world else preset
     twin = preset.replace({"dynamics": "examples.opensteer_rules"})
     built_in, plugged = simulate(preset.model, preset.init, 4, 3.0, preset.run.dt), \
         simulate(twin.model, twin.init, 4, 3.0, twin.run.dt)
