@@ -42,7 +42,8 @@ import inspect
 from numba import types
 from numba.extending import overload
 
-from . import boidspp, hartman_benes, opensteer, plugin_hooks, reynolds87
+from . import boidspp, hartman_benes, opensteer, reynolds87
+from . import plugin_hooks
 from .jit import KERNEL_OPTIONS, LEAF_OPTIONS
 from .layout import DYNAMICS_BOIDSPP, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER, DYNAMICS_REYNOLDS87
 from .params import DYNAMICS
