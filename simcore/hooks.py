@@ -30,6 +30,10 @@ except ``scratch``, which allocates):
   boid perceives) and ``after_boids(dynamics, step, state, params, key, scratch)`` (after every boid moved);
 * ``THREADS`` (Python): whether a synchronous run of this dynamics is split over threads
   (:mod:`simcore.threaded`); without it, one thread per run.
+
+A plug-in dynamics (:mod:`simcore.plugin`: a user's module named in a preset) is not in ``MODULES``: its
+number (from ``PLUGIN_BASE`` on) chooses the hooks of :mod:`simcore.plugin_hooks`, which call its own
+function.
 """
 from __future__ import annotations
 
@@ -39,10 +43,12 @@ from numba import types
 from numba.extending import overload
 
 from . import boidspp, couzin2002, hartman_benes, opensteer, reynolds87, vicsek
+from . import plugin_hooks
 from .jit import KERNEL_OPTIONS, LEAF_OPTIONS
 from .layout import (DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER,
                      DYNAMICS_REYNOLDS87, DYNAMICS_VICSEK)
 from .params import DYNAMICS
+from .plugin import BY_NUMBER
 
 MODULES = {DYNAMICS_OPENSTEER: opensteer, DYNAMICS_HARTMAN_BENES: hartman_benes,
            DYNAMICS_REYNOLDS87: reynolds87, DYNAMICS_BOIDSPP: boidspp, DYNAMICS_COUZIN2002: couzin2002,
@@ -51,8 +57,13 @@ assert sorted(MODULES) == list(range(len(DYNAMICS)))
 
 
 def module_of(dynamics: str):
-    """The module of a dynamics named as in presets (``model.dynamics``)."""
-    return MODULES[DYNAMICS.index(dynamics)]
+    """The module of a dynamics named as in presets (``model.dynamics``; a plug-in's: plugin_hooks)."""
+    return MODULES[DYNAMICS.index(dynamics)] if dynamics in DYNAMICS else plugin_hooks
+
+
+def name_of(number: int) -> str:
+    """The name presets give the dynamics of run-loop literal ``number``."""
+    return DYNAMICS[number] if number in MODULES else BY_NUMBER[number].name
 
 
 def pack(model, dt):
@@ -120,6 +131,8 @@ def _choose(name, dynamics):
     hook's default); otherwise none (numba's typing error names the hook and the argument types)."""
     if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in MODULES:
         return getattr(MODULES[dynamics.literal_value], name, OPTIONAL.get(name))
+    if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in BY_NUMBER:
+        return getattr(plugin_hooks, name, OPTIONAL.get(name))
     return None
 
 

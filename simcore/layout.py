@@ -114,7 +114,7 @@ INT_SLOTS = {
     "PATTERNS": lambda m, dt: int(m.patterns.enabled),
     "SEP_WEIGHT": lambda m, dt: SEPARATION_WEIGHTS.index(m.patterns.separation_weight),
     "NBITS": lambda m, dt: m.patterns.n_bits,
-    "DYNAMICS": lambda m, dt: DYNAMICS.index(m.dynamics),
+    "DYNAMICS": lambda m, dt: dynamics_number(m.dynamics),
     "LEADERSHIP": lambda m, dt: int(m.leadership.enabled),
     "FRONT_GATE": lambda m, dt: FRONT_GATES.index(m.leadership.front_gate),
     "DRIVE": lambda m, dt: int(m.noise.enabled or m.cruise.enabled),
@@ -146,6 +146,16 @@ assert UPDATE_ORDERS == ("synchronous", "sequential")
 assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
 assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
 assert FRONT_GATES == ("positive", "weighted", "none")
+
+
+def dynamics_number(dynamics: str) -> int:
+    """The run loop's literal for a dynamics: its position in DYNAMICS, or a plug-in's number (loaded and
+    registered here when this process has not yet, :mod:`simcore.plugin`)."""
+    if dynamics in DYNAMICS:
+        return DYNAMICS.index(dynamics)
+    from .plugin import load
+
+    return load(dynamics, DYNAMICS).number
 
 
 def pack(model: ModelParams, dt: float) -> tuple[np.ndarray, np.ndarray]:

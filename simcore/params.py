@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
 from .couzin_params import Couzin
@@ -291,9 +292,16 @@ class ModelParams:
     cruise: Cruise = field(default_factory=Cruise)
     couzin: Couzin = field(default_factory=Couzin)
     vicsek: Vicsek = field(default_factory=Vicsek)
+    plugin: Any = None                 # a plug-in dynamics' parameters (simcore.plugin): its Params
+    plugin_sha256: str | None = None   # the plug-in module's SHA-256 (filled in; checked when given)
 
     def __post_init__(self):
-        _choice("dynamics", self.dynamics, DYNAMICS)
+        if not isinstance(self.dynamics, str):
+            raise ConfigError("dynamics", f"expected a string, got {self.dynamics!r}")
+        if self.dynamics in DYNAMICS:
+            _check_builtin(self)
+        else:
+            _check_plugin(self)
         if self.world.dimensions == 2 and self.dynamics not in PLANAR_DYNAMICS:
             raise ConfigError("world.dimensions", f"got 2; dynamics {self.dynamics!r} runs in 3-D only: 2-D "
                                                   f"motion is available for dynamics {PLANAR_DYNAMICS}")
@@ -336,6 +344,28 @@ class ModelParams:
         if per.kind == "topological":
             return math.inf if per.max_distance is None else per.max_distance
         return {"sphere": self.sphere_radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
+
+
+def _check_builtin(model: ModelParams) -> None:
+    """A built-in dynamics has no [plugin] table."""
+    if model.plugin not in (None, {}):
+        raise ConfigError("plugin", f"applies only to a plug-in dynamics, not {model.dynamics!r} (docs/plugins.md)")
+    if model.plugin_sha256 is not None:
+        raise ConfigError("plugin_sha256", f"applies only to a plug-in dynamics, not {model.dynamics!r}")
+    object.__setattr__(model, "plugin", None)
+
+
+def _check_plugin(model: ModelParams) -> None:
+    """A plug-in dynamics (simcore.plugin): its module loaded, its [plugin] table built and its source hash
+    recorded; it has no change of leadership."""
+    from .plugin import validate
+
+    values, sha = validate(model, DYNAMICS)
+    object.__setattr__(model, "plugin", values)
+    object.__setattr__(model, "plugin_sha256", sha)
+    if model.leadership.enabled:
+        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; a plug-in dynamics has no change of "
+                                          "leadership: set leadership.x = 0")
 
 
 def _check_reynolds(model: ModelParams) -> None:
@@ -511,10 +541,19 @@ class Preset:
         if whole["init"] or whole["run"]:
             init = build(InitParams, whole["init"][-1], "init") if whole["init"] else init
             run = build(RunSettings, whole["run"][-1], "run") if whole["run"] else run
-        model = replace_fields(self.model, sections["model"], "")
+        model = replace_fields(self.model, _new_dynamics(sections["model"]), "")
         _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
         return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
                       run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"), units=self.units)
+
+
+def _new_dynamics(changes) -> list:
+    """Model changes, plus: a change of dynamics drops the plug-in table and hash of the old one (unless the
+    changes set them), so the new dynamics' are built and recorded afresh."""
+    touched = {parts[0] for parts, value in changes}
+    if "dynamics" not in touched:
+        return changes
+    return changes + [((name,), None) for name in ("plugin", "plugin_sha256") if name not in touched]
 
 
 def _perception_keys(changes) -> list[str]:
@@ -554,14 +593,17 @@ def model_dict(model: ModelParams) -> dict:
         out["reynolds"] = model.reynolds.canonical()
     else:
         del out["reynolds"]
-        if model.dynamics != "opensteer":
+        plugin = model.dynamics not in DYNAMICS   # a plug-in's steer receives every shared slot (fp)
+        if model.dynamics != "opensteer" and not plugin:
             del out["steering"]
-        if model.dynamics != "hartman_benes":
+        if model.dynamics != "hartman_benes" and not plugin:
             del out["gains"]
     if model.dynamics == "boidspp":
         out["boidspp"] = boidspp_dict(model.boidspp, to_dict)
     else:
         del out["boidspp"]
+    if model.dynamics in DYNAMICS:   # added later: absent for built-ins, so their run ids stay valid
+        del out["plugin"], out["plugin_sha256"]
     if not model.leadership.enabled:
         del out["leadership"]
     if not model.noise.enabled:

@@ -29,6 +29,7 @@ STREAM_HEADING_NOISE = 4  # simcore.noise: the von Mises-Fisher turn (uniforms a
 STREAM_SPEED_NOISE = 5  # simcore.noise: the speed kick (normal at boid)
 STREAM_COUZIN_NOISE = 8   # couzin2002: the angular noise (normals)
 STREAM_VICSEK_NOISE = 9   # vicsek: the angular noise (uniforms)
+STREAM_PLUGIN = 16   # a plug-in dynamics' own draws (simcore.plugin); far from the built-ins' next numbers
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

@@ -42,7 +42,7 @@ from numba.core import event as numba_event
 from . import hooks, kernel
 from .jit import call_with_literals
 from .layout import I
-from .params import DYNAMICS, PERCEPTION_KINDS, InitParams, ModelParams, Preset
+from .params import PERCEPTION_KINDS, InitParams, ModelParams, Preset
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
 
@@ -121,7 +121,7 @@ def _run_loop(dispatcher, *args, params) -> None:
     perception kind of ``params``, are compile-time literals (:func:`simcore.jit.call_with_literals`)."""
     ip = params[1]
     dynamics, kind = int(ip[I.DYNAMICS]), int(ip[I.PERCEPTION])
-    family = (f"{getattr(dispatcher, '__name__', 'run loop')} ({DYNAMICS[dynamics]} dynamics, "
+    family = (f"{getattr(dispatcher, '__name__', 'run loop')} ({hooks.name_of(dynamics)} dynamics, "
               f"{PERCEPTION_KINDS[kind]} perception)")
     with numba_event.install_listener("numba:compile", _CompileNotice(family)):
         call_with_literals(dispatcher, (*args, dynamics, kind), 2)

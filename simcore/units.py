@@ -82,7 +82,7 @@ NO_LENGTH = {
 }
 
 # what a file in metres may not hold (not converted here)
-REFUSED = ("boidspp", "world.obstacles")
+REFUSED = ("boidspp", "world.obstacles", "plugin")
 
 
 def _number(value) -> float:
@@ -97,6 +97,10 @@ def to_body_lengths(data: dict, units: Units) -> dict:
     if "boidspp" in data or data.get("dynamics") == "boidspp":
         raise ConfigError("units.length", "got 'm', but the Boids++ dynamics' keys are not converted from metres: "
                                           "state this model in body lengths (units.length = 'bl')")
+    if "plugin" in data:
+        raise ConfigError("units.length", "got 'm', but a plug-in dynamics' [plugin] keys are not converted from "
+                                          "metres (their units are the plug-in's): state this model in body lengths "
+                                          "(units.length = 'bl')")
     if isinstance(data.get("world"), dict) and data["world"].get("obstacles"):
         raise ConfigError("units.length", "got 'm', but world.obstacles are not converted from metres: state "
                                           "this model in body lengths (units.length = 'bl')")
