@@ -1,5 +1,5 @@
 """A sweep of a plug-in dynamics (examples/couzin_like.py, docs/plugins.md) is as deterministic as a built-in
-one: serial, a local pool of one worker and of two (spawned processes, which import the plug-in module from
+one: serial, a local pool of one worker and of two, and a Dask cluster of two (spawned processes, which import the plug-in module from
 the path they inherit) store bit-identical rows and time series; the rows carry the swept plug-in keys."""
 from __future__ import annotations
 
@@ -42,3 +42,6 @@ def test_a_plugin_sweep_is_bit_identical_across_executors_and_worker_counts(tmp_
         run(out, executor="local", workers=workers, batch_size=1)
         assert_frame_equal(rows(out), reference, check_exact=True)
         assert_frame_equal(series(out), series(tmp_path / "serial"), check_exact=True)
+    pytest.importorskip("dask.distributed")
+    run(tmp_path / "dask", executor="dask", workers=2)   # dask's workers find the module on the path too
+    assert_frame_equal(rows(tmp_path / "dask"), reference, check_exact=True)
