@@ -3,8 +3,8 @@ its one-line message must contain (docs/errors.md). Used by tests/sweeps/test_fa
 bench/fault_battery.py, which runs them all and counts those refused cleanly before any write.
 
 A case is ``Case(name, argv, files, code, expect)``: ``files`` are written into an empty folder
-(``{d}`` in argv and file texts is that folder, ``{holland}`` the shipped Holland preset); ``argv`` runs
-there. A clean refusal: the exit status ``code``, stderr holding ``expect`` (case-insensitive) and no
+(``{d}`` in argv and file texts is that folder, ``{holland}`` the shipped Holland preset), and ``links``
+(name -> target) made there as symbolic links; ``argv`` runs there. A clean refusal: the exit status ``code``, stderr holding ``expect`` (case-insensitive) and no
 traceback, and no file written (the folder holds exactly ``files`` afterwards).
 """
 from __future__ import annotations
@@ -24,6 +24,7 @@ class Case:
     code: int = 2
     expect: str = ""
     may_write: str = ""   # a folder the refusal may write its report into (measure's validation.csv)
+    links: dict = field(default_factory=dict)   # symbolic links made in the folder: name -> target
 
 
 SWEEP = """name = "tiny"
@@ -473,17 +474,43 @@ EXPRESSIONS = [
 TRACK = "id,t,x,y,z\n1,0,0,0,0\n1,1,1,0,0\n1,2,2,0,0\n2,0,0,1,0\n2,1,1,1,0\n2,2,2,1,0\n"
 MEASURE = ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out", "{d}/out")
 
+# output paths that cannot be a folder: each named as --out, exit 2, before anything is written
+OUT_PATHS = [
+    Case("run: --out a dangling symbolic link", RUN[:3] + ("{d}/dangling",) + RUN[4:], GOOD_SWEEP, 2,
+         "dangling is a symbolic link to 'nowhere', which does not exist",
+         links={"dangling": "nowhere"}),
+    Case("run: --out a symbolic link loop", RUN[:3] + ("{d}/loop1",) + RUN[4:], GOOD_SWEEP, 2, "symbolic link in a loop",
+         links={"loop1": "loop2", "loop2": "loop1"}),
+    Case("run: --out below a symbolic link loop", RUN[:3] + ("{d}/loop1/sub",) + RUN[4:], GOOD_SWEEP, 2,
+         "--out: ", links={"loop1": "loop2", "loop2": "loop1"}),
+    Case("calibrate: --out a dangling symbolic link", ("calibrate", "{d}/c.toml", "--out", "{d}/dangling"), GOOD_CAL,
+         2, "--out: ", links={"dangling": "nowhere"}),
+    Case("measure: --out an existing file", ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out",
+                                             "{d}/t.csv"), {"t.csv": TRACK}, 2, "is a file; expected a folder"),
+    Case("measure: --out a symbolic link loop", ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out",
+                                                 "{d}/loop1"), {"t.csv": TRACK}, 2, "--out: ",
+         links={"loop1": "loop2", "loop2": "loop1"}),
+]
+
+MEASURE_FLAGS = [
+    Case("measure: --fragmentation-cohesion 2", MEASURE + ("--fragmentation-cohesion", "2"), {"t.csv": TRACK}, 2,
+         "--fragmentation-cohesion: got 2.0; allowed range (0.0, 1.0]"),
+    Case("measure: --warmup -1", MEASURE + ("--warmup", "-1"), {"t.csv": TRACK}, 2, "--warmup: got -1.0"),
+    Case("measure: --dcd-max-delay -1", MEASURE + ("--dcd-max-delay", "-1"), {"t.csv": TRACK}, 2, "--dcd-max-delay"),
+]
+
 TRACK_FILES = [
     Case("measure: --interval 1e-9 (4e9 positions)", MEASURE + ("--interval", "1e-9"), {"t.csv": TRACK}, 2,
          "over the limit of 20,000,000", may_write="out"),
 ]
 
 CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
-         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + TRACK_FILES)
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRACK_FILES)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
-         "simulate: --out an existing file", "status: garbage design", "run: --out an existing file")
+         "simulate: --out an existing file", "status: garbage design", "run: --out an existing file",
+         "run: --out a dangling symbolic link", "measure: --out an existing file", "measure: --fragmentation-cohesion 2")
 
 
 def materialise(case: Case, folder) -> list[str]:
@@ -495,6 +522,8 @@ def materialise(case: Case, folder) -> list[str]:
             path.write_bytes(content)
         else:
             path.write_text(content.replace("{d}", str(folder)).replace("{holland}", HOLLAND))
+    for name, target in case.links.items():
+        (folder / name).symlink_to(target)
     return [str(a).replace("{d}", str(folder)).replace("{holland}", HOLLAND) for a in case.argv]
 
 

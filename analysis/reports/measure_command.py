@@ -28,6 +28,7 @@ from observables.track_formats import FORMATS
 from observables.tracks import LENGTH_UNITS, ROLES, track_source
 from observables.validation import TrackError, describe
 from simcore.schema import ConfigError
+from sweeps.failures import check_out
 
 from .measured import measure_folder
 
@@ -103,6 +104,9 @@ def _velocity_interval(text: str | None):
 
 
 SHOWN_WARNINGS = 10
+# a metric setting's key (MetricSettings) -> the flag that sets it
+SETTING_FLAGS = {"group_radius": "--group-radius", "warmup": "--warmup",
+                 "fragmentation_cohesion": "--fragmentation-cohesion", "dcd_max_delay": "--dcd-max-delay"}
 
 
 def _print_warnings(issues, line_offset, out: Path) -> None:
@@ -130,8 +134,11 @@ def run(args) -> int:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
     try:
         settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion, args.dcd_max_delay)
-    except (ValueError, ConfigError) as err:
-        raise ConfigError("--group-radius" if "radius" in str(err) else "--warmup", str(err)) from None
+    except ConfigError as err:
+        raise ConfigError(SETTING_FLAGS.get(err.key, "--group-radius"), err.detail) from None
+    except ValueError as err:
+        raise ConfigError("--group-radius", str(err)) from None
+    check_out("--out", args.out)
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,
