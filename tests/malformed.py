@@ -499,18 +499,59 @@ MEASURE_FLAGS = [
     Case("measure: --dcd-max-delay -1", MEASURE + ("--dcd-max-delay", "-1"), {"t.csv": TRACK}, 2, "--dcd-max-delay"),
 ]
 
+def _npz(**arrays) -> bytes:
+    import io
+
+    import numpy as np
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    return buffer.getvalue()
+
+
+_R, _N = 3, 4
+GOOD_NPZ = _npz(times=[0.0, 0.5, 1.0], pos=[[[float(i), 0.0, 0.0] for i in range(_N)]] * _R,
+                vel=[[[1.0, 0.0, 0.0]] * _N] * _R)
+VIEW_NPZ = ("view", "{d}/t/trajectory.npz", "--out", "{d}/p.html", "--no-progress")
+PARAMS = '{"preset": {"name": "m", "perception": {"field_deg": %s}}, "seed": 1}'
+
+# trajectory files for the viewer (and the params.json beside them): each refusal names the file
+TRAJECTORY_FILES = [
+    Case("view: a .npz of garbage", VIEW_NPZ, {"t/trajectory.npz": b"garbage" * 10}, 2,
+         "trajectory.npz: not a trajectory .npz (not a zip archive"),
+    Case("view: a truncated .npz", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ[:len(GOOD_NPZ) // 2]}, 2,
+         "trajectory.npz: not a trajectory .npz"),
+    Case("view: a .npz without vel", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[[[0.0, 0, 0]]])}, 2,
+         "trajectory.npz: not a flocksweep trajectory (missing vel"),
+    Case("view: a .npz with flat positions", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[0.0, 1.0, 2.0],
+                                                                                  vel=[0.0, 1.0, 2.0])}, 2,
+         "trajectory.npz: pos holds"),
+    Case("view: a .npz of pickled objects", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[[[0, 0, 0]]],
+                                                                                  vel=[[[0, 0, 0]]],
+                                                                                  seed=__import__("numpy").array(
+                                                                                      [{}], dtype=object))}, 2,
+         "trajectory.npz: cannot be read as a trajectory"),
+    Case("view: params.json not JSON", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": "{not json"}, 2,
+         "params.json: cannot be read as a trajectory's parameters"),
+    Case("view: params.json a list", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": "[1, 2]"}, 2,
+         "params.json: cannot be read as a trajectory's parameters"),
+    Case("view: params.json not UTF-8", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": b'{"\xff": 1}'}, 2, "params.json: cannot be read"),
+    Case("view: params.json with a preset value out of range", VIEW_NPZ,
+         {"t/trajectory.npz": GOOD_NPZ, "t/params.json": PARAMS % "400"}, 2, "params.json: its preset: "),
+]
+
 TRACK_FILES = [
     Case("measure: --interval 1e-9 (4e9 positions)", MEASURE + ("--interval", "1e-9"), {"t.csv": TRACK}, 2,
          "over the limit of 20,000,000", may_write="out"),
 ]
 
 CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
-         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRACK_FILES)
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_FILES)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
          "simulate: --out an existing file", "status: garbage design", "run: --out an existing file",
-         "run: --out a dangling symbolic link", "measure: --out an existing file", "measure: --fragmentation-cohesion 2")
+         "run: --out a dangling symbolic link", "measure: --out an existing file", "measure: --fragmentation-cohesion 2",
+         "view: a .npz of garbage", "view: params.json a list")
 
 
 def materialise(case: Case, folder) -> list[str]:

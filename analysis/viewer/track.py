@@ -32,6 +32,7 @@ import numpy as np
 
 from observables.summary import default_group_radius, world_box
 from simcore import Observations, preset_from_dict
+from simcore.schema import ConfigError
 from sweeps.design import rebuild
 from sweeps.store import ResultsStore
 from sweeps.trajectory import read_trajectory
@@ -244,6 +245,20 @@ def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
     return meta
 
 
+def _saved_params(path: Path):
+    """(the parameters, their preset) of a trajectory's ``params.json``; an error naming the file when it
+    cannot be read or holds no valid preset."""
+    try:
+        saved = json.loads(path.read_text())
+        if not isinstance(saved, dict) or not isinstance(saved.get("preset"), dict):
+            raise ValueError("expected a JSON object with a 'preset' object, as flocksweep simulate writes")
+        return saved, preset_from_dict(saved["preset"])
+    except ConfigError as err:
+        raise ConfigError(str(path), f"its preset: {err}") from None
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot be read as a trajectory's parameters ({err})") from None
+
+
 def from_npz(path) -> Track:
     """A Track of a saved trajectory (:func:`sweeps.trajectory.read_trajectory`; see the module docstring)."""
     path = Path(path)
@@ -251,8 +266,8 @@ def from_npz(path) -> Track:
     meta: dict = {"title": path.stem, "info": {"source": str(path)}}
     params_path = path.with_name("params.json")
     if params_path.is_file():
-        saved = json.loads(params_path.read_text())
-        meta.update(_preset_meta(preset_from_dict(saved["preset"]), arrays["pos"]))
+        saved, preset = _saved_params(params_path)
+        meta.update(_preset_meta(preset, arrays["pos"]))
         meta["title"] = f"{saved['preset'].get('name', path.stem)}: seed {saved.get('seed')}"
         meta["info"] = {"source": str(path), "seed": saved.get("seed")}
     elif path.parent.name == "trajectories":
