@@ -543,19 +543,44 @@ TRAJECTORY_FILES = [
          {"t/trajectory.npz": GOOD_NPZ, "t/params.json": PARAMS % "400"}, 2, "params.json: its preset: "),
 ]
 
+def _track(x_scale=1.0, t_scale=1.0) -> str:
+    return "id,t,x,y,z\n" + "".join(f"{i},{t * t_scale!r},{t * x_scale * i!r},{i},0\n" for i in (1, 2) for t in (0, 1, 2))
+
+
+# track content: what no flock metric can be computed from; every problem listed in validation.csv (only)
+TRACK_CONTENT = [
+    Case("measure: --warmup beyond the tracks (1e9 s)", MEASURE + ("--warmup", "1e9"), {"t.csv": TRACK}, 2,
+         "no record at or after the warm-up of 1e+09 s", may_write="out"),
+    Case("measure: coordinates x 1e305", MEASURE, {"t.csv": _track(x_scale=1e305)}, 2,
+         "column 'x': x: 1e+305 is beyond 1e+100 analysis units", may_write="out"),
+    Case("measure: coordinates x 1e305 in a mapped column", MEASURE + ("--columns", "x=px"),
+         {"t.csv": _track(x_scale=1e305).replace(",x,", ",px,")}, 2, "column 'px'", may_write="out"),
+    Case("measure: velocities that overflow (1e99 m in 1e-250 s)", MEASURE, {"t.csv": _track(1e99, 1e-250)}, 2,
+         "non-finite derived values (velocities)", may_write="out"),
+    Case("measure: speeds that overflow (1e99 m in 1e-101 s)", MEASURE, {"t.csv": _track(1e99, 1e-101)}, 2,
+         "non-finite derived values (speed_mean_mean = inf", may_write="out"),
+    Case("measure: a header and no rows", MEASURE, {"t.csv": "id,t,x,y,z\n"}, 2,
+         "the tracks hold no flock: the file has no rows of detections", may_write="out"),
+    Case("measure: a sidecar key typo", MEASURE, {"t.csv": TRACK, "t.json": '{"colums": {"id": "bird"}}'}, 2,
+         "t.json: colums: unknown setting (did you mean 'columns'?)"),
+    Case("measure: a sidecar unit typo", MEASURE, {"t.csv": TRACK, "t.json": '{"unit": {"length": "cm"}}'}, 2,
+         "did you mean 'units'?"),
+]
+
 TRACK_FILES = [
     Case("measure: --interval 1e-9 (4e9 positions)", MEASURE + ("--interval", "1e-9"), {"t.csv": TRACK}, 2,
          "over the limit of 20,000,000", may_write="out"),
 ]
 
 CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
-         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_FILES)
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_CONTENT + TRACK_FILES)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
          "simulate: --out an existing file", "status: garbage design", "run: --out an existing file",
          "run: --out a dangling symbolic link", "measure: --out an existing file", "measure: --fragmentation-cohesion 2",
-         "view: a .npz of garbage", "view: params.json a list")
+         "view: a .npz of garbage", "view: params.json a list", "measure: coordinates x 1e305",
+         "measure: a sidecar key typo")
 
 
 def materialise(case: Case, folder) -> list[str]:
