@@ -31,6 +31,7 @@ could be measured, a
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,7 +145,8 @@ def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progr
     if errors:
         raise TrackError(errors, table.path, table.line_offset)
     rows, frames, flocks = [], [], []
-    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress or len(checked) < 2):
+    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr,
+                               mininterval=0.5):
         velocity = step if velocity_interval is None else velocity_interval
         row = _row(raw.name, "ok", "", table, step, velocity)
         try:
