@@ -48,15 +48,14 @@ import numpy as np
 
 from simcore.schema import ConfigError, build, suggest
 
-from .track_formats import WIDE_FORMATS, detect_format, read_table, read_wide
+from .track_formats import detect_format, read_table, read_wide
+from .track_names import LENGTH_UNITS, RECORDED, ROLES, WIDE_FORMATS  # noqa: F401 - declared there, part of this face
 from .validation import Issue, TrackError
 
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
     import pandas as pd
 
-ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
 REQUIRED = ("id", "t", "x", "y")
-LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None, "px": None}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None, "frame": None}
 
 
