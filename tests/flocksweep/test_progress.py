@@ -18,6 +18,7 @@ import termios
 
 import pytest
 
+from malformed import calibration_text
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -78,24 +79,8 @@ def test_run_report_and_view_show_progress_in_a_terminal_and_are_quiet_without(t
         assert code == 0 and err.strip() == "", (argv, err)
 
 
-CAL_HEAD = """name = "cal"
-seed = 1
-[model]
-preset = "{holland}"
-[run]
-n = 8
-duration = 1.0
-record_interval = 0.5
-warmup = 0.5
-[parameters.field]
-key = "perception.field_deg"
-prior = {{ dist = "uniform", low = 60, high = 300 }}
-[targets]
-stats = ["cohesion", "polarization"]
-mean = [0.9, 0.8]
-sd = [0.05, 0.05]
-[method]
-""".format(holland=HOLLAND)
+# the malformed battery's small calibration (8 boids for 1 s, one parameter, two target statistics)
+CAL_HEAD = calibration_text().split("[method]")[0].replace("{holland}", HOLLAND) + "[method]\n"
 METHODS = {"emcee": 'kind = "emcee"\nn_sim = 5\nwalkers = 4\nsteps = 3\n',
            "optimize": 'kind = "optimize"\nn_sim = 5\nmaxiter = 2\npopsize = 3\nrecheck = 10\n',
            "npe": 'kind = "npe"\nsimulations = 30\nheldout = 10\ndraws = 100\n'
