@@ -6,7 +6,8 @@ simulator's ``Observations``: the same function for both). v_hat = v / |v| is th
 stopped or unseen individual has none at that record and is left out of every term.
 
 * **Directional correlation** of the ordered pair (i, j) at the delay tau = m x interval,
-  m = -M .. M, M = floor(max_delay / interval):
+  m = -M .. M, M = floor(max_delay / interval), at most R - 1 for R records (a longer delay has no pair of
+  records, so its C would be nan: not allocated, however fine the interval):
 
       C_ij(tau) = mean over records t (both t and t + m in the run, both headings known)
                   of v_hat_i(t) . v_hat_j(t + m)
@@ -39,7 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DCD_METRIC_NAMES = ("dcd_corr_mean", "dcd_delay_mean", "dcd_edges", "dcd_leader_delay")
+from .columns import DCD_METRIC_NAMES  # noqa: F401 - declared there, part of this module's face
+
 MIN_CORR = 0.5
 DCD_MAX_DELAY = 2.0    # s: the largest delay by default
 
@@ -73,7 +75,7 @@ def correlation_curves(vel: np.ndarray, interval: float, max_delay: float, min_t
     known = np.isfinite(head).all(axis=-1)
     head = np.where(known[..., None], head, 0.0)
     n_rec, n = known.shape
-    steps = int(np.floor(max_delay / interval + 1e-9))
+    steps = int(min(np.floor(max_delay / interval + 1e-9), max(n_rec - 1, 0)))
     shifts = np.arange(-steps, steps + 1)
     corr = np.full((n, n, shifts.size), np.nan)
     for k, m in enumerate(shifts):

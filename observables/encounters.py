@@ -40,32 +40,15 @@ import numpy as np
 from simcore.obstacle_spec import pack_obstacles
 from simcore.obstacles import clearances
 
-OBSTACLE_SERIES = ("collisions", "collision_fraction", "clearance")
-OBSTACLE_SCALARS = ("collided_boids", "collision_events", "clearance_min")
-PREDATOR_SERIES = ("predator_distance", "predator_near", "predator_in_capture", "flock_gyration_radius")
-PREDATOR_SCALARS = ("predator_captures", "predator_distance_min", "flash_nn_ratio", "flash_gyration_ratio",
-                    "groups_before_predator", "groups_near_predator", "groups_near_predator_max", "remerge_time")
-PREY_SERIES = ("prey_distance", "prey_within_fraction")
-PREY_SCALARS = ("prey_reach_time", "prey_first_reach_time")
-FAMILIES = {"obstacles": (OBSTACLE_SERIES, OBSTACLE_SCALARS), "predator": (PREDATOR_SERIES, PREDATOR_SCALARS),
-            "prey": (PREY_SERIES, PREY_SCALARS)}
+from .columns import (FAMILIES, OBSTACLE_SCALARS, OBSTACLE_SERIES, PREDATOR_SCALARS,  # noqa: F401 - declared there
+                      PREDATOR_SERIES, PREY_SCALARS, PREY_SERIES, encounter_columns)
+
 
 AGENTS = ("predator", "prey")  # the agents a run may record besides the boids: Observations attributes
 
 CAPTURE_RADIUS = 1.0   # a boid's and the predator's bodies (radius 0.5 each) touch
 PREDATOR_NEAR = 10.0   # the predator is near when this close to the flock centre
 PREY_REACH = 5.0       # the flock has reached the prey when its centre is this close
-
-
-def encounter_columns(families=("obstacles", "predator", "prey")) -> tuple[str, ...]:
-    """Row columns of the given families, in row order: each family's series means and finals, then
-    its scalars."""
-    columns = []
-    for family in families:
-        series, scalars = FAMILIES[family]
-        columns += [f"{name}_{kind}" for name in series for kind in ("mean", "final")]
-        columns += list(scalars)
-    return tuple(columns)
 
 
 def _fold(d: np.ndarray, box: float | None) -> np.ndarray:

@@ -20,12 +20,12 @@ from enum import IntEnum
 import numpy as np
 from numba import njit
 
+from .columns import SERIES
+
 TINY = 1e-12  # relative size below which an eigenvalue, width or summed heading counts as zero
 
 # the one declaration of the per-record metrics: the columns of frame_kernel's table, in order
-COLUMNS = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
-           "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
-           "visible_mean", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
+COLUMNS = SERIES   # the series' names are declared in observables.columns (read without numba)
 Column = IntEnum("Column", [(name, index) for index, name in enumerate(COLUMNS)])
 
 

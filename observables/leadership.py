@@ -61,15 +61,13 @@ from typing import Any, NamedTuple, TYPE_CHECKING
 import numba as nb
 import numpy as np
 
+from .columns import LEADERSHIP_METRIC_NAMES  # noqa: F401 - declared there, part of this module's face
 from .groups import check_radius, kernel_box, neighbour_graph
 from .metrics import unit_headings
 
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
     import pandas as pd
 
-LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
-                           "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",
-                           "escape_gain")
 _FIELDS = ("times", "pos", "vel", "leader", "triggers", "dt", "record_every")
 _EPS = 1e-9  # slack when a duration is divided into record intervals (3.0 / 0.1 = 29.999...)
 

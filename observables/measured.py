@@ -23,12 +23,15 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 delays up to ``settings.dcd_max_delay`` s, over the individuals present and the records at or after the
 warm-up, by :func:`~observables.summary.measure_run` as for a simulated run). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
 ``Measurement.issues`` lists what the reading and the checks found (notes and warnings, and an error per
-flock that could not be measured). When no flock could be measured, a
+flock that could not be measured: too short for the velocity interval, no record at or after the
+warm-up, or measured values that came out infinite, as coordinates near 1e305 make them). When no flock
+could be measured, a
 :class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
 """
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,10 +83,42 @@ def _measure_flock(flock: ObservedFlock, row: dict, settings: MetricSettings) ->
     return pd.DataFrame({"run_id": flock.name, "t": flock.times, **series})
 
 
+OVERFLOW = ("positions or velocities too large (or times too close) for their squares, differences and speeds "
+            "to be numbers; check the units and columns")
+
+
+def _unmeasurable(flock: ObservedFlock, settings: MetricSettings) -> str:
+    """Why a resampled flock cannot be measured ('' when it can): nobody present, no record at or after the
+    warm-up, or velocities that overflowed."""
+    if np.isinf(flock.vel).any() or np.isinf(flock.pos).any():
+        return f"non-finite derived values (velocities): {OVERFLOW}"
+    if not flock.present.any():
+        return "no record has an individual with a known position and velocity"
+    if not np.any(flock.times >= settings.warmup):
+        return (f"no record at or after the warm-up of {settings.warmup:g} s (the flock's records end at "
+                f"{flock.times[-1]:g} s), so every window mean is undefined; choose a warm-up below that")
+    return ""
+
+
+def _not_finite(row: dict, series: pd.DataFrame) -> str:
+    """The measured values that came out infinite (an overflow, 'speed_mean_mean = inf, ...'), or ''."""
+    bad = [f"{key} = {value}" for key, value in row.items()
+           if isinstance(value, float) and math.isinf(value)]
+    numbers = series.select_dtypes("number")
+    bad += [f"{name} (series)" for name in numbers.columns if np.isinf(numbers[name].to_numpy()).any()
+            and not any(item.startswith(name) for item in bad)]
+    return ", ".join(bad[:4]) + (f" and {len(bad) - 4} more" if len(bad) > 4 else "")
+
+
 def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float | None = None,
                    max_gap: float | None = None, velocity_interval=None, progress: bool = False) -> Measurement:
     """Check, resample and measure every flock of ``table`` (see the module docstring); ``progress`` shows a
     progress bar over the flocks."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # overflows are checked and named
+        return _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
+
+
+def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
     raws, issues = raw_flocks(table)
     issues = list(table.issues) + issues
     checked, errors = [], []
@@ -110,7 +145,8 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
     if errors:
         raise TrackError(errors, table.path, table.line_offset)
     rows, frames, flocks = [], [], []
-    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress or len(checked) < 2):
+    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr,
+                               mininterval=0.5):
         velocity = step if velocity_interval is None else velocity_interval
         row = _row(raw.name, "ok", "", table, step, velocity)
         try:
@@ -119,17 +155,20 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
             row.update(status="failed", error=str(err))
             rows.append(row)
             continue
-        if not flock.present.any():
-            row.update(status="failed", error="no record has an individual with a known position and velocity")
+        unusable = _unmeasurable(flock, settings)
+        frame = None if unusable else _measure_flock(flock, row, settings)
+        overflowed = "" if unusable else _not_finite(row, frame)
+        if unusable or overflowed:
+            row.update(status="failed", error=unusable or f"non-finite derived values ({overflowed}): {OVERFLOW}")
             rows.append(row)
             continue
-        frames.append(_measure_flock(flock, row, settings))
+        frames.append(frame)
         rows.append(row)
         flocks.append(flock)
     failed = [Issue("error", "not measured", row["error"], flock=row["flock"]) for row in rows if row["status"] != "ok"]
     if not flocks:
-        raise TrackError(failed or [Issue("error", "not measured", "the tracks hold no flock")], table.path,
-                         table.line_offset)
+        empty = "the tracks hold no flock" + (": the file has no rows of detections" if table.frame.empty else "")
+        raise TrackError(failed or [Issue("error", "not measured", empty)], table.path, table.line_offset)
     issues += failed
     runs = pd.DataFrame(rows)
     for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final") + DCD_METRIC_NAMES:

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-MIGRATION_METRIC_NAMES = ("migratory_progress", "migratory_efficiency")
+from .columns import MIGRATION_METRIC_NAMES  # declared there, part of this module's face
+
 
 
 def migration_metrics(pos, vel, times, direction, warmup: float) -> dict[str, float]:

@@ -35,9 +35,9 @@ from __future__ import annotations
 import numpy as np
 
 from .observed import ObservedFlock
+from .track_names import RECORDED  # noqa: F401 - declared there (read without numpy), part of this module's face
 
 SNAP = 1e-6          # grid and sample times closer than SNAP x interval are the same time
-RECORDED = "recorded"
 MAX_RECORD_VALUES = 20_000_000   # records x individuals of one flock (positions and velocities: ~0.9 GiB)
 MAX_GAP_INTERVALS = 2.5  # default max_gap, in sampling intervals
 

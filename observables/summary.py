@@ -46,6 +46,7 @@ import numpy as np
 
 from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
+from .columns import RUN_COLUMNS, summary_columns  # noqa: F401 - declared there, part of this module's face
 from .directional_correlation import (DCD_MAX_DELAY, DCD_METRIC_NAMES, DirectionalCorrelation, dcd_scalars,
                                       directional_correlation)
 from .encounters import (CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, agent_positions, encounter_columns,
@@ -55,7 +56,6 @@ from .migration import MIGRATION_METRIC_NAMES, migration_metrics
 from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .observed import present_metrics
 
-RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
 ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
 # the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
 ENCOUNTER_SETTINGS = {"capture_radius": CAPTURE_RADIUS, "predator_near": PREDATOR_NEAR, "prey_reach": PREY_REACH}
@@ -108,19 +108,6 @@ class MetricSettings:
     @property
     def resolved(self) -> bool:
         return self.group_radius is not None and self.escape_duration is not None
-
-
-def summary_columns(leadership: bool = True, migration: bool = False,
-                    encounters: tuple[str, ...] = (), dcd: bool = False) -> tuple[str, ...]:
-    """The columns :func:`summarize_run`'s row may hold, in order: with or without the leadership
-    scalars, the directional correlation delays, the migration scalars, then the columns of the given encounter families
-    (``ENCOUNTER_FAMILIES`` for all; a row has a family's columns only when its run has obstacles, a
-    predator or prey, see :mod:`observables.encounters`)."""
-    columns = tuple(f"{name}_{kind}" for name in METRIC_NAMES for kind in ("mean", "final")) + RUN_COLUMNS
-    columns += tuple(LEADERSHIP_METRIC_NAMES) if leadership else ()
-    columns += DCD_METRIC_NAMES if dcd else ()
-    columns += MIGRATION_METRIC_NAMES if migration else ()
-    return columns + encounter_columns(encounters)
 
 
 def encounter_settings(settings: MetricSettings) -> dict:

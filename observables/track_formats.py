@@ -47,12 +47,11 @@ import numpy as np
 
 from simcore.schema import ConfigError, suggest
 
+from .track_names import FORMATS, LONG_FORMATS, WIDE_FORMATS  # noqa: F401 - declared there, part of this face
+
 if TYPE_CHECKING:
     import pandas as pd
 
-LONG_FORMATS = ("csv", "parquet")
-WIDE_FORMATS = ("mat", "idtracker", "trex", "trajr", "movebank")
-FORMATS = ("auto",) + LONG_FORMATS + WIDE_FORMATS
 AXES = ("individual", "channel", "sample")
 CHANNELS = ("x", "y", "z", "vx", "vy", "vz", "t")
 MOVEBANK = {"id": "individual-local-identifier", "t": "timestamp", "lon": "location-long", "lat": "location-lat"}

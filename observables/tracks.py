@@ -13,8 +13,9 @@ A track file (CSV, also gzipped, or Parquet) has one row per detection of one in
 * ``pattern``: an integer label per individual, constant over time (optional).
 
 A column map (:attr:`TrackSource.columns`, role -> column name) names other columns. Empty position
-cells are missed detections (reported, then left out); any other bad cell stops the reading with the row
-and column named (:class:`~observables.validation.TrackError`). Rows are numbered from 1 in
+cells are missed detections (reported, then left out); any other bad cell (not a finite number, or a
+coordinate or velocity beyond ``MAX_MAGNITUDE`` = 1e100 analysis units, whose squares would overflow) stops
+the reading with the row and column named (:class:`~observables.validation.TrackError`). Rows are numbered from 1 in
 file order; in a CSV file row k is line k + 1 (the header is line 1).
 
 Units. Positions are converted to metres; with ``body_length`` (metres) they are then divided by it,
@@ -23,8 +24,10 @@ length is 1). ``units.length = "bl"`` means the file is already in body lengths 
 ``flocksweep simulate``); ``body_length`` is then not allowed. Times become seconds.
 
 A sidecar JSON file with the same stem (``tracks.csv.gz`` -> ``tracks.json``) may give defaults for
-``columns``, ``units`` and ``body_length`` (and a ``description`` shown in reports); what a command line
-or calibration file gives explicitly wins.
+``columns``, ``units`` and ``body_length`` (any :class:`TrackSource` setting; and a ``description`` shown in
+reports); what a command line or calibration file gives explicitly wins. Other keys are information
+(``SIDECAR_INFORMATION``: ``description``, ``notes``, ``truth``, ...; any other name too), but an unlisted
+one close to a setting's name (``colums``) is refused as a typo with a did-you-mean.
 
 ``load_tracks(path, source) -> TrackTable`` reads and converts (the table holds the source row of every
 sample); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
@@ -45,15 +48,14 @@ import numpy as np
 
 from simcore.schema import ConfigError, build, suggest
 
-from .track_formats import WIDE_FORMATS, detect_format, read_table, read_wide
+from .track_formats import detect_format, read_table, read_wide
+from .track_names import LENGTH_UNITS, RECORDED, ROLES, WIDE_FORMATS  # noqa: F401 - declared there, part of this face
 from .validation import Issue, TrackError
 
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
     import pandas as pd
 
-ROLES = ("flock", "id", "t", "x", "y", "z", "vx", "vy", "vz", "pattern")
 REQUIRED = ("id", "t", "x", "y")
-LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0, "bl": None, "px": None}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None, "frame": None}
 
 
@@ -133,6 +135,11 @@ class TrackSource:
         return self.columns.get(role, role)
 
 
+# sidecar keys that are information for people, never settings (never taken for a misspelt setting)
+SIDECAR_INFORMATION = ("description", "notes", "note", "comment", "source", "citation", "license", "synthetic",
+                       "truth", "species", "author", "date")
+
+
 def sidecar_path(path) -> Path:
     """``tracks.csv.gz`` -> ``tracks.json`` (every suffix replaced)."""
     path = Path(path)
@@ -157,8 +164,14 @@ def track_source(path, given: dict, where: str = "", cls=None) -> TrackSource:
     """The :class:`TrackSource` (or subclass ``cls``) of ``path``: the sidecar's settings, overridden by
     ``given``."""
     cls = TrackSource if cls is None else cls
-    known = {f.name for f in fields(TrackSource)}
-    settings = {k: v for k, v in read_sidecar(path).items() if k in known}
+    known = [f.name for f in fields(TrackSource)]
+    sidecar = read_sidecar(path)
+    for key in sidecar:
+        hint = "" if key in known or key in SIDECAR_INFORMATION else suggest(key, known)
+        if hint:
+            raise ConfigError(f"{sidecar_path(path)}: {key}", f"unknown setting{hint}; settings: {', '.join(known)} "
+                                                              "(other keys are information, e.g. description)")
+    settings = {k: v for k, v in sidecar.items() if k in known}
     settings.update({k: v for k, v in given.items() if v is not None})
     return build(cls, settings, where)
 
@@ -199,6 +212,21 @@ def _numeric(frame: pd.DataFrame, role: str, name: str, errors: list, allow_miss
         errors.append(Issue("error", "bad value", f"{role}: not a finite number (first: {example!r})",
                             rows=tuple(rows), column=name))
     return values
+
+
+MAX_MAGNITUDE = 1e100   # a coordinate or velocity beyond this (in analysis units) is no physical length
+
+
+def _too_large(values: np.ndarray, role: str, name: str, errors: list) -> None:
+    """An error naming the column and rows whose values (converted) exceed MAX_MAGNITUDE: their squares,
+    distances and speeds would overflow to infinity."""
+    with np.errstate(invalid="ignore"):
+        big = np.abs(values) > MAX_MAGNITUDE
+    if big.any():
+        rows = np.flatnonzero(big) + 1
+        errors.append(Issue("error", "bad value", f"{role}: {values[rows[0] - 1]:.4g} is beyond {MAX_MAGNITUDE:g} "
+                            "analysis units; distances and speeds derived from it would not be finite (check the "
+                            "units and the column)", rows=tuple(rows), column=name))
 
 
 def _times(frame: pd.DataFrame, name: str, unit: str, seconds: float | None, errors: list) -> tuple[np.ndarray, str]:
@@ -298,6 +326,7 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
             if role.startswith("v") and source.time_unit not in ("datetime", "frame"):
                 values = values / source.seconds_per_time_unit
             out[role] = values if scale == 1.0 else values * scale
+            _too_large(out[role], role, roles[role], errors)
     if "z" not in roles:
         out["z"] = np.zeros(len(frame))
         if "vx" in roles:

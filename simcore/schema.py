@@ -443,7 +443,8 @@ def apply_overrides(data: dict, overrides) -> dict:
 
 def resolve_path(text, base, key: str, what: str, must_exist: bool = True) -> Path:
     """The path a config names: absolute, else relative to ``base`` (the config's folder), else to the
-    working directory; the first that exists, resolved. A missing one is a ConfigError at ``key``
+    working directory; the first that exists, resolved (symbolic links followed: the real file, which
+    :func:`linked_to` names in messages and the sweep stores). A missing one is a ConfigError at ``key``
     listing where it looked, or (``must_exist=False``) the path relative to ``base``."""
     if not isinstance(text, str) or not text:
         raise ConfigError(key, f"got {text!r}; expected a path to the {what}")
@@ -457,6 +458,15 @@ def resolve_path(text, base, key: str, what: str, must_exist: bool = True) -> Pa
         return candidates[0]
     tried = ", ".join(str(p) for p in candidates)
     raise ConfigError(key, f"{what} not found: {text!r} (looked at {tried})")
+
+
+def linked_to(text, base, resolved: Path) -> str:
+    """' -> REAL/PATH' when the path a config names (``text``, relative to ``base`` or the working
+    directory) reaches ``resolved`` through a symbolic link, else '': messages then say which file was read."""
+    written = Path(text) if Path(text).is_absolute() else Path(base) / text
+    if not written.exists():
+        written = Path.cwd() / text
+    return "" if os.path.abspath(written) == str(resolved) else f" -> {resolved}"
 
 
 class FileConfig:

@@ -58,7 +58,7 @@ import pandas as pd
 from observables.directional_correlation import DCD_METRIC_NAMES
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.summary import ENCOUNTER_FAMILIES, summary_columns
-from simcore.schema import ConfigError, build, read_toml, resolve_path, suggest, to_dict
+from simcore.schema import ConfigError, build, linked_to, read_toml, resolve_path, suggest, to_dict
 
 from .claim_schema import (COMMON, DIRECTIONS, ID, KEYS, KINDS, METHODS, REQUIRED, Claim, ClaimsFile,  # noqa: F401
                            ClaimTable, IncludeTable, PowerTable, Source, Test, TestTable)
@@ -286,7 +286,7 @@ def _included(item, k: int, base) -> tuple[list[ClaimTable], str, str]:
     if not isinstance(spec.file, str):
         raise ConfigError(key, f"got {item!r}; expected a path to a claims file or {{ file = ..., only = [...] }}")
     path = resolve_path(spec.file, base, f"{key}.file" if isinstance(item, dict) else key, "claims file")
-    shown = f"{key} ({spec.file})"
+    shown = f"{key} ({spec.file}{linked_to(spec.file, base, path)})"
     try:
         data = build(ClaimsFile, read_toml(path, "claims file"))
     except ConfigError as err:

@@ -105,24 +105,23 @@ from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
 from typing import Any, Literal
 
+from observables.columns import EVERY_METRIC_COLUMN
 from observables.directional_correlation import DCD_MAX_DELAY
 from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from observables.summary import (ENCOUNTER_FAMILIES, ENCOUNTER_SETTINGS, MetricSettings, encounter_settings,
-                                 summary_columns)
+from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns
 from .external import CommandModel, CommandTable, command_metrics, command_model
+from .store import RESERVED_COLUMNS  # noqa: F401 - the runs table's own columns, declared there
 from .model_set import flat_changes, model_overrides
 from .sensitivity import DesignTable, SensitivityDesign
 from .sweep_toml import sweep_toml
 
 NAME_MAX = 100
-METRIC_COLUMNS = frozenset(summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES))   # any run's
-RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
-                    "part", "n", "steps")
+METRIC_COLUMNS = EVERY_METRIC_COLUMN   # any run's metric columns (observables.columns)
 # the statistics beside the factors in the report's cell tables (analysis.reports.stats.cell_summary)
 REPORT_COLUMNS = ("n_missing", "mean", "sd", "ci_halfwidth")
 

@@ -4,8 +4,9 @@
 ``__enter__``, stop in ``__exit__``; importing this module starts nothing) with two ways to run a
 function over items:
 
-* ``map(fn, items) -> list``: ``[fn(item) for item in items]`` in the order of ``items``, whatever order
-  the work finishes in; a task's exception is raised here;
+* ``map(fn, items, tick=None) -> list``: ``[fn(item) for item in items]`` in the order of ``items``,
+  whatever order the work finishes in; a task's exception is raised here; ``tick()`` is called as each
+  task finishes (a progress bar's ``update``);
 * ``as_completed(fn, items, idle=None)``: an iterator of :class:`Outcome` (index, item, value, error) in
   the order tasks finish; a task that raised is an outcome with ``error`` set (and ``value`` None), so the
   caller records it and goes on. With ``idle`` (seconds) the iterator also yields ``None``, a heartbeat
@@ -408,16 +409,22 @@ class Executor:
         return f"dask ({self.scheduler or f'LocalCluster of {self.workers}'})"
 
     # -- running -------------------------------------------------------------------------------------
-    def map(self, fn: Callable, items: Iterable) -> list:
-        """``[fn(item) for item in items]``, in order; the first failing task's exception is raised."""
+    def map(self, fn: Callable, items: Iterable, tick: Callable[[], object] | None = None) -> list:
+        """``[fn(item) for item in items]``, in order; the first failing task's exception is raised.
+        ``tick()`` is called as each task finishes (a progress bar's ``update``)."""
         items = list(items)
-        if len(items) <= 1 or self.in_process:
-            return [fn(item) for item in items]
+        tick = tick or (lambda: None)
         out = [None] * len(items)
+        if len(items) <= 1 or self.in_process:
+            for index, item in enumerate(items):
+                out[index] = fn(item)
+                tick()
+            return out
         for outcome in self.as_completed(fn, items):
             if outcome.error is not None:
                 raise outcome.error
             out[outcome.index] = outcome.value
+            tick()
         return out
 
     def as_completed(self, fn: Callable, items: Iterable, idle: float | None = None) -> Iterator[Outcome | None]:

@@ -19,7 +19,8 @@ status with :func:`explain`; the statuses (docs/errors.md):
 Anything else is a bug in flocksweep and keeps Python's traceback.
 
 Helpers for the command line's own values: ``check_count(flag, value, minimum, maximum=None)``,
-``check_out(flag, path)`` (a folder we may create: not an existing file, no NUL character),
+``check_out(flag, path)`` (a folder we may create: not an existing file, not below one, not a symbolic link that
+leads nowhere or in a loop, no NUL character),
 ``check_workers(value, executor)`` (at most :data:`WORKERS_PER_CORE` local processes per core),
 ``parse_numbers(flag, text)`` (comma-separated finite numbers > 0), and
 ``show_warnings()``, which prints the ``flocksweep`` logger's warnings (damaged files moved aside,
@@ -27,6 +28,7 @@ Helpers for the command line's own values: ``check_count(flag, value, minimum, m
 """
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import sys
@@ -104,11 +106,32 @@ def check_out(flag: str, path) -> None:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ConfigError(flag, f"{path} is a file; expected a folder (new or one flocksweep wrote)")
+    for part in (path, *path.parents):
+        broken = _broken_link(part)
+        if broken:
+            raise ConfigError(flag, f"{part} is a symbolic link {broken}; expected a folder (new or one flocksweep "
+                                    "wrote), or a link to one")
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
                 raise ConfigError(flag, f"{parent} is a file, so {path} cannot be a folder")
             break
+
+
+def _broken_link(path: Path) -> str:
+    """How ``path`` is a symbolic link that leads to no file ('to X, which does not exist', 'in a loop'),
+    or '' (not a link, or a link that leads somewhere)."""
+    if not path.is_symlink():
+        return ""
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        return f"to {os.readlink(path)!r}, which does not exist"
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            return "in a loop (it leads back to itself)"
+        return f"that cannot be followed ({err.strerror})"
+    return ""
 
 
 class _Line(logging.Handler):

@@ -59,6 +59,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from observables.columns import EVERY_METRIC_COLUMN
 
 from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
 from .interrupts import deferred
@@ -69,6 +70,9 @@ from .quarantine import FOLDER as QUARANTINE, quarantine, warn
 PART = re.compile(r"part-(\d{6})\.parquet$")
 NUMBERED = re.compile(r"part-(\d{6})\.parquet")          # also quarantined parts (with a time suffix)
 RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has these
+# the runs table's own columns: no axis may be named like one (sweeps.config)
+RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
+                    "part", "n", "steps")
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
 CHECKSUMS, SELF_CHECKSUM = "checksums", "manifest_checksum"   # keys of manifest.json
@@ -233,10 +237,6 @@ class ResultsStore(OutputFolder):
     def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
         """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
         docstring)."""
-        # deferred: the metric names come from the observables (which load numba); commands that never
-        # read a part (status of an empty folder, --help) stay light
-        from .config import METRIC_COLUMNS, RESERVED_COLUMNS
-
         try:
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
@@ -253,11 +253,11 @@ class ResultsStore(OutputFolder):
             raise Unreadable(f"holds rows of another part (its 'part' column is not {number} throughout)")
         if not frame["status"].isin(STATUSES).all() or not all(isinstance(r, str) for r in frame["run_id"]):
             raise Unreadable("is not a part of a sweep (run_id must be text, status 'ok' or 'failed')")
-        for column in sorted(METRIC_COLUMNS & set(frame.columns)):
+        for column in sorted(EVERY_METRIC_COLUMN & set(frame.columns)):
             values = frame[column]
             if not (pd.api.types.is_numeric_dtype(values) or values.isna().all()):
                 raise Unreadable(f"holds non-numbers in its metric column {column!r}")
-        known = set(RESERVED_COLUMNS) | METRIC_COLUMNS | (design_columns or set())
+        known = set(RESERVED_COLUMNS) | EVERY_METRIC_COLUMN | (design_columns or set())
         foreign = sorted(set(frame.columns) - known) if design_columns is not None else []
         if foreign:
             raise Unreadable(f"holds a column flocksweep never writes ({', '.join(map(repr, foreign))}): a foreign "

@@ -17,11 +17,13 @@ observations at that interval, :func:`observables.summary.every_nth`) write it; 
 Files written before this format are read alike: a sweep's ``trajectories/<run_id>.npz`` of earlier
 versions lacks ``visible``, ``binocular`` and ``leader``, a ``trajectory.npz`` of ``flocksweep
 simulate`` lacks ``seed`` and ``leader``: :func:`read_trajectory` gives None for any optional field a
-file does not hold (``REQUIRED`` must be there). A state file read by ``init.from_file``
+file does not hold (``REQUIRED`` must be there). A file that is not such an ``.npz`` (garbage, truncated,
+arrays of other shapes) is a ValueError naming it. A state file read by ``init.from_file``
 (:mod:`simcore.initfile`) may be a trajectory: its last record is used.
 """
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -54,10 +56,31 @@ def read_trajectory(path) -> dict:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such trajectory file")
-    with np.load(path, allow_pickle=False) as data:
-        arrays = {key: data[key] for key in data.files}
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path}: not a trajectory .npz (not a zip archive of arrays); expected a file written by "
+                         f"flocksweep (simulate --out, or a sweep's trajectories/)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {key: data[key] for key in data.files} if hasattr(data, "files") else {}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as err:
+        raise ValueError(f"{path}: cannot be read as a trajectory .npz ({type(err).__name__}: {err}); expected "
+                         f"a file written by flocksweep (simulate --out, or a sweep's trajectories/)") from None
     missing = [key for key in REQUIRED if key not in arrays]
     if missing:
         raise ValueError(f"{path}: not a flocksweep trajectory (missing {', '.join(missing)}; expected "
                          f"{', '.join(REQUIRED)} and optionally {', '.join(OPTIONAL)})")
+    _check_shapes(path, arrays)
     return {key: arrays.get(key) for key in REQUIRED + OPTIONAL}
+
+
+def _check_shapes(path: Path, arrays: dict) -> None:
+    """times (R,) and pos, vel (R, N, 3) of numbers, R >= 1: else ValueError naming the file and field."""
+    times, pos = arrays["times"], arrays["pos"]
+    expected = {"times": "(records,)", "pos": "(records, boids, 3)", "vel": "(records, boids, 3)"}
+    for key in REQUIRED:
+        value = arrays[key]
+        shape_ok = value.ndim == 1 if key == "times" else (value.ndim == 3 and value.shape[2] == 3
+                                                          and value.shape[:2] == pos.shape[:2])
+        if value.dtype.kind not in "fiu" or not shape_ok or len(value) != len(times) or not len(times):
+            raise ValueError(f"{path}: {key} holds a {value.dtype} array of shape {value.shape}; a trajectory's "
+                             f"{key} is numbers of shape {expected[key]} with at least one record")

@@ -3,8 +3,8 @@ its one-line message must contain (docs/errors.md). Used by tests/sweeps/test_fa
 bench/fault_battery.py, which runs them all and counts those refused cleanly before any write.
 
 A case is ``Case(name, argv, files, code, expect)``: ``files`` are written into an empty folder
-(``{d}`` in argv and file texts is that folder, ``{holland}`` the shipped Holland preset); ``argv`` runs
-there. A clean refusal: the exit status ``code``, stderr holding ``expect`` (case-insensitive) and no
+(``{d}`` in argv and file texts is that folder, ``{holland}`` the shipped Holland preset), and ``links``
+(name -> target) made there as symbolic links; ``argv`` runs there. A clean refusal: the exit status ``code``, stderr holding ``expect`` (case-insensitive) and no
 traceback, and no file written (the folder holds exactly ``files`` afterwards).
 """
 from __future__ import annotations
@@ -24,6 +24,7 @@ class Case:
     code: int = 2
     expect: str = ""
     may_write: str = ""   # a folder the refusal may write its report into (measure's validation.csv)
+    links: dict = field(default_factory=dict)   # symbolic links made in the folder: name -> target
 
 
 SWEEP = """name = "tiny"
@@ -399,6 +400,10 @@ READERS = [
     cli_case("view: a sweep file", ("view", "{d}/s.toml"), "sweep file", files=GOOD_SWEEP),
     cli_case("view: --replicate -1", ("view", HOLLAND, "--replicate", "-1"), "only applies"),
     cli_case("view: bad --size", ("view", HOLLAND, "--size", "big", "--out", "{d}/p.html"), "--size"),
+    cli_case("view: --size 100000x100000", ("view", HOLLAND, "--size", "100000x100000", "--animate", "{d}/a.gif",
+                                            "--no-page"), "--size: got '100000x100000'; each side must be from 16 to 3840"),
+    cli_case("view: --size 8x8", ("view", HOLLAND, "--size", "8x8", "--animate", "{d}/a.gif", "--no-page"),
+             "from 16 to 3840"),
     cli_case("view: --seed -1", ("view", HOLLAND, "--seed", "-1", "--out", "{d}/p.html"), "--seed"),
     cli_case("view: --trail -2", ("view", HOLLAND, "--trail", "-2", "--out", "{d}/p.html"), "--trail"),
     cli_case("view: --n 1e12", ("view", HOLLAND, "--n", "1000000000000", "--out", "{d}/p.html"), "memory"),
@@ -478,17 +483,109 @@ EXPRESSIONS = [
 TRACK = "id,t,x,y,z\n1,0,0,0,0\n1,1,1,0,0\n1,2,2,0,0\n2,0,0,1,0\n2,1,1,1,0\n2,2,2,1,0\n"
 MEASURE = ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out", "{d}/out")
 
+# output paths that cannot be a folder: each named as --out, exit 2, before anything is written
+OUT_PATHS = [
+    Case("run: --out a dangling symbolic link", RUN[:3] + ("{d}/dangling",) + RUN[4:], GOOD_SWEEP, 2,
+         "dangling is a symbolic link to 'nowhere', which does not exist",
+         links={"dangling": "nowhere"}),
+    Case("run: --out a symbolic link loop", RUN[:3] + ("{d}/loop1",) + RUN[4:], GOOD_SWEEP, 2, "symbolic link in a loop",
+         links={"loop1": "loop2", "loop2": "loop1"}),
+    Case("run: --out below a symbolic link loop", RUN[:3] + ("{d}/loop1/sub",) + RUN[4:], GOOD_SWEEP, 2,
+         "--out: ", links={"loop1": "loop2", "loop2": "loop1"}),
+    Case("calibrate: --out a dangling symbolic link", ("calibrate", "{d}/c.toml", "--out", "{d}/dangling"), GOOD_CAL,
+         2, "--out: ", links={"dangling": "nowhere"}),
+    Case("measure: --out an existing file", ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out",
+                                             "{d}/t.csv"), {"t.csv": TRACK}, 2, "is a file; expected a folder"),
+    Case("measure: --out a symbolic link loop", ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out",
+                                                 "{d}/loop1"), {"t.csv": TRACK}, 2, "--out: ",
+         links={"loop1": "loop2", "loop2": "loop1"}),
+]
+
+MEASURE_FLAGS = [
+    Case("measure: --fragmentation-cohesion 2", MEASURE + ("--fragmentation-cohesion", "2"), {"t.csv": TRACK}, 2,
+         "--fragmentation-cohesion: got 2.0; allowed range (0.0, 1.0]"),
+    Case("measure: --warmup -1", MEASURE + ("--warmup", "-1"), {"t.csv": TRACK}, 2, "--warmup: got -1.0"),
+    Case("measure: --dcd-max-delay -1", MEASURE + ("--dcd-max-delay", "-1"), {"t.csv": TRACK}, 2, "--dcd-max-delay"),
+]
+
+def _npz(**arrays) -> bytes:
+    import io
+
+    import numpy as np
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    return buffer.getvalue()
+
+
+_R, _N = 3, 4
+GOOD_NPZ = _npz(times=[0.0, 0.5, 1.0], pos=[[[float(i), 0.0, 0.0] for i in range(_N)]] * _R,
+                vel=[[[1.0, 0.0, 0.0]] * _N] * _R)
+VIEW_NPZ = ("view", "{d}/t/trajectory.npz", "--out", "{d}/p.html", "--no-progress")
+PARAMS = '{"preset": {"name": "m", "perception": {"field_deg": %s}}, "seed": 1}'
+
+# trajectory files for the viewer (and the params.json beside them): each refusal names the file
+TRAJECTORY_FILES = [
+    Case("view: a .npz of garbage", VIEW_NPZ, {"t/trajectory.npz": b"garbage" * 10}, 2,
+         "trajectory.npz: not a trajectory .npz (not a zip archive"),
+    Case("view: a truncated .npz", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ[:len(GOOD_NPZ) // 2]}, 2,
+         "trajectory.npz: not a trajectory .npz"),
+    Case("view: a .npz without vel", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[[[0.0, 0, 0]]])}, 2,
+         "trajectory.npz: not a flocksweep trajectory (missing vel"),
+    Case("view: a .npz with flat positions", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[0.0, 1.0, 2.0],
+                                                                                  vel=[0.0, 1.0, 2.0])}, 2,
+         "trajectory.npz: pos holds"),
+    Case("view: a .npz of pickled objects", VIEW_NPZ, {"t/trajectory.npz": _npz(times=[0.0], pos=[[[0, 0, 0]]],
+                                                                                  vel=[[[0, 0, 0]]],
+                                                                                  seed=__import__("numpy").array(
+                                                                                      [{}], dtype=object))}, 2,
+         "trajectory.npz: cannot be read as a trajectory"),
+    Case("view: params.json not JSON", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": "{not json"}, 2,
+         "params.json: cannot be read as a trajectory's parameters"),
+    Case("view: params.json a list", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": "[1, 2]"}, 2,
+         "params.json: cannot be read as a trajectory's parameters"),
+    Case("view: params.json not UTF-8", VIEW_NPZ, {"t/trajectory.npz": GOOD_NPZ, "t/params.json": b'{"\xff": 1}'}, 2, "params.json: cannot be read"),
+    Case("view: params.json with a preset value out of range", VIEW_NPZ,
+         {"t/trajectory.npz": GOOD_NPZ, "t/params.json": PARAMS % "400"}, 2, "params.json: its preset: "),
+]
+
+def _track(x_scale=1.0, t_scale=1.0) -> str:
+    return "id,t,x,y,z\n" + "".join(f"{i},{t * t_scale!r},{t * x_scale * i!r},{i},0\n" for i in (1, 2) for t in (0, 1, 2))
+
+
+# track content: what no flock metric can be computed from; every problem listed in validation.csv (only)
+TRACK_CONTENT = [
+    Case("measure: --warmup beyond the tracks (1e9 s)", MEASURE + ("--warmup", "1e9"), {"t.csv": TRACK}, 2,
+         "no record at or after the warm-up of 1e+09 s", may_write="out"),
+    Case("measure: coordinates x 1e305", MEASURE, {"t.csv": _track(x_scale=1e305)}, 2,
+         "column 'x': x: 1e+305 is beyond 1e+100 analysis units", may_write="out"),
+    Case("measure: coordinates x 1e305 in a mapped column", MEASURE + ("--columns", "x=px"),
+         {"t.csv": _track(x_scale=1e305).replace(",x,", ",px,")}, 2, "column 'px'", may_write="out"),
+    Case("measure: velocities that overflow (1e99 m in 1e-250 s)", MEASURE, {"t.csv": _track(1e99, 1e-250)}, 2,
+         "non-finite derived values (velocities)", may_write="out"),
+    Case("measure: speeds that overflow (1e99 m in 1e-101 s)", MEASURE, {"t.csv": _track(1e99, 1e-101)}, 2,
+         "non-finite derived values (speed_mean_mean = inf", may_write="out"),
+    Case("measure: a header and no rows", MEASURE, {"t.csv": "id,t,x,y,z\n"}, 2,
+         "the tracks hold no flock: the file has no rows of detections", may_write="out"),
+    Case("measure: a sidecar key typo", MEASURE, {"t.csv": TRACK, "t.json": '{"colums": {"id": "bird"}}'}, 2,
+         "t.json: colums: unknown setting (did you mean 'columns'?)"),
+    Case("measure: a sidecar unit typo", MEASURE, {"t.csv": TRACK, "t.json": '{"unit": {"length": "cm"}}'}, 2,
+         "did you mean 'units'?"),
+]
+
 TRACK_FILES = [
     Case("measure: --interval 1e-9 (4e9 positions)", MEASURE + ("--interval", "1e-9"), {"t.csv": TRACK}, 2,
          "over the limit of 20,000,000", may_write="out"),
 ]
 
 CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
-         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + TRACK_FILES)
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_CONTENT + TRACK_FILES)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
-         "simulate: --out an existing file", "status: garbage design", "run: --out an existing file")
+         "simulate: --out an existing file", "status: garbage design", "run: --out an existing file",
+         "run: --out a dangling symbolic link", "measure: --out an existing file", "measure: --fragmentation-cohesion 2",
+         "view: a .npz of garbage", "view: params.json a list", "measure: coordinates x 1e305",
+         "measure: a sidecar key typo")
 
 
 def materialise(case: Case, folder) -> list[str]:
@@ -500,6 +597,8 @@ def materialise(case: Case, folder) -> list[str]:
             path.write_bytes(content)
         else:
             path.write_text(content.replace("{d}", str(folder)).replace("{holland}", HOLLAND))
+    for name, target in case.links.items():
+        (folder / name).symlink_to(target)
     return [str(a).replace("{d}", str(folder)).replace("{holland}", HOLLAND) for a in case.argv]
 
 

@@ -30,14 +30,13 @@ expected coverage) and SBC ranks (Talts et al. 2018) of the truths among ``draws
 sqrt(p (1 - p) / H))`` (a 99 % binomial band: a correct estimator on few held-out sets is not failed by
 chance). A failed check makes the calibration's verdict "NOT converged".
 
-``run_npe(config, folder, pool_kind, workers, scheduler, progress, cost) -> NpeResult``: the method as
+``run_npe(config, folder, pool_kind, workers, scheduler, phases, cost) -> NpeResult``: the method as
 ``flocksweep calibrate`` runs it (analysis.calibration.run writes the common outputs).
 """
 from __future__ import annotations
 
 import hashlib
 import json
-import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -182,18 +181,15 @@ class NpeResult:
     info: dict                   # convergence.json's "npe" entry
 
 
-def _log(progress: bool, message: str) -> None:
-    if progress:
-        print(message, file=sys.stderr)
-
-
-def _train(config, folder, pool_kind, workers, scheduler, progress, cost):
+def _train(config, folder, pool_kind, workers, scheduler, phases, cost):
     """Run the training sweep (only its missing runs) and fit the flow; (estimator, heldout theta, x)."""
     settings = config.method
     theta = training_design(config)
     sweep = training_sweep(config, theta)
+    phases.start(f"the training sweep: {len(theta)} simulations ({settings.simulations} for training, "
+                 f"{len(theta) - settings.simulations} held out), only those not stored yet")
     result = run_sweep(sweep, None, folder.path("training"), executor=pool_kind, workers=workers,
-                       scheduler=scheduler, progress=progress)
+                       scheduler=scheduler, progress=phases.enabled)
     computed = len(result.plan.todo)
     train_new = sum(1 for spec in result.plan.todo if spec.point_index < settings.simulations)
     cost.add("training", train_new)
@@ -204,9 +200,10 @@ def _train(config, folder, pool_kind, workers, scheduler, progress, cost):
     if usable[:n].sum() < 20:
         raise ConfigError("method.simulations", f"only {int(usable[:n].sum())} of {n} training runs gave finite "
                                                 "statistics; choose statistics every run has")
-    _log(progress, f"{config.name}: training the flow on {int(usable[:n].sum())} simulations")
+    phases.start(f"training the flow on {int(usable[:n].sum())} simulations (at most "
+                 f"{flow_settings(config).max_epochs} epochs)")
     estimator = train_flow(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
-                           _jax_seed(config, NPEStream.TRAIN))
+                           _jax_seed(config, NPEStream.TRAIN), progress=phases.enabled)
     return estimator, theta[n:][usable[n:]], rows[n:][usable[n:]], int((~usable).sum())
 
 
@@ -222,8 +219,9 @@ def _heldout(config, folder):
     return theta[n:][usable], rows[n:][usable]
 
 
-def run_npe(config, folder, pool_kind: str, workers, scheduler, progress: bool, cost) -> NpeResult:
-    """Train or reuse the estimator, check its coverage, draw the posterior at the targets."""
+def run_npe(config, folder, pool_kind: str, workers, scheduler, phases, cost) -> NpeResult:
+    """Train or reuse the estimator, check its coverage, draw the posterior at the targets; ``phases``
+    (:class:`sweeps.progress.Phases`) shows each step on stderr."""
     check_npe(config)
     settings = config.method
     identity = estimator_identity(config)
@@ -240,13 +238,15 @@ def run_npe(config, folder, pool_kind: str, workers, scheduler, progress: bool, 
         estimator = load_estimator(where)
         heldout_theta, heldout_x = _heldout(config, folder) if settings.estimator is None else \
             _heldout(config, _Folder(where.parent))
-        _log(progress, f"{config.name}: reusing the trained estimator in {where} (no simulation)")
+        phases.total -= 1     # one phase instead of the training sweep and the flow's training
+        phases.start(f"reusing the trained estimator in {where} (no simulation)")
     else:
         estimator, heldout_theta, heldout_x, failed = _train(config, folder, pool_kind, workers, scheduler,
-                                                             progress, cost)
+                                                             phases, cost)
         estimator.save(where)
         folder.write_json(str(Path(where.relative_to(folder.root)) / IDENTITY_FILE), identity)
     support = support_of(config.prior)
+    phases.start(f"the coverage check on {len(heldout_theta)} held-out simulations (199 posterior draws each)")
     check = coverage_check(estimator, heldout_theta, heldout_x, draws=199, seed=_jax_seed(config, NPEStream.COVERAGE),
                            support=support, tolerance=settings.coverage_tolerance, names=config.names)
     draws = estimator.sample(config.targets.observed[0], settings.draws, _jax_seed(config, NPEStream.POSTERIOR),

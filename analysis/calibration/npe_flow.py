@@ -10,7 +10,7 @@ Contract
 architecture (a masked autoregressive flow of rational-quadratic splines, Durkan et al. 2019, on a
 standard normal base) and its training (Adam, early stopping on a validation share).
 
-``train_flow(theta (N, d), x (N, k), settings, seed) -> Estimator``: theta is standardised by its
+``train_flow(theta (N, d), x (N, k), settings, seed, progress=False) -> Estimator``: theta is standardised by its
 training mean and sd, x likewise (a statistic constant over the training set keeps sd 1), and the flow is
 fitted by maximum likelihood of theta given x. A deterministic function of its inputs and ``seed`` on
 CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
@@ -204,8 +204,9 @@ class Estimator:
         return folder
 
 
-def train_flow(theta, x, settings: FlowSettings, seed: int) -> Estimator:
-    """Fit q(theta | x) to the simulations (module docstring)."""
+def train_flow(theta, x, settings: FlowSettings, seed: int, progress: bool = False) -> Estimator:
+    """Fit q(theta | x) to the simulations (module docstring); ``progress``: flowjax's bar of epochs on
+    stderr (the result does not depend on it)."""
     jax, _ = require_jax()
     import jax.numpy as jnp
     from flowjax.train import fit_to_data
@@ -224,7 +225,7 @@ def train_flow(theta, x, settings: FlowSettings, seed: int) -> Estimator:
     flow, losses = fit_to_data(train_key, flow, data, learning_rate=settings.learning_rate,
                                max_epochs=settings.max_epochs, max_patience=settings.patience,
                                batch_size=min(settings.batch_size, max(1, int(len(theta) * (1 - settings.validation)))),
-                               val_prop=settings.validation, show_progress=False)
+                               val_prop=settings.validation, show_progress=progress)
     losses = {name: [float(v) for v in values] for name, values in losses.items()}
     return Estimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses)
 

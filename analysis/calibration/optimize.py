@@ -3,8 +3,9 @@
 Contract
 --------
 ``run_optimize(simulate_seeds_fn, observed, prior, *, seed, n_sim, algorithm="differential_evolution",
-objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian", executor=None)
--> OptimizeResult``
+objective="loglik", maxiter=100, popsize=15, recheck=200, likelihood="gaussian", executor=None, tick=None)
+-> OptimizeResult`` (``tick()`` after each evaluation of the search, for a progress bar; at most
+``max_evaluations(algorithm, maxiter, popsize, dim)`` of them, None when not known beforehand)
 
 * ``simulate_seeds_fn(theta, seeds) -> (len(seeds), k)`` summary table at ``theta`` (shape (d,)), one
   row per seed (e.g. :meth:`~analysis.calibration.simulator.SummarySimulator.simulate`). It is only
@@ -176,21 +177,28 @@ def _de_kwargs(seed: int) -> dict:
     return {"rng": seed} if "rng" in params else {"seed": seed}
 
 
-def _run_de(func, bounds, seed, maxiter, popsize, executor=None):
+def _run_de(func, bounds, seed, maxiter, popsize, executor=None, tick=None):
     if not all(math.isfinite(lo) and math.isfinite(hi) for lo, hi in bounds):
         raise ValueError(f"differential_evolution needs finite prior bounds, got {bounds}; "
                          "use bounded priors (or explicit bounds) or algorithm='nelder_mead'")
+    tick = tick or (lambda: None)
+
+    def evaluated(theta):
+        value = func(theta)
+        tick()
+        return value
+
     def block_map(_wrapped, thetas):   # scipy's wrapper only forwards to func; evaluate func itself
         thetas = [np.asarray(t, dtype=float) for t in thetas]
         func.count_inside(thetas)
-        return executor.map(func, thetas) if executor is not None else [func(t) for t in thetas]
+        return executor.map(func, thetas, tick) if executor is not None else [evaluated(t) for t in thetas]
 
     res = _opt.differential_evolution(func, bounds, maxiter=maxiter, popsize=popsize, polish=False,
                                       updating="deferred", workers=block_map, **_de_kwargs(seed))
     return np.asarray(res.x, dtype=float), int(res.nfev), bool(res.success), str(res.message)
 
 
-def _run_nm(func, prior, bounds, maxiter):
+def _run_nm(func, prior, bounds, maxiter, tick=None):
     lo = np.array([b[0] for b in bounds], dtype=float)
     hi = np.array([b[1] for b in bounds], dtype=float)
     x0 = np.clip(np.asarray(prior.mean, dtype=float), lo, hi)
@@ -209,6 +217,8 @@ def _run_nm(func, prior, bounds, maxiter):
         clipped = np.clip(theta, lo, hi)
         func.count_inside([clipped])
         value = func(clipped)
+        if tick is not None:
+            tick()
         excess = float(np.sum(((theta - clipped) / scale) ** 2))
         if excess == 0.0 or not math.isfinite(value):
             return value
@@ -219,11 +229,19 @@ def _run_nm(func, prior, bounds, maxiter):
     return np.clip(np.asarray(res.x, dtype=float), lo, hi), int(res.nfev), bool(res.success), str(res.message)
 
 
+def max_evaluations(algorithm: str, maxiter: int, popsize: int, dim: int) -> int | None:
+    """At most how many evaluations the search makes (differential evolution: (maxiter + 1) generations of
+    popsize x dim members, at least 5 as scipy makes them), or None when it is not known beforehand
+    (Nelder-Mead)."""
+    return (maxiter + 1) * max(5, popsize * dim) if algorithm in ("differential_evolution", "de") else None
+
+
 def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_sim: int,
                  algorithm: str = "differential_evolution", objective: str = "loglik", maxiter: int = 100,
                  popsize: int = 15, recheck: int = 200, likelihood: str = "gaussian",
-                 executor=None) -> OptimizeResult:
-    """Minimise the CRN objective, then re-check the optimum with fresh seeds (module docstring)."""
+                 executor=None, tick: Callable[[], object] | None = None) -> OptimizeResult:
+    """Minimise the CRN objective, then re-check the optimum with fresh seeds (module docstring);
+    ``tick()`` is called after each evaluation of the search (a progress bar's ``update``)."""
     _check_choices(objective, likelihood)
     algo = algorithm.lower().replace("-", "_") if isinstance(algorithm, str) else algorithm
     algo = {"differential_evolution": "differential_evolution", "de": "differential_evolution",
@@ -239,9 +257,9 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
     func = _Objective(simulate_seeds_fn, observed, prior, common_seeds(seed, n_sim), objective, likelihood)
     bounds = [(float(lo), float(hi)) for lo, hi in prior.bounds]
     if algo == "differential_evolution":
-        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, executor)
+        theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, executor, tick)
     else:
-        theta, nfev, success, message = _run_nm(func, prior, bounds, maxiter)
+        theta, nfev, success, message = _run_nm(func, prior, bounds, maxiter, tick)
     func.count_inside([theta])
     objective_crn = float(func(theta))
 

@@ -83,6 +83,7 @@ from simcore import MODEL_VERSION
 from simcore.schema import to_dict
 from sweeps.executors import Executor
 from sweeps.files import atomic_path, json_ready
+from sweeps.progress import Phases, bar
 from sweeps.seeds import Tag, generator
 from sweeps.store import OutputFolder
 
@@ -98,7 +99,7 @@ from .emulated import confirm, observation_covariance, posterior_median, run_emu
 from .inference import (POSTERIOR_FILE, arviz_diagnostics, chain_inference_data, draws_inference_data,
                         load_calibration_results, optimum_inference_data, write_inference_data)
 from .npe import run_npe
-from .optimize import run_optimize
+from .optimize import max_evaluations, run_optimize
 from .plots import corner_figure, predictive_figure, rank_figure, sbc_figure, trace_figure
 from .refine import P_LIMIT, Z_LIMIT, confirmation_passed, refine_emulator
 from .simulator import SummarySimulator, summary_simulator
@@ -229,7 +230,7 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     settings = config.method
     if settings.kind == "npe":
         check_simulation_count("method.npe.simulations", settings.simulations + settings.heldout, yes)
-    elif settings.kind != "optimize":
+    elif settings.kind in ("emcee", "emulator"):     # the methods that run a chain (optimize does not)
         dim = len(config.names)
         check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
                          settings.n_sim if settings.kind == "emcee" else 0, dim, yes)
@@ -238,28 +239,51 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     # the same command, run again after any interrupt, continues the stored chain (checked to have
     # been made with the same settings, else ChainMismatch)
     resume = resume or (config.method.kind not in ("optimize", "npe") and folder.path("chain.h5").exists())
+    phases = Phases("calibrate", _phase_count(config), progress)
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
         if config.method.kind == "optimize":
-            outcome = _optimize(config, folder, pool)
+            outcome = _optimize(config, folder, pool, phases)
         elif config.method.kind == "npe":
-            outcome = _npe(config, folder, progress, predictive_draws, pool, (executor, workers, scheduler))
+            outcome = _npe(config, folder, phases, predictive_draws, pool, (executor, workers, scheduler))
         elif config.method.kind == "emulator":
-            outcome = _emulator(config, folder, resume, progress, predictive_draws, pool,
+            outcome = _emulator(config, folder, resume, phases, predictive_draws, pool,
                                 (executor, workers, scheduler))
         else:
-            outcome = _emcee(config, folder, resume, progress, predictive_draws, pool)
+            outcome = _emcee(config, folder, resume, phases, predictive_draws, pool)
+        phases.start("the report (figures and tables)")
         outcome.paths = calibration_report(config, outcome, folder)
+    phases.done(f": {folder.root}")
     return outcome
 
 
-def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor) -> CalibrationRun:
+def _phase_count(config: CalibrationConfig) -> int:
+    """The phases of a calibration's progress lines (the last is the report)."""
+    settings = config.method
+    if settings.kind == "optimize":
+        return 3                                   # search, re-check, report
+    if settings.kind == "npe":
+        return 5                                   # training sweep, flow, coverage, predictive, report
+    if settings.kind == "emulator":                # (fit and chain) or refinement rounds, predictive, confirm, report
+        return (1 if settings.refine.rounds else 2) + 1 + bool(settings.confirm and not settings.refine.rounds) + 1
+    return 3                                       # chain, predictive, report
+
+
+def _optimize(config: CalibrationConfig, folder: OutputFolder, pool: Executor, phases: Phases) -> CalibrationRun:
     started = time.time()
     cost = Accounting()
     settings = config.method
-    result = run_optimize(seeded_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
-                          seed=config.seed, n_sim=settings.n_sim, algorithm=settings.algorithm,
-                          maxiter=settings.maxiter, popsize=settings.popsize, recheck=settings.recheck,
-                          likelihood=settings.likelihood, objective=settings.objective, executor=pool)
+    most = max_evaluations(settings.algorithm, settings.maxiter, settings.popsize, config.dim)
+    count = f"up to {most:,} evaluations" if most else f"evaluations (at most {settings.maxiter} iterations)"
+    phases.start(f"searching ({settings.algorithm}): {count} of {settings.n_sim} simulations each, then a "
+                 f"re-check with {settings.recheck} fresh ones")
+    with bar(most, f"{config.name}: search", "evaluation", phases.enabled) as search:
+        result = run_optimize(seeded_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
+                              seed=config.seed, n_sim=settings.n_sim, algorithm=settings.algorithm,
+                              maxiter=settings.maxiter, popsize=settings.popsize, recheck=settings.recheck,
+                              likelihood=settings.likelihood, objective=settings.objective, executor=pool,
+                              tick=search.update)
+    phases.start(f"re-checked the optimum with {result.recheck_simulations} fresh simulations; writing the "
+                 "predictive check")
     check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
     folder.write_csv("predictive.csv", check)
     predictive_figure(check, result.recheck_summaries, config.targets.observed, config.targets.columns,
@@ -289,21 +313,31 @@ def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Ge
     return flat[picked], np.column_stack([picked % walkers, burn + picked // walkers])
 
 
-def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None) -> np.ndarray:
+def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None,
+                         tick=None) -> np.ndarray:
     """(P, k): one simulated dataset (observation noise included) per posterior draw; draw i uses the
-    seed key (config.seed, Tag.PREDICTIVE, i)."""
+    seed key (config.seed, Tag.PREDICTIVE, i); ``tick()`` after each (a progress bar's ``update``)."""
     fn = functools.partial(simulate_keyed, simulate_fn(config, summary_simulator(config, n_sim=1)))
     tasks = [(theta, (config.seed, Tag.PREDICTIVE, i)) for i, theta in enumerate(draws)]
-    return np.vstack(pool.map(fn, tasks) if pool is not None else [fn(task) for task in tasks])
+    return np.vstack((pool or Executor("serial")).map(fn, tasks, tick))
 
 
-def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool, predictive_draws: int,
+def _predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor, phases: Phases) -> np.ndarray:
+    """The posterior predictive simulations as a phase of ``phases``, with a bar of simulations."""
+    phases.start(f"the posterior predictive check: {len(draws)} simulations at posterior draws")
+    with bar(len(draws), f"{config.name}: predictive", "sim", phases.enabled) as shown:
+        return posterior_predictive(config, draws, pool, shown.update)
+
+
+def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, phases: Phases, predictive_draws: int,
            pool: Executor) -> CalibrationRun:
     settings = config.method
     started = time.time()
     cost = Accounting()
     resumed_from = stored_steps(folder.path("chain.h5")) if resume else 0
-    with _ProgressBar(settings.steps, config.name, progress) as bar:
+    phases.start(f"the chain: {settings.walkers} walkers x {settings.steps} steps, {settings.n_sim} simulations "
+                 f"per evaluation" + (f" (resuming after step {resumed_from})" if resumed_from else ""))
+    with _ProgressBar(settings.steps, config.name, phases.enabled) as bar:
         result = run_bsl(simulate_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
                          walkers=settings.walkers, steps=settings.steps, seed=config.seed,
                          path=folder.path("chain.h5"), resume=resume, likelihood=settings.likelihood,
@@ -312,17 +346,17 @@ def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progre
                          check_every=settings.check_every, count=cost.add)
     return write_posterior(config, result, folder, pool, predictive_draws, started,
                            extra={"executor": pool.description}, cost=cost,
-                           cost_extra={"resumed_from": resumed_from} if resumed_from else {})
+                           cost_extra={"resumed_from": resumed_from} if resumed_from else {}, phases=phases)
 
 
-def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predictive_draws: int, pool: Executor,
+def _npe(config: CalibrationConfig, folder: OutputFolder, phases: Phases, predictive_draws: int, pool: Executor,
          sweep_executor: tuple) -> CalibrationRun:
     """Neural posterior estimation (analysis.calibration.npe): the training sweep runs on the sweep
     machinery (``local`` when the calibration runs ``serial``), the coverage check gates the verdict."""
     started = time.time()
     cost = Accounting()
     executor, workers, scheduler = sweep_executor
-    result = run_npe(config, folder, "local" if executor == "serial" else executor, workers, scheduler, progress,
+    result = run_npe(config, folder, "local" if executor == "serial" else executor, workers, scheduler, phases,
                      cost)
     draws, check = result.draws, result.coverage
     chains = 4
@@ -330,7 +364,7 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predic
                                 np.full(chains, np.nan), burn=0)
     picked = generator(config.seed, Tag.PREDICTIVE).choice(len(draws), size=min(predictive_draws, len(draws)),
                                                            replace=False)
-    predictive = posterior_predictive(config, draws[picked], pool)
+    predictive = _predictive(config, draws[picked], pool, phases)
     cost.add("predictive", len(predictive))
     predictive_table = predictive_check(config.targets.observed, predictive, config.targets.columns)
     idata = draws_inference_data(config, draws, chains=chains, predictive=predictive)
@@ -408,27 +442,32 @@ def _refined_rounds(config: CalibrationConfig, folder: OutputFolder, progress: b
     return refinement, fits[last]
 
 
-def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool,
+def _emulator(config: CalibrationConfig, folder: OutputFolder, resume: bool, phases: Phases,
               predictive_draws: int, pool: Executor, sweep_executor: tuple) -> CalibrationRun:
     settings = config.method
     started = time.time()
     cost = Accounting()
+    progress = phases.enabled
     if settings.refine.rounds:
+        phases.start(f"refinement: up to {settings.refine.rounds} rounds of fit, chain and confirmation")
         refinement, fit_s = _refined_rounds(config, folder, progress, sweep_executor)
         training, surrogate, result, check = (refinement.training, refinement.surrogate, refinement.result,
                                               refinement.confirm)
         folder.write_csv("refine.csv", refinement.rounds, index=False)
     else:
         refinement = None
+        phases.start(f"fitting the emulator ({settings.surrogate}) on the sweep in {settings.results}")
         training = training_set(settings.results, config)
         surrogate = build_surrogate(training, settings.surrogate)
         fit_s = time.time() - started
+        phases.start(f"the chain on the emulator: {settings.walkers} walkers x {settings.steps} steps")
         result = _emulator_mcmc(config, surrogate, folder.path("chain.h5"), resume, progress,
                                 f"{config.name} (emulator)")
     outcome = write_posterior(config, result, folder, pool, predictive_draws, started,
                               extra={"executor": pool.description, "emulator": _emulator_info(config, training, fit_s)},
-                              warnings=prior_outside_box(config.prior, surrogate), cost=cost)
+                              warnings=prior_outside_box(config.prior, surrogate), cost=cost, phases=phases)
     if settings.confirm and refinement is None:
+        phases.start(f"confirming at the posterior median: {settings.confirm} real simulations")
         theta = posterior_median(result.chain, outcome.report["burn"])
         check = confirm(config, summary_simulator(config), surrogate, theta, count=settings.confirm, seed=config.seed)
         cost.add("confirmation", len(check["summaries"]))
@@ -480,15 +519,15 @@ def confirm_messages(check: dict, z_limit: float = Z_LIMIT, p_limit: float = P_L
 def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, pool: Executor | None,
                     predictive_draws: int, started: float, extra: dict | None = None,
                     warnings: list | None = None, cost: Accounting | None = None,
-                    cost_extra: dict | None = None) -> CalibrationRun:
+                    cost_extra: dict | None = None, phases: Phases | None = None) -> CalibrationRun:
     """From a chain (a ChainResult) to posterior.nc, posterior.csv, convergence.json, predictive.csv and
-    the figures."""
+    the figures (``phases``: the calibration's progress lines, the predictive check one of them)."""
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     burn = int(summary.attrs.get("burn", 0))
     verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
-    predictive = posterior_predictive(config, draws, pool)
+    predictive = _predictive(config, draws, pool, phases or Phases("calibrate", 1, False))
     if cost is not None:
         cost.add("predictive", len(predictive))
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)

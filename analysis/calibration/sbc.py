@@ -68,6 +68,7 @@ import functools
 import hashlib
 import json
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Callable, Sequence
@@ -80,6 +81,7 @@ from simcore.schema import ConfigError
 from sweeps import seeds
 from sweeps.executors import Executor
 from sweeps.files import json_ready
+from sweeps.progress import Phases
 from sweeps.seeds import SBCStream, Tag
 from sweeps.store import OutputFolder
 
@@ -263,7 +265,8 @@ def _prepare_out(folder: OutputFolder, settings: dict, resume: bool) -> None:
 def _bar(total: int, done: int, name: str, enabled: bool):
     if not enabled:
         return None
-    return tqdm(total=total, initial=done, desc=f"SBC {name}", unit="dataset", smoothing=0.1)
+    return tqdm(total=total, initial=done, desc=f"SBC {name}", unit="dataset", smoothing=0.1, file=sys.stderr,
+                mininterval=0.5)
 
 
 def _tick(bar, record: dict) -> None:
@@ -305,14 +308,19 @@ def run_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress:
         _prepare_out(folder, settings_record(problem, draws), resume)
         todo = [j for j in order if not dataset_path(folder.root, j).exists()]
         started = time.time()
+        phases = Phases("sbc", 2, progress)
+        phases.start(f"fitting {len(todo)} of {datasets} datasets ({problem.walkers} walkers x {problem.steps} "
+                     f"steps each; {datasets - len(todo)} stored)")
         bar = _bar(datasets, datasets - len(todo), problem.meta.get("name", "problem"), progress)
         try:
             _run_missing(problem, todo, draws, folder, workers, bar)
         finally:
             if bar is not None:
                 bar.close()
+        phases.start("the rank statistics, figures and report")
         result = write_report(folder.root, problem.names, datasets, draws, bins=bins, alpha=alpha,
                               seed=problem.seed, columns=problem.columns)
+        phases.done(f": {folder.root}")
     result["wall_s"] = time.time() - started
     return result
 

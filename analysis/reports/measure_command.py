@@ -20,16 +20,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from observables.directional_correlation import DCD_MAX_DELAY
-from observables.measured import track_settings
-from observables.metrics import FRAGMENTATION_COHESION
-from observables.resample import RECORDED
-from observables.track_formats import FORMATS
-from observables.tracks import LENGTH_UNITS, ROLES, track_source
-from observables.validation import TrackError, describe
+from observables.track_names import FORMATS, LENGTH_UNITS, RECORDED, ROLES
 from simcore.schema import ConfigError
+from sweeps.failures import check_out
 
-from .measured import measure_folder
+# the reading and measuring (observables: numpy and the numba kernels; .measured: pandas, matplotlib) are
+# imported by run(), so that `flocksweep measure --help` starts in a fraction of a second
 
 DESCRIPTION = ("Compute every flock metric from measured trajectories (long format: flock, id, t, x, y[, z]"
                "[, vx, vy, vz]): validate them, resample onto a regular interval, and write a runs table (one "
@@ -66,13 +62,14 @@ def add_arguments(p) -> None:
                    help="difference positions over S seconds (a whole number of intervals), or 'recorded' "
                         "(default: recorded when the file has velocities, else one interval)")
     p.add_argument("--warmup", type=float, default=0.0, help="seconds at the start left out of window means")
-    p.add_argument("--fragmentation-cohesion", type=float, default=FRAGMENTATION_COHESION,
-                   help="cohesion below this counts as fragmented (default 0.5)")
+    p.add_argument("--fragmentation-cohesion", type=float, default=None,
+                   help="cohesion below this counts as fragmented (default 0.5, "
+                        "observables.metrics.FRAGMENTATION_COHESION)")
     p.add_argument("--max-speed", type=float, metavar="V",
                    help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
     p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
                    help="samples reached at an impossible speed: stop (default), keep them, or drop them")
-    p.add_argument("--dcd-max-delay", type=float, default=DCD_MAX_DELAY, metavar="S",
+    p.add_argument("--dcd-max-delay", type=float, default=None, metavar="S",
                    help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
     p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
@@ -103,10 +100,15 @@ def _velocity_interval(text: str | None):
 
 
 SHOWN_WARNINGS = 10
+# a metric setting's key (MetricSettings) -> the flag that sets it
+SETTING_FLAGS = {"group_radius": "--group-radius", "warmup": "--warmup",
+                 "fragmentation_cohesion": "--fragmentation-cohesion", "dcd_max_delay": "--dcd-max-delay"}
 
 
 def _print_warnings(issues, line_offset, out: Path) -> None:
     """The errors (flocks not measured) and warnings on stderr, the first SHOWN_WARNINGS of them."""
+    from observables.validation import describe
+
     loud = [i for i in issues if i.level in ("error", "warning")]
     for issue in loud[:SHOWN_WARNINGS]:
         print(f"flocksweep: {describe(issue, line_offset)}", file=sys.stderr)
@@ -115,6 +117,18 @@ def _print_warnings(issues, line_offset, out: Path) -> None:
 
 
 def run(args) -> int:
+    from observables.directional_correlation import DCD_MAX_DELAY
+    from observables.measured import track_settings
+    from observables.metrics import FRAGMENTATION_COHESION
+    from observables.tracks import track_source
+    from observables.validation import TrackError
+
+    from .measured import measure_folder
+
+    if args.fragmentation_cohesion is None:
+        args.fragmentation_cohesion = FRAGMENTATION_COHESION
+    if args.dcd_max_delay is None:
+        args.dcd_max_delay = DCD_MAX_DELAY
     units = _pairs(args.units, "--units", bare="length")
     if "length" in units and units["length"] not in LENGTH_UNITS:
         units["length"] = units["length"].lower()
@@ -130,8 +144,11 @@ def run(args) -> int:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
     try:
         settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion, args.dcd_max_delay)
-    except (ValueError, ConfigError) as err:
-        raise ConfigError("--group-radius" if "radius" in str(err) else "--warmup", str(err)) from None
+    except ConfigError as err:
+        raise ConfigError(SETTING_FLAGS.get(err.key, "--group-radius"), err.detail) from None
+    except ValueError as err:
+        raise ConfigError("--group-radius", str(err)) from None
+    check_out("--out", args.out)
     out = args.out or Path("results") / "measured" / args.tracks.name.split(".")[0]
     try:
         result = measure_folder(args.tracks, source, settings, out, args.interval, args.max_gap,

@@ -38,6 +38,7 @@ from observables.summary import MetricSettings, run_directional_correlation
 from observables.tracks import TrackSource, load_tracks, read_sidecar
 from observables.validation import TrackError, issues_table
 from sweeps.files import write_parquet
+from sweeps.progress import Phases
 from sweeps.store import OutputFolder
 
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
@@ -163,8 +164,10 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
     "auto" uses the tracks' velocities when they have them, else one sampling interval."""
     started = time.perf_counter()
     folder = OutputFolder(out_dir)
+    phases = Phases("measure", 2 + bool(figures), progress)
     with folder.lock():
         try:
+            phases.start(f"reading, checking and measuring {Path(path).name} (a bar of flocks)")
             table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
@@ -190,13 +193,17 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         folder.write_json("measure.json", {**info, **folder.provenance()})
         for stale in folder.path("figures").glob("*.png") if folder.path("figures").is_dir() else []:
             stale.unlink()
+        if figures:
+            phases.start(f"figures of {len(measurement.flocks)} flock(s)")
         drawn = _figures(measurement, folder, table.unit_label, settings, progress) if figures else []
+        phases.start("the report")
         blocks = _report(measurement, settings, info, issues, drawn)
         written = {}
         if "md" in formats:
             written["md"] = folder.write_text("report.md", to_markdown(blocks, folder.root))
         if "html" in formats:
             written["html"] = folder.write_text("report.html", to_html(blocks, f"measured flocks: {Path(path).name}"))
+        phases.done(f": {folder.root}")
     return {"out": folder.root, "measurement": measurement, "issues": issues, "paths": written,
             "seconds": time.perf_counter() - started}
 

@@ -9,8 +9,8 @@ vertical (``rotate``: 6 degrees per second of video).
 
 Frames: frame k shows simulated time t0 + k * speed / fps, k = 0 .. floor((t_end - t0) * fps / speed),
 each drawn from the nearest recorded frame of the track, so the file has exactly
-``frame_count(track, fps, speed)`` frames of ``size`` pixels (MP4 sizes must be even; an odd size is a
-ValueError). Colours (``boid``, ``pattern``, ``leader``, ``group``, ``speed``) follow the viewer page.
+``frame_count(track, fps, speed)`` frames of ``size`` pixels, 16 to ``MAX_SIDE`` (3840) a side (MP4 sizes
+must be even; another size is a ValueError). Colours (``boid``, ``pattern``, ``leader``, ``group``, ``speed``) follow the viewer page.
 The view follows the flock (the centroid of its largest group, at a fixed scale) in an open world and
 shows the whole world when it wraps. The file is written atomically. Without ``imageio-ffmpeg`` an MP4
 raises :class:`AnimationUnavailable` naming the install command.
@@ -35,6 +35,7 @@ from .track import Track
 
 FORMATS = {".gif": "gif", ".mp4": "mp4"}
 ROTATE_DEG_PER_S = 6.0
+MAX_SIDE = 3840   # pixels a side at most (4K UHD): a frame is drawn in memory, and matplotlib stops at 2^16
 
 
 class AnimationUnavailable(RuntimeError):
@@ -83,8 +84,8 @@ def check_options(path: Path, fps, speed, size, dpi, color_by) -> str:
     for name, value in (("fps", fps), ("speed", speed), ("dpi", dpi)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name}: got {value!r}; expected a number > 0")
-    if len(size) != 2 or any(int(s) != s or s < 16 for s in size):
-        raise ValueError(f"size: got {size!r}; expected (width, height) in whole pixels >= 16")
+    if len(size) != 2 or any(int(s) != s or not 16 <= s <= MAX_SIDE for s in size):
+        raise ValueError(f"size: got {size!r}; expected (width, height) in whole pixels from 16 to {MAX_SIDE}")
     if kind == "mp4" and any(int(s) % 2 for s in size):
         raise ValueError(f"size: got {size!r}; an MP4 (H.264) needs an even width and height")
     if color_by != "auto" and color_by not in COLOR_MODES:

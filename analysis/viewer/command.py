@@ -62,7 +62,8 @@ def add_arguments(p) -> None:
     page.add_argument("--fps", type=float, default=20.0, help="animation frames per second (default 20)")
     page.add_argument("--speed", type=float, default=1.0, help="simulated seconds per second of animation")
     page.add_argument("--rotate", action="store_true", help="animation camera turns slowly about the vertical")
-    page.add_argument("--size", default="640x480", metavar="WxH", help="animation size in pixels (default 640x480)")
+    page.add_argument("--size", default="640x480", metavar="WxH",
+                      help="animation size in pixels, 16 to 3840 a side (default 640x480)")
     page.add_argument("--dpi", type=int, default=100, help="animation dots per inch (text size; default 100)")
     page.add_argument("--no-progress", action="store_true",
                       help="no progress on stderr (the phases as they start, the animation's frames)")
@@ -111,9 +112,13 @@ def _check_flags(args, kind: str) -> None:
 
 def _size(text: str) -> tuple[int, int]:
 
+    from .animation import MAX_SIDE
+
     width, sep, height = text.lower().partition("x")
     if not (sep and width.isdigit() and height.isdigit()):
         raise ConfigError("--size", f"got {text!r}; expected WIDTHxHEIGHT in pixels, e.g. 640x480")
+    if not all(16 <= int(side) <= MAX_SIDE for side in (width, height)):
+        raise ConfigError("--size", f"got {text!r}; each side must be from 16 to {MAX_SIDE} pixels")
     return int(width), int(height)
 
 

@@ -38,8 +38,10 @@ Scene objects (static; ``color`` "#rrggbb", ``opacity`` in (0, 1], ``label`` and
 
 Agents (moving, drawn as larger cones with their own colour and legend entry): given to
 :func:`page_data` as ``{"kind": "prey" | "predator" | any name, "label": str, "color": hex, "size": cone
-scale relative to a boid, "pos": (F_source, M, 3) array on the track's frames, "vel": optional}``, encoded
-as ``{"kind", "label", "color", "size", "m", "pos": stream, "heading": stream}``.
+scale relative to a boid, "pos": (F_source, M, 3) array on the track's frames, "vel": optional,
+"appears_s": optional, the time it first appears (drawn ghosted, semi-transparent, before it)}``,
+encoded as ``{"kind", "label", "color", "size", "m", "pos": stream, "heading": stream, "appears": s or
+null}``.
 """
 from __future__ import annotations
 
@@ -216,8 +218,11 @@ def check_agents(agents, frames: int) -> list[dict]:
         kind = str(agent.get("kind", "agent"))
         style = _style(agent, where, AGENT_COLOURS.get(kind, "#9467bd"))
         size = _positive(agent, "size", where, 2.0 if kind == "predator" else 1.2)
+        appears = agent.get("appears_s")
+        if appears is not None and not (isinstance(appears, (int, float)) and math.isfinite(appears)):
+            raise ValueError(f"{where}.appears_s: got {appears!r}; expected a time in seconds (or None)")
         out.append({"kind": kind, "label": style["label"] or kind, "color": style["color"], "size": size,
-                    "pos": pos, "vel": vel})
+                    "pos": pos, "vel": vel, "appears": None if appears is None else float(appears)})
     return out
 
 
@@ -310,5 +315,5 @@ def page_data(track: Track, observables: dict, stride: int = 1, color_by: str = 
         "scene": scene,
         "agents": [{"kind": a["kind"], "label": a["label"], "color": a["color"], "size": a["size"],
                     "m": int(a["pos"].shape[1]), "pos": position_stream(a["pos"], lo, hi),
-                    "heading": heading_stream(a["vel"])} for a in agents],
+                    "heading": heading_stream(a["vel"]), "appears": a["appears"]} for a in agents],
     }

@@ -32,6 +32,7 @@ import numpy as np
 
 from observables.summary import default_group_radius, world_box
 from simcore import Observations, preset_from_dict
+from simcore.schema import ConfigError
 from sweeps.design import rebuild
 from sweeps.store import ResultsStore
 from sweeps.trajectory import read_trajectory
@@ -166,9 +167,11 @@ def scene_of(model, around=None) -> tuple:
     return tuple(obstacle_scene(obstacle, around) for obstacle in model.world.obstacles)
 
 
-def recorded_agents(predator=None, prey=None) -> tuple:
+def recorded_agents(predator=None, prey=None, times=None) -> tuple:
     """Viewer agents (:mod:`analysis.viewer.encode` dicts) of recorded (F, 3) predator and prey positions.
-    Frames before an agent appears (NaN) show it where it first appears; an agent never present is left out."""
+    Frames before an agent appears (NaN) show it where it first appears, ghosted (semi-transparent) until
+    ``appears_s``, the time (of ``times``, the records' times) it is first present; an agent never present
+    is left out."""
     out = []
     for kind, pos in (("predator", predator), ("prey", prey)):
         if pos is None:
@@ -179,15 +182,19 @@ def recorded_agents(predator=None, prey=None) -> tuple:
             continue
         pos = pos.copy()
         pos[:present[0]] = pos[present[0]]
-        label = kind if present[0] == 0 else f"{kind} (from frame {present[0]})"
-        out.append({"kind": kind, "label": label, "pos": pos[:, None, :]})
+        agent = {"kind": kind, "label": kind, "pos": pos[:, None, :]}
+        if present[0] > 0:
+            when = f"t = {float(times[present[0]]):g} s" if times is not None else f"frame {present[0]}"
+            agent["label"] = f"{kind} (ghosted until {when})"
+            agent["appears_s"] = None if times is None else float(times[present[0]])
+        out.append(agent)
     return tuple(out)
 
 
 def agents_of(obs) -> tuple:
     """Extra agents (prey, predators) recorded by the simulator (``obs.predator``, ``obs.prey``), as
     :mod:`analysis.viewer.encode` dicts with their (F, 1, 3) tracks; () when the observations record none."""
-    return recorded_agents(getattr(obs, "predator", None), getattr(obs, "prey", None))
+    return recorded_agents(getattr(obs, "predator", None), getattr(obs, "prey", None), obs.times)
 
 
 def metric_settings(model) -> tuple[float, float | None]:
@@ -244,6 +251,20 @@ def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
     return meta
 
 
+def _saved_params(path: Path):
+    """(the parameters, their preset) of a trajectory's ``params.json``; an error naming the file when it
+    cannot be read or holds no valid preset."""
+    try:
+        saved = json.loads(path.read_text())
+        if not isinstance(saved, dict) or not isinstance(saved.get("preset"), dict):
+            raise ValueError("expected a JSON object with a 'preset' object, as flocksweep simulate writes")
+        return saved, preset_from_dict(saved["preset"])
+    except ConfigError as err:
+        raise ConfigError(str(path), f"its preset: {err}") from None
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: cannot be read as a trajectory's parameters ({err})") from None
+
+
 def from_npz(path) -> Track:
     """A Track of a saved trajectory (:func:`sweeps.trajectory.read_trajectory`; see the module docstring)."""
     path = Path(path)
@@ -251,8 +272,8 @@ def from_npz(path) -> Track:
     meta: dict = {"title": path.stem, "info": {"source": str(path)}}
     params_path = path.with_name("params.json")
     if params_path.is_file():
-        saved = json.loads(params_path.read_text())
-        meta.update(_preset_meta(preset_from_dict(saved["preset"]), arrays["pos"]))
+        saved, preset = _saved_params(params_path)
+        meta.update(_preset_meta(preset, arrays["pos"]))
         meta["title"] = f"{saved['preset'].get('name', path.stem)}: seed {saved.get('seed')}"
         meta["info"] = {"source": str(path), "seed": saved.get("seed")}
     elif path.parent.name == "trajectories":
@@ -265,7 +286,8 @@ def from_npz(path) -> Track:
     return Track(times=arrays["times"].astype(np.float64), pos=arrays["pos"].astype(np.float64),
                  vel=arrays["vel"].astype(np.float64), pattern=arrays["pattern"],
                  leader=leader if leader is not None and leader.any() else None, visible=arrays["visible"],
-                 binocular=arrays["binocular"], agents=recorded_agents(arrays["predator"], arrays["prey"]),
+                 binocular=arrays["binocular"], agents=recorded_agents(arrays["predator"], arrays["prey"],
+                                                                         arrays["times"]),
                  **meta)
 
 

@@ -1,7 +1,8 @@
 """Help, version and quick starts: every command and option of `flocksweep` has a help line (none that
 sends the reader elsewhere), `status` a description, `--version` prints the installed version (one source:
-pyproject.toml), and the commands that simulate nothing (`--help`, `--version`, `status`) import neither
-numba nor the simulator (`--help` and `--version` not even pandas). Their warm start times are in
+pyproject.toml), and the commands that simulate nothing (`--help`, `--version`, `measure --help`, `status`
+of an empty and of a finished sweep folder) import neither numba nor the simulator (`--help`, `--version`
+and `measure --help` not even pandas). Their warm start times are in
 bench/RESULTS.md (bench/bench_startup.py)."""
 from __future__ import annotations
 
@@ -64,3 +65,34 @@ def test_commands_that_simulate_nothing_import_no_simulator(argv, forbidden, tmp
     assert "flocksweep.cli" in modules
     loaded = [m for m in modules if any(m == f or m.startswith(f + ".") for f in forbidden)]
     assert loaded == []
+
+
+def test_measure_help_imports_neither_numpy_nor_the_kernels_and_states_the_true_defaults(tmp_path, capsys):
+    modules = loaded_modules(["measure", "--help"], tmp_path)
+    assert "analysis.reports.measure_command" in modules
+    for heavy in ("numpy", "numba", "pandas", "matplotlib", "observables.metrics", "observables.measured"):
+        assert not any(m == heavy or m.startswith(heavy + ".") for m in modules), heavy
+    from observables.directional_correlation import DCD_MAX_DELAY
+    from observables.metrics import FRAGMENTATION_COHESION
+
+    with pytest.raises(SystemExit):
+        main(["measure", "--help"])
+    shown = " ".join(capsys.readouterr().out.split())     # the defaults the help states are the code's
+    assert f"(default {FRAGMENTATION_COHESION:g}," in shown and f"default {DCD_MAX_DELAY:g} s)" in shown
+
+
+@pytest.mark.slow
+def test_status_of_a_finished_sweep_reads_its_parts_without_numba(tmp_path):
+    """status reads and checks every runs part (its metric columns: observables.columns, no kernels)."""
+    from sweeps.config import sweep_from_dict
+    from sweeps.runner import run_sweep
+    from tiny_sweeps import sweep
+
+    data = {**sweep(), "axes": [{"key": "perception.field_deg", "values": [60, 180]}]}
+    run_sweep(sweep_from_dict(data, ROOT), "# test\n", tmp_path / "tiny", executor="serial", progress=False)
+    assert list((tmp_path / "tiny" / "runs").glob("part-*.parquet"))
+    modules = loaded_modules(["status", str(tmp_path / "tiny")], tmp_path)
+    assert "sweeps.status" in modules and "observables.columns" in modules
+    for heavy in ("numba", "simcore.simulate", "observables.metrics", "observables.kernels", "sweeps.config",
+                  "matplotlib"):
+        assert not any(m == heavy or m.startswith(heavy + ".") for m in modules), heavy

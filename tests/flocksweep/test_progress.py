@@ -1,6 +1,8 @@
 """Every command that can run for more than a few seconds shows progress on stderr, and --no-progress
 quiets it: `run` (a bar of runs), `report` (each section as it starts), `view --animate` (its phases and a
-bar of frames). Each is driven on a tiny config in a pseudo-terminal (python's pty module), as a person
+bar of frames), `calibrate` (its phases for each method: the chain's steps, the optimiser's evaluations,
+npe's training sweep, flow and coverage check; the predictive check's simulations), `sbc` (a bar of
+datasets) and `measure` (its phases and a bar of flocks). Each is driven on a tiny config in a pseudo-terminal (python's pty module), as a person
 at a terminal would see it."""
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ import termios
 
 import pytest
 
+from malformed import calibration_text
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -74,3 +77,52 @@ def test_run_report_and_view_show_progress_in_a_terminal_and_are_quiet_without(t
     for argv in quiet:
         code, err, _ = in_pty(argv, tmp_path)
         assert code == 0 and err.strip() == "", (argv, err)
+
+
+# the malformed battery's small calibration (8 boids for 1 s, one parameter, two target statistics)
+CAL_HEAD = calibration_text().split("[method]")[0].replace("{holland}", HOLLAND) + "[method]\n"
+METHODS = {"emcee": 'kind = "emcee"\nn_sim = 5\nwalkers = 4\nsteps = 3\n',
+           "optimize": 'kind = "optimize"\nn_sim = 5\nmaxiter = 2\npopsize = 3\nrecheck = 10\n',
+           "npe": 'kind = "npe"\nsimulations = 30\nheldout = 10\ndraws = 100\n'
+                  'flow = { width = 8, layers = 1, max_epochs = 5, patience = 2 }\n'}
+TRACKS = "id,t,x,y,z\n" + "".join(f"{i},{t},{t * 1.0 + 0.1 * i},{i},0\n" for i in range(1, 5) for t in range(12))
+
+
+@pytest.mark.slow
+def test_calibrate_sbc_and_measure_show_progress_in_a_terminal_and_are_quiet_without(tmp_path):
+    for kind, method in METHODS.items():
+        (tmp_path / f"{kind}.toml").write_text(CAL_HEAD + method)
+    (tmp_path / "t.csv").write_text(TRACKS)
+    expected = {
+        "emcee": (["calibrate", "emcee.toml", "--out", "o_emcee"],
+                  [r"calibrate: \[1/3\] the chain: 4 walkers x 3 steps", r"cal: 100%.*3/3 \[",
+                   r"calibrate: \[2/3\] the posterior predictive check: \d+ simulations", r"predictive: 100%",
+                   r"calibrate: \[3/3\] the report", r"calibrate: done in \d+ s"]),
+        "optimize": (["calibrate", "optimize.toml", "--out", "o_optimize"],
+                     [r"calibrate: \[1/3\] searching \(differential_evolution\): up to 15 evaluations",
+                      r"search: 100%.*15/15 \[.*<00:00",                  # a known count: an ETA, to the end
+                      r"calibrate: \[2/3\] re-checked the optimum with 10 fresh simulations",
+                      r"calibrate: \[3/3\] the report"]),
+        "npe": (["calibrate", "npe.toml", "--out", "o_npe"],
+                [r"calibrate: \[1/5\] the training sweep: 40 simulations", r"training: 100%.*40/40",
+                 r"calibrate: \[2/5\] training the flow on 30 simulations", r"\d+/5 \[",   # flowjax's epochs
+                 r"calibrate: \[3/5\] the coverage check on 10 held-out", r"calibrate: \[4/5\] the posterior",
+                 r"calibrate: \[5/5\] the report"]),
+        "sbc": (["sbc", "emcee.toml", "--out", "o_sbc", "--datasets", "2", "--draws", "3", "--steps", "3"],
+                [r"sbc: \[1/2\] fitting 2 of 2 datasets", r"SBC cal: 100%.*2/2", r"sbc: \[2/2\] the rank",
+                 r"sbc: done in"]),
+        "measure": (["measure", "t.csv", "--group-radius", "5", "--out", "o_measure"],
+                    [r"measure: \[1/3\] reading, checking and measuring t.csv", r"flocks: 100%.*1/1",
+                     r"measure: \[2/3\] figures of 1 flock", r"measure: \[3/3\] the report",
+                     r"measure: done in"]),
+    }
+    for name, (argv, lines) in expected.items():
+        code, err, _ = in_pty(argv, tmp_path)
+        assert code == 0, (name, err)
+        for line in lines:
+            assert re.search(line, err), (name, line, err)
+    for name, (argv, _) in expected.items():
+        argv = [a.replace("o_", "quiet_") for a in argv] + ["--no-progress"]
+        code, err, _ = in_pty(argv, tmp_path)
+        assert code == 0 and "%|" not in err and not re.search(r"\[\d/\d\]", err), (name, err)
+

@@ -71,6 +71,17 @@ def test_planted_delays_are_recovered_with_the_hierarchy(noise):
     assert metrics["dcd_edges"] == 10 / 5 and metrics["dcd_corr_mean"] > 0.9
 
 
+def test_delays_stop_at_the_records_so_a_fine_interval_allocates_nothing_more():
+    rng = np.random.default_rng(5)
+    vel = rng.normal(size=(6, 3, 3))
+    delays, corr = correlation_curves(vel, 0.1, 2.0)          # M would be 20; 6 records give at most 5
+    assert np.allclose(delays, np.arange(-5, 6) * 0.1)
+    assert np.allclose(corr, twin_curves(vel, 0.1, 0.5), equal_nan=True, atol=1e-12)
+    tiny, _ = correlation_curves(vel, 1e-9, 2.0)               # 2e9 delays asked: 11 computed
+    assert tiny.shape == (11,)
+    assert dcd_metrics(vel, 0.1, 2.0) == dcd_metrics(vel, 0.1, 0.5)
+
+
 def test_bad_arguments_are_named():
     with pytest.raises(ValueError, match="interval"):
         correlation_curves(np.zeros((3, 2, 3)), 0.0, 1.0)

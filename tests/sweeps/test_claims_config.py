@@ -112,6 +112,30 @@ def test_include_errors_name_the_file_and_key(tmp_path):
     assert "claims[2].parts[0].factor" in needs.key and "perception.direction_deg" in str(needs)
 
 
+def test_an_included_claims_file_reached_through_a_symbolic_link_is_named_with_its_real_file(tmp_path):
+    """docs/errors.md, 'What a config file can make flocksweep read': links are followed, the real file is
+    named in messages and its claims are copied into the results (which never depend on the link)."""
+    (tmp_path / "sweep").mkdir()
+    (tmp_path / "elsewhere").mkdir()
+    real = tmp_path / "elsewhere" / "claims.toml"
+    real.write_text((CLAIMS / "holland.toml").read_text())
+    (tmp_path / "sweep" / "link.toml").symlink_to(real)
+    data = sweep(include=[{"file": "link.toml", "only": ["a"]}])
+    config = sweep_from_dict(data, tmp_path / "sweep")
+    assert [c.id for c in config.claims] == ["a"]
+    stored = with_claims(config.source, config.claims)               # as the results store it: written out
+    assert [c["id"] for c in stored["claims"]] == ["a"] and "include_claims" not in stored
+    real.write_text(real.read_text().replace('id = "a"', 'id = "a"\nstatment = "typo"', 1))
+    with pytest.raises(ConfigError) as info:
+        sweep_from_dict(data, tmp_path / "sweep")
+    assert f"include_claims[0] (link.toml -> {real.resolve()})" in info.value.key
+    plain = error_of(include=[str(real)])                          # no link: no arrow
+    assert "->" not in plain.key and "did you mean 'statement'" in str(plain)
+    (tmp_path / "sweep" / "dangling.toml").symlink_to(tmp_path / "nowhere.toml")
+    with pytest.raises(ConfigError, match="claims file not found: 'dangling.toml'"):
+        sweep_from_dict(sweep(include=["dangling.toml"]), tmp_path / "sweep")
+
+
 @pytest.mark.parametrize("text, expected", [
     ("f <= 20", [True, True, False, False]),
     ("f > 10 and g == 'b'", [False, False, True, True]),

@@ -16,10 +16,14 @@ const T0 = TIMES[0], T1 = TIMES[F - 1];
 const DTF = F > 1 ? (T1 - T0) / (F - 1) : 1;
 const BG = new THREE.Color("#eef2f6");
 
-function fail(text) {
+function say(text) {
   const box = $("message");
   box.textContent = text;
   box.style.display = "block";
+}
+
+function fail(text) {
+  say(text);
   console.error(text);
 }
 
@@ -219,8 +223,9 @@ function setupScene() {
   boids.frustumCulled = false;
   for (let i = 0; i < N; i++) boids.setColorAt(i, tmp.c.set(0xffffff));
   scene.add(boids);
-  for (const a of agentData) {
-    const mesh = new THREE.InstancedMesh(coneGeometry(1.6 * a.size), new THREE.MeshLambertMaterial({ color: a.color }), a.m);
+  for (const a of agentData) {  // an agent that appears later is drawn ghosted (see ghostAgents) until it does
+    const material = new THREE.MeshLambertMaterial({ color: a.color, transparent: a.appears !== null && a.appears !== undefined });
+    const mesh = new THREE.InstancedMesh(coneGeometry(1.6 * a.size), material, a.m);
     mesh.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
     mesh.frustumCulled = false;
     mesh.name = "agent:" + a.kind;
@@ -354,6 +359,18 @@ function follow(f, a) {
   lastHead = c;
 }
 
+// A predator or prey that appears during the run is visible from the start, where it first appears,
+// semi-transparent (GHOST_OPACITY) until its time `appears`, then opaque.
+const GHOST_OPACITY = 0.3;
+function ghostAgents() {
+  agentData.forEach((ag, k) => {
+    const ghost = ag.appears !== null && ag.appears !== undefined && S.t < ag.appears - 1e-9;
+    const material = agentMeshes[k].material;
+    material.opacity = ghost ? GHOST_OPACITY : 1;
+    material.depthWrite = !ghost;
+  });
+}
+
 function draw() {
   const [f, a] = frameAt(S.t);
   const frameChanged = f !== S.drawnFrame;
@@ -361,6 +378,7 @@ function draw() {
     follow(f, a);
     placeInstances(boids, pos, heading, N, f, a, S.boidScale);
     agentData.forEach((ag, k) => placeInstances(agentMeshes[k], ag.pos, ag.heading, ag.m, f, a, S.boidScale));
+    ghostAgents();
     if (frameChanged || S.dirty) colourBoids(f);
     drawTrails(f, a);
     if (frameChanged) drawPanel(panelState(), f);
@@ -401,10 +419,21 @@ function seekFrame(f) {
   rememberInUrl();
 }
 
-// The URL fragment #t=SECONDS&color=MODE opens the page at that time and colouring (else the page's
-// defaults.start_time); pausing, stepping and recolouring write it back, so the address can be shared.
+// The URL fragment #run=RUN_ID&t=SECONDS&color=MODE opens the page at that time and colouring (else the
+// page's defaults.start_time); pausing, stepping and recolouring write it back, so the address can be
+// shared. `run` names the sweep run the address is for (a page of a sweep run writes its run id): a page
+// of another run says so, names the page to open, and keeps its own time and colouring.
+const RUN_ID = DATA.info && DATA.info["run id"] ? String(DATA.info["run id"]) : null;
 function fromUrl() {
   const said = new URLSearchParams(window.location.hash.replace(/^#/, ""));
+  const run = said.get("run");
+  if (run && !(RUN_ID && RUN_ID.startsWith(run))) {
+    say(`This address is for run ${run}, but this page shows ${RUN_ID ? "run " + RUN_ID : "another run"}: ` +
+        `open that run's page (flocksweep view RESULTS --run ${run} writes RESULTS/viewer/${run}.html).`);
+    S.t = Math.max(T0, Math.min(T1, Number.isFinite(DATA.defaults.start_time) ? DATA.defaults.start_time : T0));
+    S.dirty = true;
+    return;
+  }
   const t = parseFloat(said.has("t") ? said.get("t") : DATA.defaults.start_time);
   if (Number.isFinite(t)) S.t = Math.max(T0, Math.min(T1, t));
   const colour = said.get("color");
@@ -415,7 +444,7 @@ function fromUrl() {
 function rememberInUrl() {
   if (S.playing || !window.history || !window.history.replaceState) return;
   try {
-    window.history.replaceState(null, "", `#t=${S.t.toFixed(2)}&color=${S.colorBy}`);
+    window.history.replaceState(null, "", `#${RUN_ID ? "run=" + RUN_ID + "&" : ""}t=${S.t.toFixed(2)}&color=${S.colorBy}`);
   } catch (err) { /* a page opened where the address cannot change: nothing to remember */ }
 }
 
@@ -489,6 +518,8 @@ async function start() {
     setSpeed: (x) => { S.speed = x; },
     boidMatrix: (i) => { const m = new THREE.Matrix4(); boids.getMatrixAt(i, m); return m.elements.slice(); },
     sceneNames: () => scene.children.map((c) => c.name).filter(Boolean),
+    agentOpacity: (k) => agentMeshes[k].material.opacity,
+    agentMatrix: (k) => { const m = new THREE.Matrix4(); agentMeshes[k].getMatrixAt(0, m); return m.elements.slice(); },
     trailVertices: () => (trails.visible ? trails.geometry.drawRange.count : 0),
   };
   document.body.dataset.ready = "1";

@@ -81,6 +81,8 @@ def test_options_are_checked(tmp_path):
             (tmp_path / "a.gif", {"fps": 0}, "fps"),
             (tmp_path / "a.gif", {"speed": -1}, "speed"),
             (tmp_path / "a.gif", {"size": (8, 8)}, "size"),
+            (tmp_path / "a.gif", {"size": (100000, 100000)}, "from 16 to 3840"),
+            (tmp_path / "a.gif", {"size": (640, 3841)}, "from 16 to 3840"),
             (tmp_path / "a.mp4", {"size": (321, 240)}, "even width"),
             (tmp_path / "a.gif", {"color_by": "mood"}, "color_by")]:
         options = {"fps": 20, "speed": 1, "size": (320, 240), "dpi": 100, "color_by": "auto", **kwargs}

@@ -25,7 +25,8 @@ def test_simulate_stores_the_predator_and_the_viewer_reads_it(tmp_path, capsys):
     assert np.isnan(predator[:5]).all() and np.isfinite(predator[5:]).all()   # appears at step 30 = record 5
     track = from_npz(out / "trajectory.npz")
     (agent,) = track.agents
-    assert agent["kind"] == "predator" and agent["label"] == "predator (from frame 5)"
+    assert agent["kind"] == "predator" and agent["label"] == "predator (ghosted until t = 0.5 s)"
+    assert agent["appears_s"] == data["times"][5]     # drawn ghosted before it, where it first appears
     assert agent["pos"].shape == (11, 1, 3)           # (frames, agents of this kind, 3), as the encoder takes
     path = agent["pos"][:, 0]
     assert np.array_equal(path[5:], predator[5:]) and np.array_equal(path[:5], predator[[5] * 5])

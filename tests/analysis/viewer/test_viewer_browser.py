@@ -4,14 +4,16 @@ changes when a control (colour by) is used, steps and seeks, and draws scene obj
 Screenshots are kept in tests/artifacts/ (git-ignored)."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from analysis.viewer import view
+from analysis.viewer.track import from_arrays, recorded_agents
 from browser import Browser
-from viewer_data import milling_track
+from viewer_data import milling_arrays, milling_track
 from paths import TESTS
 
 ARTIFACTS = TESTS / "artifacts"
@@ -167,6 +169,47 @@ def test_a_page_opens_at_its_start_time_or_at_the_time_and_colouring_its_url_say
     assert abs(page.state("time") - late) < 1e-6 and page.state("colorBy") == "group"
     page.page.evaluate("window.flockViewer.seek(2)")            # a seek writes the fragment back
     assert page.page.evaluate("window.location.hash") == f"#t={float(times[2]):.2f}&color=group"
+    page.page.close()
+
+
+@pytest.mark.slow
+def test_a_predator_that_appears_later_is_ghosted_where_it_appears_until_then(browser, tmp_path):
+    arrays = milling_arrays()
+    times = arrays["times"]
+    predator = np.stack([18 * np.cos(-0.5 * times), np.full_like(times, 3.0), 18 * np.sin(-0.5 * times)], axis=-1)
+    predator[:45] = np.nan                                      # absent for the first half, as Boids++ records it
+    agents = recorded_agents(predator, None, times)
+    assert agents[0]["appears_s"] == times[45] and "ghosted until" in agents[0]["label"]
+    track = from_arrays(**arrays, title="late predator", group_radius=6.0, agents=agents)
+    page = browser.open(view(track, tmp_path / "late.html", max_mb=None).path)
+    assert page.errors == []
+    assert page.state("agentOpacity(0)") < 0.5                  # visible from the start, ghosted
+    at_start = np.array(page.state("agentMatrix(0)"))[12:15]    # drawn where it first appears
+    assert np.allclose(at_start, predator[45], atol=0.1)
+    page.page.evaluate("window.flockViewer.seek(44)")
+    assert page.state("agentOpacity(0)") < 0.5
+    page.page.evaluate("window.flockViewer.seek(45)")
+    assert page.state("agentOpacity(0)") == 1                   # opaque once it has appeared
+    assert "ghosted until" in page.page.inner_text("#legend")
+    page.page.close()
+
+
+@pytest.mark.slow
+def test_the_url_fragment_names_the_run_as_well_as_the_time(browser, tmp_path):
+    track = milling_track(with_scene=False)
+    track = replace(track, info={"run id": "abc123def456", "seed": 1})
+    times = np.asarray(track.times)
+    path = view(track, tmp_path / "run.html", color_by="boid", max_mb=None).path
+    page = browser.open(path, fragment=f"run=abc123&t={float(times[30])}&color=group")   # a prefix of the id
+    assert page.errors == [] and abs(page.state("time") - times[30]) < 1e-6 and page.state("colorBy") == "group"
+    assert not page.page.is_visible("#message")
+    page.page.evaluate("window.flockViewer.seek(5)")
+    assert page.page.evaluate("window.location.hash") == f"#run=abc123def456&t={float(times[5]):.2f}&color=group"
+    page.page.close()
+    page = browser.open(path, fragment=f"run=fff999&t={float(times[30])}&color=group")   # another run's address
+    assert page.state("time") == times[0] and page.state("colorBy") == "boid"           # not applied here
+    message = page.page.inner_text("#message")
+    assert "run fff999" in message and "this page shows run abc123def456" in message and "--run fff999" in message
     page.page.close()
 
 

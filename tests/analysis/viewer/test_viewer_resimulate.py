@@ -53,6 +53,23 @@ def test_parse_where():
         parse_where(" , ")
 
 
+@pytest.mark.parametrize("where", [
+    "__import__('os').system('touch pwned')=1",              # a call as a key
+    "mode=__import__('os').system('touch pwned')",           # a call as a value: only a string
+    "mode.__class__=1", "mode=x.__class__.__bases__",        # attribute access, dunder names
+    "perception.field_deg=10**10**10",                       # a huge exponent: a string, never computed
+    "mode=" + "(" * 500 + "1" + ")" * 500,                   # deep nesting: a string
+])
+def test_hostile_where_filters_are_data_never_code(sweep, where, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    parsed = parse_where(where)
+    assert all(isinstance(k, str) for k in parsed) and all(isinstance(v, (str, int, float, bool)) for v in parsed.values())
+    with pytest.raises(RunNotFound, match="--where"):
+        select_run(sweep, where=parsed)
+    assert not (tmp_path / "pwned").exists()
+    assert parse_where("perception.field_deg=10**10**10") == {"perception.field_deg": "10**10**10"}
+
+
 def test_select_run_by_id_prefix_point_and_showcase(sweep):
     runs = pd.read_parquet(sweep / "runs.parquet")
     target = runs[(runs["mode"] == "pattern") & (runs["perception.field_deg"] == 180) & (runs["replicate"] == 1)]

@@ -1,0 +1,64 @@
+"""The names of the metric columns, declared without the code that computes them.
+
+A run's row (:func:`observables.summary.summarize_run`) and its time series hold these columns; this
+module lists them and nothing else, importing nothing (no numpy, no numba), so code that only reads
+results (``flocksweep status``, the results store's schema check of a part) knows every metric column
+without loading the kernels. Each metric's home module takes its names from here:
+
+* ``SERIES``: the per-record series of :func:`observables.metrics.frame_metrics`, in kernel column order
+  (``observables.kernels.COLUMNS``, ``observables.metrics.METRIC_NAMES``);
+* ``RUN_COLUMNS``: the run scalars of every row; ``LEADERSHIP_METRIC_NAMES`` (:mod:`~observables.leadership`),
+  ``DCD_METRIC_NAMES`` (:mod:`~observables.directional_correlation`), ``MIGRATION_METRIC_NAMES``
+  (:mod:`~observables.migration`);
+* the encounter families (:mod:`~observables.encounters`): ``FAMILIES`` {family: (series, scalars)};
+* ``encounter_columns(families)`` and ``summary_columns(leadership, migration, encounters, dcd)``: the row
+  columns in order; ``EVERY_METRIC_COLUMN``: the columns any run's row may hold (a sweep's metric columns).
+"""
+from __future__ import annotations
+
+SERIES = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
+          "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
+          "visible_mean", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
+RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
+LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
+                           "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",
+                           "escape_gain")
+DCD_METRIC_NAMES = ("dcd_corr_mean", "dcd_delay_mean", "dcd_edges", "dcd_leader_delay")
+MIGRATION_METRIC_NAMES = ("migratory_progress", "migratory_efficiency")
+
+OBSTACLE_SERIES = ("collisions", "collision_fraction", "clearance")
+OBSTACLE_SCALARS = ("collided_boids", "collision_events", "clearance_min")
+PREDATOR_SERIES = ("predator_distance", "predator_near", "predator_in_capture", "flock_gyration_radius")
+PREDATOR_SCALARS = ("predator_captures", "predator_distance_min", "flash_nn_ratio", "flash_gyration_ratio",
+                    "groups_before_predator", "groups_near_predator", "groups_near_predator_max", "remerge_time")
+PREY_SERIES = ("prey_distance", "prey_within_fraction")
+PREY_SCALARS = ("prey_reach_time", "prey_first_reach_time")
+FAMILIES = {"obstacles": (OBSTACLE_SERIES, OBSTACLE_SCALARS), "predator": (PREDATOR_SERIES, PREDATOR_SCALARS),
+            "prey": (PREY_SERIES, PREY_SCALARS)}
+
+
+def encounter_columns(families=("obstacles", "predator", "prey")) -> tuple[str, ...]:
+    """Row columns of the given families, in row order: each family's series means and finals, then
+    its scalars."""
+    columns = []
+    for family in families:
+        series, scalars = FAMILIES[family]
+        columns += [f"{name}_{kind}" for name in series for kind in ("mean", "final")]
+        columns += list(scalars)
+    return tuple(columns)
+
+
+def summary_columns(leadership: bool = True, migration: bool = False,
+                    encounters: tuple[str, ...] = (), dcd: bool = False) -> tuple[str, ...]:
+    """The columns :func:`~observables.summary.summarize_run`'s row may hold, in order: with or without the
+    leadership scalars, the directional correlation delays, the migration scalars, then the columns of the
+    given encounter families (all of ``FAMILIES`` for all; a row has a family's columns only when its run
+    has obstacles, a predator or prey, see :mod:`observables.encounters`)."""
+    columns = tuple(f"{name}_{kind}" for name in SERIES for kind in ("mean", "final")) + RUN_COLUMNS
+    columns += LEADERSHIP_METRIC_NAMES if leadership else ()
+    columns += DCD_METRIC_NAMES if dcd else ()
+    columns += MIGRATION_METRIC_NAMES if migration else ()
+    return columns + encounter_columns(encounters)
+
+
+EVERY_METRIC_COLUMN = frozenset(summary_columns(leadership=True, migration=True, encounters=tuple(FAMILIES)))
