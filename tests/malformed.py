@@ -481,7 +481,7 @@ EXPRESSIONS = [
 ]
 
 TRACK = "id,t,x,y,z\n1,0,0,0,0\n1,1,1,0,0\n1,2,2,0,0\n2,0,0,1,0\n2,1,1,1,0\n2,2,2,1,0\n"
-MEASURE = ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--out", "{d}/out")
+MEASURE = ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures", "--no-progress", "--out", "{d}/out")
 
 # output paths that cannot be a folder: each named as --out, exit 2, before anything is written
 OUT_PATHS = [
