@@ -19,7 +19,7 @@ from ``[seed, Tag.NPE, NPEStream.NOISE]`` (the data model of every other method)
 
 ``estimator_identity(config) -> dict``: what the trained estimator depends on (model and its version,
 metric settings, parameters and priors, target columns and their measurement covariance, seed,
-simulations, held-out count, the flow's settings): NOT the observed values. An estimator folder whose
+simulations, held-out count, the flow's settings and the ensemble's size): NOT the observed values. An estimator folder whose
 ``identity.json`` equals it is reused: ``flocksweep calibrate`` with other targets (another flight,
 another flock) runs no training simulation.
 
@@ -52,7 +52,7 @@ from sweeps.runner import run_sweep
 from sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
-from .npe_flow import Estimator, FlowSettings, load_estimator, train_flow
+from .npe_flow import Estimator, FlowSettings, load_estimator, train_ensemble
 
 IDENTITY_FILE = "identity.json"
 LEVELS = (0.5, 0.9)
@@ -123,7 +123,8 @@ def estimator_identity(config) -> dict:
                        "columns": list(config.targets.columns),
                        "observation_cov": None if config.targets.cov is None else np.asarray(config.targets.cov).tolist(),
                        "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
-                       "flow": asdict(flow_settings(config))})
+                       "flow": asdict(flow_settings(config)),
+                       **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {})})
 
 
 def digest(identity: dict) -> str:
@@ -204,9 +205,10 @@ def _train(config, folder, pool_kind, workers, scheduler, progress, cost):
     if usable[:n].sum() < 20:
         raise ConfigError("method.simulations", f"only {int(usable[:n].sum())} of {n} training runs gave finite "
                                                 "statistics; choose statistics every run has")
-    _log(progress, f"{config.name}: training the flow on {int(usable[:n].sum())} simulations")
-    estimator = train_flow(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
-                           _jax_seed(config, NPEStream.TRAIN))
+    flows = f"{settings.ensemble} flows" if settings.ensemble > 1 else "the flow"
+    _log(progress, f"{config.name}: training {flows} on {int(usable[:n].sum())} simulations")
+    estimator = train_ensemble(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
+                               _jax_seed(config, NPEStream.TRAIN), settings.ensemble)
     return estimator, theta[n:][usable[n:]], rows[n:][usable[n:]], int((~usable).sum())
 
 
