@@ -485,13 +485,13 @@ def cmd_targets(args) -> int:
         sd = np.sqrt(np.diag(config.targets.cov))
     else:
         raise ConfigError("--sd", "the file gives samples, not mean/sd: pass --sd with one value per stat")
-    rows = synthetic_observation(config, truth, args.seed, args.replicates)
+    rows, flock = synthetic_observation(config, truth, args.seed, args.replicates, flock=True)
     if not np.isfinite(rows).all():
         raise ConfigError("--truth", "some runs gave undefined statistics at this truth; choose other stats")
     truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
           f"--replicates {args.replicates}")
-    print(targets_block(config, rows, sd, truth), end="")
+    print(targets_block(config, rows, sd, truth, flock if np.isfinite(flock).all() else None), end="")
     return 0
 
 

@@ -91,6 +91,7 @@ from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
 from .feasibility import check_chain_size
+from .flock_check import flock_check, flock_columns
 from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
@@ -121,6 +122,7 @@ class CalibrationRun:
     convergence: dict | None = None
     warnings: list | None = None
     predictive: pd.DataFrame | None = None         # predictive.csv
+    flock: pd.DataFrame | None = None              # flock_check.csv: every flock statistic of the predictive runs
     confirm: dict | None = None                    # emulator: the confirmation at the posterior median
     refine: pd.DataFrame | None = None             # emulator: refine.csv
     optimum: dict | None = None                    # optimize: optimum.json
@@ -137,8 +139,9 @@ def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
 
     def fn(theta, rng):
         sims = simulator(np.asarray(theta, dtype=float), rng)
-        if cov is not None:
-            sims = sims + rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
+        if cov is not None:   # the targets' noise, on the target columns (the first k; extra ones stay bare)
+            sims = sims.copy()
+            sims[:, :len(cov)] += rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
         return sims
     return fn
 
@@ -227,7 +230,7 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     A chain too large to hold is refused, one of more than ``MAX_SIMULATIONS`` simulations needs ``yes``
     (:func:`~analysis.calibration.feasibility.check_chain_size`), before anything is written."""
     settings = config.method
-    if settings.kind != "optimize":
+    if settings.kind in ("emcee", "emulator"):   # the methods that hold a chain
         dim = len(config.names)
         check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
                          settings.n_sim if settings.kind == "emcee" else 0, dim, yes)
@@ -287,12 +290,21 @@ def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Ge
     return flat[picked], np.column_stack([picked % walkers, burn + picked // walkers])
 
 
-def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None) -> np.ndarray:
-    """(P, k): one simulated dataset (observation noise included) per posterior draw; draw i uses the
-    seed key (config.seed, Tag.PREDICTIVE, i)."""
-    fn = functools.partial(simulate_keyed, simulate_fn(config, summary_simulator(config, n_sim=1)))
+def predictive_runs(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None):
+    """((P, k), (P, f)): one simulated run per posterior draw, its target statistics (observation noise
+    included) and its flock statistics (:func:`~analysis.calibration.flock_check.flock_columns`, bare);
+    draw i uses the seed key (config.seed, Tag.PREDICTIVE, i)."""
+    simulator = summary_simulator(config, n_sim=1, extra_columns=flock_columns(config))
+    fn = functools.partial(simulate_keyed, simulate_fn(config, simulator))
     tasks = [(theta, (config.seed, Tag.PREDICTIVE, i)) for i, theta in enumerate(draws)]
-    return np.vstack(pool.map(fn, tasks) if pool is not None else [fn(task) for task in tasks])
+    rows = np.vstack(pool.map(fn, tasks) if pool is not None else [fn(task) for task in tasks])
+    k = len(config.targets.columns)
+    return rows[:, :k], rows[:, k:]
+
+
+def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None) -> np.ndarray:
+    """(P, k): the target statistics of :func:`predictive_runs`."""
+    return predictive_runs(config, draws, pool)[0]
 
 
 def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, progress: bool, predictive_draws: int,
@@ -328,14 +340,16 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predic
                                 np.full(chains, np.nan), burn=0)
     picked = generator(config.seed, Tag.PREDICTIVE).choice(len(draws), size=min(predictive_draws, len(draws)),
                                                            replace=False)
-    predictive = posterior_predictive(config, draws[picked], pool)
+    predictive, flock = predictive_runs(config, draws[picked], pool)
     cost.add("predictive", len(predictive))
     predictive_table = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    flock_table = flock_check(config, predictive, flock)
     idata = draws_inference_data(config, draws, chains=chains, predictive=predictive)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
     summary = summary.drop(columns=["tau", "ess", "acceptance"]).join(arviz_diagnostics(idata))
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", predictive_table)
+    folder.write_csv("flock_check.csv", flock_table)
     folder.write_csv("coverage.csv", check["table"], index=False)
     rank_figure(idata, folder.path("rank.png"))
     sbc_figure(check["ranks"], check["draws"], 20, config.names, folder.path("coverage_ranks.png"))
@@ -360,7 +374,7 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, progress: bool, predic
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
-                          warnings=warnings, predictive=predictive_table)
+                          warnings=warnings, predictive=predictive_table, flock=flock_table)
 
 
 def _emulator_mcmc(config: CalibrationConfig, surrogate, path, resume: bool, progress: bool, label: str):
@@ -486,10 +500,11 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
-    predictive = posterior_predictive(config, draws, pool)
+    predictive, flock = predictive_runs(config, draws, pool)
     if cost is not None:
         cost.add("predictive", len(predictive))
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    flock_table = flock_check(config, predictive, flock)
     idata = chain_inference_data(config, result, burn, predictive=predictive, predictive_source=source)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
     diagnostics = arviz_diagnostics(idata)
@@ -500,6 +515,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                "messages": verdict["messages"] + ensemble["messages"]}
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", check)
+    folder.write_csv("flock_check.csv", flock_table)
     trace_figure(result.chain, config.names, folder.path("trace.png"), burn=burn)
     rank_figure(idata, folder.path("rank.png"))
     truth = config.targets.truth
@@ -517,7 +533,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
-                          warnings=warnings, predictive=check)
+                          warnings=warnings, predictive=check, flock=flock_table)
 
 
 class _ProgressBar:
