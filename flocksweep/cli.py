@@ -501,6 +501,8 @@ DELEGATED = {"compile": ("sweeps.compile", "compile the simulation and metric ke
              "export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
              "sbc": ("analysis.calibration.sbc_command",
                      "simulation-based calibration check of a calibration's posterior"),
+             "compare": ("analysis.calibration.compare_command",
+                         "which of several models explains the targets: classifier, model probabilities, confusion"),
              "posterior": ("analysis.calibration.posterior_command",
                            "one posterior per observed flock from a trained npe estimator (no simulation)"),
              "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
@@ -518,7 +520,7 @@ def cmd_delegated(args) -> int:
 
 ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
           "calibrate": _add_calibrate, "targets": _add_targets}
-ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior", "sbc", "view",
+ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior", "compare", "sbc", "view",
          "measure")
 
 

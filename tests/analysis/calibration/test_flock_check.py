@@ -78,6 +78,21 @@ def test_a_non_target_that_disagrees_is_flagged_and_the_agreeing_or_unknown_ones
     assert len(flock_messages(table)) == 1
 
 
+def test_the_flag_is_bonferroni_bounded_by_the_number_of_known_statistics():
+    rng = np.random.default_rng(1)
+    targets = rng.normal([0.8, 0.7], 0.05, (100, 2))
+    alone = calibration_from_dict(tiny({"nn_distance": 1.5}), ROOT)
+    columns = flock_columns(alone)
+    flock = rng.normal(1.0, 0.2, (100, len(columns)))
+    flock[:, columns.index("nn_distance_mean")] = np.arange(100.0)     # observed 1.5: p = 2 x 2/100 = 0.04
+    flock[:, columns.index("n_groups_mean")] = 1.0
+    assert flock_check(alone, targets, flock).loc["nn_distance_mean", "disagrees"]          # 0.04 < 0.05 / 1
+    both = calibration_from_dict(tiny({"nn_distance": 1.5, "n_groups": 1}), ROOT)
+    table = flock_check(both, targets, flock)
+    assert table.loc["nn_distance_mean", "p"] == pytest.approx(0.04)
+    assert not table["disagrees"].any()                                                   # 0.04 > 0.05 / 2
+
+
 def test_the_flock_columns_leave_the_target_columns_bit_identical():
     config = calibration_from_dict(tiny(), ROOT)
     seeds = common_seeds(5, 3)
