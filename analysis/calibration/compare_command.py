@@ -14,7 +14,7 @@ DESCRIPTION = ("Model comparison: simulate every model of a comparison file from
 
 
 def add_arguments(p) -> None:
-    p.add_argument("config", help="comparison TOML, e.g. configs/calibration/compare_perception.toml")
+    p.add_argument("config", help="comparison TOML, e.g. configs/compare/perception.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of the comparison file (e.g. simulations=500)")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")

@@ -80,6 +80,12 @@ def test_bad_comparisons_are_refused_naming_the_key(tmp_path, compare, metric, k
     assert err.value.key == key and words in str(err.value), str(err.value)
 
 
+def test_the_shipped_comparison_is_valid():
+    comparison = load_comparison(ROOT / "configs/compare/perception.toml")
+    assert comparison.names == ["metric", "topological"] and (comparison.simulations, comparison.heldout) == (1000, 200)
+    assert dict(comparison.models)["topological"].names == ("neighbours", "blind")
+
+
 class Fixed:
     """A classifier whose probabilities are given: held-out rows first, then the observed rows."""
 
