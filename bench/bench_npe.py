@@ -96,6 +96,8 @@ def amortised(estimator: Path, flocks: int = 100) -> float:
     identity = json.loads((estimator / "identity.json").read_text())
     rng = np.random.default_rng(0)
     record = json.loads((estimator / "flow.json").read_text())
+    if "members" in record:   # an ensemble: its members share the standardisation
+        record = json.loads((estimator / "member0" / "flow.json").read_text())
     x = np.asarray(record["x_mean"]) + rng.normal(size=(flocks, record["k"])) * np.asarray(record["x_sd"]) * 0.5
     table = pd.DataFrame(x, columns=identity["columns"])
     started = time.time()
