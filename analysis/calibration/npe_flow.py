@@ -32,7 +32,8 @@ estimators are less over-confident than one), with the Estimator's interface: ``
 ``count`` from the mixture as the members' draws (``count // K`` each, the first ``count % K`` one more,
 every member's rejection at the support as above) shuffled with ``seed``; ``log_prob`` is the log of the
 members' mean density; ``save`` puts member i in ``member<i>/`` beside a ``flow.json`` naming the count,
-and :func:`load_estimator` rebuilds whichever was stored. A one-member ensemble is its Estimator.
+and :func:`load_estimator` rebuilds whichever was stored. A one-member ensemble is its Estimator. The
+members share member 0's static structure, so the vectorised sampler compiles once for all of them.
 
 Every import of JAX happens inside these functions: without the extra, the rest of the calibration
 works and ``npe`` says how to install it (:func:`require_jax`).
@@ -272,11 +273,23 @@ class Ensemble:
         return folder
 
 
+def _one_structure(members) -> tuple:
+    """The members with member 0's static structure: built apart, their flows hold equal but distinct
+    functions, which equinox's compile cache tells apart (one compile per member); rebuilt on one
+    structure, the sampler compiles once for all of them."""
+    import dataclasses
+
+    _, eqx = require_jax()
+    static = eqx.partition(members[0].flow, eqx.is_array)[1]
+    return tuple(dataclasses.replace(m, flow=eqx.combine(eqx.partition(m.flow, eqx.is_array)[0], static))
+                 for m in members)
+
+
 def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1):
     """``members`` flows on the same simulations, seeds seed, seed + 1, ... (module docstring)."""
     check_at_least("ensemble", members, 1)
     trained = tuple(train_flow(theta, x, settings, seed + i) for i in range(members))
-    return trained[0] if members == 1 else Ensemble(trained)
+    return trained[0] if members == 1 else Ensemble(_one_structure(trained))
 
 
 def train_flow(theta, x, settings: FlowSettings, seed: int) -> Estimator:
@@ -310,7 +323,7 @@ def load_estimator(folder):
     folder = Path(folder)
     record = json.loads((folder / FLOW_RECORD).read_text()) if (folder / FLOW_RECORD).is_file() else {}
     if "members" in record:
-        return Ensemble(tuple(load_estimator(folder / f"member{i}") for i in range(record["members"])))
+        return Ensemble(_one_structure([load_estimator(folder / f"member{i}") for i in range(record["members"])]))
     if not record or not (folder / FLOW_WEIGHTS).is_file():
         raise FileNotFoundError(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
                                 "with flocksweep calibrate FILE --method npe")
