@@ -1,10 +1,14 @@
 """recover_holland by neural posterior estimation (issue 25): posterior against the BSL reference, width
 against simulations, held-out coverage, and 100 posteriors from one trained estimator.
 
-    python bench/bench_npe.py [--simulations 250 500 1000] [--heldout 200] [--out results/bench_npe]
+    python bench/bench_npe.py [--simulations 250 500 1000] [--heldout 200] [--ensemble 1] [--out results/bench_npe]
+    python bench/bench_npe.py --curve --simulations 500 1000 1500 2000 --heldout 400 --ensemble 1 5
 
 Each budget trains its own estimator (``--set method.npe.simulations=N``) into ``OUT/N``; the training
-sweep's runs are content-addressed there, so a rerun reuses them. Prints a markdown table for
+sweep's runs are content-addressed there, so a rerun reuses them. ``--curve``: one training sweep of the
+largest budget plus the held-out runs (``OUT/curve``), then for each budget N and ensemble size K an
+estimator trained on its first N runs, its posterior at the targets and its coverage on the held-out
+runs (the budgets share their runs: the curve is not blurred by other designs). Prints a markdown table for
 bench/RESULTS.md. The BSL reference (configs/calibration/recover_holland.toml, 266,000 simulations):
 field median 149.0, 90% 134.2-168.0, sd 10.4; direction median 43.9, 90% 36.0-51.9, sd 4.9.
 """
@@ -27,20 +31,64 @@ REFERENCE = {"field": {"median": 149.0, "q5": 134.2, "q95": 168.0, "sd": 10.4, "
              "direction": {"median": 43.9, "q5": 36.0, "q95": 51.9, "sd": 4.9, "truth": 45.0}}
 
 
-def one(budget: int, heldout: int, out: Path) -> dict:
-    config = load_calibration(FILE, [f"method.npe.simulations={budget}", f"method.npe.heldout={heldout}"], "npe")
-    run = run_calibration(config, out / str(budget), progress=True)
-    row = {"simulations": budget, "wall_s": run.report["wall_s"], "coverage_passed": run.convergence["converged"]}
+def one(budget: int, heldout: int, ensemble: int, out: Path) -> dict:
+    config = load_calibration(FILE, [f"method.npe.simulations={budget}", f"method.npe.heldout={heldout}",
+                                     f"method.npe.ensemble={ensemble}"], "npe")
+    run = run_calibration(config, out / f"{budget}-{ensemble}", progress=True)
+    row = {"simulations": budget, "ensemble": ensemble, "wall_s": run.report["wall_s"],
+           "coverage_passed": run.convergence["converged"]}
+    row.update(against_reference(run.summary))
+    for record in run.report["npe"]["coverage"]["table"]:
+        row[f"cov{int(record['level'] * 100)}_{record['parameter']}"] = record["coverage"]
+    return row
+
+
+def against_reference(summary: pd.DataFrame) -> dict:
+    row = {}
     for name, ref in REFERENCE.items():
-        s = run.summary.loc[name]
+        s = summary.loc[name]
         width, ref_width = s["q95"] - s["q5"], ref["q95"] - ref["q5"]
         row.update({f"{name}_median": s["median"], f"{name}_q5": s["q5"], f"{name}_q95": s["q95"],
                     f"{name}_width_ratio": width / ref_width,
                     f"{name}_median_off_sd": abs(s["median"] - ref["median"]) / ref["sd"],
                     f"{name}_truth_inside": bool(s["q5"] <= ref["truth"] <= s["q95"])})
-    for record in run.report["npe"]["coverage"]["table"]:
-        row[f"cov{int(record['level'] * 100)}_{record['parameter']}"] = record["coverage"]
     return row
+
+
+def curve(budgets, heldout: int, ensembles, out: Path) -> list[dict]:
+    """Width and coverage against simulations on one shared training sweep (module docstring)."""
+    from analysis.calibration.npe import (NPEStream, _jax_seed, coverage_check, simulated_rows, support_of,
+                                          training_design, training_sweep)
+    from analysis.calibration.npe_flow import train_ensemble
+    from sweeps.runner import run_sweep
+
+    largest = max(budgets)
+    config = load_calibration(FILE, [f"method.npe.simulations={largest}", f"method.npe.heldout={heldout}"], "npe")
+    theta = training_design(config)
+    result = run_sweep(training_sweep(config, theta), None, out / "curve", executor="local", progress=True)
+    x = simulated_rows(config, theta, result.table)
+    usable = np.isfinite(x).all(axis=1)
+    held = (np.arange(len(theta)) >= largest) & usable
+    support = support_of(config.prior)
+    rows = []
+    for budget in budgets:
+        train = (np.arange(len(theta)) < budget) & usable
+        for members in ensembles:
+            started = time.time()
+            estimator = train_ensemble(theta[train], x[train], config.method.flow,
+                                       _jax_seed(config, NPEStream.TRAIN), members)
+            row = {"simulations": budget, "ensemble": members, "train_s": time.time() - started}
+            check = coverage_check(estimator, theta[held], x[held], 199, _jax_seed(config, NPEStream.COVERAGE),
+                                   support, config.method.coverage_tolerance, config.names)
+            draws = estimator.sample(config.targets.observed[0], 4000, _jax_seed(config, NPEStream.POSTERIOR), support)
+            summary = pd.DataFrame({"q5": np.quantile(draws, 0.05, axis=0), "median": np.median(draws, axis=0),
+                                    "q95": np.quantile(draws, 0.95, axis=0)}, index=config.names)
+            row.update(against_reference(summary), coverage_passed=check["passed"])
+            for record in check["table"].itertuples():
+                row[f"cov{int(record.level * 100)}_{record.parameter}"] = record.coverage
+            rows.append(row)
+            print(pd.DataFrame([row]).round(3).to_string(index=False), flush=True)
+    return rows
 
 
 def amortised(estimator: Path, flocks: int = 100) -> float:
@@ -48,6 +96,8 @@ def amortised(estimator: Path, flocks: int = 100) -> float:
     identity = json.loads((estimator / "identity.json").read_text())
     rng = np.random.default_rng(0)
     record = json.loads((estimator / "flow.json").read_text())
+    if "members" in record:   # an ensemble: its members share the standardisation
+        record = json.loads((estimator / "member0" / "flow.json").read_text())
     x = np.asarray(record["x_mean"]) + rng.normal(size=(flocks, record["k"])) * np.asarray(record["x_sd"]) * 0.5
     table = pd.DataFrame(x, columns=identity["columns"])
     started = time.time()
@@ -59,12 +109,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--simulations", type=int, nargs="+", default=[250, 500, 1000])
     parser.add_argument("--heldout", type=int, default=200)
+    parser.add_argument("--ensemble", type=int, nargs="+", default=[1])
+    parser.add_argument("--curve", action="store_true", help="one shared training sweep for every budget")
     parser.add_argument("--out", type=Path, default=Path("results/bench_npe"))
     args = parser.parse_args()
-    rows = [one(budget, args.heldout, args.out) for budget in args.simulations]
+    if args.curve:
+        print(pd.DataFrame(curve(args.simulations, args.heldout, args.ensemble, args.out)).round(3).to_string(index=False))
+        return
+    rows = [one(budget, args.heldout, members, args.out) for budget in args.simulations for members in args.ensemble]
     table = pd.DataFrame(rows)
     print(table.round(3).to_string(index=False))
-    largest = args.out / str(max(args.simulations)) / "estimator"
+    largest = args.out / f"{max(args.simulations)}-{args.ensemble[-1]}" / "estimator"
     print(f"100 posteriors (4,000 draws each) from {largest}: {amortised(largest):.1f} s")
 
 

@@ -491,13 +491,13 @@ def cmd_targets(args) -> int:
         sd = np.sqrt(np.diag(config.targets.cov))
     else:
         raise ConfigError("--sd", "the file gives samples, not mean/sd: pass --sd with one value per stat")
-    rows = synthetic_observation(config, truth, args.seed, args.replicates)
+    rows, flock = synthetic_observation(config, truth, args.seed, args.replicates, flock=True)
     if not np.isfinite(rows).all():
         raise ConfigError("--truth", "some runs gave undefined statistics at this truth; choose other stats")
     truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
           f"--replicates {args.replicates}")
-    print(targets_block(config, rows, sd, truth), end="")
+    print(targets_block(config, rows, sd, truth, flock if np.isfinite(flock).all() else None), end="")
     return 0
 
 
@@ -507,6 +507,8 @@ DELEGATED = {"compile": ("sweeps.compile", "compile the simulation and metric ke
              "export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
              "sbc": ("analysis.calibration.sbc_command",
                      "simulation-based calibration check of a calibration's posterior"),
+             "compare": ("analysis.calibration.compare_command",
+                         "which of several models explains the targets: classifier, model probabilities, confusion"),
              "posterior": ("analysis.calibration.posterior_command",
                            "one posterior per observed flock from a trained npe estimator (no simulation)"),
              "view": ("analysis.viewer.command", "interactive 3-D viewer page (and GIF/MP4) of a run"),
@@ -524,7 +526,7 @@ def cmd_delegated(args) -> int:
 
 ADDERS = {"simulate": _add_simulate, "run": _add_run, "status": _add_status, "report": _add_report,
           "calibrate": _add_calibrate, "targets": _add_targets}
-ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior", "sbc", "view",
+ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior", "compare", "sbc", "view",
          "measure")
 
 

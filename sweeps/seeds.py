@@ -20,6 +20,7 @@ tag                    entropy                      seeds
 ``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
 ``PRIOR``              [seed, 0x9A10]               the prior draws stored in a calibration's posterior.nc
 ``NPE``                [seed, 0x4E5E, stream]       neural posterior estimation (:class:`NPEStream`)
+``COMPARE``            [seed, 0xC0DE, stream, m]    model comparison, model m (:class:`CompareStream`)
 ``CLAIM_POWER``        [seed, 0xC1A1, sha256(test)]  the power simulation of a claim's test (``test`` its
                                                     path, e.g. "d.faster"; :func:`named_generator`)
 =====================  ===========================  =================================================
@@ -58,6 +59,7 @@ class Tag(IntEnum):
     PRIOR = 0x9A10
     CLAIM_POWER = 0xC1A1
     NPE = 0x4E5E
+    COMPARE = 0xC0DE
 
 
 @unique
@@ -68,6 +70,14 @@ class NPEStream(IntEnum):
     TRAIN = 2       # the flow's initial weights, batches and validation split (a JAX key)
     POSTERIOR = 3   # the posterior draws at the targets (a JAX key)
     COVERAGE = 4    # the posterior draws and rank ties of the held-out coverage check
+
+
+@unique
+class CompareStream(IntEnum):
+    """The streams of a model comparison: [seed, Tag.COMPARE, stream, model index] (CLASSIFIER: no model)."""
+    DESIGN = 0      # model m's prior draws (its training and held-out simulations, one sweep design)
+    NOISE = 1       # the targets' measurement noise added to those simulations
+    CLASSIFIER = 2  # the classifier's random state
 
 
 @unique

@@ -4,10 +4,11 @@ report document machinery of :mod:`analysis.reports.document`.
 ``calibration_report(config, outcome, folder) -> dict`` (paths written) renders, from what the run wrote:
 the verdicts first (converged or not, in plain words, with every warning: chain length, acceptance,
 R-hat and ESS, unconstrained parameters, an emulator's box and confirmation, targets in the tail of
-their predictive distribution, a known truth outside its 90% interval), then the settings (method,
+their predictive distribution, a flock statistic that disagrees with the observed flock, a known truth outside its 90% interval), then the settings (method,
 seed, model, free parameters and priors, targets), the posterior table (emcee's tau and ESS next to
 ArviZ's R-hat, bulk/tail ESS and MCSE), the trace, rank and corner plots, the posterior predictive
-check, the emulator's training set, refinement rounds and confirmation, an optimisation's optimum,
+check, every flock statistic of the predictive runs against the observed flock (flagged when one
+disagrees, target or not), the emulator's training set, refinement rounds and confirmation, an optimisation's optimum,
 the provenance and the files.
 
 ``verdict_lines(outcome) -> list[str]``: the same verdicts as plain sentences, for the console (after a
@@ -28,6 +29,7 @@ from analysis.reports.labels import parameter_label
 from simcore.schema import to_dict
 
 from .accounting import lines
+from .flock_check import flock_messages
 
 P_TAIL = 0.05
 
@@ -85,6 +87,7 @@ def verdict_lines(config, outcome) -> list[str]:
             if math.isfinite(row["p"]) and row["p"] < P_TAIL:
                 lines.append(f"{stat}: the observed value {row['observed']:.4g} lies in the tail of the posterior "
                              f"predictive distribution (p = {row['p']:.3g}): the model does not reproduce it well")
+    lines += flock_messages(getattr(outcome, "flock", None))
     lines += _truth_lines(config, outcome.summary)
     return lines
 
@@ -207,6 +210,12 @@ def calibration_report(config, outcome, folder) -> dict:
                    Table(outcome.predictive.reset_index(), "Each target against its predictive distribution (p: "
                                                            "two-sided tail probability)")]
         blocks += _figure(folder, "predictive.png", "Predictive distribution of each target, the observed value in red.")
+    flock = getattr(outcome, "flock", None)
+    if flock is not None:
+        blocks += [Heading("The flock in the predictive runs"),
+                   Table(flock.reset_index().rename(columns={"index": "statistic"}),
+                         "Every flock statistic of the posterior predictive runs, targets or not, against the observed "
+                         "flock where known (flock_check.csv; disagrees: outside the central 95% of the runs)")]
     blocks += _emulator_blocks(outcome, folder)
     blocks += _cost_blocks(report.get("accounting"))
     blocks += [Heading("Settings")] + _settings_tables(config)

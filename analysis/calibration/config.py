@@ -42,6 +42,8 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
     truth = { field = 135, direction = 45 }   # optional: the parameters the targets were simulated at
                                     # (a recovery study): drawn as truth lines, checked in the report
+    flock = { n_groups = 1 }        # optional: the observed flock's other statistics, not fitted: the
+                                    # predictive runs are checked against them (analysis/calibration/flock_check.py)
     # from_tracks = "tracks.csv.gz" # OR measured tracks: each flock one sample (aggregate = "mean": their
                                     # mean and its covariance); [targets.tracks] says how to read them and
                                     # [observation] how they were measured (analysis/calibration/tracks_targets.py)
@@ -113,6 +115,7 @@ from sweeps.config import ModelTable, RunTable, check_name, check_window, model_
 from sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
+from .flock_check import check_flock_table
 from .priors import JointPrior, Normal, prior_from_dict
 from .method_table import chosen_kind, method_settings
 from .settings import MethodSettings
@@ -148,6 +151,7 @@ class TargetsTable:
     from_tracks: str | None = None
     aggregate: Literal["samples", "mean"] | None = None
     tracks: dict | None = None
+    flock: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -198,6 +202,8 @@ class Targets:
     tracks_path: Path | None = None     # from_tracks: the track file, its flocks and their values (m, k)
     flocks: tuple[str, ...] = ()
     per_flock: np.ndarray | None = None
+    flock: dict = field(default_factory=dict)   # [targets] flock: the observed flock's other statistics (column -> value)
+    flock_runs: Any = None              # from_tracks: every measured flock's row (all metrics), for the flock check
 
     @property
     def k(self) -> int:
@@ -480,7 +486,10 @@ def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: 
         targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
                           observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
                           samples_path=found.path if found.cov is None else None, tracks_path=found.path,
-                          flocks=found.flocks, per_flock=_readonly(found.per_flock))
+                          flocks=found.flocks, per_flock=_readonly(found.per_flock),
+                          flock_runs=found.measurement.runs)
+    targets = dataclasses.replace(targets, flock=check_flock_table(table.targets.flock, targets.summary,
+                                                                    targets.columns))
     return targets, metrics
 
 

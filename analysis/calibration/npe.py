@@ -9,17 +9,18 @@ Contract
 first N train, the last H are held out.
 
 ``training_sweep(config, theta) -> SweepConfig``: those draws as a sweep (one zipped axis over the free
-parameters' keys, one replicate, the calibration's ``[model]``, ``[run]`` and seed), so the training set
+parameters' keys, one replicate, the calibration's ``[model]``, ``[run]`` and seed; an integer key's values
+rounded, as the calibration's simulator rounds them), so the training set
 runs on the sweep machinery: content-addressed runs, resumable (run the same command again), every
 executor, failures recorded. Its results folder is ``<out>/training``.
 
 ``simulated_rows(config, theta, table) -> (N + H, k)``: the runs table's target columns in design
 order (a failed run's row is NaN), plus, for mean/sd targets, the targets' measurement noise N(0, cov)
-from ``[seed, Tag.NPE, NPEStream.NOISE]`` (the data model of every other method).
+from ``[seed, Tag.NPE, NPEStream.NOISE]`` (the data model of every other method), or from ``noise``.
 
 ``estimator_identity(config) -> dict``: what the trained estimator depends on (model and its version,
 metric settings, parameters and priors, target columns and their measurement covariance, seed,
-simulations, held-out count, the flow's settings): NOT the observed values. An estimator folder whose
+simulations, held-out count, the flow's settings and the ensemble's size): NOT the observed values. An estimator folder whose
 ``identity.json`` equals it is reused: ``flocksweep calibrate`` with other targets (another flight,
 another flock) runs no training simulation.
 
@@ -51,7 +52,8 @@ from sweeps.runner import run_sweep
 from sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
-from .npe_flow import Estimator, FlowSettings, load_estimator, train_flow
+from .simulator import summary_simulator
+from .npe_flow import Estimator, FlowSettings, load_estimator, train_ensemble
 
 IDENTITY_FILE = "identity.json"
 LEVELS = (0.5, 0.9)
@@ -84,7 +86,12 @@ def training_design(config) -> np.ndarray:
 
 def training_sweep(config, theta: np.ndarray) -> SweepConfig:
     source = config.source
-    values = [[float(v) for v in row] for row in theta] if config.dim > 1 else [float(row[0]) for row in theta]
+    integer = summary_simulator(config, n_sim=1).integer_keys   # an integer key (init.n, neighbours) runs rounded
+    rows = [[int(round(v)) if whole else float(v) for v, whole in zip(row, integer)] for row in theta]
+    if any(integer) and len({tuple(row) for row in rows}) < len(rows):
+        raise ConfigError("parameters", "rounded to integers, the prior draws repeat (a sweep runs each point once): "
+                                        "an integer parameter needs a continuous one beside it for npe and compare")
+    values = rows if config.dim > 1 else [row[0] for row in rows]
     axis = {"keys": list(config.keys)} if config.dim > 1 else {"key": config.keys[0]}
     axis.update(name="prior_draw", values=values)
     data = {"name": f"{config.name}-npe-training", "seed": int(config.seed), "replicates": 1,
@@ -93,7 +100,8 @@ def training_sweep(config, theta: np.ndarray) -> SweepConfig:
     return SweepConfig.from_dict(data, config.preset_path.parent)
 
 
-def simulated_rows(config, theta: np.ndarray, table: pd.DataFrame) -> np.ndarray:
+def simulated_rows(config, theta: np.ndarray, table: pd.DataFrame, noise: np.random.Generator | None = None
+                   ) -> np.ndarray:
     columns = list(config.targets.columns)
     missing = [c for c in columns if c not in table.columns]
     if missing:
@@ -103,7 +111,8 @@ def simulated_rows(config, theta: np.ndarray, table: pd.DataFrame) -> np.ndarray
     rows[ok["point_index"].to_numpy(dtype=int)] = ok[columns].to_numpy(dtype=float)
     cov = config.targets.cov
     if cov is not None:
-        rows = rows + _stream(config, NPEStream.NOISE).multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
+        noise = _stream(config, NPEStream.NOISE) if noise is None else noise
+        rows = rows + noise.multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
     return rows
 
 
@@ -122,7 +131,8 @@ def estimator_identity(config) -> dict:
                        "columns": list(config.targets.columns),
                        "observation_cov": None if config.targets.cov is None else np.asarray(config.targets.cov).tolist(),
                        "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
-                       "flow": asdict(flow_settings(config))})
+                       "flow": asdict(flow_settings(config)),
+                       **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {})})
 
 
 def digest(identity: dict) -> str:
@@ -200,10 +210,11 @@ def _train(config, folder, pool_kind, workers, scheduler, phases, cost):
     if usable[:n].sum() < 20:
         raise ConfigError("method.simulations", f"only {int(usable[:n].sum())} of {n} training runs gave finite "
                                                 "statistics; choose statistics every run has")
-    phases.start(f"training the flow on {int(usable[:n].sum())} simulations (at most "
-                 f"{flow_settings(config).max_epochs} epochs)")
-    estimator = train_flow(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
-                           _jax_seed(config, NPEStream.TRAIN), progress=phases.enabled)
+    flows = f"{settings.ensemble} flows" if settings.ensemble > 1 else "the flow"
+    phases.start(f"training {flows} on {int(usable[:n].sum())} simulations (at most "
+                 f"{flow_settings(config).max_epochs} epochs each)")
+    estimator = train_ensemble(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
+                               _jax_seed(config, NPEStream.TRAIN), settings.ensemble, progress=phases.enabled)
     return estimator, theta[n:][usable[n:]], rows[n:][usable[n:]], int((~usable).sum())
 
 

@@ -24,6 +24,17 @@ simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(fo
 weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
 standardisation), so a stored estimator rebuilds exactly.
 
+``train_ensemble(theta, x, settings, seed, members) -> Ensemble``: ``members`` flows trained on the same
+simulations with the seeds ``seed, seed + 1, ...`` (each its own initial weights, batches and validation
+split); member 0 is ``train_flow(..., seed)``. :class:`Ensemble` is the equally weighted mixture of its
+members (Lakshminarayanan et al. 2017; Hermans et al. 2022 show such mixtures of neural posterior
+estimators are less over-confident than one), with the Estimator's interface: ``sample_many`` draws
+``count`` from the mixture as the members' draws (``count // K`` each, the first ``count % K`` one more,
+every member's rejection at the support as above) shuffled with ``seed``; ``log_prob`` is the log of the
+members' mean density; ``save`` puts member i in ``member<i>/`` beside a ``flow.json`` naming the count,
+and :func:`load_estimator` rebuilds whichever was stored. A one-member ensemble is its Estimator. The
+members share member 0's static structure, so the vectorised sampler compiles once for all of them.
+
 Every import of JAX happens inside these functions: without the extra, the rest of the calibration
 works and ``npe`` says how to install it (:func:`require_jax`).
 """
@@ -42,6 +53,7 @@ from sweeps.files import atomic_path
 FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"
 MAX_REDRAWS = 50
+MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
 
 
 def require_jax():
@@ -204,6 +216,83 @@ class Estimator:
         return folder
 
 
+@dataclass(frozen=True, eq=False)
+class Ensemble:
+    """An equally weighted mixture of trained estimators (module docstring)."""
+
+    members: tuple
+    leakage: list = field(default_factory=lambda: [0.0])
+
+    @property
+    def d(self) -> int:
+        return self.members[0].d
+
+    @property
+    def k(self) -> int:
+        return self.members[0].k
+
+    @property
+    def last_leakage(self) -> float:
+        return self.leakage[0]
+
+    def sample_many(self, x, count: int, seed: int, support=None) -> np.ndarray:
+        """(m, count, d) draws of the mixture for each of the m observed rows."""
+        size = len(self.members)
+        shares = [count // size + (i < count % size) for i in range(size)]
+        parts, leaks = [], []
+        for i, (member, share) in enumerate(zip(self.members, shares)):
+            if share:
+                parts.append(member.sample_many(x, share, seed + MEMBER_SEED_STEP * i, support))
+                leaks.append(member.last_leakage * share)
+        self.leakage[0] = float(sum(leaks) / count)
+        draws = np.concatenate(parts, axis=1)
+        order = np.random.default_rng(seed).permuted(np.broadcast_to(np.arange(count), draws.shape[:2]), axis=1)
+        return np.take_along_axis(draws, order[:, :, None], axis=1)
+
+    def sample(self, x, count: int, seed: int, support=None) -> np.ndarray:
+        return self.sample_many(np.asarray(x, dtype=float)[None, :], count, seed, support)[0]
+
+    def log_prob(self, theta, x) -> np.ndarray:
+        values = np.stack([member.log_prob(theta, x) for member in self.members])
+        top = values.max(axis=0)
+        return top + np.log(np.exp(values - top).mean(axis=0))
+
+    def record(self) -> dict:
+        members = [member.record() for member in self.members]
+        return {"members": len(members), "settings": members[0]["settings"], "d": self.d, "k": self.k,
+                "epochs": [m["epochs"] for m in members],
+                "best_validation_loss": [m["best_validation_loss"] for m in members]}
+
+    def save(self, folder) -> Path:
+        folder = Path(folder)
+        for i, member in enumerate(self.members):
+            member.save(folder / f"member{i}")
+        folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(folder / FLOW_RECORD) as tmp:
+            Path(tmp).write_text(json.dumps(self.record(), indent=1))
+        return folder
+
+
+def _one_structure(members) -> tuple:
+    """The members with member 0's static structure: built apart, their flows hold equal but distinct
+    functions, which equinox's compile cache tells apart (one compile per member); rebuilt on one
+    structure, the sampler compiles once for all of them."""
+    import dataclasses
+
+    _, eqx = require_jax()
+    static = eqx.partition(members[0].flow, eqx.is_array)[1]
+    return tuple(dataclasses.replace(m, flow=eqx.combine(eqx.partition(m.flow, eqx.is_array)[0], static))
+                 for m in members)
+
+
+def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1, progress: bool = False):
+    """``members`` flows on the same simulations, seeds seed, seed + 1, ... (module docstring);
+    ``progress``: flowjax's bar of epochs for each."""
+    check_at_least("ensemble", members, 1)
+    trained = tuple(train_flow(theta, x, settings, seed + i, progress) for i in range(members))
+    return trained[0] if members == 1 else Ensemble(_one_structure(trained))
+
+
 def train_flow(theta, x, settings: FlowSettings, seed: int, progress: bool = False) -> Estimator:
     """Fit q(theta | x) to the simulations (module docstring); ``progress``: flowjax's bar of epochs on
     stderr (the result does not depend on it)."""
@@ -230,14 +319,16 @@ def train_flow(theta, x, settings: FlowSettings, seed: int, progress: bool = Fal
     return Estimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses)
 
 
-def load_estimator(folder) -> Estimator:
-    """The estimator stored by :meth:`Estimator.save` in ``folder``."""
+def load_estimator(folder):
+    """The estimator (or ensemble) stored by ``save`` in ``folder``."""
     jax, eqx = require_jax()
     folder = Path(folder)
-    if not (folder / FLOW_RECORD).is_file() or not (folder / FLOW_WEIGHTS).is_file():
+    record = json.loads((folder / FLOW_RECORD).read_text()) if (folder / FLOW_RECORD).is_file() else {}
+    if "members" in record:
+        return Ensemble(_one_structure([load_estimator(folder / f"member{i}") for i in range(record["members"])]))
+    if not record or not (folder / FLOW_WEIGHTS).is_file():
         raise FileNotFoundError(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
                                 "with flocksweep calibrate FILE --method npe")
-    record = json.loads((folder / FLOW_RECORD).read_text())
     settings = FlowSettings(**record["settings"])
     skeleton = _build(settings, record["d"], record["k"], jax.random.key(0))
     flow = eqx.tree_deserialise_leaves(str(folder / FLOW_WEIGHTS), skeleton)

@@ -92,6 +92,7 @@ from .bsl import run_bsl, simulate_keyed
 from .calibration_report import calibration_report, verdict_lines
 from .chainfile import stored_steps
 from .feasibility import check_chain_size, check_simulation_count
+from .flock_check import flock_check, flock_columns
 from .config import CalibrationConfig
 from .diagnostics import (arviz_verdicts, convergence, default_burn, posterior_summary, predictive_check,
                           prior_constraint_warnings)
@@ -122,6 +123,7 @@ class CalibrationRun:
     convergence: dict | None = None
     warnings: list | None = None
     predictive: pd.DataFrame | None = None         # predictive.csv
+    flock: pd.DataFrame | None = None              # flock_check.csv: every flock statistic of the predictive runs
     confirm: dict | None = None                    # emulator: the confirmation at the posterior median
     refine: pd.DataFrame | None = None             # emulator: refine.csv
     optimum: dict | None = None                    # optimize: optimum.json
@@ -138,8 +140,9 @@ def simulate_fn(config: CalibrationConfig, simulator: SummarySimulator):
 
     def fn(theta, rng):
         sims = simulator(np.asarray(theta, dtype=float), rng)
-        if cov is not None:
-            sims = sims + rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
+        if cov is not None:   # the targets' noise, on the target columns (the first k; extra ones stay bare)
+            sims = sims.copy()
+            sims[:, :len(cov)] += rng.multivariate_normal(np.zeros(len(cov)), cov, size=len(sims))
         return sims
     return fn
 
@@ -313,20 +316,31 @@ def _posterior_draws(chain: np.ndarray, burn: int, count: int, rng: np.random.Ge
     return flat[picked], np.column_stack([picked % walkers, burn + picked // walkers])
 
 
+def predictive_runs(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None, tick=None):
+    """((P, k), (P, f)): one simulated run per posterior draw, its target statistics (observation noise
+    included) and its flock statistics (:func:`~analysis.calibration.flock_check.flock_columns`, bare);
+    draw i uses the seed key (config.seed, Tag.PREDICTIVE, i); ``tick()`` after each (a progress bar's
+    ``update``)."""
+    simulator = summary_simulator(config, n_sim=1, extra_columns=flock_columns(config))
+    fn = functools.partial(simulate_keyed, simulate_fn(config, simulator))
+    tasks = [(theta, (config.seed, Tag.PREDICTIVE, i)) for i, theta in enumerate(draws)]
+    rows = np.vstack((pool or Executor("serial")).map(fn, tasks, tick))
+    k = len(config.targets.columns)
+    return rows[:, :k], rows[:, k:]
+
+
 def posterior_predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor | None = None,
                          tick=None) -> np.ndarray:
-    """(P, k): one simulated dataset (observation noise included) per posterior draw; draw i uses the
-    seed key (config.seed, Tag.PREDICTIVE, i); ``tick()`` after each (a progress bar's ``update``)."""
-    fn = functools.partial(simulate_keyed, simulate_fn(config, summary_simulator(config, n_sim=1)))
-    tasks = [(theta, (config.seed, Tag.PREDICTIVE, i)) for i, theta in enumerate(draws)]
-    return np.vstack((pool or Executor("serial")).map(fn, tasks, tick))
+    """(P, k): the target statistics of :func:`predictive_runs`."""
+    return predictive_runs(config, draws, pool, tick)[0]
 
 
-def _predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor, phases: Phases) -> np.ndarray:
-    """The posterior predictive simulations as a phase of ``phases``, with a bar of simulations."""
+def _predictive(config: CalibrationConfig, draws: np.ndarray, pool: Executor, phases: Phases):
+    """The posterior predictive runs (:func:`predictive_runs`) as a phase of ``phases``, with a bar of
+    simulations."""
     phases.start(f"the posterior predictive check: {len(draws)} simulations at posterior draws")
     with bar(len(draws), f"{config.name}: predictive", "sim", phases.enabled) as shown:
-        return posterior_predictive(config, draws, pool, shown.update)
+        return predictive_runs(config, draws, pool, shown.update)
 
 
 def _emcee(config: CalibrationConfig, folder: OutputFolder, resume: bool, phases: Phases, predictive_draws: int,
@@ -364,14 +378,16 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, phases: Phases, predic
                                 np.full(chains, np.nan), burn=0)
     picked = generator(config.seed, Tag.PREDICTIVE).choice(len(draws), size=min(predictive_draws, len(draws)),
                                                            replace=False)
-    predictive = _predictive(config, draws[picked], pool, phases)
+    predictive, flock = _predictive(config, draws[picked], pool, phases)
     cost.add("predictive", len(predictive))
     predictive_table = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    flock_table = flock_check(config, predictive, flock)
     idata = draws_inference_data(config, draws, chains=chains, predictive=predictive)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
     summary = summary.drop(columns=["tau", "ess", "acceptance"]).join(arviz_diagnostics(idata))
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", predictive_table)
+    folder.write_csv("flock_check.csv", flock_table)
     folder.write_csv("coverage.csv", check["table"], index=False)
     rank_figure(idata, folder.path("rank.png"))
     sbc_figure(check["ranks"], check["draws"], 20, config.names, folder.path("coverage_ranks.png"))
@@ -396,7 +412,7 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, phases: Phases, predic
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
-                          warnings=warnings, predictive=predictive_table)
+                          warnings=warnings, predictive=predictive_table, flock=flock_table)
 
 
 def _emulator_mcmc(config: CalibrationConfig, surrogate, path, resume: bool, progress: bool, label: str):
@@ -527,10 +543,11 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
-    predictive = _predictive(config, draws, pool, phases or Phases("calibrate", 1, False))
+    predictive, flock = _predictive(config, draws, pool, phases or Phases("calibrate", 1, False))
     if cost is not None:
         cost.add("predictive", len(predictive))
     check = predictive_check(config.targets.observed, predictive, config.targets.columns)
+    flock_table = flock_check(config, predictive, flock)
     idata = chain_inference_data(config, result, burn, predictive=predictive, predictive_source=source)
     write_inference_data(idata, folder.path(POSTERIOR_FILE))
     diagnostics = arviz_diagnostics(idata)
@@ -541,6 +558,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                "messages": verdict["messages"] + ensemble["messages"]}
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", check)
+    folder.write_csv("flock_check.csv", flock_table)
     trace_figure(result.chain, config.names, folder.path("trace.png"), burn=burn)
     rank_figure(idata, folder.path("rank.png"))
     truth = config.targets.truth
@@ -558,7 +576,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
                          **folder.provenance()})
     folder.write_json("convergence.json", report)
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
-                          warnings=warnings, predictive=check)
+                          warnings=warnings, predictive=check, flock=flock_table)
 
 
 class _ProgressBar:

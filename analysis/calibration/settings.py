@@ -119,7 +119,8 @@ class EmulatorSettings(ChainSettings):
 class NpeSettings(MethodSettings):
     """Neural posterior estimation (analysis.calibration.npe): ``simulations`` prior draws run as a sweep
     train a conditional flow, ``heldout`` more check its coverage; ``draws`` posterior draws at the
-    targets. ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's
+    targets. ``ensemble``: the estimator is a mixture of this many flows trained with different seeds
+(analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's
     folder); by default the output folder's ``estimator/``. ``n_sim`` and ``likelihood`` are unused."""
 
     kind: ClassVar[str] = "npe"
@@ -128,6 +129,7 @@ class NpeSettings(MethodSettings):
     draws: int = 4000
     coverage_tolerance: float = 0.05
     flow: FlowSettings = field(default_factory=FlowSettings)   # [method.npe] flow = {width = 50, ...}
+    ensemble: int = 1
     estimator: Path | None = None
 
     def __post_init__(self):
@@ -135,6 +137,7 @@ class NpeSettings(MethodSettings):
         check_at_least("simulations", self.simulations, 20)
         check_at_least("heldout", self.heldout, 10)
         check_at_least("draws", self.draws, 100)
+        check_at_least("ensemble", self.ensemble, 1)
         if not 0 < self.coverage_tolerance < 0.5:
             raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
 

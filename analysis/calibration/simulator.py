@@ -196,10 +196,12 @@ class SummarySimulator:
         return row if np.isfinite(row).all() else nan_row
 
 
-def summary_simulator(config, n_sim: int | None = None) -> SummarySimulator:
+def summary_simulator(config, n_sim: int | None = None, extra_columns=()) -> SummarySimulator:
     """The simulator of a calibration ``config`` (its fixed preset, free keys, target columns and metric
-    settings) with ``n_sim`` replicates per call (default: ``config.method.n_sim``)."""
+    settings) with ``n_sim`` replicates per call (default: ``config.method.n_sim``); ``extra_columns``
+    are reported after the targets' (the predictive runs' flock statistics)."""
     n_sim = config.method.n_sim if n_sim is None else n_sim
     m = config.metrics
-    return SummarySimulator(config.preset_data, config.keys, config.targets.columns, n_sim, m.warmup,
+    columns = tuple(config.targets.columns) + tuple(extra_columns)
+    return SummarySimulator(config.preset_data, config.keys, columns, n_sim, m.warmup,
                             m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay)

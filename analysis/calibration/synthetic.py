@@ -11,7 +11,9 @@ the user states).
 
 ``targets_block(config, rows, sd, truth=None)`` formats them as a ``[targets]`` TOML block for the
 calibration file (one replicate: its values; several: their means, with the replicate sd in a comment;
-with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report).
+with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report;
+with ``flock``, the ``flock = { ... }`` line of the same runs' other statistics, which the predictive runs
+are checked against: :mod:`~analysis.calibration.flock_check`).
 
 ``measured_targets_block(path, tracks=None, overrides=())`` is ``flocksweep targets --from-tracks``: the calibration
 file's targets measured from its ``from_tracks`` file (or from ``tracks`` instead of the file's own
@@ -29,6 +31,7 @@ from sweeps.model_set import model_overrides
 from sweeps.seeds import common_seeds
 
 from .config import CalibrationConfig, calibration_from_dict
+from .flock_check import flock_columns
 from .run import summary_simulator
 from .tracks_targets import tracks_block
 
@@ -52,15 +55,21 @@ def truth_vector(config: CalibrationConfig, truth) -> np.ndarray:
     return vector
 
 
-def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicates: int = 1) -> np.ndarray:
-    """(replicates, k) target statistics of runs at ``truth``; see the module docstring."""
+def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicates: int = 1, flock: bool = False):
+    """(replicates, k) target statistics of runs at ``truth``; with ``flock``, also the same runs' (replicates,
+    f) flock statistics (:func:`~analysis.calibration.flock_check.flock_columns`); see the module docstring."""
     theta = truth_vector(config, truth)
-    return summary_simulator(config, n_sim=replicates).simulate(theta, common_seeds(seed, replicates))
+    columns = flock_columns(config) if flock else ()
+    rows = summary_simulator(config, n_sim=replicates, extra_columns=columns).simulate(
+        theta, common_seeds(seed, replicates))
+    k = config.targets.k
+    return (rows[:, :k], rows[:, k:]) if flock else rows
 
 
-def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None) -> str:
-    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error, and
-    the ``truth`` (a dict or (d,) vector) they were simulated at as ``truth = { name = value, ... }``."""
+def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None, flock=None) -> str:
+    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error, the
+    ``truth`` (a dict or (d,) vector) they were simulated at as ``truth = { name = value, ... }``, and
+    the same runs' ``flock`` statistics (replicates, f) as ``flock = { stat = mean, ... }``."""
     rows = np.atleast_2d(rows)
     mean = rows.mean(axis=0)
     lines = ["[targets]", f'summary = "{config.targets.summary}"',
@@ -70,6 +79,11 @@ def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None) -
     if truth is not None:
         values = truth_vector(config, truth)
         lines.append("truth = { " + ", ".join(f"{n} = {v:.6g}" for n, v in zip(config.names, values)) + " }")
+    if flock is not None:
+        means = np.atleast_2d(flock).mean(axis=0)
+        stats = [c.removesuffix(f"_{config.targets.summary}") for c in flock_columns(config)]
+        lines.append("flock = { " + ", ".join(f"{n} = {v:.6g}" for n, v in zip(stats, means)) + " }"
+                     "   # the same runs' other statistics: checked, not fitted")
     if len(rows) > 1:
         spread = rows.std(axis=0, ddof=1)
         lines.append(f"# means of {len(rows)} runs; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))

@@ -171,7 +171,7 @@ def test_the_seed_registry_is_pinned():
                                              "RECHECK": 7, "PREDICTIVE": 0x5050, "SBC": 0x5BC,
                                              "DESIGN_SAMPLE": 0x5A3D1E,
                                              "DESIGN_SENSITIVITY": 24133, "PRIOR": 39440,
-                                             "CLAIM_POWER": 0xC1A1, "NPE": 20062}
+                                             "CLAIM_POWER": 0xC1A1, "NPE": 20062, "COMPARE": 0xC0DE}
     assert [int(s) for s in SBCStream] == [0, 1, 2, 3, 4] and ECDF_BAND == 0xECDF
 
 

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from analysis.calibration.config import load_calibration
-from analysis.calibration.settings import EmceeSettings, EmulatorSettings, OptimizeSettings
+from analysis.calibration.settings import EmceeSettings, EmulatorSettings, NpeSettings, OptimizeSettings
 from simcore.schema import ConfigError
 from flocksweep.cli import main
 from paths import ROOT
@@ -113,14 +113,18 @@ def test_set_kind_on_a_flat_file_says_to_use_method(tmp_path):
     assert "[method.optimize]" in str(err)
 
 
-def test_shipped_recovery_file_holds_emcee_optimize_and_npe():
-    emcee = load_calibration(SHIPPED)
-    assert isinstance(emcee.method, EmceeSettings) and emcee.methods == ("emcee", "optimize", "npe")
-    npe = load_calibration(SHIPPED, method="npe")
-    assert (npe.method.simulations, npe.method.heldout, npe.folder_name) == (1000, 200, "recover_holland-npe")
+def test_shipped_recovery_file_runs_npe_and_holds_emcee_and_optimize():
+    npe = load_calibration(SHIPPED)
+    assert isinstance(npe.method, NpeSettings) and npe.methods == ("npe", "emcee", "optimize")
+    assert (npe.method.simulations, npe.method.heldout, npe.method.ensemble, npe.folder_name) == \
+        (2000, 200, 5, "recover_holland")
+    emcee = load_calibration(SHIPPED, method="emcee")   # the exact reference
+    assert isinstance(emcee.method, EmceeSettings) and emcee.folder_name == "recover_holland-emcee"
+    assert (emcee.method.walkers, emcee.method.steps, emcee.method.moves) == (8, 2000, "de")
     optimize = load_calibration(SHIPPED, method="optimize")
     assert isinstance(optimize.method, OptimizeSettings)
-    assert optimize.method.n_sim == emcee.method.n_sim   # the shared key
+    assert optimize.method.n_sim == emcee.method.n_sim == 16   # the shared key
+    assert npe.targets.flock["n_groups_mean"] == 1   # the observed flock is one group
 
 
 @pytest.mark.slow

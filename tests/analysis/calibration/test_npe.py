@@ -14,7 +14,8 @@ pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
 
 from analysis.calibration.config import load_calibration  # noqa: E402
 from analysis.calibration.npe import coverage_check, estimator_identity  # noqa: E402
-from analysis.calibration.npe_flow import FlowSettings, load_estimator, train_flow  # noqa: E402
+from analysis.calibration.npe_flow import (MEMBER_SEED_STEP, Ensemble, FlowSettings, load_estimator,  # noqa: E402
+                                           train_ensemble, train_flow)
 from flocksweep.cli import main  # noqa: E402
 from paths import ROOT  # noqa: E402
 from simcore.schema import ConfigError  # noqa: E402
@@ -56,6 +57,29 @@ def test_training_is_deterministic_given_the_seed_and_the_stored_estimator_rebui
     trained.save(tmp_path / "est")
     loaded = load_estimator(tmp_path / "est")
     assert np.array_equal(loaded.sample_many([[0.5], [2.0]], 100, seed=5), trained.sample_many([[0.5], [2.0]], 100, seed=5))
+
+
+@pytest.mark.slow
+def test_an_ensemble_is_the_mixture_of_its_members_and_rebuilds_from_its_folder(tmp_path):
+    theta, x = toy(300, 0)
+    quick = FlowSettings(width=16, layers=2, max_epochs=15, patience=15)
+    single = train_ensemble(theta, x, quick, seed=3, members=1)
+    assert not isinstance(single, Ensemble)               # one member: the flow itself
+    ensemble = train_ensemble(theta, x, quick, seed=3, members=2)
+    assert ensemble.members[0].losses == single.losses    # member i is train_flow(..., seed + i)
+    assert ensemble.members[1].losses != single.losses
+    # the mixture's 200 draws are the members' 100 draws each (seed + i x MEMBER_SEED_STEP), shuffled
+    draws = ensemble.sample([0.5], 200, seed=5)
+    parts = np.concatenate([m.sample([0.5], 100, seed=5 + MEMBER_SEED_STEP * i) for i, m in enumerate(ensemble.members)])
+    assert np.array_equal(np.sort(draws, axis=0), np.sort(parts, axis=0))
+    assert not np.array_equal(draws, parts)
+    grid = np.linspace(-1, 2, 7)[:, None]
+    mean_density = np.mean([np.exp(m.log_prob(grid, [0.5])) for m in ensemble.members], axis=0)
+    assert np.allclose(np.exp(ensemble.log_prob(grid, [0.5])), mean_density, rtol=1e-6)
+    ensemble.save(tmp_path / "est")
+    loaded = load_estimator(tmp_path / "est")
+    assert isinstance(loaded, Ensemble) and len(loaded.members) == 2
+    assert np.array_equal(loaded.sample([0.5], 200, seed=5), draws)
 
 
 class Shrunk:
@@ -122,6 +146,9 @@ def test_npe_settings_are_validated_before_anything_runs(tmp_path):
     path.write_text(CALIBRATION.replace("width = 16", "widht = 16"))
     with pytest.raises(ConfigError, match="width"):
         load_calibration(path)
+    path.write_text(CALIBRATION.replace("draws = 400", "draws = 400\nensemble = 0"))
+    with pytest.raises(ConfigError, match="ensemble"):
+        load_calibration(path)
 
 
 def test_the_estimator_identity_ignores_the_observed_values_but_not_their_sd(tmp_path):
@@ -130,6 +157,8 @@ def test_the_estimator_identity_ignores_the_observed_values_but_not_their_sd(tmp
     base = estimator_identity(load_calibration(path))
     assert estimator_identity(load_calibration(path, ["targets.mean=[4.0, 0.3]"])) == base
     assert estimator_identity(load_calibration(path, ["targets.sd=[0.2, 0.02]"])) != base
+    assert estimator_identity(load_calibration(path, ["method.ensemble=3"])) != base
+    assert estimator_identity(load_calibration(path, ["method.ensemble=1"])) == base   # the default
 
 
 @pytest.mark.slow

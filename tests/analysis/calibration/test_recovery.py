@@ -79,6 +79,8 @@ def test_targets_cli_prints_a_block_that_loads(observed, tmp_path, capsys):
     parsed = tomllib.loads(block)["targets"]
     np.testing.assert_allclose(parsed["mean"], observed, rtol=1e-5)
     assert parsed["sd"] == data["targets"]["sd"] and parsed["truth"] == {"field": 150}
+    assert {"n_groups", "nn_distance", "fragmented", "speed_mean"} <= set(parsed["flock"])   # the same run's flock
+    assert parsed["flock"]["fragmented"] in (0, 1) and parsed["flock"]["n_groups"] >= 1
     path.write_text(body + block)                       # the printed block is a valid [targets] table
     assert main(["targets", str(path), "--truth", "field=150", "--replicates", "3", "--sd", "0.1,0.2"]) == 0
     assert "means of 3 runs" in capsys.readouterr().out

@@ -6,6 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.calibration.flock_check import flock_columns, observed_flock
+
 from analysis.calibration.config import load_calibration
 from analysis.calibration.emulated import observation_covariance
 from analysis.calibration.run import summary_simulator
@@ -96,6 +98,14 @@ def test_each_flock_is_one_sample_measured_as_the_simulator_measures_a_run(track
     # the same seeds through the calibration's simulator (same observation block, no noise) give the same rows
     rows = summary_simulator(config, n_sim=5).simulate(np.array(THETA), list(SEEDS))
     assert np.array_equal(rows, targets.observed)
+    # the flocks' other statistics (the flock check's observed values) are those runs' too, averaged
+    extra = flock_columns(config)
+    wide = summary_simulator(config, n_sim=5, extra_columns=extra).simulate(np.array(THETA), list(SEEDS))
+    known = observed_flock(config)
+    assert {"n_groups_mean", "gyration_radius_mean", "fragmented"} <= set(known)   # nn_distance is a target here
+    for j, column in enumerate(extra):
+        if column in known:
+            assert known[column] == pytest.approx(wide[:, 3 + j].mean(), rel=1e-9, abs=1e-12), column
     default = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))   # warm-up 0: all records
     assert not np.array_equal(default.targets.observed, targets.observed)
 
