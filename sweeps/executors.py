@@ -190,6 +190,29 @@ def _semaphore_names() -> list[str]:
             if isinstance(part, SemLock) and getattr(part, "_semlock", None) is not None and part._semlock.name]
 
 
+def _mend_every_relaunch(tracker) -> None:
+    """Make ``tracker`` (this process's resource tracker) register the live semaphores again whenever it
+    relaunches a dead tracker process, quietly, whoever asked for it: multiprocessing relaunches it itself
+    when a semaphore is created or released after the kill (between two calls of
+    :func:`mend_resource_tracker`), and the new process would print a KeyError traceback for each name it
+    is later told to release. Installed once per process (an instance attribute over the method)."""
+    if getattr(tracker, "_flocksweep_mended", False):
+        return
+    relaunch = tracker.ensure_running
+
+    def ensure_running():
+        before = tracker._pid
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # "resource_tracker: process died unexpectedly, relaunching"
+            relaunch()
+        if before is not None and tracker._pid not in (None, before):   # relaunched just now
+            for name in _semaphore_names():
+                tracker._send("REGISTER", name, "semaphore")
+
+    tracker.ensure_running = ensure_running
+    tracker._flocksweep_mended = True
+
+
 def mend_resource_tracker() -> bool:
     """Restart multiprocessing's resource tracker if it died, quietly, and register this process's named
     semaphores with the new one (else it prints a KeyError traceback for each name released later). True
@@ -197,6 +220,7 @@ def mend_resource_tracker() -> bool:
     from multiprocessing import resource_tracker
 
     tracker = resource_tracker._resource_tracker
+    _mend_every_relaunch(tracker)
     if getattr(tracker, "_fd", None) is None or tracker._check_alive():
         return False
     with warnings.catch_warnings():

@@ -332,3 +332,23 @@ def test_a_killed_resource_tracker_is_restarted_quietly_and_keeps_the_pool_semap
     time.sleep(1.0)   # the tracker prints what it is told to release as it reads it
     err = capfd.readouterr().err
     assert "KeyError" not in err and "Traceback" not in err and "relaunching" not in err, err
+
+
+def test_a_tracker_relaunched_by_multiprocessing_itself_learns_the_pool_semaphores(capfd):
+    """The tracker killed, then a new semaphore (multiprocessing relaunches the tracker on its own, before
+    the executor's next turn): the relaunched tracker is told the live names, so releasing them at the
+    pool's end prints nothing."""
+    import multiprocessing
+    from multiprocessing import resource_tracker
+
+    from sweeps.executors import Executor
+
+    with Executor("local", workers=2) as pool:
+        assert pool.map(_square, range(4)) == [0, 1, 4, 9]
+        os.kill(resource_tracker._resource_tracker._pid, signal.SIGKILL)
+        time.sleep(0.5)
+        lock = multiprocessing.get_context("spawn").Lock()   # registers, so relaunches the dead tracker
+        del lock
+    time.sleep(1.0)   # the tracker prints what it is told to release as it reads it
+    err = capfd.readouterr().err
+    assert "KeyError" not in err and "Traceback" not in err and "relaunching" not in err, err

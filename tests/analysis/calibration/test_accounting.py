@@ -12,7 +12,7 @@ from flocksweep.cli import main
 from paths import ROOT
 
 SHIPPED = str(ROOT / "configs/calibration/recover_holland.toml")
-TINY = ["--no-progress", "--set", "run.n=6", "--set", "run.duration=2.5", "--set", "method.n_sim=6"]
+TINY = ["--no-progress", "--set", "method.kind=emcee", "--set", "run.n=6", "--set", "run.duration=2.5", "--set", "method.n_sim=6"]
 
 
 @pytest.fixture
@@ -48,8 +48,8 @@ def test_accounting_counts_by_phase_and_rejects_unknown_phases():
 def test_emcee_accounting_matches_the_simulator_and_the_schedule(tmp_path, counted, capsys):
     out = tmp_path / "emcee"
     steps, walkers, every = 5, 8, 2
-    assert main(["calibrate", SHIPPED, "--out", str(out), *TINY, "--set", f"method.steps={steps}",
-                 "--set", f"method.reevaluate_every={every}", "--set", "method.until_converged=false"]) == 0
+    assert main(["calibrate", SHIPPED, "--out", str(out), *TINY, "--set", f"method.emcee.steps={steps}",
+                 "--set", f"method.emcee.reevaluate_every={every}", "--set", "method.emcee.until_converged=false"]) == 0
     report = json.loads((out / "convergence.json").read_text())
     cost = report["accounting"]
     sims = cost["simulations"]

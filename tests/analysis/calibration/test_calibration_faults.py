@@ -80,20 +80,20 @@ def test_the_prior_is_refused_before_any_file_is_written(tmp_path, capsys):
 def short_chain(tmp_path):
     out = tmp_path / "out"
     assert main(["calibrate", str(ROOT / "configs/calibration/recover_holland.toml"), "--out", str(out),
-                 "--no-progress", "--set", "method.steps=2", "--set", "method.n_sim=6", "--set", "run.n=6",
-                 "--set", "run.duration=2.5", "--set", "method.reevaluate_every=0"]) == 0
+                 "--no-progress", "--set", "method.kind=emcee", "--set", "method.emcee.steps=2", "--set", "method.n_sim=6", "--set", "run.n=6",
+                 "--set", "run.duration=2.5", "--set", "method.emcee.reevaluate_every=0"]) == 0
     return out
 
 
-BASE = ["--no-progress", "--resume", "--set", "method.steps=3", "--set", "run.n=6", "--set", "run.duration=2.5",
-        "--set", "method.reevaluate_every=0"]
+BASE = ["--no-progress", "--resume", "--set", "method.kind=emcee", "--set", "method.emcee.steps=3", "--set", "run.n=6", "--set", "run.duration=2.5",
+        "--set", "method.emcee.reevaluate_every=0"]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("changes, named", [
     (["method.n_sim=8"], ["chain_n_sim: stored 6, now 8"]),
     (["targets.mean=[0.8, 3.9, 0.18, 0.06]", "method.n_sim=6"], ["chain_targets: the targets"]),
-    (["seed=2", "method.n_sim=6", "method.walkers=10"], ["bsl_seed: stored 1, now 2", "walkers: stored 8, now 10"]),
+    (["seed=2", "method.n_sim=6", "method.emcee.walkers=10"], ["bsl_seed: stored 1, now 2", "walkers: stored 8, now 10"]),
     (["method.n_sim=6", "run.warmup=1.0"], ["chain_metrics"]),
     (["method.n_sim=6", "model.perception.range=25"], ["chain_model: the model"]),
 ])
@@ -263,8 +263,8 @@ def test_an_interrupted_calibration_saves_its_chain_and_resumes_bit_for_bit(tmp_
     from analysis.calibration import simulator
 
     config = str(ROOT / "configs/calibration/recover_holland.toml")
-    settings = ["--no-progress", "--set", "method.steps=4", "--set", "method.n_sim=6", "--set", "run.n=6",
-                "--set", "run.duration=2.5", "--set", "method.reevaluate_every=0"]
+    settings = ["--no-progress", "--set", "method.kind=emcee", "--set", "method.emcee.steps=4", "--set", "method.n_sim=6", "--set", "run.n=6",
+                "--set", "run.duration=2.5", "--set", "method.emcee.reevaluate_every=0"]
     assert main(["calibrate", config, "--out", str(tmp_path / "whole")] + settings) == 0
     real, calls = simulator.SummarySimulator.simulate, []
 
