@@ -44,7 +44,7 @@ from numba.extending import overload
 
 from . import boidspp, couzin2002, hartman_benes, opensteer, reynolds87, vicsek
 from . import plugin_hooks
-from .jit import KERNEL_OPTIONS, LEAF_OPTIONS
+from .jit import COMPILED_ONLY, KERNEL_OPTIONS, LEAF_OPTIONS
 from .layout import (DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER,
                      DYNAMICS_REYNOLDS87, DYNAMICS_VICSEK)
 from .params import DYNAMICS
@@ -74,34 +74,35 @@ def pack(model, dt):
     return fp, ip, tuple(module_of(model.dynamics).pack(model, dt))
 
 
-# the stubs: in compiled code, numba's typing of each one (below) gives the literal dynamics' function
+# the stubs: in compiled code, numba's typing of each one (below) gives the literal dynamics' function;
+# their Python bodies only say so when called from Python (COMPILED_ONLY)
 
 def scratch(dynamics, n):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def begin_step(dynamics, step, state, params, key):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def record_extra(dynamics, r, state, records):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def before_boids(dynamics, step, state, params, key, scratch, records):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def move(dynamics, i, state, params, scratch):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 def after_boids(dynamics, step, state, params, key, scratch):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 # the defaults of the optional hooks (a dynamics without per-step work)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numba as nb
 
+COMPILED_ONLY = "a compiled hook: numba gives its body inside a run loop; it cannot be called from Python"
 KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
 inline = nb.njit(cache=True, error_model="numpy", inline="always")

@@ -21,7 +21,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from .jit import LEAF_OPTIONS
+from .jit import COMPILED_ONLY, LEAF_OPTIONS
 from .layout import I, OS
 from .noise import store_draws
 from .opensteer import DRAWS_AT, move, scratch  # noqa: F401 (hooks: the force in OpenSteer's columns, moved as OpenSteer's)
@@ -48,7 +48,7 @@ def sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
 
 
 def plugin_steer(dynamics, i, step, m, nbrs, state, fp, ip, p, key):
-    raise NotImplementedError("a compiled hook: call it from a run loop")
+    raise TypeError(COMPILED_ONLY)
 
 
 _COMPILED: dict[int, object] = {}

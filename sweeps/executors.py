@@ -191,14 +191,18 @@ def _semaphore_names() -> list[str]:
 
 
 def _mend_every_relaunch(tracker) -> None:
-    """Make ``tracker`` (this process's resource tracker) register the live semaphores again whenever it
+    """Make ``tracker`` (this process's resource tracker) register the live resources again whenever it
     relaunches a dead tracker process, quietly, whoever asked for it: multiprocessing relaunches it itself
     when a semaphore is created or released after the kill (between two calls of
     :func:`mend_resource_tracker`), and the new process would print a KeyError traceback for each name it
-    is later told to release. Installed once per process (an instance attribute over the method)."""
+    is later told to release. The live names are those this process registered and has not released (its
+    messages to the tracker are followed from here on; the semaphores alive now seed them), so a name
+    released by a finalizer after its object is gone is known too. Installed once per process (instance
+    attributes over the methods)."""
     if getattr(tracker, "_flocksweep_mended", False):
         return
-    relaunch = tracker.ensure_running
+    live = {(name, "semaphore") for name in _semaphore_names()}
+    relaunch, send = tracker.ensure_running, tracker._send
 
     def ensure_running():
         before = tracker._pid
@@ -206,10 +210,17 @@ def _mend_every_relaunch(tracker) -> None:
             warnings.simplefilter("ignore")   # "resource_tracker: process died unexpectedly, relaunching"
             relaunch()
         if before is not None and tracker._pid not in (None, before):   # relaunched just now
-            for name in _semaphore_names():
-                tracker._send("REGISTER", name, "semaphore")
+            for name, rtype in sorted(live):
+                send("REGISTER", name, rtype)
 
-    tracker.ensure_running = ensure_running
+    def followed_send(cmd, name, rtype):
+        send(cmd, name, rtype)   # first: a relaunch on the way re-registers the name it then releases
+        if cmd == "REGISTER":
+            live.add((name, rtype))
+        elif cmd == "UNREGISTER":
+            live.discard((name, rtype))
+
+    tracker.ensure_running, tracker._send = ensure_running, followed_send
     tracker._flocksweep_mended = True
 
 
@@ -223,11 +234,7 @@ def mend_resource_tracker() -> bool:
     _mend_every_relaunch(tracker)
     if getattr(tracker, "_fd", None) is None or tracker._check_alive():
         return False
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")   # "resource_tracker: process died unexpectedly, relaunching"
-        tracker.ensure_running()
-    for name in _semaphore_names():
-        resource_tracker.register(name, "semaphore")
+    tracker.ensure_running()   # relaunched quietly, the live names registered again (above)
     return True
 
 
