@@ -184,10 +184,16 @@ def _quiet_distributed():
 def _semaphore_names() -> list[str]:
     """The names of the named semaphores alive in this process (a process pool's or dask's queues)."""
     import gc
+    import weakref
     from multiprocessing.synchronize import SemLock
 
-    return [part._semlock.name for part in gc.get_objects()
-            if isinstance(part, SemLock) and getattr(part, "_semlock", None) is not None and part._semlock.name]
+    names = []
+    for part in gc.get_objects():
+        if isinstance(part, weakref.ProxyTypes):   # a proxy passes isinstance, its object may be gone
+            continue
+        if isinstance(part, SemLock) and getattr(part, "_semlock", None) is not None and part._semlock.name:
+            names.append(part._semlock.name)
+    return names
 
 
 def _mend_every_relaunch(tracker) -> None:

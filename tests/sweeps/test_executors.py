@@ -225,3 +225,19 @@ def test_a_ctrl_c_while_a_worker_starts_leaves_no_half_started_worker(tmp_path):
     assert done.stdout.split("\n")[:2] == ["interrupted", "workers gone"], done.stdout + done.stderr
     assert done.stdout.split("\n")[2] == "spawned 1, interrupts sent 1", done.stdout   # the Ctrl-C came at the first
     assert "Traceback" not in done.stderr and "EOFError" not in done.stderr, done.stderr
+
+
+def test_semaphore_names_pass_over_proxies_whose_object_is_gone():
+    """gc.get_objects() holds weak proxies; a proxy of a dead lock passes isinstance but cannot be read."""
+    import multiprocessing
+    import weakref
+
+    from sweeps.executors import _semaphore_names
+
+    lock = multiprocessing.get_context("spawn").Lock()
+    kept = multiprocessing.get_context("spawn").Lock()
+    proxies = [weakref.proxy(lock), weakref.proxy(kept)]
+    name = lock._semlock.name
+    del lock
+    names = _semaphore_names()
+    assert kept._semlock.name in names and name not in names and len(proxies) == 2
