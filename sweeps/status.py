@@ -1,31 +1,127 @@
 """What a results folder holds, read quickly: ``flocksweep status`` and the resume hint after an interrupt.
 
-``status(out_dir) -> dict``: counts of done / failed / missing runs of the stored design, the failures'
-reasons, the manifest and the runner holding the folder now (if any). ``resume_hint(sweep_path,
-out_dir)``: one line on what was saved and the command that resumes. Reads files only; imports neither
-the simulator nor numba, so ``flocksweep status`` starts fast.
+``status(out_dir, remember=False) -> dict``: counts of done / failed / missing runs of the stored
+design, the failures' reasons, the manifest and the runner holding the folder now (if any).
+``resume_hint(sweep_path, out_dir)``: one line on what was saved and the command that resumes. Reads
+files only; imports neither the simulator nor numba, so ``flocksweep status`` starts fast.
+
+Unchanged folders are not checked twice (``remember=True``, what ``flocksweep status`` does): a full
+check reads the design and every runs part with pandas and verifies their checksums and schemas
+(:class:`sweeps.store.ResultsStore`). When it finds nothing damaged, its counts are remembered in the
+user's cache (``$XDG_CACHE_HOME/flocksweep/status/``, else ``~/.cache/...``; never in the results
+folder, which ``status`` only reads) together with the folder's *fingerprint*: size, modification and
+change time (``st_ctime_ns``, which no user can set back) and inode of ``design.parquet``,
+``manifest.json`` and every file in ``runs/``, plus those of this module and ``sweeps/store.py``. The
+next ``status`` whose fingerprint is equal reuses the counts without importing pandas (the manifest and
+the lock holder are read anew each time); any difference (a new, removed, rewritten or touched part, an
+edited manifest, new flocksweep code) means a full check again, and a folder with a damaged file is
+never remembered, so it is reported as damaged every time. ``remember=False`` (the default, and
+``flocksweep status --verify``) always checks in full.
 """
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 from pathlib import Path
 
-from .store import ResultsStore
+from .files import read_json, write_json
+from .lock import holder
+
+CACHE_FORMAT = 1
+CODE = (Path(__file__), Path(__file__).with_name("store.py"))   # a change in either invalidates the cache
 
 
-def status(out_dir) -> dict:
-    """Counts of done / failed / missing runs of the stored design, with the failures' reasons."""
-    store = ResultsStore(out_dir)
+def status(out_dir, remember: bool = False) -> dict:
+    """Counts of done / failed / missing runs of the stored design, with the failures' reasons;
+    ``checked`` says whether the files were read now ("full") or were unchanged since a full check."""
+    root = Path(out_dir)
+    if not (root / "design.parquet").exists():
+        raise FileNotFoundError(f"{out_dir}: no sweep stored here (design.parquet missing)")
+    fingerprint = _fingerprint(root) if remember else None
+    counts = _remembered(root, fingerprint) if remember else None
+    if counts is None:
+        counts, clean = _full_check(root)
+        if remember and clean:
+            _remember(root, fingerprint, counts)
+        checked = "full"
+    else:
+        checked = f"unchanged since the full check at {counts.pop('checked_at')}"
+    manifest = read_json(root / "manifest.json", {}) if counts.get("manifest") is None else counts["manifest"]
+    return {**{k: v for k, v in counts.items() if k != "manifest"}, "manifest": manifest if isinstance(manifest, dict)
+            else {}, "running": holder(root), "checked": checked}
+
+
+def _full_check(root: Path) -> tuple[dict, bool]:
+    """The counts from reading and verifying every file (sweeps.store), and whether nothing was damaged."""
+    from .store import ResultsStore
+
+    store = ResultsStore(root)
     design = store.design()
     if design is None:
-        raise FileNotFoundError(f"{out_dir}: no sweep stored here (design.parquet missing)")
+        raise FileNotFoundError(f"{root}: no sweep stored here (design.parquet missing)")
     latest = store.latest()
+    manifest = store.manifest()
     status_of = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
     error_of = dict(zip(latest["run_id"], latest["error"])) if len(latest) else {}
     states = [status_of.get(r, "missing") for r in design["run_id"]]
-    failures = [(r, error_of[r]) for r, s in zip(design["run_id"], states) if s == "failed"]
-    return {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
-            "missing": states.count("missing"), "failures": failures, "manifest": store.manifest(),
-            "running": store.holder()}
+    failures = [(r, str(error_of[r])) for r, s in zip(design["run_id"], states) if s == "failed"]
+    counts = {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
+              "missing": states.count("missing"), "failures": failures, "manifest": manifest}
+    return counts, not store.damage_reported
+
+
+def _stat(path: Path) -> list[int] | None:
+    try:
+        s = path.stat()
+    except OSError:
+        return None
+    return [s.st_size, s.st_mtime_ns, s.st_ctime_ns, s.st_ino]
+
+
+def _fingerprint(root: Path) -> dict:
+    """What a full check's result depends on: the stats of the files it reads and of the checking code."""
+    files = {name: _stat(root / name) for name in ("design.parquet", "manifest.json")}
+    runs = root / "runs"
+    if runs.is_dir():
+        files.update({f"runs/{entry.name}": _stat(runs / entry.name) for entry in sorted(os.scandir(runs),
+                                                                                        key=lambda e: e.name)})
+    return {"format": CACHE_FORMAT, "folder": str(root.resolve()), "files": files,
+            "code": {str(p): _stat(p) for p in CODE}}
+
+
+def cache_path(root: Path) -> Path:
+    """Where the remembered counts of the folder ``root`` live (the user's cache, not the folder)."""
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    key = hashlib.sha256(str(Path(root).resolve()).encode()).hexdigest()[:32]
+    return base / "flocksweep" / "status" / f"{key}.json"
+
+
+def _remembered(root: Path, fingerprint: dict) -> dict | None:
+    """The remembered counts when the folder's fingerprint is the one recorded with them, else None."""
+    try:
+        record = json.loads(cache_path(root).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or record.get("fingerprint") != fingerprint:
+        return None
+    counts = record.get("counts")
+    if not isinstance(counts, dict) or not {"runs", "ok", "failed", "missing", "failures"} <= set(counts):
+        return None
+    return {**counts, "failures": [tuple(f) for f in counts["failures"]], "manifest": None,
+            "checked_at": record.get("checked_at", "?")}
+
+
+def _remember(root: Path, fingerprint: dict, counts: dict) -> None:
+    """Record the counts of a clean full check (a cache: a folder where it cannot be written is skipped)."""
+    import time
+
+    record = {"fingerprint": fingerprint, "checked_at": time.strftime("%Y-%m-%d %H:%M:%S"),
+              "counts": {k: v for k, v in counts.items() if k != "manifest"}}
+    try:
+        write_json(cache_path(root), record)
+    except Exception:  # noqa: BLE001 - only a cache: the next status checks in full again
+        pass
 
 
 def resume_hint(sweep_path, out_dir) -> str:

@@ -144,6 +144,12 @@ class ResultsStore(OutputFolder):
         self._sums: dict[str, str] | None = None   # checksums recorded in the manifest (loaded once)
         self._latest_manifest: dict | None = None   # what write_manifest wrote last (rewritten with new sums)
 
+    @property
+    def damage_reported(self) -> bool:
+        """Whether a reader of this store has warned about a damaged file (flocksweep status remembers
+        only undamaged folders)."""
+        return bool(self._reported)
+
     # -- checksums -------------------------------------------------------------------------------
     def _relative(self, path: Path) -> str:
         return Path(path).relative_to(self.root).as_posix()
