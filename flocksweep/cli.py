@@ -8,7 +8,7 @@
                    [--retry-failed] [--batch-size B] [--no-progress] [--yes]
                    [--until-ci METRIC=HALFWIDTH | --until-claims] [--max-replicates R]
     flocksweep status DIR
-    flocksweep compile [MODEL.toml ...] [--jobs K] (sweeps/compile.py)
+    flocksweep compile [MODEL.toml ...] [--jobs K] (sweeps/compile_command.py)
     flocksweep export RESULTS_DIR (--csv | --parquet) [--with-fixed] [--timeseries] [--out DIR] (sweeps/export.py)
     flocksweep report RESULTS_DIR [--metrics NAME ...] [--by FACTOR ...] [--out DIR] [--format html|md|both]
                       [--claims FILE ...] [--seed S]
@@ -508,7 +508,7 @@ def cmd_targets(args) -> int:
 
 # Commands whose arguments and code live in their own module (DESCRIPTION, add_arguments(parser), run(args)),
 # loaded when the parser is built (arguments) and when the command runs.
-DELEGATED = {"compile": ("sweeps.compile", "compile the simulation and metric kernels now, into numba's cache"),
+DELEGATED = {"compile": ("sweeps.compile_command", "compile the simulation and metric kernels now, into numba's cache"),
              "export": ("sweeps.export", "a sweep's runs (and time series) as CSV or Parquet"),
              "sbc": ("analysis.calibration.sbc_command",
                      "simulation-based calibration check of a calibration's posterior"),

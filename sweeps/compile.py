@@ -17,14 +17,14 @@ calling process measures their metrics, with and without the leadership metrics,
 metric kernels are shared by every model, so they compile once, there). Together: every compiled path a
 sweep, a calibration or the test suite takes for those models. Each step counts the kernels numba
 compiled (rather than loaded from the cache). Results do not depend on it: a kernel compiled here is the
-one a run would have compiled itself.
+one a run would have compiled itself. The command's arguments and entry are in
+:mod:`sweeps.compile_command` (which loads this module only when it runs).
 """
 from __future__ import annotations
 
 import concurrent.futures
 import dataclasses
 import multiprocessing
-import os
 import time
 from pathlib import Path
 
@@ -33,10 +33,6 @@ from numba.core import event as numba_event
 from observables.summary import MetricSettings, measure_run
 from simcore import load_preset, simulate, simulate_batch
 
-DESCRIPTION = ("Compile every kernel the models need (default: every preset of configs/models) into numba's "
-               "on-disk cache, several model families at once, so that processes starting together (a sweep's "
-               "workers, a test run split over workers, cluster jobs on one file system) load them instead of "
-               "each compiling its own. Kernels already cached are loaded, not compiled again.")
 SHIPPED_MODELS = Path(__file__).resolve().parent.parent / "configs" / "models"
 TINY_N = 5
 GROUP_RADIUS = 10.0  # any radius compiles the same metric kernels (topological models have no default)
@@ -153,28 +149,3 @@ def measure_all(runs) -> int:
             for leadership in (False, True):
                 measure_run(obs, MetricSettings(group_radius=GROUP_RADIUS, leadership=leadership).resolve(model))
     return counter.count
-
-
-def add_arguments(parser) -> None:
-    """``flocksweep compile``'s arguments."""
-    parser.add_argument("models", nargs="*", type=Path, help="model preset TOMLs (default: every shipped preset)")
-    parser.add_argument("--jobs", type=int, help="processes compiling at once (default: all cores)")
-
-
-def run(args) -> int:
-    """``flocksweep compile``: bad input (a --jobs below 1, a missing or invalid preset) is refused before
-    anything compiles."""
-    from .failures import check_count
-
-    check_count("--jobs", args.jobs, 1)
-    for model in args.models:
-        load_preset(model)
-    jobs = args.jobs or os.cpu_count() or 1
-    start = time.perf_counter()
-    what = f"{len(args.models)} model(s)" if args.models else "the shipped presets"
-    print(f"compiling the kernels of {what} in up to {jobs} processes ...", flush=True)
-    results = compile_kernels(args.models or None, jobs, report=lambda line: print(line, flush=True))
-    compiled = sum(r.compiled for r in results)
-    print(f"{compiled} kernels compiled ({'now cached' if compiled else 'none: all were cached'}) in "
-          f"{time.perf_counter() - start:.1f} s")
-    return 0

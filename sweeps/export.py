@@ -23,13 +23,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.csv as pacsv
-import pyarrow.dataset as ds
-import pyarrow.parquet as pq
-
 from .files import atomic_path, write_csv, write_parquet
-from .results import load_results
 
 CHUNK_RUNS = 1000   # runs whose time series are read, sorted and written together
 FORMATS = ("csv", "parquet")
@@ -41,6 +35,8 @@ DESCRIPTION = ("Write a sweep's runs table (one row per run; with --with-fixed e
 def export_results(results_dir, fmt: str, out_dir=None, with_fixed: bool = False,
                    timeseries: bool = False) -> dict:
     """Write the tables of the module docstring; returns {"runs": (path, rows, columns), "timeseries": ...}."""
+    from .results import load_results   # pandas and pyarrow: loaded when exporting, not for --help
+
     if fmt not in FORMATS:
         raise ValueError(f"fmt: got {fmt!r}; expected one of {FORMATS}")
     results = load_results(results_dir, with_fixed=with_fixed, timeseries=timeseries)
@@ -59,6 +55,9 @@ def export_results(results_dir, fmt: str, out_dir=None, with_fixed: bool = False
 
 def _series_chunks(results):
     """The ok runs' series as Arrow tables, CHUNK_RUNS runs at a time, sorted by design order and time."""
+    import pyarrow as pa
+    import pyarrow.dataset as ds
+
     ok = results.ok
     order = {run_id: k for k, run_id in enumerate(ok["run_id"])}
     ids = list(ok["run_id"])
@@ -72,6 +71,9 @@ def _series_chunks(results):
 
 
 def _write_series(results, path: Path, fmt: str) -> tuple[Path, int, int]:
+    import pyarrow.csv as pacsv
+    import pyarrow.parquet as pq
+
     schema = results.timeseries.schema
     schema = schema.remove(schema.get_field_index("part")) if "part" in schema.names else schema
     rows = 0

@@ -38,7 +38,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.fs
 
-from observables.summary import ENCOUNTER_FAMILIES, summary_columns
+from observables.columns import FAMILIES, summary_columns   # the names only: no kernels, no numba
 from simcore.params import canonical_key, preset_from_dict
 from simcore.schema import ConfigError
 
@@ -100,7 +100,7 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
     """The summary columns (observables.summary.summary_columns) the runs table holds."""
-    known = set(summary_columns(leadership=True, encounters=ENCOUNTER_FAMILIES, migration=True, dcd=True))
+    known = set(summary_columns(leadership=True, encounters=tuple(FAMILIES), migration=True, dcd=True))
     return [c for c in runs.columns if c in known]
 
 

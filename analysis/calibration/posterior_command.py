@@ -13,12 +13,13 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from simcore.schema import ConfigError
 from sweeps.failures import check_count, check_out
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 DESCRIPTION = ("Amortised inference: the estimator a `flocksweep calibrate` run of method npe trained (its "
                "estimator/ folder) gives the posterior of every row of a table of observed flocks (one row "
@@ -35,6 +36,8 @@ def add_arguments(p) -> None:
 
 
 def _read_table(path: Path) -> pd.DataFrame:
+    import pandas as pd   # numpy and pandas load when the command runs, not for --help
+
     if not path.is_file():
         raise ConfigError("--targets", f"file not found: {path}")
     return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
@@ -42,6 +45,9 @@ def _read_table(path: Path) -> pd.DataFrame:
 
 def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int = 0) -> pd.DataFrame:
     """One posterior summary per row of ``table`` (module docstring)."""
+    import numpy as np
+    import pandas as pd
+
     from .npe import IDENTITY_FILE, support_of
     from .npe_flow import load_estimator
 
