@@ -9,6 +9,8 @@ Public API (importing this package loads nothing heavy)::
 
 * :func:`view` writes one self-contained HTML page (``analysis/viewer/page.py``; three.js inlined,
   nothing fetched) and returns a :class:`~analysis.viewer.page.ViewerPage`.
+* :func:`view_runs` writes one page of several runs with a run menu (the URL fragment ``#run=ID`` picks
+  the run shown).
 * :func:`animate` writes a GIF (Pillow) or MP4 (the ffmpeg of the ``imageio-ffmpeg`` wheel) with
   matplotlib (``analysis/viewer/animation.py``) and returns an :class:`~analysis.viewer.animation.Animation`.
 * ``analysis.viewer.resimulate`` re-simulates a sweep's run from its stored spec and seed and checks it
@@ -58,6 +60,22 @@ def view(source, path=None, *, preset=None, title: str | None = None, color_by: 
     return page
 
 
+def view_runs(sources, run_ids, path=None, *, preset=None, color_by: str = "auto", trail_s: float = 2.0,
+              max_mb: float | None = 5.0, stride: int | None = None, start_time: float | None = None):
+    """Write (when ``path`` is given) and return one page of several runs with a run menu: ``sources``
+    (each as for :func:`view`, with ``preset`` for all of them), named by ``run_ids`` (distinct). The URL
+    fragment ``#run=ID&t=SECONDS`` opens that run at that time; switching runs in the menu writes the
+    fragment. ``max_mb`` caps the whole page (each run gets an equal share after the scripts)."""
+    from .page import build_runs_page
+    from .track import as_track
+
+    page = build_runs_page([as_track(s, preset) for s in sources], run_ids, max_mb=max_mb, stride=stride,
+                           color_by=color_by, trail_s=trail_s, start_time=start_time)
+    if path is not None:
+        page.save(path)
+    return page
+
+
 def animate(source, path, *, preset=None, color_by: str = "auto", fps: float = 20.0, speed: float = 1.0,
             rotate: bool = False, trail_s: float = 1.0, size=(640, 480), dpi: int = 100,
             title: str | None = None, progress: bool = False):
@@ -71,4 +89,4 @@ def animate(source, path, *, preset=None, color_by: str = "auto", fps: float = 2
                            trail_s=trail_s, size=size, dpi=dpi, title=title, progress=progress)
 
 
-__all__ = ["animate", "view"]
+__all__ = ["animate", "view", "view_runs"]

@@ -1,7 +1,7 @@
 """``flocksweep view``: the viewer page (and optionally an animation) of a run from any source.
 
     flocksweep view MODEL.toml [--set KEY=VALUE ...] [--seed S] [--n N] [--duration T] [--dt DT]
-    flocksweep view RESULTS_DIR (--run RUN_ID | --where "KEY=VALUE, ..." [--replicate K] | --showcase NAME)
+    flocksweep view RESULTS_DIR (--run RUN_ID [RUN_ID ...] | --where "KEY=VALUE, ..." [--replicate K] | --showcase NAME)
     flocksweep view TRAJECTORY.npz
       common: [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--no-page] [--color-by MODE] [--trail SECONDS]
               [--max-mb MB] [--stride K] [--fps F] [--speed X] [--rotate] [--size WxH] [--dpi D]
@@ -9,8 +9,11 @@
 A model preset is simulated (seed 0 unless ``--seed``); a sweep run is re-simulated from its stored spec
 and seed and must reproduce its stored results bit for bit (:mod:`analysis.viewer.resimulate`), or
 nothing is written; a trajectory is shown as saved (with its ``params.json`` or its sweep's spec when
-found). Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
-showcase>.html``, or the trajectory's path with ``.html``. ``flocksweep/cli.py`` registers the subcommand
+found). Several ``--run`` ids make one page of several runs with a run menu (each re-simulated and
+checked; the URL fragment ``#run=ID`` picks the run shown; the size cap holds for the whole page).
+Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
+showcase>.html`` (``runs-<first id>-and-<K>-more.html`` for several runs), or the trajectory's path with
+``.html``. ``flocksweep/cli.py`` registers the subcommand
 with :func:`add_arguments` and :func:`run`.
 """
 from __future__ import annotations
@@ -31,7 +34,9 @@ DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of 
 def add_arguments(p) -> None:
     p.add_argument("source", help="model preset TOML, sweep results directory, or trajectory .npz")
     sweep = p.add_argument_group("sweep runs (SOURCE is a results directory)")
-    sweep.add_argument("--run", metavar="RUN_ID", help="run id (or a unique prefix of >= 6 characters)")
+    sweep.add_argument("--run", metavar="RUN_ID", nargs="+",
+                       help="run id (or a unique prefix of >= 6 characters); several ids: one page with a run "
+                            "menu, the URL fragment #run=ID picks the run shown")
     sweep.add_argument("--where", metavar='"KEY=VALUE, ..."',
                        help='parameter point, e.g. "perception.field_deg=60, init.n=100" (n = init.n)')
     sweep.add_argument("--replicate", type=int, default=0, help="replicate at the --where point (default 0)")
@@ -104,6 +109,8 @@ def _check_flags(args, kind: str) -> None:
         raise ConfigError("--trail", f"got {args.trail}; expected a number of seconds >= 0")
     if args.start_time is not None and not 0 <= args.start_time < float("inf"):
         raise ConfigError("--start-time", f"got {args.start_time}; expected a number of seconds >= 0")
+    if args.run and len(args.run) > 1 and args.animate:
+        raise ConfigError("--animate", "animates one run; got several --run ids (give one, or drop --animate)")
     if args.no_page and not args.animate:
         raise ConfigError("--no-page", "only with --animate (otherwise nothing would be written)")
     if args.replicate < 0:
@@ -146,13 +153,13 @@ def _model_track(args):
     return track, Path("results") / "view" / f"{preset.model.name}-seed{seed}.html"
 
 
-def _sweep_track(args):
+def _sweep_track(args, run_id=None):
     from .resimulate import parse_where, record_step_for, reproduce, select_run
     from .hooks import run_steps, slug
     from .track import from_observations
 
     where = parse_where(args.where) if args.where is not None else None
-    row = select_run(args.source, args.run, where, args.replicate, args.showcase)
+    row = select_run(args.source, run_id, where, args.replicate, args.showcase)
     reproduced = reproduce(args.source, row, record_step_for(*run_steps(args.source, row)))
     checked = int(reproduced.checks["identical"].sum())
     print(f"run {row['run_id']} (seed {int(row['seed'])}, replicate {int(row['replicate'])}) re-simulated: "
@@ -165,6 +172,25 @@ def _sweep_track(args):
     track = from_observations(reproduced.obs, reproduced.preset, info=info, group_radius=reproduced.group_radius,
                               title=f"{args.source.resolve().name}: {name}")
     return track, args.source / "viewer" / f"{slug(name)}.html"
+
+
+def _runs_page(args, phases) -> int:
+    """One page of the several ``--run`` runs of a sweep (each re-simulated and checked)."""
+    from .hooks import slug
+    from .page import MB, build_runs_page
+
+    tracks = [_sweep_track(args, run_id)[0] for run_id in args.run]
+    ids = [str(t.info["run id"]) for t in tracks]
+    if len(set(ids)) != len(ids):
+        raise ConfigError("--run", f"names a run twice ({', '.join(args.run)} are the runs {', '.join(ids)})")
+    phases.start(f"building the page of {len(ids)} runs")
+    page = build_runs_page(tracks, ids, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
+                           trail_s=args.trail, start_time=args.start_time)
+    default = args.source / "viewer" / f"runs-{slug(ids[0])}-and-{len(ids) - 1}-more.html"
+    path = page.save(args.out or default)
+    print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {len(ids)} runs, a menu switches between them; "
+          f"PAGE#run=ID opens one); open it in a browser, it works offline")
+    return 0
 
 
 def run(args) -> int:
@@ -192,7 +218,9 @@ def run(args) -> int:
                 print("flocksweep: name the run to view: --run RUN_ID, --where \"KEY=VALUE, ...\" [--replicate K] "
                       "or --showcase NAME", file=sys.stderr)
                 return 2
-            track, default = _sweep_track(args)
+            if args.run and len(args.run) > 1:
+                return _runs_page(args, phases)
+            track, default = _sweep_track(args, args.run[0] if args.run else None)
         else:
             track, default = from_npz(source), source.with_suffix(".html")
         if not args.no_page:

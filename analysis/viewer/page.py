@@ -69,13 +69,18 @@ def _json_for_script(data: dict) -> str:
     return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
 
 
-def render_html(data: dict) -> str:
+def render_html(data: dict, others: tuple = (), runs: tuple = ()) -> str:
+    """The page of ``data``; with ``others`` (the data of more runs) and ``runs`` (one ``(run id, label)``
+    per run, ``data``'s first) a page of several runs: each run's data in its own block, marked with
+    its run id, and a run menu (viewer.js shows the run the URL fragment names)."""
     import jinja2
 
     env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     template = env.from_string(_asset("templates/viewer.html.j2"))
+    blocks = [{"run": run, "label": label, "data": jinja2_safe(_json_for_script(d))}
+              for (run, label), d in zip(runs, (data, *others))]
     return template.render(title=data["title"], scripts={k: jinja2_safe(v) for k, v in scripts().items()},
-                           data=jinja2_safe(_json_for_script(data)))
+                           data=jinja2_safe(_json_for_script(data)), runs=blocks[1:], first=blocks[:1])
 
 
 def jinja2_safe(text: str):
@@ -158,6 +163,7 @@ class ViewerPage:
     stride: int
     frame_interval: float
     path: Path | None = None
+    runs: int = 1
 
     @property
     def size_bytes(self) -> int:
@@ -175,7 +181,8 @@ class ViewerPage:
 
     def __repr__(self) -> str:
         where = f" at {self.path}" if self.path else ""
-        return (f"<ViewerPage {self.title!r}: {self.n} boids, {self.frames} frames every {self.frame_interval:g} s, "
+        several = f"{self.runs} runs, the first: " if self.runs > 1 else ""
+        return (f"<ViewerPage {self.title!r}: {several}{self.n} boids, {self.frames} frames every {self.frame_interval:g} s, "
                 f"{self.size_bytes / MB:.2f} MB{where}>")
 
 
@@ -197,3 +204,49 @@ def build_page(track: Track, max_mb: float | None = 5.0, stride: int | None = No
         if fixed or page.size_bytes <= max_mb * MB or thin.frames <= 2:
             return page
         stride = int(stride) + max(1, int(stride) // 4)  # the allowances were too small: thin more
+
+
+def build_runs_page(tracks, run_ids, max_mb: float | None = 5.0, stride: int | None = None, color_by: str = "auto",
+                    trail_s: float = 2.0, start_time: float | None = None) -> ViewerPage:
+    """One page of several runs (``tracks``, named by ``run_ids``), with a run menu; the URL fragment
+    ``#run=ID`` (a unique prefix of 6 or more characters) picks the run shown. The size cap holds for the
+    whole page: the scripts are inlined once and each run gets an equal share of the rest (its own
+    stride, chosen as for one run)."""
+    tracks, run_ids = list(tracks), [str(r) for r in run_ids]
+    if len(tracks) < 2 or len(tracks) != len(run_ids) or len(set(run_ids)) != len(run_ids):
+        raise ValueError(f"run_ids: got {run_ids}; expected one distinct id for each of the {len(tracks)} runs "
+                         "(two or more)")
+    if max_mb is not None and not (max_mb > 0 and math.isfinite(max_mb)):
+        raise ValueError(f"max_mb: got {max_mb!r}; expected a number > 0 (or None for no limit)")
+    fixed = stride is not None or max_mb is None
+    if stride is not None:
+        strides = [int(stride)] * len(tracks)
+    elif max_mb is None:
+        strides = [1] * len(tracks)
+    else:
+        share = overhead_bytes() + (max_mb * MB - overhead_bytes()) / len(tracks)
+        strides = [choose_stride(track, share) for track in tracks]
+    labels = _run_labels(tracks, run_ids)
+    while True:
+        thin = [track.every(k) for track, k in zip(tracks, strides)]
+        data = [page_data(t, frame_observables(t), k, color_by, trail_s, 1.0, None, start_time)
+                for t, k in zip(thin, strides)]
+        html = render_html(data[0], tuple(data[1:]), tuple(zip(run_ids, labels)))
+        page = ViewerPage(html, data[0]["title"], tracks[0].n, thin[0].frames, strides[0], thin[0].frame_interval,
+                          runs=len(tracks))
+        if fixed or page.size_bytes <= max_mb * MB or all(t.frames <= 2 for t in thin):
+            return page
+        strides = [k + max(1, k // 4) for k in strides]   # the allowances were too small: thin more
+
+
+def _run_labels(tracks, run_ids) -> list[str]:
+    """Each run's menu entry: its id and the parameters whose values differ between the runs."""
+    keys = sorted({k for t in tracks for k in t.params})
+    differing = [k for k in keys if len({repr(t.params.get(k)) for t in tracks}) > 1]
+    labels = []
+    for track, run in zip(tracks, run_ids):
+        said = [f"{k}={track.params.get(k)}" for k in differing[:4]]
+        if "replicate" in track.info:
+            said.append(f"replicate {track.info['replicate']}")
+        labels.append(f"{run}: {', '.join(said)}" if said else run)
+    return labels

@@ -10,7 +10,17 @@ import { COLOUR_MODES, FOLLOWER_HEX, LEADER_HEX, OTHER_GROUP_HEX, STRAY_HEX, fil
          updatePanel as drawPanel } from "flock/panel.js";
 
 const $ = (id) => document.getElementById(id);
-const DATA = JSON.parse($("flock-data").textContent);
+// A page of several runs holds each run's data in its own block, marked with its run id (data-run); the
+// run= of the URL fragment (the id or a unique prefix of it) picks the one shown, else the first.
+const BLOCKS = [...document.querySelectorAll('script[type="application/json"][data-run]')];
+const SEVERAL = BLOCKS.length > 1;
+function blockFor(prefix) {
+  const found = prefix ? BLOCKS.filter((b) => b.dataset.run.startsWith(prefix)) : [];
+  return found.length === 1 ? found[0] : null;
+}
+const runInUrl = () => new URLSearchParams(window.location.hash.replace(/^#/, "")).get("run");
+const BLOCK = SEVERAL ? (blockFor(runInUrl()) || BLOCKS[0]) : $("flock-data");
+const DATA = JSON.parse(BLOCK.textContent);
 const N = DATA.n, F = DATA.frames, TIMES = DATA.times;
 const T0 = TIMES[0], T1 = TIMES[F - 1];
 const DTF = F > 1 ? (T1 - T0) / (F - 1) : 1;
@@ -422,13 +432,17 @@ function seekFrame(f) {
 // The URL fragment #run=RUN_ID&t=SECONDS&color=MODE opens the page at that time and colouring (else the
 // page's defaults.start_time); pausing, stepping and recolouring write it back, so the address can be
 // shared. `run` names the sweep run the address is for (a page of a sweep run writes its run id): a page
-// of another run says so, names the page to open, and keeps its own time and colouring.
-const RUN_ID = DATA.info && DATA.info["run id"] ? String(DATA.info["run id"]) : null;
+// of several runs shows that run (switching runs in its menu writes the fragment and reloads the page on
+// it); a page that does not hold the run says so, names the page to open, and keeps its own time and
+// colouring.
+const RUN_ID = SEVERAL ? BLOCK.dataset.run : DATA.info && DATA.info["run id"] ? String(DATA.info["run id"]) : null;
 function fromUrl() {
   const said = new URLSearchParams(window.location.hash.replace(/^#/, ""));
   const run = said.get("run");
   if (run && !(RUN_ID && RUN_ID.startsWith(run))) {
-    say(`This address is for run ${run}, but this page shows ${RUN_ID ? "run " + RUN_ID : "another run"}: ` +
+    const held = SEVERAL ? `this page holds runs ${BLOCKS.map((b) => b.dataset.run).join(", ")}, not that one`
+                         : `this page shows ${RUN_ID ? "run " + RUN_ID : "another run"}`;
+    say(`This address is for run ${run}, but ${held}: ` +
         `open that run's page (flocksweep view RESULTS --run ${run} writes RESULTS/viewer/${run}.html).`);
     S.t = Math.max(T0, Math.min(T1, Number.isFinite(DATA.defaults.start_time) ? DATA.defaults.start_time : T0));
     S.dirty = true;
@@ -448,7 +462,30 @@ function rememberInUrl() {
   } catch (err) { /* a page opened where the address cannot change: nothing to remember */ }
 }
 
+// the run menu of a page of several runs: choosing a run writes its address (a new history entry, so
+// Back returns to the run before), and the hashchange handler reloads the page on it
+function switchRun(run) {
+  window.location.hash = `run=${run}&t=${S.t.toFixed(2)}&color=${S.colorBy}`;
+}
+
+function bindRunMenu() {
+  if (!SEVERAL) return;
+  const menu = $("run");
+  for (const b of BLOCKS) {
+    const option = document.createElement("option");
+    option.value = b.dataset.run;
+    option.textContent = b.dataset.label || b.dataset.run;
+    menu.appendChild(option);
+  }
+  menu.value = RUN_ID;
+  menu.addEventListener("change", (e) => switchRun(e.target.value));
+  $("run-row").hidden = false;
+  document.title = DATA.title;
+  $("title").textContent = DATA.title;
+}
+
 function bindControls() {
+  bindRunMenu();
   $("slider").max = String(F - 1);
   $("play").addEventListener("click", () => setPlaying(!S.playing));
   $("step").addEventListener("click", () => { setPlaying(false); seekFrame(S.frame + 1); });
@@ -505,12 +542,17 @@ async function start() {
   fromUrl();
   if (!setupScene()) return;
   bindControls();
-  window.addEventListener("hashchange", () => { fromUrl(); $("colorby").value = S.colorBy; drawLegend(panelState()); });
+  window.addEventListener("hashchange", () => {
+    const next = SEVERAL ? blockFor(runInUrl()) : null;
+    if (next && next !== BLOCK) { window.location.reload(); return; }   // another run of this page
+    fromUrl(); $("colorby").value = S.colorBy; drawLegend(panelState());
+  });
   drawLegend(panelState());
   fillTables(panelState());
   drawPanel(panelState(), 0);
   window.flockViewer = {
-    get ready() { return true; }, frames: F, n: N, data: DATA,
+    get ready() { return true; }, frames: F, n: N, data: DATA, run: RUN_ID, runs: BLOCKS.map((b) => b.dataset.run),
+    switchRun,
     get frame() { return S.frame; }, get time() { return S.t; }, get playing() { return S.playing; },
     get colorBy() { return S.colorBy; }, get renders() { return S.renders; },
     play: () => setPlaying(true), pause: () => setPlaying(false), seek: seekFrame,

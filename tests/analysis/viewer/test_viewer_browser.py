@@ -233,3 +233,38 @@ def test_the_metrics_chart_keeps_its_legend_off_the_lines(opened):
     }""")
     assert drawn["legend"] < drawn["width"] - 20
     assert drawn["foreign"] == 0
+
+
+@pytest.mark.slow
+def test_a_page_of_several_runs_shows_the_run_its_fragment_names_and_switching_writes_it(browser, tmp_path):
+    base = milling_track(with_scene=False)
+    ids = ["aaaa11112222", "bbbb33334444", "cccc55556666"]
+    runs = [replace(base, pos=base.pos * (1 + k), info={"run id": run, "seed": k}, title=f"run {run}")
+            for k, run in enumerate(ids)]
+    from analysis.viewer import view_runs
+
+    path = view_runs(runs, ids, tmp_path / "runs.html", color_by="boid", max_mb=None).path
+    times = np.asarray(base.times)
+    t = float(times[40])
+    page = browser.open(path, fragment=f"run=bbbb33&t={t}&color=group")     # a prefix of the second run
+    assert page.errors == [] and page.blocked == []
+    assert page.state("run") == ids[1] and abs(page.state("time") - t) < 1e-6 and page.state("colorBy") == "group"
+    np.testing.assert_allclose(np.array(page.state("boidMatrix(3)"))[12:15], runs[1].pos[40, 3], atol=0.02)
+    assert page.page.is_visible("#run") and page.page.input_value("#run") == ids[1]
+    assert page.page.inner_text("#title") == f"run {ids[1]}" and not page.page.is_visible("#message")
+    page.page.evaluate("window.flockViewer.seek(20)")                         # a seek keeps the run in the address
+    assert page.page.evaluate("window.location.hash") == f"#run={ids[1]}&t={float(times[20]):.2f}&color=group"
+    page.page.select_option("#run", ids[2])                                   # the menu switches the run
+    page.page.wait_for_function(f"window.flockViewer && window.flockViewer.run === '{ids[2]}'", timeout=60_000)
+    assert page.page.evaluate("window.location.hash") == f"#run={ids[2]}&t={float(times[20]):.2f}&color=group"
+    assert abs(page.state("time") - times[20]) < 0.006 and page.state("colorBy") == "group"
+    # the address keeps t to 0.01 s: boid 3 (radius ~36 here) is interpolated up to 0.005 s later than frame 20
+    np.testing.assert_allclose(np.array(page.state("boidMatrix(3)"))[12:15], runs[2].pos[20, 3], atol=0.25)
+    page.page.go_back()                                                        # Back: the run before
+    page.page.wait_for_function(f"window.flockViewer && window.flockViewer.run === '{ids[1]}'", timeout=60_000)
+    page.page.close()
+    page = browser.open(path, fragment=f"run=fff999&t={t}")                   # a run this page does not hold
+    assert page.state("run") == ids[0] and page.state("time") == times[0]
+    message = page.page.inner_text("#message")
+    assert "run fff999" in message and f"holds runs {', '.join(ids)}" in message
+    page.page.close()

@@ -204,3 +204,20 @@ def test_cli_refuses_flags_that_do_not_apply(sweep, tmp_path, capsys, monkeypatc
     assert main(["view", HOLLAND, "--animate", str(tmp_path / "a.mp4"), "--size", "641x480"]) == 2
     assert "even width and height" in capsys.readouterr().err
     assert not (tmp_path / "results").exists()  # nothing was simulated or written
+
+
+@pytest.mark.slow
+def test_several_runs_make_one_page_with_a_block_per_run(sweep, tmp_path, capsys):
+    ids = list(pd.read_parquet(sweep / "runs.parquet")["run_id"][:3])
+    page = tmp_path / "three.html"
+    assert main(["view", str(sweep), "--run", ids[0], ids[1][:8], ids[2], "--out", str(page), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("reproduces its stored results bit for bit") == 3 and "3 runs" in out
+    html = page.read_text()
+    assert re.findall(r'id="flock-data[-0-9]*" data-run="([^"]+)"', html) == ids
+    blocks = re.findall(r'data-run="[^"]+" data-label="[^"]+">(.*?)</script>', html, re.S)
+    assert [json.loads(b)["info"]["run id"] for b in blocks] == ids
+    assert main(["view", str(sweep), "--run", ids[0], ids[1], "--animate", str(tmp_path / "a.gif")]) == 2
+    assert "--animate: animates one run" in capsys.readouterr().err
+    assert main(["view", str(sweep), "--run", ids[0], ids[0][:8], "--out", str(tmp_path / "twice.html")]) == 2
+    assert "names a run twice" in capsys.readouterr().err
