@@ -3,6 +3,7 @@ of every subcommand, ``status`` of a results folder (remembered, and ``--verify`
 ``export`` of its runs table as CSV, each as a new process, median of repeats.
 
     python bench/bench_startup.py --results results/smoke [--repeats 7] [--markdown] [--only status,export]
+                                  [--against OTHER_CHECKOUT]
 
 The code is taken from this checkout (``PYTHONPATH``), the first run of each command is discarded
 (warm: file cache, ``__pycache__``, and status's remembered check); ``python -c pass`` is the floor,
@@ -28,15 +29,26 @@ COMMANDS = (["--version", "--help"] + [f"{name} --help" for name in ORDER]
             + ["status {results}", "status {results} --verify", "export {results} --csv --out {scratch}"])
 
 
-def timed(argv: list[str], repeats: int) -> list[float]:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    times = []
+def timed(argv: list[str], repeats: int, roots=(ROOT,)) -> list[list[float] | None]:
+    """Per code root (a checkout, as PYTHONPATH), the wall seconds of each repeat (the first run discarded),
+    or None when the command fails there; the roots take turns, repeat by repeat, so they share the load."""
+    times = [[] for _ in roots]
     for attempt in range(repeats + 1):
-        start = time.perf_counter()
-        subprocess.run(argv, env=env, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
-        if attempt:
-            times.append(time.perf_counter() - start)
+        for k, root in enumerate(roots):
+            if times[k] is None:
+                continue
+            start = time.perf_counter()
+            done = subprocess.run(argv, env={**os.environ, "PYTHONPATH": str(root)}, cwd=root,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            if done.returncode:
+                times[k] = None
+            elif attempt:
+                times[k].append(time.perf_counter() - start)
     return times
+
+
+def cell(times) -> str:
+    return "fails" if times is None else f"{statistics.median(times):.2f} s ({min(times):.2f}-{max(times):.2f})"
 
 
 def main() -> None:
@@ -45,23 +57,26 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
     parser.add_argument("--only", help="comma-separated words: only the commands containing one of them")
+    parser.add_argument("--against", type=Path, help="another checkout (e.g. a git archive of main), timed in turn "
+                                                     "with this one")
     args = parser.parse_args()
     load = os.getloadavg()[0]
-    rows = [("python -c pass (floor)", timed([sys.executable, "-c", "pass"], args.repeats))]
+    roots = (ROOT,) if args.against is None else (args.against.resolve(), ROOT)
+    rows = [("python -c pass (floor)", timed([sys.executable, "-c", "pass"], args.repeats, roots))]
     chosen = [c for c in COMMANDS if not args.only or any(w in c for w in args.only.split(","))]
     with tempfile.TemporaryDirectory() as scratch:
         for command in chosen:
             words = command.format(results=args.results, scratch=scratch).split()
             rows.append((f"flocksweep {command.replace(' --out {scratch}', '')}",
-                         timed([sys.executable, "-m", "flocksweep.cli", *words], args.repeats)))
+                         timed([sys.executable, "-m", "flocksweep.cli", *words], args.repeats, roots)))
     print(f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores; "
-          f"median of {args.repeats}")
+          f"median (min-max) of {args.repeats}")
+    names = [str(r) for r in roots]
     if args.markdown:
-        print("| command | median | min | max |\n|---|---:|---:|---:|")
-    for name, times in rows:
-        med, low, high = statistics.median(times), min(times), max(times)
-        print(f"| `{name}` | {med:.2f} s | {low:.2f} | {high:.2f} |" if args.markdown
-              else f"{name:45s} {med:6.2f} s  ({low:.2f}-{high:.2f})")
+        print("| command | " + " | ".join(names) + " |\n|---|" + "---:|" * len(roots))
+    for name, per_root in rows:
+        print(f"| `{name}` | " + " | ".join(cell(t) for t in per_root) + " |" if args.markdown
+              else f"{name:45s} " + "   ".join(f"{cell(t):24s}" for t in per_root))
 
 
 if __name__ == "__main__":
