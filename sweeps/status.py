@@ -8,8 +8,9 @@ files only; imports neither the simulator nor numba, so ``flocksweep status`` st
 Unchanged folders are not checked twice (``remember=True``, what ``flocksweep status`` does): a full
 check reads the design and every runs part with pandas and verifies their checksums and schemas
 (:class:`sweeps.store.ResultsStore`). When it finds nothing damaged, its counts are remembered in the
-user's cache (``$XDG_CACHE_HOME/flocksweep/status/``, else ``~/.cache/...``; never in the results
-folder, which ``status`` only reads) together with the folder's *fingerprint*: size, modification and
+user's cache (:func:`cache_path`: ``$FLOCKSWEEP_CACHE_DIR/status/``, else
+``$XDG_CACHE_HOME/flocksweep/status/``, else ``~/.cache/flocksweep/status/``; never in the results folder,
+which ``status`` only reads) together with the folder's *fingerprint*: size, modification and
 change time (``st_ctime_ns``, which no user can set back) and inode of ``design.parquet``,
 ``manifest.json`` and every file in ``runs/``, plus those of this module and ``sweeps/store.py``. The
 next ``status`` whose fingerprint is equal reuses the counts without importing pandas (the manifest and
@@ -91,10 +92,13 @@ def _fingerprint(root: Path) -> dict:
 
 
 def cache_path(root: Path) -> Path:
-    """Where the remembered counts of the folder ``root`` live (the user's cache, not the folder)."""
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    """Where the remembered counts of the folder ``root`` live: the user's cache (``$FLOCKSWEEP_CACHE_DIR``,
+    else ``$XDG_CACHE_HOME/flocksweep``, else ``~/.cache/flocksweep``), never the folder itself."""
+    base = os.environ.get("FLOCKSWEEP_CACHE_DIR")
+    if not base:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flocksweep"
     key = hashlib.sha256(str(Path(root).resolve()).encode()).hexdigest()[:32]
-    return base / "flocksweep" / "status" / f"{key}.json"
+    return Path(base) / "status" / f"{key}.json"
 
 
 def _remembered(root: Path, fingerprint: dict) -> dict | None:

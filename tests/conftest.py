@@ -5,7 +5,11 @@ Only builders live here; every assertion is in the test modules.
 """
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +20,11 @@ from simcore.state import frame_from_forward
 
 # test modules import these helpers and tests/reference.py by module name, whatever pytest's import mode
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+# what flocksweep remembers between commands (status's last full check) goes to a folder of this run,
+# never the user's cache (also for the commands tests start as subprocesses)
+if "FLOCKSWEEP_CACHE_DIR" not in os.environ:
+    os.environ["FLOCKSWEEP_CACHE_DIR"] = tempfile.mkdtemp(prefix="flocksweep-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["FLOCKSWEEP_CACHE_DIR"], ignore_errors=True)
 
 TABLE_1_VALUES = np.array([p.value for p in HOLLAND_TABLE_1], dtype=np.uint32)
 
