@@ -12,7 +12,7 @@ user's cache (:func:`cache_path`: ``$FLOCKSWEEP_CACHE_DIR/status/``, else
 ``$XDG_CACHE_HOME/flocksweep/status/``, else ``~/.cache/flocksweep/status/``; never in the results folder,
 which ``status`` only reads) together with the folder's *fingerprint*: size, modification and
 change time (``st_ctime_ns``, which no user can set back) and inode of ``design.parquet``,
-``manifest.json`` and every file in ``runs/``, plus those of this module and ``sweeps/store.py``. The
+``manifest.json`` and every file in ``runs/``, plus those of the checking code (``CODE``). The
 next ``status`` whose fingerprint is equal reuses the counts without importing pandas (the manifest and
 the lock holder are read anew each time); any difference (a new, removed, rewritten or touched part, an
 edited manifest, new flocksweep code) means a full check again, and a folder with a damaged file is
@@ -30,7 +30,9 @@ from .files import read_json, write_json
 from .lock import holder
 
 CACHE_FORMAT = 1
-CODE = (Path(__file__), Path(__file__).with_name("store.py"))   # a change in either invalidates the cache
+# the checking code: a change in any of these invalidates what was remembered
+CODE = (Path(__file__), Path(__file__).with_name("store.py"), Path(__file__).with_name("files.py"),
+        Path(__file__).resolve().parent.parent / "observables" / "columns.py")
 
 
 def status(out_dir, remember: bool = False) -> dict:

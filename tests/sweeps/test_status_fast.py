@@ -114,3 +114,16 @@ def test_the_fast_path_imports_neither_pandas_nor_pyarrow(tmp_path):
     assert "unchanged since the full check" in done.stdout
     modules = json.loads(lines[-1])
     assert not [m for m in modules if m.split(".")[0] in ("pandas", "pyarrow", "numpy", "numba")]
+
+
+def test_new_checking_code_means_a_full_check(tmp_path, monkeypatch):
+    import sweeps.status
+
+    code = tmp_path / "store.py"
+    code.write_text("# the checks\n")
+    monkeypatch.setattr(sweeps.status, "CODE", (code,))
+    root = finished_store(tmp_path / "tiny")
+    status(root, remember=True)
+    assert status(root, remember=True)["checked"].startswith("unchanged since")
+    code.write_text("# the checks, edited\n")
+    assert status(root, remember=True)["checked"] == "full"
