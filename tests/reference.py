@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from reference_hb import in_plane, planar_frame
+
 RULES = ("separation", "alignment", "cohesion")
 
 
@@ -219,7 +221,7 @@ def move(i, force, state, model, dt) -> None:
     veh = model.vehicle
     f = state["fwd"][i].copy()
     speed = norm3(state["vel"][i])
-    force = np.array(force, dtype=np.float64)
+    force = in_plane(force, model)  # docs/model.md section 15: a 2-D force has z = 0
 
     # 1. at low speed, clamp the force into a cone about f (keeping its length)
     low = 0.2 * veh.max_speed
@@ -238,7 +240,13 @@ def move(i, force, state, model, dt) -> None:
     # 5. semi-implicit move
     p = state["pos"][i] + v * dt
 
-    # 6. rebuild the frame with banking (sec 1, decision 8), then the boundary
+    # 6. rebuild the frame with banking (sec 1, decision 8; the planar frame in 2-D), then the boundary
+    if model.world.dimensions == 2:
+        f, u, s = planar_frame(i, v, state)
+        state["pos"][i] = apply_boundary(p, model.world)
+        state["vel"][i], state["fwd"][i], state["up"][i] = v, f, u
+        state["side"][i], state["acc"][i] = s, a_smooth
+        return
     u_old, s_old = state["up"][i], state["side"][i]
     u = u_old + min(max(3.0 * dt, 0.0), 1.0) * (0.05 * a_smooth + np.array([0.0, 0.2, 0.0]) - u_old)
     u_len = norm3(u)
