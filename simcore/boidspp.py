@@ -27,9 +27,10 @@ One step s (time s dt):
 6. the boids move: p += v dt, frame rebuilt with the realised acceleration (v - v_old)/dt, boundary.
 
 In 2-D (``world.dimensions = 2``) the random kick and the predator's start direction are uniform on the
-circle (angle 2 pi times the second of their two uniforms), the new velocity's z is set to 0 before its
-clamp and the frame stays in the plane (:func:`simcore.dynamics.new_frame`); obstacles and the prey are
-refused there (:func:`simcore.boidspp_params.check_boidspp`).
+circle (angle 2 pi times the second of their two uniforms), the prey's points are uniform in the disc of
+its target radius (radius R u^(1/2)), the new velocity's z is set to 0 before its clamp and the frame
+stays in the plane (:func:`simcore.dynamics.new_frame`); obstacles and a prey centre off the plane are
+refused (:func:`simcore.params.ModelParams`).
 
 Synchronous order computes every velocity from the state at time t, then moves all; sequential order
 moves boid i before boid i + 1 perceives (re-binned at once). In-loop draws are counter-based
@@ -75,10 +76,11 @@ def random_unit(u0, u1, planar):
 
 
 @inline
-def prey_point(key, k, bp):
-    """The prey's k-th random point: uniform in the ball of its target radius about its target centre."""
-    ux, uy, uz = unit_from(uniform01(key, STREAM_TARGETS, k, 0), uniform01(key, STREAM_TARGETS, k, 1))
-    r = bp[B.PREY_TARGET_R] * uniform01(key, STREAM_TARGETS, k, 2) ** (1.0 / 3.0)
+def prey_point(key, k, bp, planar):
+    """The prey's k-th random point: uniform in the ball of its target radius about its target centre (in
+    the plane: the disc, radius R u^(1/2) at the angle of :func:`random_unit`)."""
+    ux, uy, uz = random_unit(uniform01(key, STREAM_TARGETS, k, 0), uniform01(key, STREAM_TARGETS, k, 1), planar)
+    r = bp[B.PREY_TARGET_R] * uniform01(key, STREAM_TARGETS, k, 2) ** (0.5 if planar else 1.0 / 3.0)
     return bp[B.PREY_CX] + r * ux, bp[B.PREY_CY] + r * uy, bp[B.PREY_CZ] + r * uz
 
 
@@ -123,8 +125,9 @@ def place_agents(step, pos, agents, fp, ip, bp, bi, key):
     """Step 1 of the module docstring: the prey's first point and target, the predator's appearance and
     departure."""
     if bi[BI.PREY_ON] != 0 and agents[COUNTERS, 0] == 0.0:
-        agents[PREY_POS, 0], agents[PREY_POS, 1], agents[PREY_POS, 2] = prey_point(key, 0, bp)
-        agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, 1, bp)
+        planar = ip[I.DIMENSIONS] == 2
+        agents[PREY_POS, 0], agents[PREY_POS, 1], agents[PREY_POS, 2] = prey_point(key, 0, bp, planar)
+        agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, 1, bp, planar)
         agents[PREY_VEL, 0] = agents[PREY_VEL, 1] = agents[PREY_VEL, 2] = 0.0
         agents[COUNTERS, 0] = 2.0
     if bi[BI.PRED_ON] == 0:
@@ -189,7 +192,8 @@ def move_agents(qx, qy, qz, yx, yy, yz, agents, fp, ip, bp, bi, key):
         dz = agents[PREY_TARGET, 2] - agents[PREY_POS, 2]
         if dx * dx + dy * dy + dz * dz <= bp[B.PREY_ARRIVE] * bp[B.PREY_ARRIVE]:
             k = agents[COUNTERS, 0]
-            agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, int(k), bp)
+            agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, int(k), bp,
+                                                                                              ip[I.DIMENSIONS] == 2)
             agents[COUNTERS, 0] = k + 1.0
 
 
@@ -365,7 +369,8 @@ def move_boid(i, vx, vy, vz, pos, vel, fwd, up, side, acc, fp, ip):
     pos[i, 0] += vx * dt
     pos[i, 1] += vy * dt
     pos[i, 2] += vz * dt
-    new_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt, ip[I.DIMENSIONS] == 2)
+    new_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt,
+              ip[I.DIMENSIONS] == 2)
     apply_boundary(i, pos, fp, ip)
 
 

@@ -392,10 +392,10 @@ def _check_planar(model: ModelParams) -> None:
         raise ConfigError("reynolds.migration_direction", f"got {list(model.reynolds.migration_direction)!r}; "
                                                           "with world.dimensions = 2 the migratory goal lies in "
                                                           "the plane: its z must be 0")
-    if model.dynamics == "boidspp" and model.boidspp.prey.enabled:
-        raise ConfigError("boidspp.prey.enabled", "the prey's targets are points of a 3-D ball: a 2-D run "
-                                                  "(world.dimensions = 2) has no prey; set "
-                                                  "boidspp.prey.enabled = false")
+    if model.dynamics == "boidspp" and model.boidspp.prey.enabled and model.boidspp.prey.target_centre[2] != 0.0:
+        raise ConfigError("boidspp.prey.target_centre", f"got {list(model.boidspp.prey.target_centre)!r}; with "
+                                                        "world.dimensions = 2 the prey's targets lie in the plane: "
+                                                        "its z must be 0")
 
 
 def _check_heading_model(model: ModelParams) -> None:

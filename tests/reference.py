@@ -291,3 +291,19 @@ def step(pos, vel, fwd, up, side, acc, pattern, model, dt) -> dict:
         raise ValueError(f"unknown update order {model.world.update_order!r}")
 
     return dict(state, visible=visible, binocular=binocular)
+
+
+def kernel_step_agrees(model, state, dt, k, tol=1e-12):
+    """One kernel step (``simcore.advance``) from ``state`` against :func:`step`: every state array to
+    ``tol``, the visible and binocular counts exactly, patterns unchanged (``k``: the step, for messages).
+    Returns the kernel's observations and the reference's result."""
+    from simcore import advance
+
+    obs = advance(model, state, 1, dt)
+    ref = step(state.pos, state.vel, state.fwd, state.up, state.side, state.acc, state.pattern, model, dt)
+    for name in ("pos", "vel", "fwd", "up", "side", "acc"):
+        np.testing.assert_allclose(getattr(obs.final, name), ref[name], rtol=tol, atol=tol, err_msg=f"step {k}: {name}")
+    np.testing.assert_array_equal(obs.visible[0], ref["visible"], err_msg=f"step {k}: visible")
+    np.testing.assert_array_equal(obs.binocular[0], ref["binocular"], err_msg=f"step {k}: binocular")
+    np.testing.assert_array_equal(obs.final.pattern, state.pattern)
+    return obs, ref

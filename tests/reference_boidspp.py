@@ -61,9 +61,11 @@ def random_unit(u0: float, u1: float, model) -> np.ndarray:
     return unit_from(u0, u1)
 
 
-def prey_point(key, k, prey) -> np.ndarray:
+def prey_point(key, k, prey, model) -> np.ndarray:
+    """Uniform in the ball (in 2-D the disc) of the target radius about the target centre."""
     u = [uniform01(key, STREAM_TARGETS, k, c) for c in range(3)]
-    return np.asarray(prey.target_centre) + prey.target_radius * u[2] ** (1.0 / 3.0) * unit_from(u[0], u[1])
+    power = 0.5 if model.world.dimensions == 2 else 1.0 / 3.0
+    return np.asarray(prey.target_centre) + prey.target_radius * u[2] ** power * random_unit(u[0], u[1], model)
 
 
 def first_step(seconds, dt) -> float:
@@ -92,7 +94,8 @@ def place(agents: Agents, step, pos, model, dt, key, box) -> None:
     """R1."""
     table = model.boidspp
     if table.prey.enabled and agents.drawn == 0:
-        agents.prey, agents.target, agents.drawn = prey_point(key, 0, table.prey), prey_point(key, 1, table.prey), 2
+        agents.prey, agents.target = prey_point(key, 0, table.prey, model), prey_point(key, 1, table.prey, model)
+        agents.drawn = 2
     if not table.predator.enabled:
         return
     if agents.phase == WAITING and step >= first_step(table.predator.start_s, dt):
@@ -247,7 +250,7 @@ def step(state: dict, agents: Agents, capture: np.ndarray, model, dt, step_index
     if table.prey.enabled:
         agents.prey = agents.prey + prey_v * dt
         if norm3(agents.target - agents.prey) <= table.prey.arrive_radius:
-            agents.target = prey_point(key, agents.drawn, table.prey)
+            agents.target = prey_point(key, agents.drawn, table.prey, model)
             agents.drawn += 1
 
 

@@ -10,7 +10,7 @@ section 15).
 * the 2-D angular noise is a wrapped normal turn (its numpy twin; free boids' polarization decays as
   exp(-sd^2 t / 2), the mean cosine of a wrapped normal, not as the 3-D exp(-sd^2 t));
 * runs are bit-identical alone, batched and threaded;
-* a 2-D flock is not a 3-D one seen from above (its nearest-neighbour distance differs);
+* a 2-D flock is not a 3-D one seen from above (its boids perceive more neighbours);
 * what a 2-D run cannot have is refused, naming the key.
 """
 from __future__ import annotations
@@ -105,14 +105,7 @@ def test_opensteer_kernel_matches_the_twin_in_the_plane(seed, kwargs):
     state = planar_flock(seed, box)   # with Holland's Table 1 patterns, used in pattern mode
     neighbours = hidden = 0
     for k in range(N_STEPS):
-        obs = advance(model, state, 1, DT)
-        ref = reference.step(state.pos, state.vel, state.fwd, state.up, state.side, state.acc, state.pattern,
-                             model, DT)
-        for name in FIELDS:
-            np.testing.assert_allclose(getattr(obs.final, name), ref[name], rtol=TOL, atol=TOL,
-                                       err_msg=f"step {k}: {name}")
-        np.testing.assert_array_equal(obs.visible[0], ref["visible"], err_msg=f"step {k}: visible")
-        np.testing.assert_array_equal(obs.binocular[0], ref["binocular"], err_msg=f"step {k}: binocular")
+        obs, ref = reference.kernel_step_agrees(model, state, DT, k, TOL)
         assert_in_plane(obs.final)
         neighbours += int(ref["visible"].sum())
         if model.perception.kind == "binocular" and model.perception.occlusion:
@@ -193,7 +186,10 @@ def boidspp_model(table, **world):
     ({"alignment": {"scope": "flock"}, "cohesion": {"scope": "flock", "blend": 0.2}}, {"update_order": "sequential"}),
     ({"predator": {"enabled": True, "start_s": 2 * DT, "start_distance": 1.0, "avoid_radius": 3.0,
                    "capture_radius": 2.0, "flee_blend": 0.7}}, {}),
-], ids=["random-force-wrap", "flock-seq", "predator"])
+    ({"predator": {"enabled": True, "start_distance": 0.5, "avoid_radius": 2.0},
+      "prey": {"enabled": True, "target_radius": 2.0, "speed": 30.0, "arrive_radius": 0.4}},
+     {"boundary": "periodic_box", "update_order": "sequential"}),
+], ids=["random-force-wrap", "flock-seq", "predator", "predator-prey-box-seq"])
 def test_boidspp_kernel_matches_the_twin_in_the_plane(table, world):
     model = boidspp_model(table, **world)
     state = planar_flock(11)
@@ -204,7 +200,12 @@ def test_boidspp_kernel_matches_the_twin_in_the_plane(table, world):
     assert_in_plane(got.final)
     if model.boidspp.predator.enabled:
         np.testing.assert_allclose(got.predator[-1], agents.pred, rtol=1e-9, atol=1e-9)
-        assert got.predator[-1, 2] == 0.0 and (capture >= 0).any()
+        assert got.predator[-1, 2] == 0.0
+    if model.boidspp.predator.capture_radius is not None:
+        assert (capture >= 0).any(), "the predator should capture someone"
+    if model.boidspp.prey.enabled:
+        np.testing.assert_allclose(got.prey[-1], agents.prey, rtol=1e-9, atol=1e-9)
+        assert got.prey[-1, 2] == 0.0 and agents.drawn > 2, "the prey should reach a target"
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -218,13 +219,15 @@ LONG_RUNS = [
     ("topological.toml", {}),
     ("hartman_benes.toml", {"leadership.x": 3.0}),
     ("reynolds87.toml", {}),
-    ("boidspp.toml", {"world.obstacles": [], "boidspp.random_force.magnitude": 2.0}),
-    ("boidspp_predator.toml", {"world.obstacles": []}),
+    ("boidspp.toml", {"boidspp.random_force.magnitude": 2.0}),
+    ("boidspp_predator.toml", {}),
 ]
 
 
 def preset_2d(name, changes, n=40, duration=30.0, noisy=True):
-    preset = load_preset(MODELS / name, ["world.dimensions=2", f"init.n={n}", f"run.duration={duration}"])
+    """A shipped preset in 2-D (without its obstacles) with ``changes`` and, when ``noisy``, noise and cruise."""
+    preset = load_preset(MODELS / name, ["world.dimensions=2", "world.obstacles=[]", f"init.n={n}",
+                                         f"run.duration={duration}"])
     return preset.replace({**(NOISY if noisy else {}), **changes})
 
 
@@ -237,8 +240,9 @@ def test_z_stays_exactly_zero_over_a_long_run(name, changes):
     assert np.all(obs.pos[..., 2] == 0.0) and np.all(obs.vel[..., 2] == 0.0)
     assert_in_plane(obs.final)
     assert np.all(np.isfinite(obs.pos)) and np.ptp(obs.pos[..., 0]) > 0 and np.ptp(obs.pos[..., 1]) > 0
-    if getattr(obs, "predator", None) is not None:
-        assert np.all(obs.predator[~np.isnan(obs.predator[:, 0]), 2] == 0.0)
+    for agent in (obs.predator, obs.prey):
+        if agent is not None:
+            assert np.all(agent[~np.isnan(agent[:, 0]), 2] == 0.0)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -312,26 +316,20 @@ def test_planar_runs_are_bit_identical_alone_batched_and_threaded(name):
     assert not np.array_equal(batch[0].pos, alone.pos)
 
 
-def mean_nn_distance(pos):
-    """Mean nearest-neighbour distance of every record in the second half of a run."""
-    out = []
-    for frame in pos[len(pos) // 2:]:
-        d = np.linalg.norm(frame[:, None] - frame[None], axis=2)
-        np.fill_diagonal(d, np.inf)
-        out.append(d.min(axis=1).mean())
-    return float(np.mean(out))
-
-
 @pytest.mark.slow
 def test_a_planar_flock_is_not_a_spatial_flock_seen_from_above():
-    """Holland's preset (N = 100, 40 s, seed 2): the 2-D flock's mean nearest-neighbour distance differs by
-    more than 30 % from the 3-D flock's seen from above (the plane orthogonal to OpenSteer's up, y)."""
+    """Holland's preset (N = 100, 40 s, seeds 2 and 5, second half): a 2-D run is not the 3-D run of the same
+    seed seen from above (the plane x-z, orthogonal to OpenSteer's up y), and its boids perceive at least
+    1.3 times as many neighbours (measured: 23.0 against 15.3 and 22.7 against 14.4): the same perception
+    range holds more of a flock packed in a plane. (The mean nearest-neighbour distance is no test: seen
+    from above it came out 4.64 against 4.68 in 2-D for seed 2 and 3.77 against 6.79 for seed 5.)"""
     flat = preset_2d("holland.toml", {}, n=100, duration=40.0, noisy=False)
     spatial = load_preset(MODELS / "holland.toml", ["init.n=100", "run.duration=40"])
-    runs = [simulate(p.model, p.init, 2, p.run.duration, p.run.dt, p.run.record_every) for p in (flat, spatial)]
-    nn_flat = mean_nn_distance(runs[0].pos)
-    nn_seen_from_above = mean_nn_distance(runs[1].pos[..., [0, 2]])
-    assert abs(nn_flat - nn_seen_from_above) > 0.3 * nn_seen_from_above, (nn_flat, nn_seen_from_above)
+    for seed in (2, 5):
+        a, b = (simulate(p.model, p.init, seed, p.run.duration, p.run.dt, p.run.record_every) for p in (flat, spatial))
+        assert not np.allclose(a.pos[..., :2], b.pos[..., [0, 2]], atol=1.0)
+        half = len(a.visible) // 2
+        assert a.visible[half:].mean() > 1.3 * b.visible[half:].mean(), seed
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -348,8 +346,8 @@ def test_what_lies_out_of_the_plane_is_refused_by_name():
     assert err.value.key == "reynolds.migration_direction"
     reynolds_model(migration_weight=0.0, migration_direction=(0.0, 0.0, 1.0))   # unused: no refusal
     with pytest.raises(ConfigError) as err:
-        boidspp_model({"prey": {"enabled": True}})
-    assert err.value.key == "boidspp.prey.enabled"
+        boidspp_model({"prey": {"enabled": True, "target_centre": [0.0, 0.0, 5.0]}})
+    assert err.value.key == "boidspp.prey.target_centre"
     with pytest.raises(ConfigError, match="3-D only") as err:
         load_preset(ROOT / "examples" / "couzin_like.toml", ["world.dimensions=2"])   # a plug-in dynamics
     assert err.value.key == "world.dimensions"
