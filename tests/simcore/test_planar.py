@@ -303,6 +303,7 @@ def test_planar_polarization_decays_as_a_wrapped_normal():
 # ------------------------------------------------------------------------------------------------------
 # 4. determinism, and a 2-D flock is its own
 
+@pytest.mark.slow   # compiles the batched and threaded loops of two presets (a minute on a busy machine)
 @pytest.mark.parametrize("name", ["holland.toml", "hartman_benes.toml"])
 def test_planar_runs_are_bit_identical_alone_batched_and_threaded(name):
     preset = preset_2d(name, {}, n=60, duration=3.0)
