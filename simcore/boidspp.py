@@ -26,6 +26,12 @@ One step s (time s dt):
    the mean offset, the prey straight to its target (a new one on arrival);
 6. the boids move: p += v dt, frame rebuilt with the realised acceleration (v - v_old)/dt, boundary.
 
+In 2-D (``world.dimensions = 2``) the random kick and the predator's start direction are uniform on the
+circle (angle 2 pi times the second of their two uniforms), the prey's points are uniform in the disc of
+its target radius (radius R u^(1/2)), the new velocity's z is set to 0 before its clamp and the frame
+stays in the plane (:func:`simcore.dynamics.new_frame`); obstacles and a prey centre off the plane are
+refused (:func:`simcore.params.ModelParams`).
+
 Synchronous order computes every velocity from the state at time t, then moves all; sequential order
 moves boid i before boid i + 1 perceives (re-binned at once). In-loop draws are counter-based
 (:mod:`simcore.rng`): the random kick of boid i at step s uses stream ``STREAM_RANDOM_FORCE`` at
@@ -42,7 +48,7 @@ import numpy as np
 from .boidspp_layout import (B, BI, COUNTERS, PHASE_HUNTING, PHASE_LEAVING, PHASE_WAITING, PRED_POS, PRED_VEL,
                              PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE, TARGET_NEAREST,
                              pack_boidspp)
-from .dynamics import apply_boundary, rebuild_frame
+from .dynamics import apply_boundary, new_frame
 from .jit import inline
 from .layout import BOUNDARY_PERIODIC, F, I
 from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, offset_to
@@ -61,10 +67,20 @@ def unit_from(u0, u1):
 
 
 @inline
-def prey_point(key, k, bp):
-    """The prey's k-th random point: uniform in the ball of its target radius about its target centre."""
-    ux, uy, uz = unit_from(uniform01(key, STREAM_TARGETS, k, 0), uniform01(key, STREAM_TARGETS, k, 1))
-    r = bp[B.PREY_TARGET_R] * uniform01(key, STREAM_TARGETS, k, 2) ** (1.0 / 3.0)
+def random_unit(u0, u1, planar):
+    """:func:`unit_from` in 3-D; in the plane z = 0 the unit vector at angle 2 pi u1 (u0 unused)."""
+    if planar:
+        phi = 2.0 * math.pi * u1
+        return math.cos(phi), math.sin(phi), 0.0
+    return unit_from(u0, u1)
+
+
+@inline
+def prey_point(key, k, bp, planar):
+    """The prey's k-th random point: uniform in the ball of its target radius about its target centre (in
+    the plane: the disc, radius R u^(1/2) at the angle of :func:`random_unit`)."""
+    ux, uy, uz = random_unit(uniform01(key, STREAM_TARGETS, k, 0), uniform01(key, STREAM_TARGETS, k, 1), planar)
+    r = bp[B.PREY_TARGET_R] * uniform01(key, STREAM_TARGETS, k, 2) ** (0.5 if planar else 1.0 / 3.0)
     return bp[B.PREY_CX] + r * ux, bp[B.PREY_CY] + r * uy, bp[B.PREY_CZ] + r * uz
 
 
@@ -109,8 +125,9 @@ def place_agents(step, pos, agents, fp, ip, bp, bi, key):
     """Step 1 of the module docstring: the prey's first point and target, the predator's appearance and
     departure."""
     if bi[BI.PREY_ON] != 0 and agents[COUNTERS, 0] == 0.0:
-        agents[PREY_POS, 0], agents[PREY_POS, 1], agents[PREY_POS, 2] = prey_point(key, 0, bp)
-        agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, 1, bp)
+        planar = ip[I.DIMENSIONS] == 2
+        agents[PREY_POS, 0], agents[PREY_POS, 1], agents[PREY_POS, 2] = prey_point(key, 0, bp, planar)
+        agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, 1, bp, planar)
         agents[PREY_VEL, 0] = agents[PREY_VEL, 1] = agents[PREY_VEL, 2] = 0.0
         agents[COUNTERS, 0] = 2.0
     if bi[BI.PRED_ON] == 0:
@@ -118,7 +135,8 @@ def place_agents(step, pos, agents, fp, ip, bp, bi, key):
     if agents[COUNTERS, 1] == PHASE_WAITING and step >= bi[BI.PRED_START]:
         periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
         cx, cy, cz = flock_offset(pos, 0.0, 0.0, 0.0, periodic, fp[F.BOX])
-        ux, uy, uz = unit_from(uniform01(key, STREAM_TARGETS, 0, 3), uniform01(key, STREAM_TARGETS, 0, 4))
+        ux, uy, uz = random_unit(uniform01(key, STREAM_TARGETS, 0, 3), uniform01(key, STREAM_TARGETS, 0, 4),
+                                 ip[I.DIMENSIONS] == 2)
         d = bp[B.PRED_START_DIST]
         agents[PRED_POS, 0], agents[PRED_POS, 1], agents[PRED_POS, 2] = cx + d * ux, cy + d * uy, cz + d * uz
         agents[PRED_VEL, 0] = agents[PRED_VEL, 1] = agents[PRED_VEL, 2] = 0.0
@@ -174,7 +192,8 @@ def move_agents(qx, qy, qz, yx, yy, yz, agents, fp, ip, bp, bi, key):
         dz = agents[PREY_TARGET, 2] - agents[PREY_POS, 2]
         if dx * dx + dy * dy + dz * dz <= bp[B.PREY_ARRIVE] * bp[B.PREY_ARRIVE]:
             k = agents[COUNTERS, 0]
-            agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, int(k), bp)
+            agents[PREY_TARGET, 0], agents[PREY_TARGET, 1], agents[PREY_TARGET, 2] = prey_point(key, int(k), bp,
+                                                                                              ip[I.DIMENSIONS] == 2)
             agents[COUNTERS, 0] = k + 1.0
 
 
@@ -322,8 +341,8 @@ def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, i
             vx, vy, vz = vx + gx, vy + gy, vz + gz
     magnitude = bp[B.RF_MAG]
     if magnitude > 0.0 and step % bi[BI.RF_EVERY] == 0:
-        ux, uy, uz = unit_from(uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i),
-                               uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i + 1))
+        ux, uy, uz = random_unit(uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i),
+                                 uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i + 1), ip[I.DIMENSIONS] == 2)
         vx, vy, vz = vx + magnitude * ux, vy + magnitude * uy, vz + magnitude * uz
     if table.shape[0] > 0 and bp[B.AVOID_W] > 0.0:
         ray, dx, dy, dz, free = fan_avoid_direction(table, kinds, fan, px, py, pz, fwd[i, 0], fwd[i, 1], fwd[i, 2],
@@ -336,6 +355,8 @@ def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, i
         vx, vy, vz = drive(vx, vy, vz, fwd[i, 0], fwd[i, 1], fwd[i, 2], uniform01(key, STREAM_HEADING_NOISE, step, 2 * i),
                            uniform01(key, STREAM_HEADING_NOISE, step, 2 * i + 1),
                            normal(key, STREAM_SPEED_NOISE, step, i), fp)
+    if ip[I.DIMENSIONS] == 2:
+        vz = 0.0
     return clamp_speed(vx, vy, vz, fwd[i, 0], fwd[i, 1], fwd[i, 2], bp[B.MIN_SPEED], max_speed)
 
 
@@ -348,7 +369,8 @@ def move_boid(i, vx, vy, vz, pos, vel, fwd, up, side, acc, fp, ip):
     pos[i, 0] += vx * dt
     pos[i, 1] += vy * dt
     pos[i, 2] += vz * dt
-    rebuild_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt)
+    new_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt,
+              ip[I.DIMENSIONS] == 2)
     apply_boundary(i, pos, fp, ip)
 
 

@@ -18,6 +18,11 @@ Compiled with numba.
 With cruise or noise (docs/model.md section 3.5) the velocity of step 4 is driven by
 :func:`simcore.noise.drive` before its truncation (off: not a bit changes).
 
+In 2-D (``world.dimensions = 2``, docs/model.md section 15) the force's z is set to 0 before step 1 (the
+Hartman-Beneš steers' z likewise) and step 6 keeps the frame in the plane (:func:`new_frame`: f = v/|v|
+with z = 0, up = +z, side = f x up = (f_y, -f_x, 0)); from a start in the plane z = 0 every position,
+velocity and heading then stays in it exactly.
+
 All arrays are float64 (N, 3); ``vel`` holds v = speed f.
 """
 from __future__ import annotations
@@ -92,6 +97,27 @@ def rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt):
 
 
 @inline
+def planar_axes(i, fx, fy, fwd, up, side):
+    """The frame of a boid in the plane z = 0 with unit heading (fx, fy): up = +z, side = f x up."""
+    fwd[i, 0], fwd[i, 1], fwd[i, 2] = fx, fy, 0.0
+    up[i, 0], up[i, 1], up[i, 2] = 0.0, 0.0, 1.0
+    side[i, 0], side[i, 1], side[i, 2] = fy, -fx, 0.0
+
+
+@inline
+def new_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt, planar):
+    """The frame of boid i after its move: in the plane (``planar``) f = v/|v| (kept when stopped) with
+    :func:`planar_axes`, else the banking frame of :func:`rebuild_frame`."""
+    if planar:
+        if speed > 0.0:
+            planar_axes(i, vx / speed, vy / speed, fwd, up, side)
+        else:
+            planar_axes(i, fwd[i, 0], fwd[i, 1], fwd, up, side)
+    else:
+        rebuild_frame(i, vx, vy, vz, speed, fwd, up, side, acc, dt)
+
+
+@inline
 def apply_boundary(i, pos, fp, ip):
     kind = ip[I.BOUNDARY]
     if kind == BOUNDARY_SPHERE_WRAP:
@@ -116,6 +142,9 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx, dvy
     ``draws[i, col:]``) before the truncation."""
     dt = fp[F.DT]
     max_speed = fp[F.MAX_SPEED]
+    planar = ip[I.DIMENSIONS] == 2
+    if planar:
+        fz = 0.0
     speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
     slow = 0.2 * max_speed
     if speed <= slow and (fx != 0.0 or fy != 0.0 or fz != 0.0):
@@ -140,7 +169,7 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx, dvy
     pos[i, 1] += vy * dt
     pos[i, 2] += vz * dt
     new_speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-    rebuild_frame(i, vx, vy, vz, new_speed, fwd, up, side, acc, dt)
+    new_frame(i, vx, vy, vz, new_speed, fwd, up, side, acc, dt, planar)
     apply_boundary(i, pos, fp, ip)
 
 
@@ -157,6 +186,9 @@ def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up,
     pos[i, 1] += vy0 * dt
     pos[i, 2] += vz0 * dt
     gs, gk, gm = fp[F.GAIN_S], fp[F.GAIN_K], fp[F.GAIN_M]
+    planar = ip[I.DIMENSIONS] == 2
+    if planar:
+        sz = kz = mz = 0.0
     vx = vx0 + (gs * sx + gk * kx) / dt + gm * mx
     vy = vy0 + (gs * sy + gk * ky) / dt + gm * my
     vz = vz0 + (gs * sz + gk * kz) / dt + gm * mz
@@ -167,5 +199,5 @@ def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up,
     vx, vy, vz = truncated(vx, vy, vz, cap)
     vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
     acc[i, 0], acc[i, 1], acc[i, 2] = (vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt
-    rebuild_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt)
+    new_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt, planar)
     apply_boundary(i, pos, fp, ip)

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from .dynamics import rebuild_frame
+from .dynamics import planar_axes, rebuild_frame
 from .jit import inline
 from .layout import F
 from .rules import normalized
@@ -94,8 +94,6 @@ def set_heading(i, hx, hy, hz, speed, planar, vel, fwd, up, side, acc, fp):
     acc[i, 0], acc[i, 1], acc[i, 2] = (vx - vel[i, 0]) / dt, (vy - vel[i, 1]) / dt, (vz - vel[i, 2]) / dt
     vel[i, 0], vel[i, 1], vel[i, 2] = vx, vy, vz
     if planar:
-        fwd[i, 0], fwd[i, 1], fwd[i, 2] = hx, hy, 0.0
-        up[i, 0], up[i, 1], up[i, 2] = 0.0, 0.0, 1.0
-        side[i, 0], side[i, 1], side[i, 2] = hy, -hx, 0.0
+        planar_axes(i, hx, hy, fwd, up, side)
     else:
         rebuild_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt)

@@ -54,6 +54,15 @@ def speed_kick(model: ModelParams, dt: float) -> float:
     return sigma * math.sqrt(-0.5 * tau * math.expm1(-2.0 * dt / tau))
 
 
+def planar_turn_sd(model: ModelParams, dt: float) -> float:
+    """The sd (radians) of one step's turn in the plane (:mod:`simcore.noise`, 2-D): 1 / sqrt(kappa per
+    step); 0 in 3-D or without angular noise."""
+    kappa = model.noise.kappa_per_step(dt)
+    if model.world.dimensions == 3 or kappa == 0.0:
+        return 0.0
+    return 1.0 / math.sqrt(kappa)
+
+
 # float parameters: slot name -> its value from the validated model and the step dt
 FLOAT_SLOTS = {
     "SEP_W": lambda m, dt: m.steering.separation_weight,
@@ -95,7 +104,8 @@ FLOAT_SLOTS = {
     "LEAD_REFRACTORY": lambda m, dt: m.leadership.refractory,
     "SLOW_SPEED": lambda m, dt: m.slow_speed,
     "PERCEPTION_RANGE": lambda m, dt: m.perception_range,
-    "NOISE_KAPPA": lambda m, dt: m.noise.kappa_per_step(dt),
+    "NOISE_KAPPA": lambda m, dt: m.noise.kappa_per_step(dt) if m.world.dimensions == 3 else 0.0,
+    "PLANAR_TURN_SD": lambda m, dt: planar_turn_sd(m, dt),
     "SPEED_KICK": lambda m, dt: speed_kick(m, dt),
     "CRUISE_SPEED": lambda m, dt: m.cruise.speed if m.cruise.enabled else 0.0,
     "CRUISE_DECAY": lambda m, dt: math.exp(-dt / m.cruise.tau) if m.cruise.enabled else 1.0,

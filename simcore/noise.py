@@ -18,8 +18,11 @@ has ``[noise]`` or ``[cruise]`` (``ip[I.DRIVE] == 1``) the drive turns it into
 5. v <- s d; the dynamics then applies its own speed limits, moves and rebuilds the frame.
 
 Off (no ``[noise]``, no ``[cruise]``) nothing of this runs, so trajectories are bit-identical to a model
-without it. In 2-D (a heading angle in the plane), :func:`turn_in_plane` turns a heading by a wrapped
-normal angle sd z (the same draw index as the 3-D pair, through :func:`simcore.rng.normal`).
+without it. In 2-D (``world.dimensions = 2``; the slot ``PLANAR_TURN_SD`` is set and ``NOISE_KAPPA`` is 0)
+step 4 turns d about +z by the wrapped normal angle sd z' (:func:`turn_in_plane`), z' the Box-Muller
+normal of the same two uniforms U1, U2 (so ``normal(key, STREAM_HEADING_NOISE, step, i)``) and sd =
+1 / sqrt(kappa) per step (the angle sd of a 3-D turn's tangential components for large kappa; sd_rad
+sqrt(dt) from ``noise.angular_sd_deg``).
 
 Draws are counter-based (:mod:`simcore.rng`), a pure function of (run key, stream, step, boid): U1, U2 are
 ``uniform01(key, STREAM_HEADING_NOISE, step, 2 i)`` and ``(..., 2 i + 1)``, z is ``normal(key,
@@ -33,7 +36,7 @@ import math
 
 from .jit import inline
 from .layout import F
-from .rng import STREAM_HEADING_NOISE, STREAM_SPEED_NOISE, normal, uniform01
+from .rng import STREAM_HEADING_NOISE, STREAM_SPEED_NOISE, box_muller, normal, uniform01
 
 DRAWS = 3  # per-boid columns the draws take: U1, U2 (heading), z (speed)
 
@@ -98,6 +101,9 @@ def drive(vx, vy, vz, fx, fy, fz, u1, u2, z, fp):
     kappa = fp[F.NOISE_KAPPA]
     if kappa > 0.0:
         dx, dy, dz = vmf_turn(dx, dy, dz, u1, u2, kappa)
+    sd = fp[F.PLANAR_TURN_SD]
+    if sd > 0.0:
+        dx, dy = turn_in_plane(dx, dy, box_muller(u1, u2), sd)
     return s * dx, s * dy, s * dz
 
 

@@ -35,7 +35,8 @@ PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
 DYNAMICS = ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
 HEADING_DYNAMICS = ("couzin2002", "vicsek")  # constant-speed heading models: sphere perception, 2-D or 3-D
-PLANAR_DYNAMICS: tuple[str, ...] = HEADING_DYNAMICS  # the dynamics that run with world.dimensions = 2
+# the dynamics that run with world.dimensions = 2 (docs/model.md section 15; plug-ins are 3-D only)
+PLANAR_DYNAMICS: tuple[str, ...] = ("opensteer", "hartman_benes", "reynolds87", "boidspp") + HEADING_DYNAMICS
 OBSTACLE_DYNAMICS: tuple[str, ...] = ("reynolds87", "boidspp")  # the dynamics whose kernels read world.obstacles
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
@@ -302,9 +303,8 @@ class ModelParams:
             _check_builtin(self)
         else:
             _check_plugin(self)
-        if self.world.dimensions == 2 and self.dynamics not in PLANAR_DYNAMICS:
-            raise ConfigError("world.dimensions", f"got 2; dynamics {self.dynamics!r} runs in 3-D only: 2-D "
-                                                  f"motion is available for dynamics {PLANAR_DYNAMICS}")
+        if self.world.dimensions == 2:
+            _check_planar(self)
         if self.dynamics in HEADING_DYNAMICS:
             _check_heading_model(self)
         if self.dynamics == "reynolds87":
@@ -375,6 +375,27 @@ def _check_reynolds(model: ModelParams) -> None:
                                           "leadership: set leadership.x = 0")
     if model.patterns.enabled:
         raise ConfigError("patterns.enabled", "dynamics 'reynolds87' has no pattern mode: set patterns.enabled = false")
+
+
+def _check_planar(model: ModelParams) -> None:
+    """A 2-D model (``world.dimensions = 2``): a built-in dynamics, and nothing that lives out of the plane
+    z = 0 (ConfigError naming the key; docs/model.md section 15)."""
+    if model.dynamics not in PLANAR_DYNAMICS:
+        raise ConfigError("world.dimensions", f"got 2; dynamics {model.dynamics!r} runs in 3-D only: 2-D "
+                                              f"motion is available for dynamics {PLANAR_DYNAMICS}")
+    if model.world.obstacles:
+        raise ConfigError("world.obstacles", f"{len(model.world.obstacles)} obstacle(s) with world.dimensions = 2: "
+                                             "obstacles are 3-D solids and a 2-D run has none; leave them out "
+                                             "or set world.dimensions = 3")
+    if model.dynamics == "reynolds87" and model.reynolds.migration_weight > 0.0 \
+            and model.reynolds.migration_direction[2] != 0.0:
+        raise ConfigError("reynolds.migration_direction", f"got {list(model.reynolds.migration_direction)!r}; "
+                                                          "with world.dimensions = 2 the migratory goal lies in "
+                                                          "the plane: its z must be 0")
+    if model.dynamics == "boidspp" and model.boidspp.prey.enabled and model.boidspp.prey.target_centre[2] != 0.0:
+        raise ConfigError("boidspp.prey.target_centre", f"got {list(model.boidspp.prey.target_centre)!r}; with "
+                                                        "world.dimensions = 2 the prey's targets lie in the plane: "
+                                                        "its z must be 0")
 
 
 def _check_heading_model(model: ModelParams) -> None:

@@ -27,7 +27,8 @@ direction and an infinite weight), with w_j = |d_j|^-k:
 
 ``move_boid`` then sets v' = v + a dt (driven by cruise and noise when on, :mod:`simcore.noise`), its length clamped into [min_speed, max_speed] (a boid at zero
 speed restarts at min_speed along f), p += v' dt, stores the realised acceleration (v' - v) / dt in ``acc``,
-rebuilds the banking frame (:func:`simcore.dynamics.rebuild_frame`) and applies the boundary.
+rebuilds the banking frame (:func:`simcore.dynamics.rebuild_frame`; in 2-D the planar frame of
+:func:`simcore.dynamics.new_frame`, with a's z set to 0 first) and applies the boundary.
 Synchronous order: every boid's acceleration from the state at t, then all move; sequential: boid i
 perceives, decides and moves before boid i + 1 (re-binned at once; :mod:`simcore.kernel`).
 """
@@ -38,7 +39,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from .dynamics import apply_boundary, rebuild_frame
+from .dynamics import apply_boundary, new_frame
 from .jit import inline
 from .layout import F, I
 from .noise import DRAWS, drive_row, store_draws
@@ -199,6 +200,9 @@ def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp, draws, co
     """Velocity, position, frame and boundary update of boid i under acceleration a (module docstring);
     boid i's noise draws (when cruise or noise is on) are in ``draws[i, col:]``."""
     dt = fp[F.DT]
+    planar = ip[I.DIMENSIONS] == 2
+    if planar:
+        az = 0.0
     vx0, vy0, vz0 = vel[i, 0], vel[i, 1], vel[i, 2]
     vx, vy, vz = vx0 + ax * dt, vy0 + ay * dt, vz0 + az * dt
     if ip[I.DRIVE] != 0:
@@ -219,7 +223,7 @@ def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp, draws, co
     pos[i, 1] += vy * dt
     pos[i, 2] += vz * dt
     acc[i, 0], acc[i, 1], acc[i, 2] = (vx - vx0) / dt, (vy - vy0) / dt, (vz - vz0) / dt
-    rebuild_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt)
+    new_frame(i, vx, vy, vz, math.sqrt(vx * vx + vy * vy + vz * vz), fwd, up, side, acc, dt, planar)
     apply_boundary(i, pos, fp, ip)
 
 

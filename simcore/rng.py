@@ -78,8 +78,14 @@ def uniform01(key, stream, step, index):
 
 
 @inline
+def box_muller(u1, u2):
+    """The standard normal Box-Muller makes of two uniforms in [0, 1)."""
+    return math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@inline
 def normal(key, stream, step, index):
     """Standard normal draw (Box-Muller) for (key, stream, step, index)."""
     u1 = uniform01(key, stream, step, np.uint64(2) * np.uint64(index))
     u2 = uniform01(key, stream, step, np.uint64(2) * np.uint64(index) + np.uint64(1))
-    return math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+    return box_muller(u1, u2)

@@ -208,7 +208,7 @@ def check_planar(model: ModelParams, state: State) -> None:
     the first boid off it, e.g. from an ``init.from_file`` state of a 3-D run)."""
     if model.world.dimensions != 2:
         return
-    for name in ("pos", "vel", "fwd"):
+    for name in ("pos", "vel", "fwd", "acc"):
         off = np.flatnonzero(getattr(state, name)[:, 2] != 0.0)
         if off.size:
             raise ValueError(f"world.dimensions = 2, but the initial state's {name} of boid {off[0]} has z = "

@@ -84,9 +84,10 @@ def _pattern_draw(patterns: Patterns, n: int, rng: np.random.Generator) -> np.nd
     return np.repeat(values, pattern_counts(patterns, n))[rng.permutation(n)]
 
 
-def state_from_file(init: InitParams, patterns: Patterns, rng: np.random.Generator) -> State:
+def state_from_file(init: InitParams, patterns: Patterns, rng: np.random.Generator, dimensions: int = 3) -> State:
     """The state in ``init.from_file`` (:mod:`simcore.initfile`); patterns from the file in pattern mode,
-    else drawn from ``rng`` as for a random start."""
+    else drawn from ``rng`` as for a random start. In 2-D the frame is the plane's (up = +z, side = f x
+    up, :func:`planar_frame`) whatever the file's up (the run checks that the state lies in the plane)."""
     from .initfile import file_digest, read_state_file
     from .schema import ConfigError
 
@@ -95,7 +96,9 @@ def state_from_file(init: InitParams, patterns: Patterns, rng: np.random.Generat
     data = read_state_file(init.from_file)
     n = len(data["pos"])
     fwd = data["fwd"]
-    if data["up"] is None:
+    if dimensions == 2:
+        up, side = planar_frame(fwd)
+    elif data["up"] is None:
         up, side = frame_from_forward(fwd)
     else:
         up = data["up"]
@@ -115,9 +118,9 @@ def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator
     """Initial state of ``init.n`` boids drawn from ``rng`` (see module docstring), or read from
     ``init.from_file``. With ``dimensions = 2`` the draw is in the plane z = 0 (:func:`planar_state`)."""
     if init.from_file is not None:
-        return state_from_file(init, patterns, rng)
+        return state_from_file(init, patterns, rng, dimensions)
     if dimensions == 2:
-        return planar_state(init, rng)
+        return planar_state(init, rng, patterns)
     n = init.n
     if init.region == "cube":
         pos = init.region_radius(3) * (2.0 * rng.random((n, 3)) - 1.0)
@@ -136,10 +139,19 @@ def initial_state(init: InitParams, patterns: Patterns, rng: np.random.Generator
                  pattern=np.ascontiguousarray(pattern, dtype=np.uint32))
 
 
-def planar_state(init: InitParams, rng: np.random.Generator) -> State:
+def planar_frame(fwd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(up, side) of headings ``fwd`` (N, 3) in the plane z = 0: up = +z, side = f x up = (f_y, -f_x, 0)
+    (:func:`simcore.dynamics.planar_axes`)."""
+    up = np.tile([0.0, 0.0, 1.0], (len(fwd), 1))
+    side = np.stack([fwd[:, 1], -fwd[:, 0], np.zeros(len(fwd))], axis=1)
+    return up, side
+
+
+def planar_state(init: InitParams, rng: np.random.Generator, patterns: Patterns | None = None) -> State:
     """A start in the plane z = 0: positions uniform in the disc of radius ``init.region_radius(2)`` (or the
     square of that half side, ``region = "cube"``), headings uniform on the circle, up = +z, side = f x up
-    (the frame of the 2-D models, :mod:`simcore.headings`); no patterns (no 2-D model has them)."""
+    (the frame of the 2-D models, :func:`planar_frame`); in pattern mode the patterns are drawn last, as in
+    3-D (nothing is drawn for them otherwise)."""
     n = init.n
     half = init.region_radius(2)
     pos = np.zeros((n, 3))
@@ -150,7 +162,9 @@ def planar_state(init: InitParams, rng: np.random.Generator) -> State:
         pos[:, 0], pos[:, 1] = radius * np.cos(angle), radius * np.sin(angle)
     heading = 2.0 * np.pi * rng.random(n)
     fwd = np.stack([np.cos(heading), np.sin(heading), np.zeros(n)], axis=1)
-    up = np.tile([0.0, 0.0, 1.0], (n, 1))
-    side = np.stack([fwd[:, 1], -fwd[:, 0], np.zeros(n)], axis=1)
+    up, side = planar_frame(fwd)
+    pattern = np.zeros(n, dtype=np.uint32)
+    if patterns is not None and patterns.enabled:
+        pattern = np.ascontiguousarray(_pattern_draw(patterns, n, rng), dtype=np.uint32)
     return State(pos=pos, vel=fwd * init.speed, fwd=fwd, up=up, side=side, acc=np.zeros((n, 3)),
-                 pattern=np.zeros(n, dtype=np.uint32))
+                 pattern=pattern)

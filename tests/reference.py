@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from reference_hb import in_plane, planar_frame
+
 RULES = ("separation", "alignment", "cohesion")
 
 
@@ -219,7 +221,7 @@ def move(i, force, state, model, dt) -> None:
     veh = model.vehicle
     f = state["fwd"][i].copy()
     speed = norm3(state["vel"][i])
-    force = np.array(force, dtype=np.float64)
+    force = in_plane(force, model)  # docs/model.md section 15: a 2-D force has z = 0
 
     # 1. at low speed, clamp the force into a cone about f (keeping its length)
     low = 0.2 * veh.max_speed
@@ -238,7 +240,13 @@ def move(i, force, state, model, dt) -> None:
     # 5. semi-implicit move
     p = state["pos"][i] + v * dt
 
-    # 6. rebuild the frame with banking (sec 1, decision 8), then the boundary
+    # 6. rebuild the frame with banking (sec 1, decision 8; the planar frame in 2-D), then the boundary
+    if model.world.dimensions == 2:
+        f, u, s = planar_frame(i, v, state)
+        state["pos"][i] = apply_boundary(p, model.world)
+        state["vel"][i], state["fwd"][i], state["up"][i] = v, f, u
+        state["side"][i], state["acc"][i] = s, a_smooth
+        return
     u_old, s_old = state["up"][i], state["side"][i]
     u = u_old + min(max(3.0 * dt, 0.0), 1.0) * (0.05 * a_smooth + np.array([0.0, 0.2, 0.0]) - u_old)
     u_len = norm3(u)
@@ -283,3 +291,19 @@ def step(pos, vel, fwd, up, side, acc, pattern, model, dt) -> dict:
         raise ValueError(f"unknown update order {model.world.update_order!r}")
 
     return dict(state, visible=visible, binocular=binocular)
+
+
+def kernel_step_agrees(model, state, dt, k, tol=1e-12):
+    """One kernel step (``simcore.advance``) from ``state`` against :func:`step`: every state array to
+    ``tol``, the visible and binocular counts exactly, patterns unchanged (``k``: the step, for messages).
+    Returns the kernel's observations and the reference's result."""
+    from simcore import advance
+
+    obs = advance(model, state, 1, dt)
+    ref = step(state.pos, state.vel, state.fwd, state.up, state.side, state.acc, state.pattern, model, dt)
+    for name in ("pos", "vel", "fwd", "up", "side", "acc"):
+        np.testing.assert_allclose(getattr(obs.final, name), ref[name], rtol=tol, atol=tol, err_msg=f"step {k}: {name}")
+    np.testing.assert_array_equal(obs.visible[0], ref["visible"], err_msg=f"step {k}: visible")
+    np.testing.assert_array_equal(obs.binocular[0], ref["binocular"], err_msg=f"step {k}: binocular")
+    np.testing.assert_array_equal(obs.final.pattern, state.pattern)
+    return obs, ref

@@ -41,7 +41,7 @@ import math
 import numpy as np
 
 import reference_obstacles as ro
-from reference_hb import banked_frame, boundary, box_of, dot3, norm3, offset
+from reference_hb import boundary, box_of, dot3, frame_after_move, in_plane, norm3, offset
 from simcore.rng import STREAM_RANDOM_FORCE, STREAM_TARGETS, uniform01
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
@@ -54,9 +54,18 @@ def unit_from(u0: float, u1: float) -> np.ndarray:
     return np.array([r * math.cos(2.0 * math.pi * u1), r * math.sin(2.0 * math.pi * u1), z])
 
 
-def prey_point(key, k, prey) -> np.ndarray:
+def random_unit(u0: float, u1: float, model) -> np.ndarray:
+    """unit_from in 3-D; in 2-D the unit vector at angle 2 pi u1 in the plane (docs/model.md section 15)."""
+    if model.world.dimensions == 2:
+        return np.array([math.cos(2.0 * math.pi * u1), math.sin(2.0 * math.pi * u1), 0.0])
+    return unit_from(u0, u1)
+
+
+def prey_point(key, k, prey, model) -> np.ndarray:
+    """Uniform in the ball (in 2-D the disc) of the target radius about the target centre."""
     u = [uniform01(key, STREAM_TARGETS, k, c) for c in range(3)]
-    return np.asarray(prey.target_centre) + prey.target_radius * u[2] ** (1.0 / 3.0) * unit_from(u[0], u[1])
+    power = 0.5 if model.world.dimensions == 2 else 1.0 / 3.0
+    return np.asarray(prey.target_centre) + prey.target_radius * u[2] ** power * random_unit(u[0], u[1], model)
 
 
 def first_step(seconds, dt) -> float:
@@ -85,11 +94,12 @@ def place(agents: Agents, step, pos, model, dt, key, box) -> None:
     """R1."""
     table = model.boidspp
     if table.prey.enabled and agents.drawn == 0:
-        agents.prey, agents.target, agents.drawn = prey_point(key, 0, table.prey), prey_point(key, 1, table.prey), 2
+        agents.prey, agents.target = prey_point(key, 0, table.prey, model), prey_point(key, 1, table.prey, model)
+        agents.drawn = 2
     if not table.predator.enabled:
         return
     if agents.phase == WAITING and step >= first_step(table.predator.start_s, dt):
-        direction = unit_from(uniform01(key, STREAM_TARGETS, 0, 3), uniform01(key, STREAM_TARGETS, 0, 4))
+        direction = random_unit(uniform01(key, STREAM_TARGETS, 0, 3), uniform01(key, STREAM_TARGETS, 0, 4), model)
         agents.pred = mean_offset(pos, np.zeros(3), box) + table.predator.start_distance * direction
         agents.phase = HUNTING
     if agents.phase == HUNTING and step >= first_step(table.predator.leave_s, dt):
@@ -178,12 +188,13 @@ def new_velocity(i, step, state, agents: Agents, sums, model, dt, key, box) -> n
             v = v + with_length(offset(pos[i], agents.prey, box), table.prey.weight * dt)
     kick = table.random_force
     if kick.magnitude > 0 and step % kick.every == 0:
-        v = v + kick.magnitude * unit_from(uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i),
-                                           uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i + 1))
+        v = v + kick.magnitude * random_unit(uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i),
+                                             uniform01(key, STREAM_RANDOM_FORCE, step, 2 * i + 1), model)
     if table.avoid.weight > 0:
         d = avoidance(i, state, model)
         if d is not None:
             v = v + table.avoid.weight * dt * d
+    v = in_plane(v, model)
     speed = norm3(v)
     if speed > max_speed:
         v = v * (max_speed / speed)
@@ -197,7 +208,7 @@ def move(i, v, state, model, dt) -> None:
     v0 = state["vel"][i].copy()
     a = (v - v0) / dt
     p = state["pos"][i] + v * dt
-    f, up, side = banked_frame(i, v, a, state, dt)
+    f, up, side = frame_after_move(i, v, a, state, model, dt)
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i], state["acc"][i], state["fwd"][i] = v, a, f
     state["up"][i], state["side"][i] = up, side
@@ -239,7 +250,7 @@ def step(state: dict, agents: Agents, capture: np.ndarray, model, dt, step_index
     if table.prey.enabled:
         agents.prey = agents.prey + prey_v * dt
         if norm3(agents.target - agents.prey) <= table.prey.arrive_radius:
-            agents.target = prey_point(key, agents.drawn, table.prey)
+            agents.target = prey_point(key, agents.drawn, table.prey, model)
             agents.drawn += 1
 
 

@@ -222,18 +222,43 @@ def banked_frame(i, v, a, state, dt):
     return f, cross3(side, f), side
 
 
+def planar_frame(i, v, state):
+    """The frame of boid i in the plane z = 0 after a move (docs/model.md section 15): f = v/|v| (the old
+    heading when stopped) with z = 0, up = +z, side = f x up."""
+    speed = norm3(v)
+    f = v / speed if speed > 0.0 else state["fwd"][i].copy()
+    f = np.array([f[0], f[1], 0.0])
+    return f, np.array([0.0, 0.0, 1.0]), np.array([f[1], -f[0], 0.0])
+
+
+def frame_after_move(i, v, a, state, model, dt):
+    """(fwd, up, side) after a move: the planar frame in 2-D, else the banking frame."""
+    if model.world.dimensions == 2:
+        return planar_frame(i, v, state)
+    return banked_frame(i, v, a, state, dt)
+
+
+def in_plane(v, model) -> np.ndarray:
+    """v with its z set to 0 in a 2-D model (a force or steer before it is used)."""
+    v = np.array(v, dtype=np.float64)
+    if model.world.dimensions == 2:
+        v[2] = 0.0
+    return v
+
+
 # ---------------------------------------------------------------------------------------------------
 # motion (docs/model.md sections 5 and 1, decisions D2-D3)
 def move(i, s, k, mv, dv, cap, state, model, dt) -> None:
     """One Hartman-Benes frame of boid i, in place in ``state``."""
     g = model.gains
+    s, k, mv = in_plane(s, model), in_plane(k, model), in_plane(mv, model)
     v0 = state["vel"][i].copy()
     p = state["pos"][i] + dt * v0
     v = v0 + (g.separation * s + g.cohesion * k) / dt + g.alignment * mv
     v = clamp_length(v + dv, cap)
     a = (v - v0) / dt
 
-    f, u, side = banked_frame(i, v, a, state, dt)
+    f, u, side = frame_after_move(i, v, a, state, model, dt)
 
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i] = v

@@ -42,8 +42,9 @@ def vmf_turn(d, u1: float, u2: float, kappa: float) -> np.ndarray:
 
 
 def drive(v, f, u1: float, u2: float, z: float, kappa: float, kick: float, v0: float | None,
-          decay: float) -> np.ndarray:
-    """Cruise, speed kick and turn of a candidate velocity v with heading f."""
+          decay: float, planar_sd: float = 0.0) -> np.ndarray:
+    """Cruise, speed kick and turn of a candidate velocity v with heading f; in 2-D (``planar_sd`` > 0, kappa
+    0) the turn is the rotation about +z by planar_sd times the Box-Muller normal of u1, u2."""
     v = np.asarray(v, dtype=np.float64)
     s = float(np.linalg.norm(v))
     d = v / s if s > 0 else np.asarray(f, dtype=np.float64)
@@ -53,6 +54,10 @@ def drive(v, f, u1: float, u2: float, z: float, kappa: float, kick: float, v0: f
         s = max(s + kick * z, 0.0)
     if kappa > 0:
         d = vmf_turn(d, u1, u2, kappa)
+    if planar_sd > 0:
+        angle = planar_sd * math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+        d = np.array([math.cos(angle) * d[0] - math.sin(angle) * d[1], math.sin(angle) * d[0] + math.cos(angle) * d[1],
+                      d[2]])
     return s * d
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 import reference_obstacles as geo
-from reference_hb import banked_frame, boundary, box_of, dot3, neighbours, norm3, offset
+from reference_hb import boundary, box_of, dot3, frame_after_move, in_plane, neighbours, norm3, offset
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
 FULL = 1.0 - 1e-12  # the budget counts as reached from this share of max_accel (squares for the vector sum)
@@ -177,7 +177,7 @@ def move(i, a, state, model, dt) -> None:
     """Velocity with speed limits, position, realised acceleration, banking frame, boundary (in place)."""
     rey = model.reynolds
     v0 = state["vel"][i].copy()
-    v = v0 + a * dt
+    v = v0 + in_plane(a, model) * dt
     speed = norm3(v)
     if speed > rey.max_speed:
         v = v * (rey.max_speed / speed)
@@ -185,7 +185,7 @@ def move(i, a, state, model, dt) -> None:
         v = v * (rey.min_speed / speed) if speed > 0.0 else rey.min_speed * state["fwd"][i]
     p = state["pos"][i] + v * dt
     acc = (v - v0) / dt
-    f, up, side = banked_frame(i, v, acc, state, dt)
+    f, up, side = frame_after_move(i, v, acc, state, model, dt)
     state["pos"][i] = boundary(p, model.world)
     state["vel"][i] = v
     state["acc"][i] = acc

@@ -14,7 +14,9 @@ Top-level keys (F frames, N boids; lengths in world units, times in seconds; y i
     pattern      [N] ints, or null
     metrics      {"polarization" | "n_groups" | "nn_distance" | "cohesion": [F] floats (null = nan)}
     params       {dotted preset key: value}; info {label: value} (seed, run id, source, ...)
-    world        {"boundary": "open" | "sphere_wrap" | "periodic_box", "sphere_radius" | "box_size": float}
+    world        {"boundary": "open" | "sphere_wrap" | "periodic_box", "sphere_radius" | "box_size": float,
+                  "dimensions": 2 for a run in the plane z = 0 (absent in 3-D)}; a flat run (this, or every z
+                  of ``bounds`` 0, e.g. a 2-D track) is seen from above, +z, with the grid in its plane
     wrap_jump    float or null: a frame-to-frame step longer than this is a wrap (no trail, no interpolation)
     bounds       {"min": [3], "max": [3]} of every boid and agent over the run
     palettes     {"turbo" | "viridis": 64 hex colours, "tab10": 10}; pattern_colours {str(value): hex}

@@ -129,6 +129,8 @@ def world_of(model) -> dict:
         out["sphere_radius"] = float(world.sphere_radius)
     elif world.boundary == "periodic_box":
         out["box_size"] = float(world.box_size)
+    if world.dimensions == 2:
+        out["dimensions"] = 2   # drawn flat, seen from above (+z)
     return out
 
 

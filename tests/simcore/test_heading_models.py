@@ -214,8 +214,7 @@ def test_bad_keys_are_named(table, keys, key):
 
 
 def test_model_level_checks():
-    with pytest.raises(ConfigError, match="world.dimensions.*3-D only"):
-        ModelParams(world=World(dimensions=2))
+    ModelParams(world=World(dimensions=2))   # every built-in dynamics runs in 2-D (tests/simcore/test_planar.py)
     with pytest.raises(ConfigError, match="world.dimensions"):
         World(dimensions=4)
     with pytest.raises(ConfigError, match="perception.kind"):

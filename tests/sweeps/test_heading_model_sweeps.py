@@ -1,5 +1,6 @@
 """The shipped sweeps of the Couzin et al. (2002) and Vicsek et al. (1995) findings
-(configs/sweeps/couzin2002_zones.toml, couzin2002_hysteresis.toml, vicsek_noise.toml) load and validate
+(configs/sweeps/couzin2002_zones.toml, its 2-D twin couzin2002_zones_2d.toml, couzin2002_hysteresis.toml,
+vicsek_noise.toml) load and validate
 without running, with the claims of their claims files; the hysteresis sweep's two start states are
 found from the repository root, and a worker warms up on a run that starts from one (its boid count is
 the file's: a 3-boid warm-up would be refused)."""
@@ -16,6 +17,7 @@ SWEEPS = ROOT / "configs" / "sweeps"
 
 FINDINGS = {                 # sweep -> (claim ids, their family, runs in the design)
     "couzin2002_zones": (["polarization-rises", "states"], "couzin2002", 36),
+    "couzin2002_zones_2d": (["states-2d", "torus-persists-2d"], "couzin2002_2d", 36),
     "couzin2002_hysteresis": (["memory", "branches-meet"], "couzin2002_hysteresis", 48),
     "vicsek_noise": (["order-disorder", "sharpens"], "vicsek", 72),
 }

@@ -173,13 +173,25 @@ function addSceneObjects() {
   }
 }
 
+// a run in the plane z = 0 (world.dimensions = 2, or a track whose every z is 0): seen from above (+z)
+function isFlat() {
+  return (DATA.world || {}).dimensions === 2 || (DATA.bounds.min[2] === 0 && DATA.bounds.max[2] === 0);
+}
+
 function addGrid() {
   const lo = DATA.bounds.min, hi = DATA.bounds.max;
-  const span = Math.max(hi[0] - lo[0], hi[2] - lo[2], 20);
+  const flat = isFlat();
+  const across = flat ? 1 : 2;  // the grid lies in the x-z plane below a 3-D flock, in the x-y plane under a flat one
+  const span = Math.max(hi[0] - lo[0], hi[across] - lo[across], 20);
   const step = Math.pow(10, Math.floor(Math.log10(span / 4)));
   const size = Math.ceil(span * 1.2 / step) * step;
   grid = new THREE.GridHelper(size, Math.round(size / step), 0xb4bfcb, 0xd3dae2);
-  grid.position.set((lo[0] + hi[0]) / 2, lo[1] - 0.02 * span, (lo[2] + hi[2]) / 2);
+  if (flat) {
+    grid.rotation.x = Math.PI / 2;
+    grid.position.set((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, -0.02 * span);
+  } else {
+    grid.position.set((lo[0] + hi[0]) / 2, lo[1] - 0.02 * span, (lo[2] + hi[2]) / 2);
+  }
   scene.add(grid);
 }
 
@@ -284,7 +296,8 @@ function fitView(f) {
   if (w.boundary === "periodic_box") r = Math.max(r, 0.87 * w.box_size);
   const dist = 1.15 * r / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2));
   controls.target.copy(c);
-  camera.position.copy(c).add(new THREE.Vector3(0.75, 0.45, 0.95).normalize().multiplyScalar(dist));
+  const from = isFlat() ? new THREE.Vector3(0, 0, 1) : new THREE.Vector3(0.75, 0.45, 0.95).normalize();
+  camera.position.copy(c).add(from.multiplyScalar(dist));
   camera.near = Math.max(0.01, dist / 2000);
   camera.far = dist * 200;
   camera.updateProjectionMatrix();
@@ -563,6 +576,8 @@ async function start() {
     agentOpacity: (k) => agentMeshes[k].material.opacity,
     agentMatrix: (k) => { const m = new THREE.Matrix4(); agentMeshes[k].getMatrixAt(0, m); return m.elements.slice(); },
     trailVertices: () => (trails.visible ? trails.geometry.drawRange.count : 0),
+    cameraDirection: () => camera.getWorldDirection(new THREE.Vector3()).toArray(),
+    gridNormal: () => new THREE.Vector3(0, 1, 0).applyQuaternion(grid.quaternion).toArray(),
   };
   document.body.dataset.ready = "1";
   requestAnimationFrame(tick);

@@ -268,3 +268,27 @@ def test_a_page_of_several_runs_shows_the_run_its_fragment_names_and_switching_w
     message = page.page.inner_text("#message")
     assert "run fff999" in message and f"holds runs {', '.join(ids)}" in message
     page.page.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("world", [{"boundary": "open", "dimensions": 2}, {"boundary": "open"}],
+                         ids=["2-D run", "flat track"])
+def test_a_flat_run_is_seen_from_above_with_its_grid_in_its_plane(browser, tmp_path, world):
+    """A run in the plane z = 0 (a 2-D model's, or a measured track whose every z is 0) opens looking down
+    -z at the plane, its grid lying in it, and the picture is not blank; a 3-D run keeps its oblique view."""
+    arrays = milling_arrays()
+    pos, vel = arrays["pos"][..., [0, 2, 1]].copy(), arrays["vel"][..., [0, 2, 1]].copy()   # mill about +z
+    pos[..., 2] = vel[..., 2] = 0.0
+    flat = from_arrays(**{**arrays, "pos": pos, "vel": vel}, title="a mill in the plane", world=world)
+    page = browser.open(view(flat, tmp_path / "flat.html").path)
+    assert page.errors == [] and page.blocked == []
+    direction = page.page.evaluate("window.flockViewer.cameraDirection()")
+    assert np.allclose(direction, [0.0, 0.0, -1.0], atol=1e-9)
+    assert np.allclose(np.abs(page.page.evaluate("window.flockViewer.gridNormal()")), [0.0, 0.0, 1.0], atol=1e-9)
+    ARTIFACTS.mkdir(exist_ok=True)
+    shot = page.screenshot(ARTIFACTS / f"viewer_flat_{len(world)}.png")
+    assert shot.reshape(-1, 3).std(axis=0).mean() > 10   # boids and grid drawn on the background
+    page.page.close()
+    spatial = browser.open(view(from_arrays(**arrays, title="3-D"), tmp_path / "spatial.html").path)
+    assert spatial.page.evaluate("window.flockViewer.cameraDirection()")[2] > -0.99
+    spatial.page.close()
