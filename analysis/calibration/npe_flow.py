@@ -54,6 +54,7 @@ FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"
 MAX_REDRAWS = 50
 MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
+DENSITY_CHUNK = 4096        # log_prob runs compiled on chunks of this many rows (the last one padded)
 
 
 def require_jax():
@@ -116,6 +117,18 @@ def _sampler():
             return jax.vmap(lambda c, key: flow.sample(key, (count,), condition=c))(conditions, keys)
         _SAMPLER.append(eqx.filter_jit(sample))
     return _SAMPLER[0]
+
+
+_DENSITY = []
+
+
+def _density():
+    """One compiled log density (flow, theta (c, d), conditions (c, k)) -> (c,), kept for the process; a
+    chunk's size is fixed (DENSITY_CHUNK), so it compiles once per flow architecture."""
+    if not _DENSITY:
+        _, eqx = require_jax()
+        _DENSITY.append(eqx.filter_jit(lambda flow, theta, conditions: flow.log_prob(theta, condition=conditions)))
+    return _DENSITY[0]
 
 
 def _scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,13 +202,21 @@ class Estimator:
         return self.sample_many(np.asarray(x, dtype=float)[None, :], count, seed, support)[0]
 
     def log_prob(self, theta, x) -> np.ndarray:
-        """log q(theta | x) in the parameters' own units, (N,) for theta (N, d) and x (k,) or (N, k)."""
+        """log q(theta | x) in the parameters' own units, (N,) for theta (N, d) and x (k,) or (N, k);
+        computed in compiled chunks of DENSITY_CHUNK rows (a truncation region asks for many)."""
         import jax.numpy as jnp
 
-        theta = (np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd
+        theta = ((np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd).astype(np.float32)
         conditions = np.broadcast_to(self._condition(x), (len(theta), self.k))
-        values = self.flow.log_prob(jnp.asarray(theta, dtype=jnp.float32), condition=jnp.asarray(conditions))
-        return np.asarray(values, dtype=float) - np.log(self.theta_sd).sum()
+        out = np.empty(len(theta))
+        for start in range(0, len(theta), DENSITY_CHUNK):
+            rows = slice(start, start + DENSITY_CHUNK)
+            count = len(theta[rows])
+            pad = ((0, DENSITY_CHUNK - count), (0, 0))
+            values = _density()(self.flow, jnp.asarray(np.pad(theta[rows], pad, mode="edge")),
+                                jnp.asarray(np.pad(conditions[rows], pad, mode="edge")))
+            out[rows] = np.asarray(values, dtype=float)[:count]
+        return out - np.log(self.theta_sd).sum()
 
     def record(self) -> dict:
         return {"settings": asdict(self.settings), "d": self.d, "k": self.k,
