@@ -45,6 +45,18 @@ def test_gaussian_mean_posterior_recovered(trained):
 
 
 @pytest.mark.slow
+def test_a_support_holding_little_of_the_posterior_is_filled_by_wider_batches(trained):
+    # theta > 2.2 holds 0.8 % of N(1, 0.5^2) (the flow's lighter tail less): under 41 of the 5,100 draws
+    # of the row-wise redraws, so the wide batches (64 x 100 at a time) find the rest; theta > 4.5 (7 sd)
+    # holds none of them
+    draws = trained.sample([1.0], 100, seed=2, support=lambda t: t[:, 0] > 2.2)
+    assert draws.shape == (100, 1) and (draws[:, 0] > 2.2).all()
+    assert trained.last_leakage > 0.9
+    with pytest.raises(ValueError, match="almost no mass"):
+        trained.sample([1.0], 100, seed=2, support=lambda t: t[:, 0] > 4.5)
+
+
+@pytest.mark.slow
 def test_training_is_deterministic_given_the_seed_and_the_stored_estimator_rebuilds(tmp_path):
     theta, x = toy(300, 0)
     quick = FlowSettings(width=16, layers=2, max_epochs=15, patience=15)
