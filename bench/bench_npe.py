@@ -3,9 +3,11 @@ against simulations, held-out coverage, and 100 posteriors from one trained esti
 
     python bench/bench_npe.py [--simulations 250 500 1000] [--heldout 200] [--ensemble 1] [--out results/bench_npe]
     python bench/bench_npe.py --curve --simulations 500 1000 1500 2000 --heldout 400 --ensemble 1 5
+    python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 5     # sequential rounds (TSNPE)
 
 Each budget trains its own estimator (``--set method.npe.simulations=N``) into ``OUT/N``; the training
-sweep's runs are content-addressed there, so a rerun reuses them. ``--curve``: one training sweep of the
+sweep's runs are content-addressed there, so a rerun reuses them (``--rounds R``: R truncated
+sequential rounds of N each into ``OUT/N-K-rR``). ``--curve``: one training sweep of the
 largest budget plus the held-out runs (``OUT/curve``), then for each budget N and ensemble size K an
 estimator trained on its first N runs, its posterior at the targets and its coverage on the held-out
 runs (the budgets share their runs: the curve is not blurred by other designs). Prints a markdown table for
@@ -31,12 +33,14 @@ REFERENCE = {"field": {"median": 149.0, "q5": 134.2, "q95": 168.0, "sd": 10.4, "
              "direction": {"median": 43.9, "q5": 36.0, "q95": 51.9, "sd": 4.9, "truth": 45.0}}
 
 
-def one(budget: int, heldout: int, ensemble: int, out: Path) -> dict:
+def one(budget: int, heldout: int, ensemble: int, out: Path, rounds: int = 1) -> dict:
     config = load_calibration(FILE, [f"method.npe.simulations={budget}", f"method.npe.heldout={heldout}",
-                                     f"method.npe.ensemble={ensemble}"], "npe")
-    run = run_calibration(config, out / f"{budget}-{ensemble}", progress=True)
-    row = {"simulations": budget, "ensemble": ensemble, "wall_s": run.report["wall_s"],
-           "coverage_passed": run.convergence["converged"]}
+                                     f"method.npe.ensemble={ensemble}", f"method.npe.rounds={rounds}"], "npe")
+    run = run_calibration(config, out / (f"{budget}-{ensemble}" + (f"-r{rounds}" if rounds > 1 else "")),
+                          progress=True)
+    row = {"simulations": budget, "rounds": rounds, "ensemble": ensemble, "wall_s": run.report["wall_s"],
+           "cpu_s": run.report["accounting"]["cpu_s"], "coverage_passed": run.convergence["converged"]}
+    row.update({f"prior_mass_round{r['round']}": r["prior_mass"] for r in run.report["npe"].get("rounds", [])})
     row.update(against_reference(run.summary))
     for record in run.report["npe"]["coverage"]["table"]:
         row[f"cov{int(record['level'] * 100)}_{record['parameter']}"] = record["coverage"]
@@ -110,15 +114,19 @@ def main() -> None:
     parser.add_argument("--simulations", type=int, nargs="+", default=[250, 500, 1000])
     parser.add_argument("--heldout", type=int, default=200)
     parser.add_argument("--ensemble", type=int, nargs="+", default=[1])
+    parser.add_argument("--rounds", type=int, default=1, help="sequential rounds of --simulations each (TSNPE)")
     parser.add_argument("--curve", action="store_true", help="one shared training sweep for every budget")
     parser.add_argument("--out", type=Path, default=Path("results/bench_npe"))
     args = parser.parse_args()
     if args.curve:
         print(pd.DataFrame(curve(args.simulations, args.heldout, args.ensemble, args.out)).round(3).to_string(index=False))
         return
-    rows = [one(budget, args.heldout, members, args.out) for budget in args.simulations for members in args.ensemble]
+    rows = [one(budget, args.heldout, members, args.out, args.rounds) for budget in args.simulations
+            for members in args.ensemble]
     table = pd.DataFrame(rows)
     print(table.round(3).to_string(index=False))
+    if args.rounds > 1:
+        return    # a sequential estimator serves one flock: no amortised timing
     largest = args.out / f"{max(args.simulations)}-{args.ensemble[-1]}" / "estimator"
     print(f"100 posteriors (4,000 draws each) from {largest}: {amortised(largest):.1f} s")
 

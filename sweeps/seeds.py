@@ -19,7 +19,7 @@ tag                    entropy                      seeds
 ``DESIGN_SAMPLE``      [sweep seed, 0x5A3D1E]       the sampled block of a sweep design
 ``DESIGN_SENSITIVITY`` [sweep seed, 0x5E45]         a sweep's ``[design]`` block (SALib's sample)
 ``PRIOR``              [seed, 0x9A10]               the prior draws stored in a calibration's posterior.nc
-``NPE``                [seed, 0x4E5E, stream]       neural posterior estimation (:class:`NPEStream`)
+``NPE``                [seed, 0x4E5E, stream(, r)]  neural posterior estimation (:class:`NPEStream`; r: a sequential round)
 ``COMPARE``            [seed, 0xC0DE, stream, m]    model comparison, model m (:class:`CompareStream`)
 ``CLAIM_POWER``        [seed, 0xC1A1, sha256(test)]  the power simulation of a claim's test (``test`` its
                                                     path, e.g. "d.faster"; :func:`named_generator`)
@@ -70,6 +70,10 @@ class NPEStream(IntEnum):
     TRAIN = 2       # the flow's initial weights, batches and validation split (a JAX key)
     POSTERIOR = 3   # the posterior draws at the targets (a JAX key)
     COVERAGE = 4    # the posterior draws and rank ties of the held-out coverage check
+    ROUND_REGION = 5   # [seed, Tag.NPE, 5, r]: the posterior draws that set round r's truncation region (r >= 2)
+    ROUND_DESIGN = 6   # [seed, Tag.NPE, 6, r]: round r's draws from the truncated prior (rejection)
+    ROUND_NOISE = 7    # [seed, Tag.NPE, 7, r]: the targets' measurement noise added to round r's simulations
+    ROUND_TRAIN = 8    # [seed, Tag.NPE, 8, r]: the flows of round r (a JAX key)
 
 
 @unique

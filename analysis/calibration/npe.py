@@ -33,6 +33,18 @@ chance). A failed check makes the calibration's verdict "NOT converged".
 
 ``run_npe(config, folder, pool_kind, workers, scheduler, phases, cost) -> NpeResult``: the method as
 ``flocksweep calibrate`` runs it (analysis.calibration.run writes the common outputs).
+
+Sequential rounds (``rounds = R > 1``; :mod:`analysis.calibration.npe_rounds`): round 1 runs the first N
+draws of the one-round design (no held-out share) in ``<out>/training``; round r >= 2 runs N draws of
+the prior truncated to round r - 1's estimator's region at the targets (``[seed, Tag.NPE,
+ROUND_DESIGN, r]``; the last round N + H, its last H held out) in ``<out>/training-round<r>``, with its
+noise from ``[.., ROUND_NOISE, r]``; round r's estimator is trained on all rounds' N-shares so far
+(seed ``[.., ROUND_TRAIN, r]``; round 1 ``TRAIN``) and stored in ``estimator-round<r>`` (the last in
+``estimator``) with its identity, so a calibration run again after an interrupt re-uses finished
+rounds' runs and estimators (every design is deterministic given the seed). The identity then holds
+the observed values: a truncated estimator serves these targets only. The coverage check's held-out
+truths come from the last round's truncated prior and its posteriors, like the draws at the targets,
+are restricted to that region: coverage of the truncated problem, where TSNPE's posterior is valid.
 """
 from __future__ import annotations
 
@@ -54,17 +66,18 @@ from sweeps.seeds import NPEStream, Tag, generator
 from .diagnostics import sbc_ranks
 from .simulator import summary_simulator
 from .npe_flow import Estimator, FlowSettings, load_estimator, train_ensemble
+from .npe_rounds import truncated_prior_draws, truncation_region
 
 IDENTITY_FILE = "identity.json"
 LEVELS = (0.5, 0.9)
 
 
-def _stream(config, which: NPEStream) -> np.random.Generator:
-    return generator(config.seed, Tag.NPE, int(which))
+def _stream(config, which: NPEStream, *more: int) -> np.random.Generator:
+    return generator(config.seed, Tag.NPE, int(which), *more)
 
 
-def _jax_seed(config, which: NPEStream) -> int:
-    return int(_stream(config, which).integers(0, 2 ** 31 - 1))
+def _jax_seed(config, which: NPEStream, *more: int) -> int:
+    return int(_stream(config, which, *more).integers(0, 2 ** 31 - 1))
 
 
 def check_npe(config) -> None:
@@ -132,7 +145,9 @@ def estimator_identity(config) -> dict:
                        "observation_cov": None if config.targets.cov is None else np.asarray(config.targets.cov).tolist(),
                        "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
                        "flow": asdict(flow_settings(config)),
-                       **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {})})
+                       **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {}),
+                       **({"rounds": settings.rounds, "observed": np.asarray(config.targets.observed[0]).tolist()}
+                          if settings.rounds > 1 else {})})
 
 
 def digest(identity: dict) -> str:
@@ -191,30 +206,40 @@ class NpeResult:
     info: dict                   # convergence.json's "npe" entry
 
 
-def _train(config, folder, pool_kind, workers, scheduler, phases, cost):
-    """Run the training sweep (only its missing runs) and fit the flow; (estimator, heldout theta, x)."""
-    settings = config.method
-    theta = training_design(config)
-    sweep = training_sweep(config, theta)
-    phases.start(f"the training sweep: {len(theta)} simulations ({settings.simulations} for training, "
-                 f"{len(theta) - settings.simulations} held out), only those not stored yet")
-    result = run_sweep(sweep, None, folder.path("training"), executor=pool_kind, workers=workers,
+def _training_sweep_run(config, theta, path, trained: int, executor, phases, cost, label: str = ""):
+    """Run the design ``theta`` as a sweep in ``path`` (only its runs not stored yet), counting the new
+    runs of its first ``trained`` rows as training and the rest as held out; the runs table."""
+    pool_kind, workers, scheduler = executor
+    held = len(theta) - trained
+    phases.start(f"the training sweep{label}: {len(theta)} simulations ({trained} for training"
+                 f"{f', {held} held out' if held else ''}), only those not stored yet")
+    result = run_sweep(training_sweep(config, theta), None, path, executor=pool_kind, workers=workers,
                        scheduler=scheduler, progress=phases.enabled)
-    computed = len(result.plan.todo)
-    train_new = sum(1 for spec in result.plan.todo if spec.point_index < settings.simulations)
+    train_new = sum(1 for spec in result.plan.todo if spec.point_index < trained)
     cost.add("training", train_new)
-    cost.add("heldout", computed - train_new)
-    rows = simulated_rows(config, theta, result.table)
-    usable = np.isfinite(rows).all(axis=1)
-    n = settings.simulations
-    if usable[:n].sum() < 20:
-        raise ConfigError("method.simulations", f"only {int(usable[:n].sum())} of {n} training runs gave finite "
-                                                "statistics; choose statistics every run has")
+    cost.add("heldout", len(result.plan.todo) - train_new)
+    return result.table
+
+
+def _fit(config, theta, rows, seed: int, phases, label: str = ""):
+    settings = config.method
+    if len(theta) < 20:
+        raise ConfigError("method.simulations", f"only {len(theta)} training runs gave finite statistics; choose "
+                                                "statistics every run has")
     flows = f"{settings.ensemble} flows" if settings.ensemble > 1 else "the flow"
-    phases.start(f"training {flows} on {int(usable[:n].sum())} simulations (at most "
+    phases.start(f"training {flows}{label} on {len(theta)} simulations (at most "
                  f"{flow_settings(config).max_epochs} epochs each)")
-    estimator = train_ensemble(theta[:n][usable[:n]], rows[:n][usable[:n]], flow_settings(config),
-                               _jax_seed(config, NPEStream.TRAIN), settings.ensemble, progress=phases.enabled)
+    return train_ensemble(theta, rows, flow_settings(config), seed, settings.ensemble, progress=phases.enabled)
+
+
+def _train(config, folder, executor, phases, cost):
+    """Run the training sweep (only its missing runs) and fit the flow; (estimator, heldout theta, x)."""
+    n = config.method.simulations
+    theta = training_design(config)
+    table = _training_sweep_run(config, theta, folder.path("training"), n, executor, phases, cost)
+    rows = simulated_rows(config, theta, table)
+    usable = np.isfinite(rows).all(axis=1)
+    estimator = _fit(config, theta[:n][usable[:n]], rows[:n][usable[:n]], _jax_seed(config, NPEStream.TRAIN), phases)
     return estimator, theta[n:][usable[n:]], rows[n:][usable[n:]], int((~usable).sum())
 
 
@@ -235,6 +260,8 @@ def run_npe(config, folder, pool_kind: str, workers, scheduler, phases, cost) ->
     (:class:`sweeps.progress.Phases`) shows each step on stderr."""
     check_npe(config)
     settings = config.method
+    if settings.rounds > 1:
+        return _run_rounds(config, folder, (pool_kind, workers, scheduler), phases, cost)
     identity = estimator_identity(config)
     where = Path(settings.estimator) if settings.estimator is not None else folder.path("estimator")
     reused = stored_identity(where) == identity
@@ -252,21 +279,88 @@ def run_npe(config, folder, pool_kind: str, workers, scheduler, phases, cost) ->
         phases.total -= 1     # one phase instead of the training sweep and the flow's training
         phases.start(f"reusing the trained estimator in {where} (no simulation)")
     else:
-        estimator, heldout_theta, heldout_x, failed = _train(config, folder, pool_kind, workers, scheduler,
+        estimator, heldout_theta, heldout_x, failed = _train(config, folder, (pool_kind, workers, scheduler),
                                                              phases, cost)
-        estimator.save(where)
-        folder.write_json(str(Path(where.relative_to(folder.root)) / IDENTITY_FILE), identity)
-    support = support_of(config.prior)
+        _store(folder, where, estimator, identity)
+    info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
+            "training_simulations": settings.simulations, "failed_runs": failed}
+    return _checked_posterior(config, estimator, heldout_theta, heldout_x, support_of(config.prior), phases, info)
+
+
+def _store(folder, where: Path, estimator, identity: dict) -> None:
+    estimator.save(where)
+    folder.write_json(str(Path(where).relative_to(folder.root) / IDENTITY_FILE), identity)
+
+
+def _checked_posterior(config, estimator, heldout_theta, heldout_x, support, phases, info: dict) -> NpeResult:
+    """The coverage check on the held-out simulations and the posterior draws at the targets, both
+    restricted to ``support``."""
+    settings = config.method
     phases.start(f"the coverage check on {len(heldout_theta)} held-out simulations (199 posterior draws each)")
     check = coverage_check(estimator, heldout_theta, heldout_x, draws=199, seed=_jax_seed(config, NPEStream.COVERAGE),
                            support=support, tolerance=settings.coverage_tolerance, names=config.names)
     draws = estimator.sample(config.targets.observed[0], settings.draws, _jax_seed(config, NPEStream.POSTERIOR),
                              support)
-    info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
-            "training_simulations": settings.simulations, "heldout_simulations": int(len(heldout_theta)),
-            "failed_runs": failed, "leakage": estimator.last_leakage, "flow": estimator.record(),
-            "coverage": {"passed": check["passed"], "table": check["table"].to_dict("records")}}
+    info = {**info, "heldout_simulations": int(len(heldout_theta)), "leakage": estimator.last_leakage,
+            "flow": estimator.record(), "coverage": {"passed": check["passed"], "table": check["table"].to_dict("records")}}
     return NpeResult(estimator, draws, check, info)
+
+
+def _round_design(config, r: int, region) -> tuple[np.ndarray, float]:
+    """Round r's parameter vectors and the prior mass of the region they come from: round 1 the first
+    ``simulations`` prior draws of the one-round design, round r >= 2 draws from the prior truncated to
+    ``region`` (the last round's with ``heldout`` more)."""
+    settings = config.method
+    if r == 1:
+        return training_design(config)[:settings.simulations], 1.0
+    count = settings.simulations + (settings.heldout if r == settings.rounds else 0)
+    return truncated_prior_draws(config.prior, region, count, _stream(config, NPEStream.ROUND_DESIGN, r))
+
+
+def _round_estimator(config, folder, r: int, identity: dict, theta, rows, phases, label: str):
+    """Round r's estimator: the stored one when its identity matches (an interrupted calibration run again
+    trains no finished round anew), else trained on all rounds' simulations so far and stored."""
+    last = r == config.method.rounds
+    where = folder.path("estimator" if last else f"estimator-round{r}")
+    if stored_identity(where) == identity:
+        phases.start(f"reusing round {r}'s trained estimator in {where}")
+        return load_estimator(where), where, True
+    seed = _jax_seed(config, NPEStream.TRAIN) if r == 1 else _jax_seed(config, NPEStream.ROUND_TRAIN, r)
+    estimator = _fit(config, theta, rows, seed, phases, label)
+    _store(folder, where, estimator, identity)
+    return estimator, where, False
+
+
+def _run_rounds(config, folder, executor, phases, cost) -> NpeResult:
+    """Truncated sequential rounds (analysis.calibration.npe_rounds; docs/calibration.md): each round's
+    sweep in ``training`` (round 1) or ``training-round<r>``, its estimator in ``estimator-round<r>``
+    (the last in ``estimator``); the coverage check and the posterior inside the last round's region."""
+    settings = config.method
+    identity = estimator_identity(config)
+    observed = np.asarray(config.targets.observed[0], dtype=float)
+    inside_prior = support_of(config.prior)
+    n, region, thetas, rows, rounds, failed = settings.simulations, None, [], [], [], 0
+    for r in range(1, settings.rounds + 1):
+        label = f" of round {r}/{settings.rounds}"
+        theta, accepted = _round_design(config, r, region)
+        table = _training_sweep_run(config, theta, folder.path("training" if r == 1 else f"training-round{r}"), n,
+                                    executor, phases, cost, label)
+        x = simulated_rows(config, theta, table, None if r == 1 else _stream(config, NPEStream.ROUND_NOISE, r))
+        usable = np.isfinite(x).all(axis=1)
+        failed += int((~usable).sum())
+        thetas.append(theta[:n][usable[:n]])
+        rows.append(x[:n][usable[:n]])
+        round_identity = identity if r == settings.rounds else {**identity, "rounds": "sequential", "round": r}
+        estimator, where, reused = _round_estimator(config, folder, r, round_identity, np.concatenate(thetas),
+                                                    np.concatenate(rows), phases, label)
+        rounds.append({"round": r, "simulations": n, "prior_mass": accepted, "estimator_reused": reused,
+                       **({"threshold": region.threshold} if region is not None else {})})
+        if r < settings.rounds:
+            region = truncation_region(estimator, observed, inside_prior, _jax_seed(config, NPEStream.ROUND_REGION, r + 1))
+    info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
+            "training_simulations": n * settings.rounds, "failed_runs": failed, "rounds": rounds}
+    return _checked_posterior(config, estimator, theta[n:][usable[n:]], x[n:][usable[n:]], region.contains,
+                              phases, info)
 
 
 class _Folder:

@@ -18,7 +18,7 @@ CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
 :class:`Estimator` (frozen): ``sample(x (k,), count, seed, support=None) -> (count, d)`` draws of the
 posterior at one observed row; with ``support`` (a predicate on (S, d) -> (S,) bool, e.g. inside the
 prior's bounds) the draws outside it are redrawn (the flow leaks mass outside a bounded prior; the
-share is ``Estimator.last_leakage``); ``sample_many(X (m, k), count, seed, support=None) -> (m, count,
+share is ``Estimator.last_leakage``; a row keeping under about 1/1,300 of its draws is a ValueError); ``sample_many(X (m, k), count, seed, support=None) -> (m, count,
 d)`` one posterior per row in one vectorised call (an amortised estimator answers a new flock without
 simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
 weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
@@ -52,8 +52,10 @@ from sweeps.files import atomic_path
 
 FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"
-MAX_REDRAWS = 50
+MAX_REDRAWS = 50            # redraws of every row lacking draws inside the support, count each ...
+WIDE_BATCH, MAX_WIDE = 64, 20   # ... then of each row still lacking, WIDE_BATCH x count at a time
 MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
+DENSITY_CHUNK = 4096        # log_prob runs compiled on chunks of this many rows (the last one padded)
 
 
 def require_jax():
@@ -116,6 +118,18 @@ def _sampler():
             return jax.vmap(lambda c, key: flow.sample(key, (count,), condition=c))(conditions, keys)
         _SAMPLER.append(eqx.filter_jit(sample))
     return _SAMPLER[0]
+
+
+_DENSITY = []
+
+
+def _density():
+    """One compiled log density (flow, theta (c, d), conditions (c, k)) -> (c,), kept for the process; a
+    chunk's size is fixed (DENSITY_CHUNK), so it compiles once per flow architecture."""
+    if not _DENSITY:
+        _, eqx = require_jax()
+        _DENSITY.append(eqx.filter_jit(lambda flow, theta, conditions: flow.log_prob(theta, condition=conditions)))
+    return _DENSITY[0]
 
 
 def _scale(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -181,21 +195,47 @@ class Estimator:
                 pool = np.concatenate([draws[i][inside[i]], more[i][more_inside[i]]])[:count]
                 draws[i, :len(pool)] = pool
                 inside[i] = np.arange(count) < len(pool)
-        raise ValueError(f"the estimator puts almost no mass inside the prior's support (leakage "
-                         f"{self.leakage[0]:.3f}): the observed statistics are far outside the training set")
+        if inside.all():
+            return draws
+        for i in np.flatnonzero(~inside.all(axis=1)):
+            draws[i] = self._fill(conditions[i], draws[i][inside[i]], count, seed, support)
+        return draws
+
+    def _fill(self, condition, have, count: int, seed: int, support) -> np.ndarray:
+        """(count, d) draws for one row whose support holds too little of its mass for the redraws above
+        (e.g. a posterior near the edge of a truncation region): batches of WIDE_BATCH x count."""
+        pool, found = [have], len(have)
+        for attempt in range(1, MAX_WIDE + 1):
+            more = self._raw(condition[None, :], WIDE_BATCH * count, seed + 7919 * (MAX_REDRAWS + attempt))[0]
+            keep = more[support(more)]
+            pool.append(keep)
+            found += len(keep)
+            if found >= count:
+                return np.concatenate(pool)[:count]
+        raise ValueError(f"the estimator puts almost no mass inside the support (leakage {self.leakage[0]:.3f}; "
+                         f"one row kept {found} of {count} draws out of {MAX_REDRAWS * count + MAX_WIDE * WIDE_BATCH * count}): "
+                         "the observed statistics are far outside the training set")
 
     def sample(self, x, count: int, seed: int, support=None) -> np.ndarray:
         """(count, d) posterior draws at one observed row ``x`` (k,)."""
         return self.sample_many(np.asarray(x, dtype=float)[None, :], count, seed, support)[0]
 
     def log_prob(self, theta, x) -> np.ndarray:
-        """log q(theta | x) in the parameters' own units, (N,) for theta (N, d) and x (k,) or (N, k)."""
+        """log q(theta | x) in the parameters' own units, (N,) for theta (N, d) and x (k,) or (N, k);
+        computed in compiled chunks of DENSITY_CHUNK rows (a truncation region asks for many)."""
         import jax.numpy as jnp
 
-        theta = (np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd
+        theta = ((np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd).astype(np.float32)
         conditions = np.broadcast_to(self._condition(x), (len(theta), self.k))
-        values = self.flow.log_prob(jnp.asarray(theta, dtype=jnp.float32), condition=jnp.asarray(conditions))
-        return np.asarray(values, dtype=float) - np.log(self.theta_sd).sum()
+        out = np.empty(len(theta))
+        for start in range(0, len(theta), DENSITY_CHUNK):
+            rows = slice(start, start + DENSITY_CHUNK)
+            count = len(theta[rows])
+            pad = ((0, DENSITY_CHUNK - count), (0, 0))
+            values = _density()(self.flow, jnp.asarray(np.pad(theta[rows], pad, mode="edge")),
+                                jnp.asarray(np.pad(conditions[rows], pad, mode="edge")))
+            out[rows] = np.asarray(values, dtype=float)[:count]
+        return out - np.log(self.theta_sd).sum()
 
     def record(self) -> dict:
         return {"settings": asdict(self.settings), "d": self.d, "k": self.k,

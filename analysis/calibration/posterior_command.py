@@ -6,7 +6,8 @@
 flock or flight each: the estimator's statistic columns, e.g. the per-flight rows ``flocksweep
 measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids) -> one row per flock with, per parameter, the posterior
 mean, sd, median and 5% / 95% quantiles, and ``leakage`` (the share of raw draws outside the prior).
-All flocks are sampled in one vectorised call; flock i's draws depend only on ``seed`` and i.
+All flocks are sampled in one vectorised call; flock i's draws depend only on ``seed`` and i. An
+estimator of sequential rounds (``rounds > 1``) serves one flock only and is refused (ConfigError).
 """
 from __future__ import annotations
 
@@ -57,6 +58,10 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         raise ConfigError("ESTIMATOR", f"{estimator_dir}: no {IDENTITY_FILE}; give the estimator/ folder of an npe "
                                        "calibration's output")
     identity = json.loads(identity_path.read_text())
+    if identity.get("rounds", 1) != 1:
+        raise ConfigError("ESTIMATOR", f"{estimator_dir} was trained in {identity['rounds']} sequential rounds, "
+                                       "truncated to one flock's posterior region: it is not amortised; train "
+                                       "with rounds = 1 for many flocks")
     columns, names = identity["columns"], [name for name, _ in identity["parameters"]]
     missing = [c for c in columns if c not in table.columns]
     if missing:

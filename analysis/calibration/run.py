@@ -232,7 +232,7 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     (:func:`~analysis.calibration.feasibility.check_chain_size`), before anything is written."""
     settings = config.method
     if settings.kind == "npe":
-        check_simulation_count("method.npe.simulations", settings.simulations + settings.heldout, yes)
+        check_simulation_count("method.npe.simulations", settings.simulations * settings.rounds + settings.heldout, yes)
     elif settings.kind in ("emcee", "emulator"):     # the methods that run a chain (optimize does not)
         dim = len(config.names)
         check_chain_size(settings.walkers or max(16, 2 * dim), settings.steps,
@@ -265,7 +265,7 @@ def _phase_count(config: CalibrationConfig) -> int:
     if settings.kind == "optimize":
         return 3                                   # search, re-check, report
     if settings.kind == "npe":
-        return 5                                   # training sweep, flow, coverage, predictive, report
+        return 2 * settings.rounds + 3             # per round sweep and flow; coverage, predictive, report
     if settings.kind == "emulator":                # (fit and chain) or refinement rounds, predictive, confirm, report
         return (1 if settings.refine.rounds else 2) + 1 + bool(settings.confirm and not settings.refine.rounds) + 1
     return 3                                       # chain, predictive, report

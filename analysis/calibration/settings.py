@@ -120,8 +120,10 @@ class NpeSettings(MethodSettings):
     """Neural posterior estimation (analysis.calibration.npe): ``simulations`` prior draws run as a sweep
     train a conditional flow, ``heldout`` more check its coverage; ``draws`` posterior draws at the
     targets. ``ensemble``: the estimator is a mixture of this many flows trained with different seeds
-(analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's
-    folder); by default the output folder's ``estimator/``. ``n_sim`` and ``likelihood`` are unused."""
+    (analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``rounds``: R > 1
+    runs R truncated sequential rounds of ``simulations`` each (analysis.calibration.npe_rounds).
+    ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's folder); by
+    default the output folder's ``estimator/``. ``n_sim`` and ``likelihood`` are unused."""
 
     kind: ClassVar[str] = "npe"
     simulations: int = 1000
@@ -130,6 +132,7 @@ class NpeSettings(MethodSettings):
     coverage_tolerance: float = 0.05
     flow: FlowSettings = field(default_factory=FlowSettings)   # [method.npe] flow = {width = 50, ...}
     ensemble: int = 1
+    rounds: int = 1
     estimator: Path | None = None
 
     def __post_init__(self):
@@ -138,6 +141,11 @@ class NpeSettings(MethodSettings):
         check_at_least("heldout", self.heldout, 10)
         check_at_least("draws", self.draws, 100)
         check_at_least("ensemble", self.ensemble, 1)
+        check_at_least("rounds", self.rounds, 1)
+        if self.rounds > 1 and self.estimator is not None:
+            raise ConfigError("estimator", f"got {str(self.estimator)!r} with rounds = {self.rounds}: an estimator of "
+                                           "sequential rounds is trained for one flock's targets and is not reused "
+                                           "elsewhere; remove estimator or use rounds = 1")
         if not 0 < self.coverage_tolerance < 0.5:
             raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
 

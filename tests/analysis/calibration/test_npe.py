@@ -17,7 +17,7 @@ from analysis.calibration.npe import coverage_check, estimator_identity  # noqa:
 from analysis.calibration.npe_flow import (MEMBER_SEED_STEP, Ensemble, FlowSettings, load_estimator,  # noqa: E402
                                            train_ensemble, train_flow)
 from flocksweep.cli import main  # noqa: E402
-from paths import ROOT  # noqa: E402
+from npe_tiny import CALIBRATION  # noqa: E402
 from simcore.schema import ConfigError  # noqa: E402
 
 REPLICATES = 4          # x = mean of 4 unit-variance draws around theta: posterior N(x, 1/4) (flat prior)
@@ -42,6 +42,18 @@ def test_gaussian_mean_posterior_recovered(trained):
     draws = trained.sample([1.0], 4000, seed=1)
     assert abs(draws.mean() - 1.0) < 0.1
     assert 0.42 < draws.std() < 0.58
+
+
+@pytest.mark.slow
+def test_a_support_holding_little_of_the_posterior_is_filled_by_wider_batches(trained):
+    # theta > 2.2 holds 0.8 % of N(1, 0.5^2) (the flow's lighter tail less): under 41 of the 5,100 draws
+    # of the row-wise redraws, so the wide batches (64 x 100 at a time) find the rest; theta > 4.5 (7 sd)
+    # holds none of them
+    draws = trained.sample([1.0], 100, seed=2, support=lambda t: t[:, 0] > 2.2)
+    assert draws.shape == (100, 1) and (draws[:, 0] > 2.2).all()
+    assert trained.last_leakage > 0.9
+    with pytest.raises(ValueError, match="almost no mass"):
+        trained.sample([1.0], 100, seed=2, support=lambda t: t[:, 0] > 4.5)
 
 
 @pytest.mark.slow
@@ -109,33 +121,6 @@ def test_coverage_check_passes_the_trained_estimator_and_catches_a_misspecified_
     assert "coverage FAILED" in bad["messages"][0]
     ninety = bad["table"].query("level == 0.9")["coverage"].iloc[0]
     assert ninety < 0.6   # a third of the width covers about 2 x Phi(1.645 / 3) - 1 = 42 %
-
-
-CALIBRATION = f'''
-name = "npe_tiny"
-seed = 3
-[model]
-preset = "{ROOT / 'configs/models/holland.toml'}"
-[run]
-n = 10
-duration = 2.0
-record_interval = 0.5
-warmup = 1.0
-[parameters.field]
-key = "perception.field_deg"
-prior = {{ dist = "uniform", low = 60, high = 300 }}
-[targets]
-summary = "mean"
-stats = ["visible_mean", "binocular_share"]
-mean = [3.0, 0.2]
-sd = [0.1, 0.02]
-[method]
-kind = "npe"
-simulations = 60
-heldout = 20
-draws = 400
-flow = {{ width = 16, layers = 2, max_epochs = 20, patience = 5 }}
-'''
 
 
 def test_npe_settings_are_validated_before_anything_runs(tmp_path):
