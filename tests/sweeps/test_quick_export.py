@@ -21,7 +21,7 @@ from paths import ROOT
 from simcore import load_preset
 from sweeps.export import export_results, export_with_pandas
 from sweeps.files import write_parquet
-from sweeps.quick_export import _cells, runs_csv
+from sweeps.quick_export import _cells, _constant, _large_text, runs_csv, runs_parquet
 from sweeps.store import ResultsStore
 
 RUNS = ["a1b2c3d4e5f6", "b2c3d4e5f6a1", "c3d4e5f6a1b2", "d4e5f6a1b2c3", "e5f6a1b2c3d4"]
@@ -57,9 +57,9 @@ def finished_store(root):
     return store
 
 
-def both_paths(root, tmp_path, with_fixed):
-    quick = runs_csv(root, tmp_path / "quick" / "runs.csv", with_fixed)
-    slow = export_with_pandas(root, "csv", tmp_path / "slow", with_fixed, timeseries=False)["runs"]
+def both_paths(root, tmp_path, with_fixed, fmt="csv"):
+    quick = (runs_csv if fmt == "csv" else runs_parquet)(root, tmp_path / "quick" / f"runs.{fmt}", with_fixed)
+    slow = export_with_pandas(root, fmt, tmp_path / "slow", with_fixed, timeseries=False)["runs"]
     return quick, slow
 
 
@@ -84,6 +84,32 @@ def test_the_quick_csv_is_byte_for_byte_the_pandas_csv(tmp_path, with_fixed, shu
     assert (b"perception.range" in text) == with_fixed and (b"analysis.group_radius" in text) == with_fixed
 
 
+@pytest.mark.parametrize("with_fixed", [False, True])
+def test_the_quick_parquet_is_byte_for_byte_the_pandas_parquet(tmp_path, with_fixed):
+    store = finished_store(tmp_path / "tiny")
+    quick, slow = both_paths(store.root, tmp_path, with_fixed, "parquet")
+    assert quick is not None, "the quick path stepped aside on an intact folder"
+    assert quick[1:] == slow[1:] and quick[1] == 5
+    assert quick[0].read_bytes() == slow[0].read_bytes()
+    back = pd.read_parquet(quick[0])
+    assert "part" not in back and back["polarization_final"].iloc[1] == math.inf
+    assert ("analysis.group_radius" in back) == with_fixed
+
+
+def test_the_quick_parquet_steps_aside_for_a_table_it_cannot_vouch_for(tmp_path):
+    store = finished_store(tmp_path / "tiny")
+    table = pd.read_parquet(store.root / "runs.parquet")
+    for changed in (table.iloc[[4, 1, 3, 0, 2]],                                 # out of design order
+                    table.assign(flag=pd.array([True, None, False, True, True], dtype=object))):  # bools with a gap
+        write_parquet(store.root / "runs.parquet", changed)
+        store._record(store.root / "runs.parquet")
+        store._save_checksums()
+        assert runs_parquet(store.root, tmp_path / "quick" / "runs.parquet") is None
+        slow = export_with_pandas(store.root, "parquet", tmp_path / "slow", False, False)["runs"]
+        quick = export_results(store.root, "parquet", tmp_path / "out")["runs"]
+        assert quick[0].read_bytes() == slow[0].read_bytes()
+
+
 def test_each_arrow_column_gets_the_cells_pandas_writes_for_it():
     """Column types pandas itself never writes to a part (integers and booleans with gaps, all-null) as
     pyarrow.parquet reads them: the text of each cell is what to_pandas().to_csv() writes."""
@@ -101,14 +127,29 @@ def test_each_arrow_column_gets_the_cells_pandas_writes_for_it():
     assert _cells(pa.chunked_array([pa.array([1.5], pa.float32())])) is None   # a type it does not know
 
 
-def test_export_of_an_intact_folder_imports_no_pandas(tmp_path):
+def test_arrays_built_from_buffers_equal_those_pyarrow_builds():
+    """The quick Parquet path builds its columns from buffers (pa.array would import pandas); they equal
+    what pa.array and a cast give, sliced chunks and empty text included."""
+    text = pa.chunked_array([pa.array(["ab", None, "", "cdé", "x"])[1:], pa.array([None, "q"])])
+    wide = _large_text(pa, text)
+    wide.validate(full=True)
+    assert wide.equals(text.cast(pa.large_string()))
+    for value, kind in [(1.5, "float64"), (-7, "int64"), (True, "bool_"), (False, "bool_"), ("a,b", "large_string"),
+                        ("", "large_string"), (None, "null")]:
+        built = _constant(pa, value, kind, 11)
+        built.validate(full=True)
+        assert built.equals(pa.array([value] * 11, getattr(pa, kind)())), (value, kind)
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_export_of_an_intact_folder_imports_no_pandas(tmp_path, fmt):
     store = finished_store(tmp_path / "tiny")
     code = ("import sys; from flocksweep.cli import main; "
-            f"assert main(['export', {str(store.root)!r}, '--csv', '--with-fixed']) == 0; "
+            f"assert main(['export', {str(store.root)!r}, '--{fmt}', '--with-fixed']) == 0; "
             "print(sorted(m for m in ('pandas', 'pyarrow.dataset', 'pyarrow.compute', 'numba') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert done.stdout.strip().endswith("[]"), done.stdout + done.stderr
-    assert (store.root / "export" / "runs.csv").exists()
+    assert (store.root / "export" / f"runs.{fmt}").exists()
 
 
 def change_a_byte(path):
@@ -128,6 +169,7 @@ def forget_checksums(store):   # a folder from before checksums
     (store.root / "manifest.json").write_text(json.dumps(data))
 
 
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
 @pytest.mark.parametrize("damage", [
     lambda s: change_a_byte(s.root / "runs.parquet"),
     lambda s: (s.root / "runs.parquet").unlink(),          # interrupted before consolidating
@@ -135,18 +177,19 @@ def forget_checksums(store):   # a folder from before checksums
     edit_manifest,
     forget_checksums,
 ], ids=["runs-changed", "runs-missing", "design-changed", "manifest-edited", "no-checksums"])
-def test_the_quick_path_steps_aside_for_anything_not_as_written(tmp_path, damage):
+def test_the_quick_path_steps_aside_for_anything_not_as_written(tmp_path, damage, fmt):
     store = finished_store(tmp_path / "tiny")
     damage(store)
-    assert runs_csv(store.root, tmp_path / "quick" / "runs.csv", with_fixed=True) is None
+    quick_path = runs_csv if fmt == "csv" else runs_parquet
+    assert quick_path(store.root, tmp_path / "quick" / f"runs.{fmt}", with_fixed=True) is None
     assert not (tmp_path / "quick").exists()   # nothing written
     # export_results then takes the pandas path, with what it says and does about the damage
     try:
-        quick = export_results(store.root, "csv", tmp_path / "out")
+        quick = export_results(store.root, fmt, tmp_path / "out")
     except ValueError as err:   # design.parquet changed: Unreadable, as before
         assert "design.parquet" in str(err)
         return
-    slow = export_with_pandas(store.root, "csv", tmp_path / "slow", False, False)
+    slow = export_with_pandas(store.root, fmt, tmp_path / "slow", False, False)
     assert quick["runs"][0].read_bytes() == slow["runs"][0].read_bytes()
 
 
