@@ -52,11 +52,13 @@ def stored_runs(root):
     return pq.ParquetFile(Path(root) / "runs.parquet").read()
 
 
-def fixed_columns(root) -> dict:
-    """The ``--with-fixed`` settings of ``root`` ({dotted key: value}, :mod:`sweeps.fixed_settings`)."""
+def fixed_columns(root, table) -> dict:
+    """The ``--with-fixed`` columns of ``root`` ({dotted key: value}, :mod:`sweeps.fixed_settings`) that the
+    stored runs ``table`` lacks (``part`` included, as :func:`sweeps.results.load_results` adds them)."""
     from .fixed_settings import fixed_settings   # the presets' code: only for --with-fixed
 
-    return fixed_settings(read_json(Path(root) / "model.json", {}))
+    stored = set(table.column_names)
+    return {k: v for k, v in fixed_settings(read_json(Path(root) / "model.json", {})).items() if k not in stored}
 
 
 def runs_csv(root, path, with_fixed: bool = False) -> tuple[Path, int, int] | None:
@@ -70,8 +72,8 @@ def runs_csv(root, path, with_fixed: bool = False) -> tuple[Path, int, int] | No
     order = _design_order(table)
     if order is None:
         return None
-    for name, value in (fixed_columns(root) if with_fixed else {}).items():
-        columns.setdefault(name, [_fixed_cell(value)] * table.num_rows)
+    for name, value in (fixed_columns(root, table) if with_fixed else {}).items():
+        columns[name] = [_fixed_cell(value)] * table.num_rows
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle, lineterminator="\n", delimiter=",", quotechar='"', doublequote=True,
                             quoting=csv.QUOTE_MINIMAL)
@@ -152,10 +154,8 @@ def runs_parquet(root, path, with_fixed: bool = False) -> tuple[Path, int, int] 
             return None
         entries.append(entry)
         columns[entry["name"]] = column
-    for name, value in (fixed_columns(root) if with_fixed else {}).items():
+    for name, value in (fixed_columns(root, table) if with_fixed else {}).items():
         kind = _fixed_kind(value)
-        if name in columns:
-            continue
         if kind is None or not table.num_rows:
             return None
         columns[name] = _constant(pa, value, kind[0], table.num_rows)

@@ -1,9 +1,11 @@
-"""``flocksweep export --csv`` without pandas (sweeps/quick_export.py) writes runs.csv byte for byte as the
-pandas path (sweeps.export.export_with_pandas, its slow twin) does, with and without --with-fixed, for a
-finished sweep with failed rows, NaN and infinite values, booleans (some missing), integers (some
-missing), text that needs quoting and a runs table out of design order; and it steps aside (the pandas
-path verifies and warns as before) whenever a file is not as flocksweep wrote it. The stores are written
-with ResultsStore directly (no simulation)."""
+"""``flocksweep export`` without pandas (sweeps/quick_export.py) writes runs.csv and runs.parquet byte for
+byte as the pandas path (sweeps.export.export_with_pandas, its slow twin) does, with and without
+--with-fixed, for a finished sweep with failed rows, NaN and infinite values, booleans, integers with a
+gap (floats in pandas), text that needs quoting, a fixed setting that is also a stored column, and (CSV)
+a runs table out of design order; Arrow column types pandas never stores (booleans and integers with
+gaps, all-null) are checked cell by cell. It steps aside (the pandas path verifies and warns as before)
+whenever a file is not as flocksweep wrote it. The stores are written with ResultsStore directly (no
+simulation)."""
 from __future__ import annotations
 
 import csv
@@ -37,7 +39,7 @@ def finished_store(root):
                            "mode": ["normal", "pattern, wide", 'say "hi"', "", "two\nlines"],
                            "patterns.enabled": [False, True, False, True, False],
                            "perception.field_deg": [60.0, 60.0, 180.0, 180.0, 1e-5]})
-    model = {"preset": load_preset(HOLLAND).to_dict(), "swept_keys": ["patterns.enabled", "perception.field_deg"],
+    model = {"preset": load_preset(HOLLAND).to_dict(), "swept_keys": ["patterns.enabled"],   # field_deg: also a fixed setting
              "analysis": {"warmup": 1.0, "group_radius": None, "keep": "metrics", "leadership": False,
                           "trajectory_every": 6}}
     store.write_inputs("# test\n", {}, model, design)
@@ -82,6 +84,7 @@ def test_the_quick_csv_is_byte_for_byte_the_pandas_csv(tmp_path, with_fixed, shu
     assert b",inf," in text and b",-inf," in text and b"1e+16" in text and b"-0.0" in text and b",1e-05," in text
     assert b"True" in text and b"4611686018427387904" in text and b",12.0," in text   # n with a gap: floats
     assert (b"perception.range" in text) == with_fixed and (b"analysis.group_radius" in text) == with_fixed
+    assert text.split(b"\n")[0].split(b",").count(b"perception.field_deg") == 1   # the stored column, once
 
 
 @pytest.mark.parametrize("with_fixed", [False, True])
