@@ -82,7 +82,7 @@ def main() -> None:
                          timed([sys.executable, "-m", "flocksweep.cli", *words], args.repeats, roots, args.pycache)))
     print(f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores; "
           f"median (min-max) of {args.repeats}; __pycache__ "
-          f"{'used' if args.pycache or not os.environ.get('PYTHONDONTWRITEBYTECODE') else 'off (PYTHONDONTWRITEBYTECODE)'}")
+          f"{'used' if args.pycache or not os.environ.get('PYTHONDONTWRITEBYTECODE') else 'off'}")
     names = [str(r) for r in roots]
     if args.markdown:
         print("| command | " + " | ".join(names) + " |\n|---|" + "---:|" * len(roots))

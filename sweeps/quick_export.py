@@ -35,6 +35,7 @@ pandas would add; the data pass through Arrow untouched. Anything else takes the
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
@@ -131,29 +132,16 @@ def runs_parquet(root, path, with_fixed: bool = False) -> tuple[Path, int, int] 
     table = stored_runs(root)
     if table is None or _design_order(table) != list(range(table.num_rows)):
         return None
-    import json
     from importlib.metadata import version
 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    meta = json.loads(table.schema.metadata.get(b"pandas", b"null") if table.schema.metadata else b"null")
-    same_writer = (isinstance(meta, dict) and list(meta) == PANDAS_KEYS and meta["index_columns"] == []
-                   and meta["creator"] == {"library": "pyarrow", "version": pa.__version__}
-                   and meta["pandas_version"] == version("pandas") and not meta["attributes"])
-    if not same_writer or [c.get("name") for c in meta["columns"]] != table.column_names:
-        return None   # written by another pandas or pyarrow: only pandas itself knows what it writes now
-    entries, columns = [], {}
-    for entry in (c for c in meta["columns"] if c["name"] != "part"):
-        column = table.column(entry["name"])
-        kind = PANDAS_REWRITES.get((str(column.type), entry.get("pandas_type"), entry.get("numpy_type")))
-        if kind is not None:
-            column = _large_text(pa, column)
-            entry = {**entry, "pandas_type": kind[1], "numpy_type": kind[2]}
-        if not _pandas_column(column, entry):
-            return None
-        entries.append(entry)
-        columns[entry["name"]] = column
+    meta = _pandas_metadata(table, pa.__version__, version("pandas"))
+    stored = None if meta is None else _stored_columns(pa, table, meta)
+    if stored is None:
+        return None
+    entries, columns = stored
     for name, value in (fixed_columns(root, table) if with_fixed else {}).items():
         kind = _fixed_kind(value)
         if kind is None or not table.num_rows:
@@ -166,6 +154,36 @@ def runs_parquet(root, path, with_fixed: bool = False) -> tuple[Path, int, int] 
     with atomic_path(path) as tmp:
         pq.write_table(out, tmp, compression="snappy")
     return Path(path), out.num_rows, out.num_columns
+
+
+def _pandas_metadata(table, pyarrow_version: str, pandas_version: str) -> dict | None:
+    """The ``pandas`` schema metadata of the stored ``table`` when the pyarrow and pandas installed now
+    wrote it (None otherwise: only pandas itself knows what another version writes)."""
+    import json
+
+    raw = (table.schema.metadata or {}).get(b"pandas")
+    meta = json.loads(raw) if raw else None
+    same_writer = (isinstance(meta, dict) and list(meta) == PANDAS_KEYS and meta["index_columns"] == []
+                   and meta["creator"] == {"library": "pyarrow", "version": pyarrow_version}
+                   and meta["pandas_version"] == pandas_version and not meta["attributes"])
+    return meta if same_writer and [c.get("name") for c in meta["columns"]] == table.column_names else None
+
+
+def _stored_columns(pa, table, meta: dict) -> tuple[list, dict] | None:
+    """The metadata entries and Arrow columns pandas would write back for the stored table but ``part``
+    (None when a column is of a kind it might change)."""
+    entries, columns = [], {}
+    for entry in (c for c in meta["columns"] if c["name"] != "part"):
+        column = table.column(entry["name"])
+        kind = PANDAS_REWRITES.get((str(column.type), entry.get("pandas_type"), entry.get("numpy_type")))
+        if kind is not None:
+            column = _large_text(pa, column)
+            entry = {**entry, "pandas_type": kind[1], "numpy_type": kind[2]}
+        if not _pandas_column(column, entry):
+            return None
+        entries.append(entry)
+        columns[entry["name"]] = column
+    return entries, columns
 
 
 def _pandas_column(column, entry: dict) -> bool:

@@ -23,7 +23,7 @@ from paths import ROOT
 from simcore import load_preset
 from sweeps.export import export_results, export_with_pandas
 from sweeps.files import write_parquet
-from sweeps.quick_export import _cells, _constant, _large_text, runs_csv, runs_parquet
+from sweeps.quick_export import _cells, _constant, _large_text, _pandas_metadata, runs_csv, runs_parquet, stored_runs
 from sweeps.store import ResultsStore
 
 RUNS = ["a1b2c3d4e5f6", "b2c3d4e5f6a1", "c3d4e5f6a1b2", "d4e5f6a1b2c3", "e5f6a1b2c3d4"]
@@ -39,7 +39,8 @@ def finished_store(root):
                            "mode": ["normal", "pattern, wide", 'say "hi"', "", "two\nlines"],
                            "patterns.enabled": [False, True, False, True, False],
                            "perception.field_deg": [60.0, 60.0, 180.0, 180.0, 1e-5]})
-    model = {"preset": load_preset(HOLLAND).to_dict(), "swept_keys": ["patterns.enabled"],   # field_deg: also a fixed setting
+    # field_deg is not among the swept keys here: a fixed setting that is also a stored column
+    model = {"preset": load_preset(HOLLAND).to_dict(), "swept_keys": ["patterns.enabled"],
              "analysis": {"warmup": 1.0, "group_radius": None, "keep": "metrics", "leadership": False,
                           "trajectory_every": 6}}
     store.write_inputs("# test\n", {}, model, design)
@@ -94,6 +95,10 @@ def test_the_quick_parquet_is_byte_for_byte_the_pandas_parquet(tmp_path, with_fi
     assert quick is not None, "the quick path stepped aside on an intact folder"
     assert quick[1:] == slow[1:] and quick[1] == 5
     assert quick[0].read_bytes() == slow[0].read_bytes()
+    stored = stored_runs(store.root)   # a table another pandas or pyarrow wrote: the pandas path
+    assert _pandas_metadata(stored, pa.__version__, pd.__version__) is not None
+    assert _pandas_metadata(stored, pa.__version__, "2.0.0") is None
+    assert _pandas_metadata(stored, "1.0", pd.__version__) is None
     back = pd.read_parquet(quick[0])
     assert "part" not in back and back["polarization_final"].iloc[1] == math.inf
     assert ("analysis.group_radius" in back) == with_fixed
