@@ -15,6 +15,10 @@ BehaviorSpace users).
   ``run_id``.
 
 Files go to ``RESULTS/export/`` unless ``out_dir``; each is written atomically (:mod:`sweeps.files`).
+The runs table alone (no ``timeseries``) of a folder whose files are all as flocksweep wrote them (their
+checksums say so) is written without pandas, byte for byte the same (:mod:`sweeps.quick_export`); every
+other export loads the results with :func:`sweeps.results.load_results` (:func:`export_with_pandas`),
+verifying and warning as it does.
 CSV: comma-separated, a header row, missing values (NaN, a failed run's metrics) as empty fields,
 booleans as ``True``/``False``. ``flocksweep/cli.py`` registers the command with :func:`add_arguments` and
 :func:`run`.
@@ -24,6 +28,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .files import atomic_path, write_csv, write_parquet
+from .quick_export import runs_csv, runs_parquet
 
 CHUNK_RUNS = 1000   # runs whose time series are read, sorted and written together
 FORMATS = ("csv", "parquet")
@@ -35,12 +40,21 @@ DESCRIPTION = ("Write a sweep's runs table (one row per run; with --with-fixed e
 def export_results(results_dir, fmt: str, out_dir=None, with_fixed: bool = False,
                    timeseries: bool = False) -> dict:
     """Write the tables of the module docstring; returns {"runs": (path, rows, columns), "timeseries": ...}."""
-    from .results import load_results   # pandas and pyarrow: loaded when exporting, not for --help
-
     if fmt not in FORMATS:
         raise ValueError(f"fmt: got {fmt!r}; expected one of {FORMATS}")
-    results = load_results(results_dir, with_fixed=with_fixed, timeseries=timeseries)
     out = Path(out_dir) if out_dir is not None else Path(results_dir) / "export"
+    if not timeseries:
+        written = (runs_csv if fmt == "csv" else runs_parquet)(results_dir, out / f"runs.{fmt}", with_fixed)
+        if written is not None:
+            return {"runs": written}
+    return export_with_pandas(results_dir, fmt, out, with_fixed, timeseries)
+
+
+def export_with_pandas(results_dir, fmt: str, out: Path, with_fixed: bool, timeseries: bool) -> dict:
+    """:func:`export_results` by way of :func:`sweeps.results.load_results` (every export but the quick one)."""
+    from .results import load_results   # pandas and pyarrow: loaded when exporting, not for --help
+
+    results = load_results(results_dir, with_fixed=with_fixed, timeseries=timeseries)
     runs = results.runs.drop(columns=["part"], errors="ignore")
     path = out / f"runs.{fmt}"
     if fmt == "csv":

@@ -28,7 +28,6 @@ missing until ``flocksweep run`` recomputes them), a changed time series part li
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,9 +38,9 @@ import pyarrow.dataset as ds
 import pyarrow.fs
 
 from observables.columns import FAMILIES, summary_columns   # the names only: no kernels, no numba
-from simcore.params import canonical_key, preset_from_dict
-from simcore.schema import ConfigError
+from simcore.params import canonical_key
 
+from .fixed_settings import fixed_settings, flat_settings  # noqa: F401 - also read from here
 from .store import ResultsStore
 
 
@@ -102,34 +101,6 @@ def metric_columns(runs: pd.DataFrame) -> list[str]:
     """The summary columns (observables.summary.summary_columns) the runs table holds."""
     known = set(summary_columns(leadership=True, encounters=tuple(FAMILIES), migration=True, dcd=True))
     return [c for c in runs.columns if c in known]
-
-
-def flat_settings(table: dict, prefix: str = "") -> dict:
-    """A nested settings dict as {dotted name: value}; lists become JSON text (one cell per setting)."""
-    out = {}
-    for key, value in table.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, dict):
-            out.update(flat_settings(value, f"{name}."))
-        else:
-            out[name] = json.dumps(value) if isinstance(value, (list, tuple)) else value
-    return out
-
-
-def fixed_settings(store: ResultsStore) -> dict:
-    """{dotted key: value} of every setting the sweep did not vary: the base preset's canonical resolved
-    form and the analysis settings (``analysis.<name>``), from ``model.json``."""
-    record = store.model()
-    if not record.get("preset"):
-        return {}
-    swept = {canonical_key(k) for k in record.get("swept_keys", [])}
-    try:
-        preset = flat_settings(preset_from_dict(record["preset"]).to_dict())
-    except ConfigError:   # e.g. an init.from_file that moved since: the stored keys, without defaults
-        preset = flat_settings(record["preset"])
-    fixed = {k: v for k, v in preset.items() if k not in swept and not any(k.startswith(f"{s}.") for s in swept)}
-    fixed.update(flat_settings(record.get("analysis", {}), "analysis."))
-    return fixed
 
 
 def series_dataset(store: ResultsStore, runs: pd.DataFrame) -> ds.Dataset:
@@ -193,7 +164,7 @@ def load_results(path: str | Path, with_fixed: bool = False, timeseries: bool = 
     metrics = metric_columns(runs)
     fixed = []
     if with_fixed:
-        settings = {k: v for k, v in fixed_settings(store).items() if k not in runs.columns}
+        settings = {k: v for k, v in fixed_settings(store.model()).items() if k not in runs.columns}
         runs = pd.concat([runs, pd.DataFrame({k: [v] * len(runs) for k, v in settings.items()},
                                              index=runs.index)], axis=1)
         fixed = list(settings)

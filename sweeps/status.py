@@ -32,6 +32,7 @@ from .lock import holder
 CACHE_FORMAT = 1
 # the checking code: a change in any of these invalidates what was remembered
 CODE = (Path(__file__), Path(__file__).with_name("store.py"), Path(__file__).with_name("files.py"),
+        Path(__file__).with_name("checksums.py"),
         Path(__file__).resolve().parent.parent / "observables" / "columns.py")
 
 

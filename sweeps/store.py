@@ -51,8 +51,6 @@ timing, nor a summary metric).
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import re
 from contextlib import contextmanager
 from pathlib import Path
@@ -61,6 +59,7 @@ import pandas as pd
 
 from observables.columns import EVERY_METRIC_COLUMN
 
+from .checksums import CHANGED, CHECKSUMS, SELF_CHECKSUM, checksum, content_checksum  # noqa: F401 - also read from here
 from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
@@ -75,23 +74,7 @@ RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "stat
                     "part", "n", "steps")
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
-CHECKSUMS, SELF_CHECKSUM = "checksums", "manifest_checksum"   # keys of manifest.json
-CHANGED = "changed since it was written (its checksum differs from the one recorded in manifest.json)"
 
-
-def checksum(path) -> str:
-    """SHA-256 of a file's bytes (hex)."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
-def content_checksum(data: dict) -> str:
-    """SHA-256 of a manifest's content without its own checksum (as JSON with sorted keys)."""
-    body = {k: v for k, v in data.items() if k != SELF_CHECKSUM}
-    return hashlib.sha256(json.dumps(body, sort_keys=True, allow_nan=False).encode()).hexdigest()
 
 __all__ = ["OutputFolder", "ResultsStore", "StoreLocked", "Unreadable"]
 
