@@ -89,8 +89,8 @@ def visible_mean(visible: np.ndarray) -> np.ndarray:
 
 def visible_sd(visible: np.ndarray) -> np.ndarray:
     """Standard deviation across boids (population sd) of the number of perceived neighbours: 0 when every
-    boid perceives as many (topological perception of k neighbours), > 0 when a metric range or field
-    lets the counts vary."""
+    boid perceives as many (topological perception of k neighbours, no boid short of k), > 0 when a metric
+    range or field lets the counts vary."""
     return np.asarray(visible, dtype=np.float64).std(axis=-1)
 
 
