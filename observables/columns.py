@@ -7,6 +7,8 @@ without loading the kernels. Each metric's home module takes its names from here
 
 * ``SERIES``: the per-record series of :func:`observables.metrics.frame_metrics`, in kernel column order
   (``observables.kernels.COLUMNS``, ``observables.metrics.METRIC_NAMES``);
+* ``PERCEPTION_SERIES``: the series of ``SERIES`` read from the recorded perception (``visible``,
+  ``binocular``), which no tracker measures (nan in measured tracks, refused as track targets);
 * ``RUN_COLUMNS``: the run scalars of every row; ``LEADERSHIP_METRIC_NAMES`` (:mod:`~observables.leadership`),
   ``DCD_METRIC_NAMES`` (:mod:`~observables.directional_correlation`), ``MIGRATION_METRIC_NAMES``
   (:mod:`~observables.migration`);
@@ -18,7 +20,8 @@ from __future__ import annotations
 
 SERIES = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
           "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
-          "visible_mean", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
+          "visible_mean", "visible_sd", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
+PERCEPTION_SERIES = ("visible_mean", "visible_sd", "binocular_share")   # what a simulated boid perceives: no tracker measures it
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
 LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
                            "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",

@@ -450,10 +450,15 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
             for i in range(n):
                 seen += visible[f, i]
                 both += binocular[f, i]
+            spread = 0.0
+            for i in range(n):
+                spread += (visible[f, i] - seen / n) ** 2
             out[f, Column.visible_mean] = seen / n
+            out[f, Column.visible_sd] = np.sqrt(spread / n)
             out[f, Column.binocular_share] = both / seen if seen > 0 else 0.0
         else:
             out[f, Column.visible_mean] = np.nan
+            out[f, Column.visible_sd] = np.nan
             out[f, Column.binocular_share] = np.nan
         out[f, Column.segregation] = segregation_frame(degree, same, expected)
         out[f, Column.overtake_rate] = np.nan

@@ -87,6 +87,13 @@ def visible_mean(visible: np.ndarray) -> np.ndarray:
     return np.asarray(visible, dtype=np.float64).mean(axis=-1)
 
 
+def visible_sd(visible: np.ndarray) -> np.ndarray:
+    """Standard deviation across boids (population sd) of the number of perceived neighbours: 0 when every
+    boid perceives as many (topological perception of k neighbours, no boid short of k), > 0 when a metric
+    range or field lets the counts vary."""
+    return np.asarray(visible, dtype=np.float64).std(axis=-1)
+
+
 def binocular_share(visible: np.ndarray, binocular: np.ndarray) -> np.ndarray:
     """sum binocular / sum visible over the flock, in [0, 1]; 0 when nothing is visible."""
     seen = np.asarray(visible, dtype=np.float64).sum(axis=-1)
@@ -188,7 +195,7 @@ def frame_metrics(pos: np.ndarray, vel: np.ndarray, visible: np.ndarray | None, 
     """Every metric of :data:`METRIC_NAMES` for every record, as float64 arrays of shape ``pos.shape[:-2]``.
 
     ``pos``, ``vel`` (R, N, 3) (or (N, 3) for one record, or any leading shape); ``visible``,
-    ``binocular`` int (R, N) as recorded (None: ``visible_mean`` and ``binocular_share`` are nan);
+    ``binocular`` int (R, N) as recorded (None: ``visible_mean``, ``visible_sd`` and ``binocular_share`` are nan);
     ``pattern`` (N,) (None: one pattern for all); ``group_radius`` links boids closer than it;
     ``box`` the side of a periodic box (None: open world); ``record_interval`` the seconds between
     consecutive records of (R, N, 3) input (None, or another leading shape: ``overtake_rate`` is nan).

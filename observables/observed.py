@@ -3,7 +3,7 @@
 :class:`ObservedFlock` is what a tracking system delivers once resampled (:mod:`.resample`): measured
 tracks of a real flock, or a simulated run seen through an observation model (:mod:`.observation`).
 It quacks like a simulator ``Observations`` where the metrics look (``times``, ``pos``, ``vel``,
-``pattern``; ``visible`` and ``binocular`` are None, so ``visible_mean`` and ``binocular_share`` are nan:
+``pattern``; ``visible`` and ``binocular`` are None, so ``visible_mean``, ``visible_sd`` and ``binocular_share`` are nan:
 nobody measures what a bird perceives), and adds ``present`` (R, N) bool: individual i counts at record
 r when its position and velocity there are known. Missing entries of ``pos`` and ``vel`` are nan.
 

@@ -38,7 +38,7 @@ likelihood's Gaussian has the replicate covariance plus diag(sd^2), as for typed
 :func:`check_observation` checks an ``[observation]`` block against the model and the rest of the file:
 an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
 number of steps and fits the run, no ``run.record_interval`` beside it (the samples are the records),
-statistics an observer can measure (not ``visible_mean``, ``binocular_share`` or the leadership
+statistics an observer can measure (not ``visible_mean``, ``visible_sd``, ``binocular_share`` or the leadership
 statistics), and not the emulator (a sweep's runs were not measured through the block).
 """
 from __future__ import annotations
@@ -49,6 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from observables.columns import PERCEPTION_SERIES
 from observables.leadership import LEADERSHIP_METRIC_NAMES
 from observables.measured import Measurement, measure_tracks, track_settings
 from observables.observation import Observation
@@ -57,7 +58,7 @@ from observables.tracks import TrackSource, load_tracks, track_source
 from observables.validation import TrackError
 from simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
 
-UNOBSERVABLE = ("visible_mean", "binocular_share") + tuple(LEADERSHIP_METRIC_NAMES)
+UNOBSERVABLE = PERCEPTION_SERIES + tuple(LEADERSHIP_METRIC_NAMES)
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ METRICS = {
     "segregation_mean": "pattern segregation",
     "aspect_heading_mean": "length/width along heading",
     "visible_mean_mean": "visible neighbours",
+    "visible_sd_mean": "spread of visible neighbours across boids",
     "binocular_share_mean": "binocular share of sightings",
     "nn_distance_mean": "nearest-neighbour distance",
 }

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from observables.measured import measure_tracks, track_settings
+from observables.columns import PERCEPTION_SERIES
 from observables.metrics import METRIC_NAMES
 from observables.observation import Observation, observe_run
 from observables.summary import MetricSettings, measure_run, summarize_run, summary_columns
@@ -14,7 +15,6 @@ from observables.tracks import TrackSource, load_tracks, tracks_frame
 from simcore import load_preset, simulate_preset
 from paths import ROOT
 
-PERCEPTION = ("visible_mean", "binocular_share")   # what a simulator perceives; no tracker measures it
 
 
 @pytest.fixture(scope="module")
@@ -45,14 +45,14 @@ def test_exported_tracks_give_exactly_the_simulators_metrics(pattern_run, tmp_pa
     assert got["status"] == "ok" and got["records"] == len(obs.times) and got["interval"] == 0.1
     assert not [i for i in measured.issues if i.level != "note"]    # the simulator's velocities agree
     for column in summary_columns(leadership=False):
-        if column.rsplit("_", 1)[0] in PERCEPTION:
+        if column.rsplit("_", 1)[0] in PERCEPTION_SERIES:
             assert np.isnan(got[column])
         else:
             assert np.array_equal(got[column], row[column], equal_nan=True), column
     ts = measured.timeseries
     assert np.array_equal(ts["t"].to_numpy(), obs.times)
     for name in METRIC_NAMES:
-        if name not in PERCEPTION:
+        if name not in PERCEPTION_SERIES:
             assert np.array_equal(ts[name].to_numpy(), series[name], equal_nan=True), name
     assert series["segregation"][1:].std() > 0 and series["n_groups"].max() > 1   # every metric is exercised
 

@@ -50,10 +50,11 @@ def test_time_series_shape_and_mean_speed():
 import pytest  # noqa: E402
 from scipy.sparse.csgraph import connected_components  # noqa: E402
 
+from observables.columns import PERCEPTION_SERIES  # noqa: E402
 from observables.groups import groups, neighbour_graph  # noqa: E402
 from observables.metrics import (  # noqa: E402
     METRIC_NAMES, aspect_heading, binocular_share, elongation, frame_metrics, group_shape, gyration_radius,
-    milling, segregation, speed_cv, summarize, visible_mean,
+    milling, segregation, speed_cv, summarize, visible_mean, visible_sd,
 )
 from observables.summary import default_group_radius, observation_metrics, world_box  # noqa: E402
 from simcore import load_preset, simulate_preset  # noqa: E402
@@ -101,7 +102,7 @@ def test_every_metric_is_reported_with_the_record_shape():
     one = frame_metrics(pos[3], vel[3], None, None, None, 1.0)  # one record: 0-d results
     assert all(v.shape == () for v in one.values())
     assert all(np.array_equal(one[k], out[k][3], equal_nan=True) for k in METRIC_NAMES
-               if k not in ("visible_mean", "binocular_share"))
+               if k not in PERCEPTION_SERIES)
     assert np.allclose(out["polarization"], polarization(vel), rtol=1e-12, atol=0)
 
 
@@ -310,6 +311,42 @@ def test_visible_mean_binocular_share_and_speed_cv():
     assert math.isclose(m["speed_mean"], 2.0)
     assert math.isclose(m["speed_cv"], math.sqrt(2 / 3) / 2, rel_tol=1e-12)
     assert math.isnan(metrics_of(pos, vel)["binocular_share"])  # nothing recorded
+
+
+def test_visible_sd_by_hand_and_against_its_numpy_twin():
+    """Population sd across boids of the perceived count: 0 when every boid perceives as many (topological
+    perception), sqrt(mean squared deviation) otherwise; nan when nothing was recorded."""
+    visible = np.array([[3, 3, 3, 3], [0, 2, 4, 2], [1, 1, 1, 5]], np.int32)
+    expected = [0.0, math.sqrt(2.0), math.sqrt(3.0)]        # (4 + 0 + 4 + 0) / 4 = 2; (1 + 1 + 1 + 9) / 4 = 3
+    assert np.allclose(visible_sd(visible), expected, rtol=1e-15, atol=0)
+    rng = np.random.default_rng(5)
+    pos, vel = rng.normal(size=(3, 4, 3)), rng.normal(size=(3, 4, 3))
+    out = frame_metrics(pos, vel, visible, np.zeros_like(visible), None, 1.0)
+    assert np.allclose(out["visible_sd"], expected, rtol=1e-15, atol=1e-15)
+    many = rng.integers(0, 20, (30, 17)).astype(np.int32)
+    pos, vel = rng.normal(size=(30, 17, 3)), rng.normal(size=(30, 17, 3))
+    kernel = frame_metrics(pos, vel, many, np.zeros_like(many), None, 1.0)["visible_sd"]
+    assert np.allclose(kernel, visible_sd(many), rtol=1e-12, atol=1e-12) and (kernel > 0).all()
+    assert math.isnan(metrics_of(pos[0], vel[0])["visible_sd"])  # nothing recorded
+
+
+def test_visible_sd_in_the_run_row_is_its_window_mean_and_final():
+    """A hand-built run: the row's visible_sd_mean is the mean over the records after the warm-up of the
+    across-boid sd, visible_sd_final its last record's."""
+    from observables.summary import MetricSettings, summarize_run
+    from simcore.simulate import Observations
+
+    visible = np.array([[9, 0, 0, 0], [3, 3, 3, 3], [0, 2, 4, 2], [1, 1, 1, 5]], np.int32)   # record 0: warm-up
+    pos = np.zeros((4, 4, 3))
+    pos[:, :, 0] = np.arange(4.0)
+    vel = np.tile([1.0, 0.0, 0.0], (4, 4, 1))
+    obs = Observations(times=np.arange(4.0), pos=pos, vel=vel, visible=visible, binocular=np.zeros_like(visible),
+                       leader=np.zeros((4, 4), bool), triggers=np.zeros((0, 2), np.int64),
+                       pattern=np.zeros(4, np.uint32), final=None, dt=1.0, record_every=1)
+    row = summarize_run(obs, MetricSettings(warmup=0.5, group_radius=2.0, escape_duration=1.0, body_radius=0.5))
+    assert math.isclose(row["visible_sd_mean"], (0.0 + math.sqrt(2.0) + math.sqrt(3.0)) / 3, rel_tol=1e-14)
+    assert math.isclose(row["visible_sd_final"], math.sqrt(3.0), rel_tol=1e-14)
+    assert math.isclose(row["visible_mean_mean"], (3.0 + 2.0 + 2.0) / 3, rel_tol=1e-14)   # the same window
     assert math.isclose(float(speed_cv(np.array([[1.0, 0, 0], [0, 3.0, 0]]))), 0.5)
     assert math.isnan(float(speed_cv(np.zeros((3, 3)))))
 

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from observables.columns import PERCEPTION_SERIES
 from observables.measured import measure_tracks, track_settings
 from observables.observation import Observation, observe_run
 from observables.summary import MetricSettings, measure_run, summarize_run
@@ -49,7 +50,7 @@ def measure(path, velocity_interval="recorded", **given):
 
 def assert_same(got: dict, expected: dict, rtol: float = 0.0):
     for column, value in expected.items():
-        if column.startswith(("visible_mean", "binocular_share")):
+        if column.startswith(PERCEPTION_SERIES):
             continue
         if rtol:
             assert np.allclose(got[column], value, rtol=rtol, atol=1e-12, equal_nan=True), column

@@ -183,9 +183,10 @@ def test_observation_blocks_need_an_open_world_and_observable_statistics(tracks,
                                                  'set = { "init.radius" = 6.0, "world.boundary" = "sphere_wrap" }')
     with pytest.raises(ConfigError, match="open world"):
         load_calibration(write_config(tmp_path, text))
-    text = calibration_text(tracks.name).replace('"speed_mean"]', '"visible_mean"]')
-    with pytest.raises(ConfigError, match="'visible_mean' cannot be measured by an observer"):
-        load_calibration(write_config(tmp_path, text))
+    for hidden in ("visible_mean", "visible_sd"):
+        text = calibration_text(tracks.name).replace('"speed_mean"]', f'"{hidden}"]')
+        with pytest.raises(ConfigError, match=f"'{hidden}' cannot be measured by an observer"):
+            load_calibration(write_config(tmp_path, text))
 
 
 def test_bad_tracks_are_config_errors_naming_row_and_column(tracks, tmp_path):
