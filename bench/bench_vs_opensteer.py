@@ -1,7 +1,7 @@
 """flocksweep against the OpenSteer C++ Boids plugin: fidelity from the same state, then speed side by side.
 
-    python bench/bench_vs_opensteer.py --opensteer DIR [--sizes 100 200 1000] [--steps 600] [--repeats 7]
-                                       [--json FILE]
+    python bench/bench_vs_opensteer.py --opensteer DIR [--sizes 50 100 200 1000] [--steps 3600] [--repeats 5]
+                                       [--init own|cxx] [--json FILE]
 
 DIR is a checkout of OpenSteer's public source (https://github.com/meshula/OpenSteer, measured at commit
 7104323: ``git clone https://github.com/meshula/OpenSteer DIR``). Without it the script says so and
@@ -190,24 +190,35 @@ def time_cxx(exe: Path, n: int, steps: int, seed: int) -> float:
     return float(out.stdout)
 
 
-def speed(exe: Path, sizes, steps: int, repeats: int, seed: int) -> list[dict]:
+def own_state(n: int, seed: int) -> State:
+    """flocksweep's own initial state of the plugin preset with n boids, drawn from ``seed``."""
+    from simcore.rng import run_streams
+    from simcore.state import initial_state
+
+    preset = load_preset(PRESET, [f"init.n={n}"])
+    rng, _ = run_streams(seed)
+    return initial_state(preset.init, preset.model.patterns, rng)
+
+
+def speed(exe: Path, sizes, steps: int, repeats: int, seed: int, init: str = "own") -> list[dict]:
     model = load_preset(PRESET).model
-    starts = {n: state_of(cxx_states(exe, n, 0, seed)[0]) for n in sizes}
+    cxx_start = {n: state_of(cxx_states(exe, n, 0, seed)[0]) for n in sizes}
     for n in sizes:  # compile (or load) the kernels, warm both sides
-        time_ours(model, starts[n], 2)
+        time_ours(model, cxx_start[n], 2)
         time_cxx(exe, n, 2, seed)
     samples = {n: {"cxx": [], "ours": [], "ratio": []} for n in sizes}
-    for _ in range(repeats):
+    for r in range(repeats):
         for n in sizes:
-            cxx = time_cxx(exe, n, steps, seed)
-            ours = time_ours(model, starts[n], steps)
+            start = cxx_start[n] if init == "cxx" else own_state(n, seed + r)
+            cxx = time_cxx(exe, n, steps, seed + (r if init == "own" else 0))
+            ours = time_ours(model, start, steps)
             samples[n]["cxx"].append(cxx)
             samples[n]["ours"].append(ours)
             samples[n]["ratio"].append(cxx / ours)
     rows = []
     for n in sizes:
         s = samples[n]
-        rows.append({"n": n, "steps": steps, "repeats": repeats,
+        rows.append({"n": n, "steps": steps, "repeats": repeats, "init": init,
                      "cxx_us_per_boid_step": statistics.median(s["cxx"]) * 1e6 / (n * steps),
                      "ours_us_per_boid_step": statistics.median(s["ours"]) * 1e6 / (n * steps),
                      "ratio_median": statistics.median(s["ratio"]), "ratio_min": min(s["ratio"]),
@@ -218,9 +229,11 @@ def speed(exe: Path, sizes, steps: int, repeats: int, seed: int) -> list[dict]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--opensteer", type=Path, help="OpenSteer source checkout (github.com/meshula/OpenSteer)")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 200, 1000])
-    parser.add_argument("--steps", type=int, default=600)
-    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--sizes", type=int, nargs="+", default=[50, 100, 200, 1000])
+    parser.add_argument("--steps", type=int, default=3600, help="steps per timed run (3600: a whole 60 s run)")
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--init", choices=["own", "cxx"], default="own",
+                        help="each side from its own initial state (default), or both from the C++'s")
     parser.add_argument("--seed", type=int, default=1, help="the C++ rand() seed of the initial flock")
     parser.add_argument("--json", type=Path, help="also write the results here")
     args = parser.parse_args()
@@ -243,8 +256,10 @@ def main() -> int:
                   f"1, 5, 10 steps: {check['free_run_max_pos_diff'][1]:.1e}, {check['free_run_max_pos_diff'][5]:.1e}, "
                   f"{check['free_run_max_pos_diff'][10]:.1e}")
         worst = max(max(c["one_step_max_diff"]) for c in checks)
-        rows = speed(exe, args.sizes, args.steps, args.repeats, args.seed)
-    print(f"\nspeed: {args.steps} steps, sequential order, one thread, median of {args.repeats} interleaved repeats")
+        rows = speed(exe, args.sizes, args.steps, args.repeats, args.seed, args.init)
+    load = os.getloadavg()
+    print(f"\nspeed: {args.steps} steps, sequential order, one thread, {args.init} initial states, median of "
+          f"{args.repeats} interleaved repeats (load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f})")
     print("| N | C++ plugin (us/boid-step) | flocksweep (us/boid-step) | C++ time / flocksweep time (min-max) |")
     print("|---:|---:|---:|---:|")
     for r in rows:

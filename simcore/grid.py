@@ -13,6 +13,9 @@ In sequential update order each bucket is a doubly linked list of boids (``head`
 a boid that moves is re-binned in O(1) (``rebin``), as OpenSteer's lq database does: sequential order
 stays exact. In synchronous order nobody moves while the flock perceives, so the grid is a sorted
 snapshot instead: boids ordered by bucket with a copy of their positions, read as contiguous runs.
+``flat`` holds the positions as three rows, for the perceivers' vectorised pass of squared distances: in
+the sorted layout in its order (a copy of ``spos``), and when the search is all pairs by boid (``mirror``,
+``mirror_one``).
 
 Contract: ``gather(grid, i, pos, cand, cpos)`` writes into ``cand`` (and their positions, bit for bit,
 into ``cpos``) every boid whose true distance from boid i can be at most the query radius (and others,
@@ -41,8 +44,9 @@ SKIP_TOLERANCE = 1e-6  # cells: far above the rounding of a cell face or of a bo
 # head int64 (T,), nxt/prv/bucket int64 (N,): the lists; shape int64 (5,): A_x, A_y, A_z, nc (0 when open),
 # layout (LISTS or SORTED); the occupied cell range lo (3,), hi (3,); side float64 (1,): the cell side;
 # the sorted layout: start int64 (T + 1,), order int64 (N,) (boids by bucket), spos float64 (N, 3) (their
-# positions in that order)
-Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side start order spos")
+# positions in that order); flat float64 (3, N): the positions as three contiguous rows, by boid for the
+# all-pairs search (``mirror``), in the sorted layout's order otherwise
+Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side start order spos flat")
 A_X, A_Y, A_Z, N_CELLS, LAYOUT = 0, 1, 2, 3, 4
 LISTS, SORTED = 0, 1
 
@@ -53,7 +57,23 @@ def new_grid(n):
     t = max(2 * n, 27)
     return Grid(np.full(t, -1, np.int64), np.empty(n, np.int64), np.empty(n, np.int64),
                 np.full(n, -1, np.int64), np.zeros(5, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64),
-                np.zeros(1, np.float64), np.zeros(t + 1, np.int64), np.empty(n, np.int64), np.empty((n, 3)))
+                np.zeros(1, np.float64), np.zeros(t + 1, np.int64), np.empty(n, np.int64), np.empty((n, 3)),
+                np.empty((3, n)))
+
+
+@inline
+def mirror(grid, pos):
+    """Copy every position into ``grid.flat`` (the all-pairs search reads them there, one coordinate per
+    contiguous row, so its distance pass runs in SIMD lanes)."""
+    flat = grid.flat
+    for i in range(pos.shape[0]):
+        flat[0, i], flat[1, i], flat[2, i] = pos[i, 0], pos[i, 1], pos[i, 2]
+
+
+@inline
+def mirror_one(grid, i, pos):
+    """Boid i's new position into ``grid.flat`` (sequential order, after it moved)."""
+    grid.flat[0, i], grid.flat[1, i], grid.flat[2, i] = pos[i, 0], pos[i, 1], pos[i, 2]
 
 
 @inline
@@ -200,6 +220,7 @@ def build(grid, pos, radius, periodic, box, min_saving, lists):
             k = start[b]
             grid.order[k] = i
             grid.spos[k, 0], grid.spos[k, 1], grid.spos[k, 2] = pos[i, 0], pos[i, 1], pos[i, 2]
+            grid.flat[0, k], grid.flat[1, k], grid.flat[2, k] = pos[i, 0], pos[i, 1], pos[i, 2]
             start[b] = k + 1
         for b in range(n_buckets, 0, -1):
             start[b] = start[b - 1]

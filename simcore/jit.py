@@ -8,7 +8,13 @@
   is compiled without numba's reference counting (``_nrt=False``): a leaf only reads and writes arrays
   its caller owns, never creates, returns or keeps one, so there is nothing to count, and a call costs
   no atomic reference-count updates (with counting on, every array argument of every inlined helper
-  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` helpers.
+  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` helpers. It is
+  also marked ``forceinline``: numba compiles (and caches) it on its own, and LLVM then inlines its
+  machine-level code into the run loop that calls it. A call would pass every array of its groups
+  flattened (7-9 words each: 200-250 words for ``perceive`` or ``sense``), and the loop would store them
+  all again before every call: about a third of a small flock's whole run (bench/RESULTS.md, issue 30).
+  numba's own inlining (``inline="always"``) would give the same code, but it re-types the leaf inside
+  every loop, and the first compile took ten times longer.
 
 Each ``@leaf`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
 cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
@@ -26,7 +32,7 @@ COMPILED_ONLY = "a compiled hook: numba gives its body inside a run loop; it can
 KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
-LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
+LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
 
 

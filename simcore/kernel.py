@@ -71,7 +71,16 @@ def max_triggers(n, n_steps, duration, dt):
 
 @inline
 def prepare_search(grid, pos, fp, ip):
-    """Build the grid for this state when the search uses it; returns whether it does."""
+    """Build the grid for this state when the search uses it; returns whether it does (otherwise the
+    positions are mirrored for the all-pairs search, :func:`simcore.grid.mirror`)."""
+    if _grid_built(grid, pos, fp, ip):
+        return True
+    cells.mirror(grid, pos)  # all pairs: the positions as rows for the vectorised distance pass
+    return False
+
+
+@inline
+def _grid_built(grid, pos, fp, ip):
     search = ip[I.SEARCH]
     n = pos.shape[0]
     if search == SEARCH_ALL_PAIRS or n < 2:
@@ -137,7 +146,8 @@ def record_triggers(step, triggered, records):
 @inline
 def step_sequential(step, state, params, key, work, nbrs, grid, use_grid, records, dynamics, kind):
     """Sequential order: boid i perceives, decides and moves before boid i + 1 perceives; a boid that moves
-    is re-binned at once (the rest of the step searches all pairs if it leaves the grid's guarantee)."""
+    is re-binned at once (the rest of the step searches all pairs if it leaves the grid's guarantee), or, in
+    an all-pairs search, its position mirrored."""
     pos, fwd, side = state[0], state[2], state[4]
     fp, ip = params[0], params[1]
     scratch, visible, binocular, triggered = work
@@ -148,8 +158,11 @@ def step_sequential(step, state, params, key, work, nbrs, grid, use_grid, record
         if hooks.sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
             record_trigger(step, i, records)
         hooks.move(dynamics, i, state, params, scratch)
-        if use_grid:
-            use_grid = cells.rebin(grid, i, pos)
+        if not use_grid:
+            cells.mirror_one(grid, i, pos)
+        elif not cells.rebin(grid, i, pos):
+            use_grid = False  # the rest of the step searches all pairs
+            cells.mirror(grid, pos)
 
 
 @inline

@@ -40,7 +40,7 @@ from .grid import LAYOUT, SORTED, gather, runs
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
 from .neighbours import (EYE_BOTH, EYE_LEFT, EYE_RIGHT, RULE_ALIGNMENT, RULE_ALL, RULE_COHESION,  # noqa: F401
-                         RULE_SEPARATION, offset_from, offset_to, sort_by_index,
+                         RULE_SEPARATION, min_image, offset_from, offset_to, sort_by_index,
                          store)
 from .occlusion import occlude
 from .topological import nearest
@@ -63,20 +63,59 @@ def query_radius(fp, ip):
 
 
 @inline
-def _candidates(i, pos, fp, ip, nbrs, grid, use_grid):
+def _candidates(i, pos, fp, ip, periodic, box, nbrs, grid, use_grid):
     """(n_runs, first, last, indices, positions): the candidate neighbours of boid i (boid i among them)
     are ``indices[c]`` at ``positions[c]`` for c in the runs ``first[r]:last[r]``, r < n_runs: the grid's
-    (read in place from a sorted grid, less the cells wholly beyond :func:`query_radius`; else gathered
-    into ``nbrs.cand``/``nbrs.cpos``), or every boid in ascending order (then the positions are ``pos``).
+    (gathered into ``nbrs.cand``/``nbrs.cpos`` from a grid of lists), or the boids within
+    :func:`query_radius` among a sorted grid's runs (less the cells wholly beyond it) or, searching all
+    pairs, among every boid in ascending order (:func:`_within_run`, into ``nbrs.cand``/``nbrs.cpos``).
     The runs live in rows 0 and 1 of the scratch ``nbrs.occ_i`` (free until the perspective phase)."""
     first, last = nbrs.occ_i[0], nbrs.occ_i[1]
-    if use_grid:
-        if grid.shape[LAYOUT] == SORTED:
-            return runs(grid, i, pos, query_radius(fp, ip), first, last), first, last, grid.order, grid.spos
+    radius = query_radius(fp, ip)
+    if use_grid and grid.shape[LAYOUT] != SORTED:
         first[0], last[0] = 0, gather(grid, i, pos, nbrs.cand, nbrs.cpos)
         return 1, first, last, nbrs.cand, nbrs.cpos
-    first[0], last[0] = 0, pos.shape[0]
-    return 1, first, last, nbrs.everyone, pos
+    if use_grid:
+        n_runs = runs(grid, i, pos, radius, first, last)
+        count = 0
+        for r in range(n_runs):
+            count = _within_run(pos[i, 0], pos[i, 1], pos[i, 2], first[r], last[r], radius * radius, periodic, box,
+                                grid.flat, grid.order, nbrs.d2, nbrs.cand, nbrs.cpos, count)
+    else:
+        count = _within_run(pos[i, 0], pos[i, 1], pos[i, 2], 0, pos.shape[0], radius * radius, periodic, box,
+                            grid.flat, nbrs.everyone, nbrs.d2, nbrs.cand, nbrs.cpos, 0)
+    first[0], last[0] = 0, count
+    return 1, first, last, nbrs.cand, nbrs.cpos
+
+
+@inline
+def _within_run(px, py, pz, lo, hi, radius2, periodic, box, flat, index, d2, near, near_pos, count):
+    """The boids at slots lo..hi-1 of ``flat`` (positions as three rows: the sorted grid's, or every boid's,
+    :func:`simcore.grid.mirror`) whose squared distance from (px, py, pz) is at most ``radius2``: their
+    indices ``index[c]`` appended to ``near`` from position ``count`` on, in slot order, and their positions
+    (bit for bit) to ``near_pos``; returns the new count. The squared distances of the whole run come
+    first, in one pass that runs in SIMD lanes, each computed exactly as the perceivers' own test computes
+    it (offset, minimum image, then dx * dx + dy * dy + dz * dz), so no boid the test would accept is left
+    out, and the ones it would reject beyond the query radius are not handed to it."""
+    x, y, z = flat[0], flat[1], flat[2]
+    if periodic:
+        for c in range(lo, hi):
+            dx = min_image(x[c] - px, box)
+            dy = min_image(y[c] - py, box)
+            dz = min_image(z[c] - pz, box)
+            d2[c] = dx * dx + dy * dy + dz * dz
+    else:
+        for c in range(lo, hi):
+            dx = x[c] - px
+            dy = y[c] - py
+            dz = z[c] - pz
+            d2[c] = dx * dx + dy * dy + dz * dz
+    for c in range(lo, hi):  # a branch beats branch-free stores here, dense flocks included (bench/RESULTS.md)
+        if d2[c] <= radius2:
+            near[count] = index[c]
+            near_pos[count, 0], near_pos[count, 1], near_pos[count, 2] = x[c], y[c], z[c]
+            count += 1
+    return count
 
 
 @inline
@@ -252,7 +291,7 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
 
 def perceive_sphere(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
-    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
     m = _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, fp[F.BOX], nbrs)
     if use_grid:
         sort_by_index(m, nbrs)
@@ -261,7 +300,7 @@ def perceive_sphere(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
 
 def perceive_opensteer(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
-    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
     m = _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, fp[F.BOX], nbrs)
     if use_grid:
         sort_by_index(m, nbrs)
@@ -270,7 +309,7 @@ def perceive_opensteer(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
 
 def perceive_binocular(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
-    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, nbrs, grid, use_grid)
+    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
     m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, fp[F.BOX], nbrs)
     if ip[I.OCCLUSION] != 0 and m > 1:
         m = occlude(np.int64(m), fp, nbrs)  # int64 from the start: typing the call with the

@@ -61,11 +61,11 @@ def finish_step_serial(step, r, record, work, state, params, records):
 def sense_chunk(c, chunk, step, state, params, key, work, buffers, grid_arrays, use_grid, dynamics, kind):
     """Chunk c of the perception phase. ``buffers``: the Neighbours fields, one slab per chunk, and
     ``grid_arrays`` the Grid's fields, as plain tuples (parallel loops take no named tuples)."""
-    idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot = buffers
+    idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot, d2 = buffers
     nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], cpos[c], everyone, occ_f[c], occ_i[c], bits[c],
-                      slot[c])
-    head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos = grid_arrays
-    grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos)
+                      slot[c], d2[c])
+    head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat = grid_arrays
+    grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat)
     n = state[0].shape[0]
     sense_range(c * chunk, min(n, (c + 1) * chunk), step, state, params, key, work, nbrs, grid, use_grid, dynamics,
                 kind)
@@ -101,15 +101,16 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
     label = np.empty((n_chunks, n), np.int64)
     cand = np.empty((n_chunks, n), np.int64)
     cpos = np.empty((n_chunks, n, 3))
-    everyone = np.arange(n)
     occ_f = np.empty((n_chunks, 4, n))
     occ_i = np.empty((n_chunks, 4, 2 * n + 66), np.int64)
     bits = np.zeros((n_chunks, (n + 63) // 64 + 1), np.uint64)
     slot = np.empty((n_chunks, n), np.int64)
+    d2 = np.empty((n_chunks, n))
+    everyone = np.arange(n)
     grid = cells.new_grid(n)
     head, nxt, prv, bucket, shape, lo, hi, cell_side = grid.head, grid.nxt, grid.prv, grid.bucket, grid.shape, \
         grid.lo, grid.hi, grid.side
-    start, order, spos = grid.start, grid.order, grid.spos
+    start, order, spos, flat = grid.start, grid.order, grid.spos, grid.flat
     scratch = hooks.scratch(dynamics, n)
     steer, shared = scratch
     visible = np.zeros(n, np.int32)
@@ -129,7 +130,7 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
         if step == n_steps:
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], cpos[0], everyone, occ_f[0], occ_i[0],
-                                  bits[0], slot[0])
+                                  bits[0], slot[0], d2[0])
                 record_final_serial(r, state, params, nbrs, grid, prepare_chunks(grid, pos, fp, ip), records,
                                     kind)
             break
@@ -139,8 +140,8 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
             sense_chunk(np.int64(c), chunk, step,
                         (pos, vel, fwd, up, side, acc, pattern, clock, escape, agents),
                         (fp, ip, (dfp, dip, table, kinds, fan)), key, ((steer, shared), visible, binocular, triggered),
-                        (idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot),
-                        (head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos), use_grid, dynamics,
+                        (idx, off, mask, label, cand, cpos, everyone, occ_f, occ_i, bits, slot, d2),
+                        (head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat), use_grid, dynamics,
                         kind)
         for c in nb.prange(n_chunks):
             move_chunk(np.int64(c), chunk, (pos, vel, fwd, up, side, acc, pattern, clock, escape, agents),

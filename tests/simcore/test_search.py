@@ -203,3 +203,27 @@ def test_every_sorting_path_gives_all_pairs_order(n, radius):
     assert longest > INSERTION_SORT_MAX
     words = (n + 63) // 64 + 1
     assert (words <= BITMAP_SPAN * longest) == (n == 150), "the case exercises the path it names"
+
+
+@pytest.mark.parametrize("kind", ("sphere", "opensteer", "binocular"))
+def test_a_boid_leaving_the_grid_mid_step_hands_the_rest_of_the_step_to_all_pairs(kind):
+    """Sequential order: boid 0 moves first, past the grid's coordinate limit, so the grid is dropped for
+    the rest of the step; boids 1.. then search all pairs from the mirrored positions (simcore.grid.mirror),
+    which must hold everyone's current position: the run equals the all-pairs run bit for bit."""
+    from simcore.grid import CELL_MARGIN, MAX_CELL_COORD
+    from simcore.layout import pack
+    from simcore.perception import query_radius
+
+    state = flock_state(21, N, ball_radius=BALL)
+    grid = model_for(kind, "open", "sequential", "grid")
+    fp, ip = pack(grid, 1 / 30)
+    limit = MAX_CELL_COORD * query_radius(fp, ip) * (1.0 + CELL_MARGIN)
+    state.pos[0] = (limit - 0.01, 0.0, 0.0)
+    state.fwd[0], state.vel[0] = (1.0, 0.0, 0.0), (5.0, 0.0, 0.0)  # 5 / 30 per step: beyond the limit at once
+    state.up[0], state.side[0] = (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)
+    assert perceived(grid, state, 1)["grid"], "the grid was not used at the start"
+    a = advance(grid, state, STEPS, 1 / 30)
+    b = advance(model_for(kind, "open", "sequential", "all_pairs"), state, STEPS, 1 / 30)
+    assert a.pos[1, 0, 0] > limit, "boid 0 did not leave the grid"
+    assert_same_run(a, b)
+    assert a.visible[:, 1:].mean() >= 2.0
