@@ -15,8 +15,8 @@ A :class:`Track` holds a run's recorded frames and what is known about it:
 Constructors: :func:`from_observations` (a simulator ``Observations``, optionally with its preset),
 :func:`from_npz` (a trajectory file, :mod:`sweeps.trajectory`: ``trajectory.npz`` of ``flocksweep
 simulate --out`` with its ``params.json``, or a sweep's ``trajectories/<run_id>.npz`` with its results
-store for the parameters), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
-of these). :meth:`Track.every` keeps every k-th frame.
+store for the parameters), :func:`from_arrays` (plain arrays), :func:`from_observed` (an observed flock: measured tracks, with the
+individuals present at every record) and :func:`as_track` (any of these). :meth:`Track.every` keeps every k-th frame.
 
 Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
 by :func:`agents_of` (prey and predators, when the observations record them) or, from a saved
@@ -235,6 +235,22 @@ def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Trac
     return Track(times=times, pos=pos, vel=np.asarray(vel, dtype=np.float64),
                  pattern=None if pattern is None else np.asarray(pattern),
                  leader=None if leader is None else np.asarray(leader, dtype=bool), **meta)
+
+
+def from_observed(flock, title: str | None = None, info: dict | None = None,
+                  group_radius: float | None = None) -> Track:
+    """A Track of an observed flock (:class:`observables.observed.ObservedFlock`: measured tracks, or a run
+    seen through an observation model) with the individuals present at every record (the viewer draws a
+    fixed flock; ``info`` says how many of them are shown). ValueError when nobody is present throughout."""
+    always = flock.present.all(axis=0)
+    if not always.any():
+        raise ValueError(f"flock {flock.name!r}: no individual is present at every record, so none can be drawn "
+                         "throughout")
+    shown = f"{int(always.sum())} of {flock.n}" + ("" if always.all() else " (those present at every record)")
+    return Track(times=flock.times, pos=flock.pos[:, always], vel=flock.vel[:, always],
+                 pattern=None if flock.pattern is None else np.asarray(flock.pattern)[always],
+                 title=title or f"flock {flock.name}", info={**(info or {}), "individuals shown": shown},
+                 group_radius=None if group_radius is None else float(group_radius))
 
 
 def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
