@@ -400,8 +400,8 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, phases: Phases, predic
     predictive_figure(predictive_table, predictive, config.targets.observed, config.targets.columns,
                       folder.path("predictive.png"))
     posterior_median_page(config, summary, folder.root)
-    predictive_page(config, summary, draws[picked], predictive, flock, folder.root)   # with tracks targets
-    warnings = prior_constraint_warnings(summary, config.prior)
+    _, page_warnings = predictive_page(config, summary, draws[picked], predictive, flock, folder.root)
+    warnings = prior_constraint_warnings(summary, config.prior) + page_warnings
     if result.info["leakage"] > 0.1:
         warnings.append(f"{result.info['leakage']:.0%} of the estimator's draws at the targets fell outside the prior "
                         "(redrawn): the targets may lie outside what the simulations cover")
@@ -571,7 +571,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     predictive_figure(check, predictive, config.targets.observed, config.targets.columns,
                       folder.path("predictive.png"))
     posterior_median_page(config, summary, folder.root)  # viewer page of a run at the posterior median
-    predictive_page(config, summary, draws, predictive, flock, folder.root)   # the tracks beside a predictive run
+    warnings += predictive_page(config, summary, draws, predictive, flock, folder.root)[1]   # tracks beside a run
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
                          "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),

@@ -4,19 +4,21 @@
 one run of the calibration's model at the posterior median of every free parameter (integer keys rounded,
 as the summary simulator does), with the calibration's seed.
 
-``predictive_page(config, summary, draws, predictive, flock, out_dir) -> Path | None`` writes
+``predictive_page(config, summary, draws, predictive, flock, out_dir) -> (Path | None, warnings)`` writes
 ``<out_dir>/viewer_predictive.html`` when the targets come from measured tracks (None otherwise): one page of
 two runs with a run menu (:func:`analysis.viewer.page.build_runs_page`), the same colouring (by group) and
 the same clock (seconds since the start of the record grid; switching keeps the time):
 
-* ``data-<flock>``: the first measured flock as resampled for the targets (its records, the individuals
-  present at every record: :func:`analysis.viewer.track.from_observed`);
+* ``data-<flock>``: the first measured flock, as resampled for the targets, that has an individual present
+  at every record (its records, those individuals: :func:`analysis.viewer.track.from_observed`; when no
+  flock has one there is no page and a warning says why);
 * ``predictive-<i>``: posterior predictive run i, the one whose draw is closest to the posterior median
   (``summary['median']``; distance in units of the draws' sd per parameter), re-simulated from its draw
   ``draws[i]`` and its seed (the seed key ``(config.seed, Tag.PREDICTIVE, i)`` of
   :func:`analysis.calibration.run.predictive_runs`) and checked: its bare statistics (the flock
   columns, and the targets when no noise is added to them) must equal row i of ``predictive``/``flock`` bit
-  for bit, else :class:`NotReproduced`. It is shown as simulated (before the observation model's
+  for bit (:func:`predictive_track` raises :class:`NotReproduced`; the page is then not written and the
+  warning names the differing columns). It is shown as simulated (before the observation model's
   projection, missed detections and noise), recorded at the observation's interval.
 
 Both use the calibration's fixed group radius, so the groups drawn are the groups the flock check counts.
@@ -67,18 +69,27 @@ def nearest_draw(draws: np.ndarray, centre: np.ndarray) -> int:
     return int(np.argmin((scaled ** 2).sum(axis=1)))
 
 
-def predictive_page(config, summary, draws, predictive, flock, out_dir) -> Path | None:
-    """The measured flock beside a posterior predictive run (see the module docstring)."""
+def predictive_page(config, summary, draws, predictive, flock, out_dir) -> tuple[Path | None, list[str]]:
+    """(the page, warnings): the measured flock beside a posterior predictive run (see the module docstring);
+    no page and no warning without tracks targets, no page and a warning when no measured flock has an
+    individual present at every record or the run does not reproduce."""
     targets = config.targets
     if not targets.flock_tracks:
-        return None
+        return None, []
+    shown = next((f for f in targets.flock_tracks if f.present.all(axis=0).any()), None)
+    if shown is None:
+        return None, [f"no {PREDICTIVE_PAGE}: no measured flock has an individual present at every record, "
+                      "and the viewer draws a fixed flock"]
     i = nearest_draw(np.asarray(draws, dtype=float), median_theta(config, summary))
-    data = from_observed(targets.flock_tracks[0], title=f"{config.name}: measured flock {targets.flocks[0]}",
-                         info={"source": str(targets.tracks_path), "flock": targets.flocks[0]},
+    data = from_observed(shown, title=f"{config.name}: measured flock {shown.name}",
+                         info={"source": str(targets.tracks_path), "flock": shown.name},
                          group_radius=config.metrics.group_radius)
-    run = predictive_track(config, draws[i], i, np.concatenate([predictive[i], flock[i]]))
-    page = build_runs_page([data, run], [f"data-{targets.flocks[0]}", f"predictive-{i}"], color_by=COLOR_BY)
-    return page.save(Path(out_dir) / PREDICTIVE_PAGE)
+    try:
+        run = predictive_track(config, draws[i], i, np.concatenate([predictive[i], flock[i]]))
+    except NotReproduced as err:
+        return None, [f"no {PREDICTIVE_PAGE}: {err}"]
+    page = build_runs_page([data, run], [f"data-{shown.name}", f"predictive-{i}"], color_by=COLOR_BY)
+    return page.save(Path(out_dir) / PREDICTIVE_PAGE), []
 
 
 def predictive_track(config, theta, i: int, stored_row: np.ndarray):

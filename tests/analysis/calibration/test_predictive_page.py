@@ -3,8 +3,8 @@ predictive run nearest the posterior median as two runs of one page, same clock 
 re-simulated and checked against the predictive check's statistics (analysis.calibration.viewer_page)."""
 from __future__ import annotations
 
-import json
 import re
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -18,9 +18,6 @@ from analysis.calibration.viewer_page import (PREDICTIVE_PAGE, NotReproduced, ne
 from flocksweep.cli import main
 from test_tracks_targets import THETA, calibration_text, runs, tracks, write_config  # noqa: F401 - fixtures
 
-pytestmark = pytest.mark.slow
-
-
 def test_the_draw_nearest_the_median_is_measured_in_units_of_each_parameters_spread():
     draws = np.array([[0.0, 0.0], [10.0, 1.0], [1.0, 10.0], [-10.0, -1.0]])
     # sd of the columns ~7.1 and ~4.2: [10, 1] is nearer (10, 5) than [1, 10] in those units
@@ -28,6 +25,7 @@ def test_the_draw_nearest_the_median_is_measured_in_units_of_each_parameters_spr
     assert nearest_draw(np.array([[3.0, 1.0], [3.0, 2.0]]), np.array([3.0, 2.2])) == 1   # a constant column
 
 
+@pytest.mark.slow
 def test_the_predictive_run_is_reproduced_or_refused(tracks, tmp_path):
     config = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))
     draws = np.array([THETA, (14.0, 5.0)])
@@ -41,6 +39,43 @@ def test_the_predictive_run_is_reproduced_or_refused(tracks, tmp_path):
         predictive_track(config, draws[1], 1, changed)
     with pytest.raises(NotReproduced):                        # run 0's statistics are not run 1's
         predictive_track(config, draws[1], 0, np.concatenate([targets[1], flock[1]]))
+
+
+@pytest.mark.slow
+def test_no_page_without_tracks_and_a_warning_when_no_flock_can_be_drawn_throughout(tracks, tmp_path):
+    config = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))
+    summary = pd.DataFrame({"median": THETA}, index=list(config.names))
+    draws, none = np.array([THETA]), np.zeros((1, 20))
+    flocks = config.targets.flock_tracks
+    assert len(flocks) == 5 and all(f.present.all() for f in flocks)
+    typed = replace(config, targets=replace(config.targets, flock_tracks=()))
+    assert predictive_page(typed, summary, draws, none, none, tmp_path) == (None, [])
+    gappy = []
+    for flock in flocks:                                       # everyone missed at one record or another
+        present = flock.present.copy()
+        present[np.arange(flock.n) % len(present), np.arange(flock.n)] = False
+        gappy.append(replace(flock, present=present))
+    unseen = replace(config, targets=replace(config.targets, flock_tracks=tuple(gappy)))
+    page, warnings = predictive_page(unseen, summary, draws, none, none, tmp_path)
+    assert page is None and warnings == [f"no {PREDICTIVE_PAGE}: no measured flock has an individual present at "
+                                         "every record, and the viewer draws a fixed flock"]
+    assert not (tmp_path / PREDICTIVE_PAGE).exists()
+
+
+@pytest.mark.slow
+def test_a_predictive_run_that_does_not_reproduce_gets_no_page_and_a_warning(tracks, tmp_path):
+    config = load_calibration(write_config(tmp_path, calibration_text(tracks.name)))
+    summary = pd.DataFrame({"median": THETA}, index=list(config.names))
+    draws = np.array([THETA])
+    targets, flock = predictive_runs(config, draws)
+    page, warnings = predictive_page(config, summary, draws, targets, flock, tmp_path)
+    assert page == tmp_path / PREDICTIVE_PAGE and warnings == []
+    page.unlink()
+    flock[0, 0] += 1.0                                         # not what run 0 measured
+    page, warnings = predictive_page(config, summary, draws, targets, flock, tmp_path)
+    column = flock_columns(config)[0]
+    assert page is None and warnings == [f"no {PREDICTIVE_PAGE}: predictive run 0 re-simulated differs in {column}"]
+    assert not (tmp_path / PREDICTIVE_PAGE).exists()
 
 
 def _runs_of(page_text: str) -> list[str]:
