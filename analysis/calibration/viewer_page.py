@@ -7,11 +7,14 @@ as the summary simulator does), with the calibration's seed.
 ``predictive_page(config, summary, draws, predictive, flock, out_dir) -> (Path | None, warnings)`` writes
 ``<out_dir>/viewer_predictive.html`` when the targets come from measured tracks (None otherwise): one page of
 two runs with a run menu (:func:`analysis.viewer.page.build_runs_page`), the same colouring (by group) and
-the same clock (seconds since the start of the record grid; switching keeps the time):
+the same clock, the tracks' (seconds since the start of a measured flock's records; switching keeps the
+time): the predictive run's records from ``run.warmup - tracks.warmup`` seconds on, shifted by that, so
+the windows the statistics compare (the run from its warm-up, the flock from its own) start at the same
+time in both:
 
-* ``data-<flock>``: the first measured flock, as resampled for the targets, that has an individual present
-  at every record (its records, those individuals: :func:`analysis.viewer.track.from_observed`; when no
-  flock has one there is no page and a warning says why);
+* ``data-<flock>``: the first measured flock as resampled for the targets (its records; an individual's
+  records where it was not detected interpolated between those where it was:
+  :func:`analysis.viewer.track.from_observed`);
 * ``predictive-<i>``: posterior predictive run i, the one whose draw is closest to the posterior median
   (``summary['median']``; distance in units of the draws' sd per parameter), re-simulated from its draw
   ``draws[i]`` and its seed (the seed key ``(config.seed, Tag.PREDICTIVE, i)`` of
@@ -71,15 +74,11 @@ def nearest_draw(draws: np.ndarray, centre: np.ndarray) -> int:
 
 def predictive_page(config, summary, draws, predictive, flock, out_dir) -> tuple[Path | None, list[str]]:
     """(the page, warnings): the measured flock beside a posterior predictive run (see the module docstring);
-    no page and no warning without tracks targets, no page and a warning when no measured flock has an
-    individual present at every record or the run does not reproduce."""
+    no page and no warning without tracks targets, no page and a warning when the run does not reproduce."""
     targets = config.targets
     if not targets.flock_tracks:
         return None, []
-    shown = next((f for f in targets.flock_tracks if f.present.all(axis=0).any()), None)
-    if shown is None:
-        return None, [f"no {PREDICTIVE_PAGE}: no measured flock has an individual present at every record, "
-                      "and the viewer draws a fixed flock"]
+    shown = targets.flock_tracks[0]
     i = nearest_draw(np.asarray(draws, dtype=float), median_theta(config, summary))
     data = from_observed(shown, title=f"{config.name}: measured flock {shown.name}",
                          info={"source": str(targets.tracks_path), "flock": shown.name},
@@ -105,9 +104,13 @@ def predictive_track(config, theta, i: int, stored_row: np.ndarray):
         raise NotReproduced(f"predictive run {i} re-simulated differs in {', '.join(differing)}")
     preset = simulator.preset(theta)
     values = {name: f"{value:.4g}" for name, value in zip(config.names, np.asarray(theta, dtype=float))}
+    shift = config.metrics.warmup - config.targets.tracks_warmup
     info = {"calibration": config.name, "predictive run": f"{i} (its draw nearest the posterior median)",
             "seed": seed, **values,
             "reproduced": f"bit for bit ({int(bare.sum())} statistics of the predictive check)",
-            "shown": "as simulated, before the observation model"}
-    return from_observations(obs, preset, title=f"{config.name}: predictive run {i} (nearest the posterior median)",
-                             info=info, group_radius=config.metrics.group_radius)
+            "shown": "as simulated, before the observation model",
+            "clock": f"the tracks' (t = 0 is the run's {shift:g} s: run.warmup {config.metrics.warmup:g} s less "
+                     f"the tracks' warmup {config.targets.tracks_warmup:g} s)"}
+    track = from_observations(obs, preset, title=f"{config.name}: predictive run {i} (nearest the posterior median)",
+                              info=info, group_radius=config.metrics.group_radius)
+    return track.since(shift, shift)
