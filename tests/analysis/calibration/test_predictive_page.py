@@ -75,6 +75,7 @@ def _runs_of(page_text: str) -> list[str]:
     return re.findall(r'data-run="([^"]+)"', page_text)
 
 
+@pytest.mark.slow
 def test_a_calibration_from_tracks_shows_the_measured_flock_beside_a_predictive_run(tracks, tmp_path):
     from browser import Browser
 
@@ -92,10 +93,14 @@ def test_a_calibration_from_tracks_shows_the_measured_flock_beside_a_predictive_
         assert data.state("run") == "data-flock0" and data.state("runs") == ids
         assert data.state("n") == 10 and data.state("colorBy") == "group"
         assert data.page.inner_text("#title") == "tracks_test: measured flock flock0"
+        assert "10 of 10" in data.page.inner_text("#info")
         data.page.close()
         run = browser.open(page, fragment="run=predictive&t=1.0")
         assert run.errors == [] and run.blocked == []
         assert run.state("run") == ids[1] and run.state("colorBy") == "group"
         assert abs(run.state("time") - 1.0) < 1e-6 and run.state("n") == 10
         assert "predictive run" in run.page.inner_text("#title")
+        panel = run.page.inner_text("#info")
+        assert "bit for bit" in panel and "t = 0 is the run's 1 s" in panel
+        assert run.state("frames") == 11                      # the run's 1-3 s on the tracks' 0-2 s
         run.page.close()
