@@ -204,6 +204,8 @@ class Targets:
     per_flock: np.ndarray | None = None
     flock: dict = field(default_factory=dict)   # [targets] flock: the observed flock's other statistics (column -> value)
     flock_runs: Any = None              # from_tracks: every measured flock's row (all metrics), for the flock check
+    flock_tracks: tuple = field(default=(), repr=False)   # from_tracks: the measured flocks (ObservedFlock), for the viewer
+    tracks_warmup: float = 0.0          # from_tracks: seconds skipped at the start of each measured flock
 
     @property
     def k(self) -> int:
@@ -487,7 +489,8 @@ def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: 
                           observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
                           samples_path=found.path if found.cov is None else None, tracks_path=found.path,
                           flocks=found.flocks, per_flock=_readonly(found.per_flock),
-                          flock_runs=found.measurement.runs)
+                          flock_runs=found.measurement.runs, flock_tracks=tuple(found.measurement.flocks),
+                          tracks_warmup=float(found.measurement.table.source.warmup))
     targets = dataclasses.replace(targets, flock=check_flock_table(table.targets.flock, targets.summary,
                                                                     targets.columns))
     return targets, metrics

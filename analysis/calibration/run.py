@@ -37,7 +37,9 @@ results do not depend on it.
 * ``trace.png``, ``rank.png``, ``corner.png`` (the ``corner`` package: quantiles, contours, truth lines
   when ``targets.truth`` is given), ``predictive.png``;
 * ``report.html`` / ``report.md``: the calibration report (:mod:`~analysis.calibration.calibration_report`);
-* ``viewer_posterior_median.html``: an interactive 3-D page of one run at the posterior median.
+* ``viewer_posterior_median.html``: an interactive 3-D page of one run at the posterior median;
+* ``viewer_predictive.html`` (targets from tracks): the measured flock and the predictive run nearest the
+  posterior median, re-simulated and checked, as two runs of one page (:mod:`~analysis.calibration.viewer_page`).
 
 The simulator runs ``n_sim`` replicates per evaluation in one batched compiled call, with fresh seeds
 at every evaluation. When the targets are given as mean and sd (or a covariance), that observation
@@ -106,7 +108,7 @@ from .refine import P_LIMIT, Z_LIMIT, confirmation_passed, refine_emulator
 from .simulator import SummarySimulator, summary_simulator
 from .surrogates import build_surrogate, prior_outside_box
 from .training import training_set
-from .viewer_page import posterior_median_page
+from .viewer_page import posterior_median_page, predictive_page
 
 __all__ = ["CalibrationRun", "calibrate", "run_calibration", "load_calibration_results", "summary_simulator",
            "simulate_fn", "seeded_fn", "posterior_predictive", "SummarySimulator"]
@@ -398,7 +400,8 @@ def _npe(config: CalibrationConfig, folder: OutputFolder, phases: Phases, predic
     predictive_figure(predictive_table, predictive, config.targets.observed, config.targets.columns,
                       folder.path("predictive.png"))
     posterior_median_page(config, summary, folder.root)
-    warnings = prior_constraint_warnings(summary, config.prior)
+    _, page_warnings = predictive_page(config, summary, draws[picked], predictive, flock, folder.root)
+    warnings = prior_constraint_warnings(summary, config.prior) + page_warnings
     if result.info["leakage"] > 0.1:
         warnings.append(f"{result.info['leakage']:.0%} of the estimator's draws at the targets fell outside the prior "
                         "(redrawn): the targets may lie outside what the simulations cover")
@@ -568,6 +571,7 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     predictive_figure(check, predictive, config.targets.observed, config.targets.columns,
                       folder.path("predictive.png"))
     posterior_median_page(config, summary, folder.root)  # viewer page of a run at the posterior median
+    warnings += predictive_page(config, summary, draws, predictive, flock, folder.root)[1]   # tracks beside a run
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
                          "wall_s": time.time() - started, "steps": int(result.chain.shape[0]),

@@ -8,6 +8,7 @@ Contract
                            fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0)
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
+    obs, row = sim.run(theta, seed)        # one run's observations (bare) and its row, as simulate gives it
 
 * ``base_preset_data`` is a preset dict (parsed TOML, fixed settings already applied); it is deep-copied
   and validated once at construction and never modified.
@@ -168,16 +169,26 @@ class SummarySimulator:
         seeds = list(seeds)
         if len(seeds) != self.n_sim:
             raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
+        runs, settings = self._runs(theta, seeds)
+        out = np.empty((self.n_sim, len(self.columns)))
+        for i, obs in enumerate(runs):
+            out[i] = self._row(obs, settings, seeds[i])
+        return out
+
+    def run(self, theta, seed):
+        """(observations, row) of the one run with ``seed``: the bare run as recorded (every step of the
+        observation's interval, or the preset's record interval) and its row, the row ``simulate`` gives
+        that seed (bit for bit)."""
+        (obs,), settings = self._runs(theta, [seed])
+        return obs, self._row(obs, settings, seed)
+
+    def _runs(self, theta, seeds):
         preset = self.preset(theta)
         run = preset.run
         every = run.record_every if self.observation is None else self.observation.record_every(run.dt)
         runs = simulate_batch(preset.model, preset.init, [_fresh_seed(s) for s in seeds], run.duration, run.dt,
                               every)
-        settings = self.metrics.resolve(preset.model)
-        out = np.empty((self.n_sim, len(self.columns)))
-        for i, obs in enumerate(runs):
-            out[i] = self._row(obs, settings, seeds[i])
-        return out
+        return runs, self.metrics.resolve(preset.model)
 
     def __call__(self, theta, rng: np.random.Generator) -> np.ndarray:
         """``simulate(theta, seeds_for(rng, n_sim))``: fresh replicates at every call."""

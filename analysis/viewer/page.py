@@ -240,8 +240,9 @@ def build_runs_page(tracks, run_ids, max_mb: float | None = 5.0, stride: int | N
 
 
 def _run_labels(tracks, run_ids) -> list[str]:
-    """Each run's menu entry: its id and the parameters whose values differ between the runs."""
-    keys = sorted({k for t in tracks for k in t.params})
+    """Each run's menu entry: its id and the parameters (of those every run has) whose values differ between
+    the runs (a measured flock has none: its entry is its id)."""
+    keys = sorted(set.intersection(*(set(t.params) for t in tracks)))
     differing = [k for k in keys if len({repr(t.params.get(k)) for t in tracks}) > 1]
     labels = []
     for track, run in zip(tracks, run_ids):

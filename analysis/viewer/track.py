@@ -15,8 +15,8 @@ A :class:`Track` holds a run's recorded frames and what is known about it:
 Constructors: :func:`from_observations` (a simulator ``Observations``, optionally with its preset),
 :func:`from_npz` (a trajectory file, :mod:`sweeps.trajectory`: ``trajectory.npz`` of ``flocksweep
 simulate --out`` with its ``params.json``, or a sweep's ``trajectories/<run_id>.npz`` with its results
-store for the parameters), :func:`from_arrays` (plain arrays) and :func:`as_track` (any
-of these). :meth:`Track.every` keeps every k-th frame.
+store for the parameters), :func:`from_arrays` (plain arrays), :func:`from_observed` (an observed flock: measured tracks, gaps
+interpolated) and :func:`as_track` (any of these). :meth:`Track.every` keeps every k-th frame, :meth:`Track.since` the frames from a time on.
 
 Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
 by :func:`agents_of` (prey and predators, when the observations record them) or, from a saved
@@ -102,12 +102,23 @@ class Track:
         """Every ``k``-th frame (the first always kept); agents' tracks likewise."""
         if k == 1:
             return self
-        pick = slice(None, None, k)
+        return self._frames(slice(None, None, k))
+
+
+    def since(self, start: float, shift: float = 0.0) -> "Track":
+        """The frames at or after ``start`` seconds (at least the last), their times minus ``shift``;
+        agents' tracks likewise."""
+        first = min(int(np.searchsorted(self.times, start - 1e-9 * max(1.0, abs(start)))), self.frames - 1)
+        return self._frames(slice(first, None), shift)
+
+    def _frames(self, pick: slice, shift: float = 0.0) -> "Track":
         cut = {name: None if getattr(self, name) is None else getattr(self, name)[pick]
                for name in ("leader", "visible", "binocular")}
-        agents = tuple({**a, **{key: np.asarray(a[key])[pick] for key in ("pos", "vel") if key in a}}
+        agents = tuple({**a, **{key: np.asarray(a[key])[pick] for key in ("pos", "vel") if key in a},
+                        **({"appears_s": a["appears_s"] - shift} if a.get("appears_s") is not None else {})}
                        for a in self.agents)
-        return replace(self, times=self.times[pick], pos=self.pos[pick], vel=self.vel[pick], agents=agents, **cut)
+        times = self.times[pick] - shift if shift else self.times[pick]
+        return replace(self, times=times, pos=self.pos[pick], vel=self.vel[pick], agents=agents, **cut)
 
 
 def flat_params(preset_dict: dict, prefix: str = "") -> dict:
@@ -235,6 +246,41 @@ def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Trac
     return Track(times=times, pos=pos, vel=np.asarray(vel, dtype=np.float64),
                  pattern=None if pattern is None else np.asarray(pattern),
                  leader=None if leader is None else np.asarray(leader, dtype=bool), **meta)
+
+
+def from_observed(flock, title: str | None = None, info: dict | None = None,
+                  group_radius: float | None = None) -> Track:
+    """A Track of an observed flock (:class:`observables.observed.ObservedFlock`: measured tracks, or a run
+    seen through an observation model). The viewer draws a fixed flock, so every individual present at some
+    record is drawn at every record: where it was not present, its position and velocity are interpolated
+    linearly in time between its known records (held before its first and after its last); ``info`` says
+    how many individuals are drawn and what share of their positions was filled in. ValueError when nobody
+    is ever present."""
+    seen = flock.present.any(axis=0)
+    if not seen.any():
+        raise ValueError(f"flock {flock.name!r}: no individual is present at any record")
+    present = flock.present[:, seen]
+    pos, vel = _filled(flock.times, flock.pos[:, seen], present), _filled(flock.times, flock.vel[:, seen], present)
+    filled = int((~present).sum())
+    shown = f"{int(seen.sum())} of {flock.n}" + ("" if seen.all() else " (the others are never present)")
+    said = {"individuals shown": shown,
+            "filled in": f"{filled} of {present.size} positions ({filled / present.size:.1%}), interpolated "
+                         "between detections"}
+    return Track(times=flock.times, pos=pos, vel=vel,
+                 pattern=None if flock.pattern is None else np.asarray(flock.pattern)[seen],
+                 title=title or f"flock {flock.name}", info={**(info or {}), **said},
+                 group_radius=None if group_radius is None else float(group_radius))
+
+
+def _filled(times: np.ndarray, values: np.ndarray, present: np.ndarray) -> np.ndarray:
+    """(R, N, 3) ``values`` with each individual's records where it is not ``present`` interpolated in time
+    from those where it is (held at the ends: ``numpy.interp``)."""
+    out = np.array(values, dtype=np.float64)
+    for i in np.flatnonzero(~present.all(axis=0)):
+        known = present[:, i]
+        for c in range(out.shape[2]):
+            out[:, i, c] = np.interp(times, times[known], values[known, i, c])
+    return out
 
 
 def _sweep_meta(path: Path, run_id: str, around=None) -> dict:
