@@ -20,6 +20,37 @@ from simcore.state import frame_from_forward
 
 # test modules import these helpers and tests/reference.py by module name, whatever pytest's import mode
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def _drop_stale_test_kernels() -> None:
+    """Test modules compile their own ``numba.njit(cache=True)`` helpers that inline simcore's (slots,
+    noise draws, ...); numba checks only the test file's timestamp, so after an edit of simcore a cached
+    helper would still hold the old code. Clear the tests' cached kernels whenever simcore's sources or
+    the tests' own differ from the last run (as ``simcore/_cache.py`` does for simcore)."""
+    import hashlib
+
+    import simcore
+    from simcore._cache import STAMP, sources_digest
+
+    tests = Path(__file__).resolve().parent
+    digest = hashlib.sha256(sources_digest(Path(simcore.__file__).parent).encode())
+    folders = sorted({path.parent for path in tests.rglob("*.py")})
+    for folder in folders:
+        digest.update(sources_digest(folder).encode())
+    stamp = tests / "__pycache__" / STAMP
+    try:
+        if stamp.exists() and stamp.read_text().strip() == digest.hexdigest():
+            return
+        for folder in folders:
+            for cached in list(folder.glob("__pycache__/*.nbi")) + list(folder.glob("__pycache__/*.nbc")):
+                cached.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except OSError:
+        pass
+
+
+_drop_stale_test_kernels()
 # what flocksweep remembers between commands (status's last full check) goes to a folder of this run,
 # never the user's cache (also for the commands tests start as subprocesses)
 if "FLOCKSWEEP_CACHE_DIR" not in os.environ:
