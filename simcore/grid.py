@@ -13,9 +13,8 @@ In sequential update order each bucket is a doubly linked list of boids (``head`
 a boid that moves is re-binned in O(1) (``rebin``), as OpenSteer's lq database does: sequential order
 stays exact. In synchronous order nobody moves while the flock perceives, so the grid is a sorted
 snapshot instead: boids ordered by bucket with a copy of their positions, read as contiguous runs.
-``flat`` holds the positions as three rows, for the perceivers' vectorised pass of squared distances: in
-the sorted layout in its order (a copy of ``spos``), and when the search is all pairs by boid (``mirror``,
-``mirror_one``).
+When the search is all pairs, ``flat`` holds the positions as three rows (``mirror``, ``mirror_one``): the
+perceivers compute every squared distance from it in one vectorised pass.
 
 Contract: ``gather(grid, i, pos, cand, cpos)`` writes into ``cand`` (and their positions, bit for bit,
 into ``cpos``) every boid whose true distance from boid i can be at most the query radius (and others,
@@ -44,8 +43,8 @@ SKIP_TOLERANCE = 1e-6  # cells: far above the rounding of a cell face or of a bo
 # head int64 (T,), nxt/prv/bucket int64 (N,): the lists; shape int64 (5,): A_x, A_y, A_z, nc (0 when open),
 # layout (LISTS or SORTED); the occupied cell range lo (3,), hi (3,); side float64 (1,): the cell side;
 # the sorted layout: start int64 (T + 1,), order int64 (N,) (boids by bucket), spos float64 (N, 3) (their
-# positions in that order); flat float64 (3, N): the positions as three contiguous rows, by boid for the
-# all-pairs search (``mirror``), in the sorted layout's order otherwise
+# positions in that order); flat float64 (3, N): the positions as three contiguous rows, for the all-pairs
+# search (``mirror``)
 Grid = namedtuple("Grid", "head nxt prv bucket shape lo hi side start order spos flat")
 A_X, A_Y, A_Z, N_CELLS, LAYOUT = 0, 1, 2, 3, 4
 LISTS, SORTED = 0, 1
@@ -220,7 +219,6 @@ def build(grid, pos, radius, periodic, box, min_saving, lists):
             k = start[b]
             grid.order[k] = i
             grid.spos[k, 0], grid.spos[k, 1], grid.spos[k, 2] = pos[i, 0], pos[i, 1], pos[i, 2]
-            grid.flat[0, k], grid.flat[1, k], grid.flat[2, k] = pos[i, 0], pos[i, 1], pos[i, 2]
             start[b] = k + 1
         for b in range(n_buckets, 0, -1):
             start[b] = start[b - 1]

@@ -3,7 +3,7 @@
 ``new_neighbours(n)`` returns a :data:`Neighbours` for a flock of n boids: the output slots ``idx``
 int64 (n,), ``off`` float64 (n, 3), ``mask`` int64 (n,) (rule bits ``RULE_*``) and ``label`` int64 (n,)
 (eye labels ``EYE_*``), and scratch: ``cand`` int64 (n,) candidate indices with their positions ``cpos``
-float64 (n, 3) (the candidates a perceiver tests), ``everyone`` int64 (n,) = 0..n-1, ``occ_f`` float64 (4, n) and
+float64 (n, 3) (the grid's gathered candidates, or the all-pairs search's boids within reach), ``occ_f`` float64 (4, n) and
 ``occ_i`` int64 (4, 2n + 66) (rows) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
 uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting (and the binocular view
 phase's list of candidates within reach), ``d2`` float64 (n,): squared distances of the all-pairs search.
@@ -30,7 +30,7 @@ INSERTION_SORT_MAX = 16  # neighbour lists up to this long are insertion-sorted 
 BITMAP_SPAN = 4         # ... through a bitmap when the flock needs at most this many 64-bit words per
                         # neighbour, else through a Shell sort of keys
 
-Neighbours = namedtuple("Neighbours", "idx off mask label cand cpos everyone occ_f occ_i bits slot d2")
+Neighbours = namedtuple("Neighbours", "idx off mask label cand cpos occ_f occ_i bits slot d2")
 
 # 64-bit de Bruijn sequence and table: the index of the lowest set bit of a word in one multiply
 _DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
@@ -43,7 +43,7 @@ for _b in range(64):
 def new_neighbours(n):
     """Neighbour buffers and scratch for a flock of n boids."""
     return Neighbours(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),
-                      np.empty(n, np.int64), np.empty((n, 3)), np.arange(n), np.empty((4, n)),
+                      np.empty(n, np.int64), np.empty((n, 3)), np.empty((4, n)),
                       np.empty((4, 2 * n + 66), np.int64),
                       np.zeros((n + 63) // 64 + 1, np.uint64), np.empty(n, np.int64), np.empty(n))
 

@@ -66,53 +66,48 @@ def query_radius(fp, ip):
 def _candidates(i, pos, fp, ip, periodic, box, nbrs, grid, use_grid):
     """(n_runs, first, last, indices, positions): the candidate neighbours of boid i (boid i among them)
     are ``indices[c]`` at ``positions[c]`` for c in the runs ``first[r]:last[r]``, r < n_runs: the grid's
-    (gathered into ``nbrs.cand``/``nbrs.cpos`` from a grid of lists), or the boids within
-    :func:`query_radius` among a sorted grid's runs (less the cells wholly beyond it) or, searching all
-    pairs, among every boid in ascending order (:func:`_within_run`, into ``nbrs.cand``/``nbrs.cpos``).
-    The runs live in rows 0 and 1 of the scratch ``nbrs.occ_i`` (free until the perspective phase)."""
+    (read in place from a sorted grid, less the cells wholly beyond :func:`query_radius`; else gathered
+    into ``nbrs.cand``/``nbrs.cpos``), or, searching all pairs, the boids within :func:`query_radius` in
+    ascending order (:func:`_within`, into ``nbrs.cand``/``nbrs.cpos``). The runs live in rows 0 and 1 of
+    the scratch ``nbrs.occ_i`` (free until the perspective phase)."""
     first, last = nbrs.occ_i[0], nbrs.occ_i[1]
     radius = query_radius(fp, ip)
-    if use_grid and grid.shape[LAYOUT] != SORTED:
+    if use_grid:
+        if grid.shape[LAYOUT] == SORTED:
+            return runs(grid, i, pos, radius, first, last), first, last, grid.order, grid.spos
         first[0], last[0] = 0, gather(grid, i, pos, nbrs.cand, nbrs.cpos)
         return 1, first, last, nbrs.cand, nbrs.cpos
-    if use_grid:
-        n_runs = runs(grid, i, pos, radius, first, last)
-        count = 0
-        for r in range(n_runs):
-            count = _within_run(pos[i, 0], pos[i, 1], pos[i, 2], first[r], last[r], radius * radius, periodic, box,
-                                grid.flat, grid.order, nbrs.d2, nbrs.cand, nbrs.cpos, count)
-    else:
-        count = _within_run(pos[i, 0], pos[i, 1], pos[i, 2], 0, pos.shape[0], radius * radius, periodic, box,
-                            grid.flat, nbrs.everyone, nbrs.d2, nbrs.cand, nbrs.cpos, 0)
-    first[0], last[0] = 0, count
+    first[0], last[0] = 0, _within(i, radius * radius, periodic, box, grid.flat, nbrs.d2, nbrs.cand, nbrs.cpos)
     return 1, first, last, nbrs.cand, nbrs.cpos
 
 
 @inline
-def _within_run(px, py, pz, lo, hi, radius2, periodic, box, flat, index, d2, near, near_pos, count):
-    """The boids at slots lo..hi-1 of ``flat`` (positions as three rows: the sorted grid's, or every boid's,
-    :func:`simcore.grid.mirror`) whose squared distance from (px, py, pz) is at most ``radius2``: their
-    indices ``index[c]`` appended to ``near`` from position ``count`` on, in slot order, and their positions
-    (bit for bit) to ``near_pos``; returns the new count. The squared distances of the whole run come
-    first, in one pass that runs in SIMD lanes, each computed exactly as the perceivers' own test computes
-    it (offset, minimum image, then dx * dx + dy * dy + dz * dz), so no boid the test would accept is left
-    out, and the ones it would reject beyond the query radius are not handed to it."""
+def _within(i, radius2, periodic, box, flat, d2, near, near_pos):
+    """All pairs: the boids whose squared distance from boid i is at most ``radius2`` (boid i among them)
+    into ``near``, ascending, and their positions (bit for bit) into ``near_pos``; returns their count.
+    The squared distances of every boid come first, in one
+    pass over the mirrored positions ``flat`` (:func:`simcore.grid.mirror`) that runs in SIMD lanes; each
+    is computed exactly as the perceivers' own test computes it (offset, minimum image, then
+    dx * dx + dy * dy + dz * dz), so no boid the test would accept is left out."""
     x, y, z = flat[0], flat[1], flat[2]
+    px, py, pz = x[i], y[i], z[i]
+    n = x.shape[0]
     if periodic:
-        for c in range(lo, hi):
+        for c in range(n):
             dx = min_image(x[c] - px, box)
             dy = min_image(y[c] - py, box)
             dz = min_image(z[c] - pz, box)
             d2[c] = dx * dx + dy * dy + dz * dz
     else:
-        for c in range(lo, hi):
+        for c in range(n):
             dx = x[c] - px
             dy = y[c] - py
             dz = z[c] - pz
             d2[c] = dx * dx + dy * dy + dz * dz
-    for c in range(lo, hi):  # a branch beats branch-free stores here, dense flocks included (bench/RESULTS.md)
+    count = 0
+    for c in range(n):  # a branch beats branch-free stores here, dense flocks included (bench/RESULTS.md)
         if d2[c] <= radius2:
-            near[count] = index[c]
+            near[count] = c
             near_pos[count, 0], near_pos[count, 1], near_pos[count, 2] = x[c], y[c], z[c]
             count += 1
     return count
