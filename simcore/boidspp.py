@@ -37,7 +37,7 @@ moves boid i before boid i + 1 perceives (re-binned at once). In-loop draws are 
 (:mod:`simcore.rng`): the random kick of boid i at step s uses stream ``STREAM_RANDOM_FORCE`` at
 (s, 2 i) and (s, 2 i + 1); the prey's k-th point and the predator's start direction use
 ``STREAM_TARGETS`` at (k, 0..2) and (0, 3..4). Batches run B runs in parallel threads, each by the same
-code as alone (:func:`simcore.kernel.run_batch`); one run is one thread (``THREADS``).
+code as alone (:func:`simcore.simulate.simulate_batch`); one run is one thread (``THREADS``).
 """
 from __future__ import annotations
 

@@ -2,7 +2,8 @@
 
 * ``@kernel``: a compiled function (a run loop, a per-step driver, a grid build). Cached on disk
   (``cache=True``), IEEE arithmetic without fastmath, and numpy's error model (no per-division zero
-  checks: x / 0 gives inf or nan, as in numpy).
+  checks: x / 0 gives inf or nan, as in numpy). ``@run_loop`` is ``@kernel`` releasing the GIL
+  (``nogil``): a batch of runs is several Python threads each calling the one compiled run loop.
 * ``@inline``: a small helper, inlined into its callers at numba's IR level, so it costs no call.
 * ``@leaf``: a per-boid entry point (perceive, steer, move, re-bin), called once per boid per step. It
   is compiled without numba's reference counting (``_nrt=False``): a leaf only reads and writes arrays
@@ -31,9 +32,19 @@ import numba as nb
 COMPILED_ONLY = "a compiled hook: numba gives its body inside a run loop; it cannot be called from Python"
 KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
+run_loop = nb.njit(**KERNEL_OPTIONS, nogil=True)  # a whole run: releases the GIL, so a batch runs on threads
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
+
+
+def specialise(dispatcher, args, n_literal):
+    """The compiled specialisation of ``dispatcher`` for ``args`` whose last ``n_literal`` are compile-time
+    literals (``numba.literally``), compiled or loaded from the cache: a plain callable (for a ``nogil``
+    function it releases the GIL), called with the same arguments, literals included."""
+    head, tail = args[:len(args) - n_literal], tuple(int(a) for a in args[len(args) - n_literal:])
+    argtypes = tuple(dispatcher.typeof_pyval(a) for a in head) + tuple(nb.types.literal(a) for a in tail)
+    return dispatcher.compile(argtypes)
 
 
 def call_with_literals(dispatcher, args, n_literal):
@@ -41,9 +52,8 @@ def call_with_literals(dispatcher, args, n_literal):
     literals (``numba.literally``): the specialisation for their values is compiled (or loaded from the
     cache) and called directly. A plain call would give the same results, but numba would first type the
     whole function for int64 values on every call, only to be told to retry with the literals."""
-    head, tail = args[:len(args) - n_literal], tuple(int(a) for a in args[len(args) - n_literal:])
-    argtypes = tuple(dispatcher.typeof_pyval(a) for a in head) + tuple(nb.types.literal(a) for a in tail)
-    return dispatcher.compile(argtypes)(*head, *tail)
+    tail = tuple(int(a) for a in args[len(args) - n_literal:])
+    return specialise(dispatcher, args, n_literal)(*args[:len(args) - n_literal], *tail)
 
 
 def call_with_literal_kind(dispatcher, *args):

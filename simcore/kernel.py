@@ -40,9 +40,10 @@ Structure: the loop calls, per boid, compiled leaves without reference counting 
 ``perceive`` (:mod:`simcore.perception`), the dynamics' ``sense`` and ``move`` and, in sequential order,
 ``grid.rebin``.
 
-``run_batch`` runs B independent runs (leading axis B on every array of ``state`` and ``records``, keys
-(B,)) in parallel threads; each run is computed by the same code as alone, so results are bit-identical
-either way. :mod:`simcore.threaded` runs one big synchronous run on several threads.
+``run_model`` releases the GIL: a batch of independent runs is Python threads each calling it
+(:func:`simcore.simulate.simulate_batch`), every run computed by the same compiled code as alone, so
+results are bit-identical either way (and no second loop is compiled for batches).
+:mod:`simcore.threaded` runs one big synchronous run on several threads.
 """
 from __future__ import annotations
 
@@ -51,7 +52,7 @@ import numpy as np
 
 from . import grid as cells
 from . import hooks
-from .jit import inline, kernel, leaf
+from .jit import inline, kernel, leaf, run_loop
 from .layout import (F, I, ORDER_SEQUENTIAL, PERCEPTION_TOPOLOGICAL, SEARCH_ALL_PAIRS, SEARCH_AUTO,
                      BOUNDARY_PERIODIC)
 from .leadership import is_leader
@@ -203,7 +204,7 @@ def tick(clock, dt):
         clock[i] += dt
 
 
-@kernel
+@run_loop
 def run_model(state, params, key, n_steps, record_every, records, dynamics, kind):
     nb.literally(dynamics)  # compiled for this dynamics (simcore.hooks) ...
     nb.literally(kind)  # ... and this perception kind only (simcore.perception.perceive)
@@ -245,20 +246,3 @@ def run_model(state, params, key, n_steps, record_every, records, dynamics, kind
         if record:
             record_counts(r, visible, binocular, records)
             r += 1
-
-
-@nb.njit(cache=True, error_model="numpy", parallel=True)
-def run_batch(state, params, keys, n_steps, record_every, records, dynamics, kind):
-    nb.literally(dynamics)
-    nb.literally(kind)
-    # a parallel loop takes arrays, not tuples: the groups are taken apart here and rebuilt per run
-    pos, vel, fwd, up, side, acc, pattern, clock, escape, agents = state
-    fp, ip, dyn = params
-    dfp, dip, table, kinds, fan = dyn
-    rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader, trig_step, trig_boid, n_trig, rec_agents, \
-        capture_step = records
-    for b in nb.prange(pos.shape[0]):
-        run_model((pos[b], vel[b], fwd[b], up[b], side[b], acc[b], pattern[b], clock[b], escape[b], agents[b]),
-                  (fp, ip, (dfp, dip, table, kinds, fan)), keys[b], n_steps, record_every,
-                  (rec_pos[b], rec_vel[b], rec_visible[b], rec_binocular[b], rec_leader[b], trig_step[b],
-                   trig_boid[b], n_trig[b], rec_agents[b], capture_step[b]), dynamics, kind)

@@ -19,8 +19,8 @@
 
 Every dynamics runs in the same compiled loop (:mod:`simcore.kernel`), compiled per dynamics and
 perception kind with that dynamics' hooks (:mod:`simcore.hooks`). ``simulate_batch`` runs several seeds
-of one (model, init) in one compiled, threaded call; each run's result is bit-identical to ``simulate``
-with that seed. ``advance`` steps a given state (tests, tools).
+of one (model, init) on threads, each a call of the same compiled loop (it releases the GIL); each run's
+result is bit-identical to ``simulate`` with that seed. ``advance`` steps a given state (tests, tools).
 
 Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step of one synchronous run
 over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
@@ -40,7 +40,7 @@ import numpy as np
 from numba.core import event as numba_event
 
 from . import hooks, kernel
-from .jit import call_with_literals
+from .jit import specialise
 from .layout import I
 from .params import PERCEPTION_KINDS, InitParams, ModelParams, Preset
 from .rng import run_streams
@@ -116,15 +116,37 @@ class _CompileNotice(numba_event.Listener):
                   file=sys.stderr, flush=True)
 
 
-def _run_loop(dispatcher, *args, params) -> None:
-    """Call a compiled run loop with the compile notice; its last two arguments, the dynamics and the
-    perception kind of ``params``, are compile-time literals (:func:`simcore.jit.call_with_literals`)."""
+def _compiled_loop(dispatcher, args, params):
+    """The compiled specialisation of a run loop for the dynamics and perception kind of ``params`` (its
+    last two arguments, compile-time literals: :func:`simcore.jit.specialise`), compiled with the notice;
+    call it with ``args`` and those two values (the second element returned)."""
     ip = params[1]
     dynamics, kind = int(ip[I.DYNAMICS]), int(ip[I.PERCEPTION])
     family = (f"{getattr(dispatcher, '__name__', 'run loop')} ({hooks.name_of(dynamics)} dynamics, "
               f"{PERCEPTION_KINDS[kind]} perception)")
     with numba_event.install_listener("numba:compile", _CompileNotice(family)):
-        call_with_literals(dispatcher, (*args, dynamics, kind), 2)
+        return specialise(dispatcher, (*args, dynamics, kind), 2), (dynamics, kind)
+
+
+def _run_loop(dispatcher, *args, params) -> None:
+    """Call a compiled run loop (:func:`_compiled_loop`) with the compile notice."""
+    loop, literals = _compiled_loop(dispatcher, args, params)
+    loop(*args, *literals)
+
+
+def _each_on_threads(task, n: int, threads: int) -> None:
+    """``task(b)`` for b in 0..n-1 on up to ``threads`` Python threads (the run loop releases the GIL);
+    the first error is raised once every task has ended."""
+    threads = max(1, min(n, threads))
+    if threads == 1:
+        for b in range(n):
+            task(b)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(threads, thread_name_prefix="simcore-batch") as pool:
+        for future in [pool.submit(task, b) for b in range(n)]:
+            future.result()
 
 
 def _state_group(s: State) -> tuple:
@@ -303,10 +325,12 @@ def simulate_preset(preset: Preset, seed, record_every: int | None = None,
 
 def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
                    record_every: int = 1) -> list[Observations]:
-    """Several runs of one (model, init), one per seed, in one compiled call over numba's threads.
+    """Several runs of one (model, init), one per seed, in parallel on numba's thread count.
 
-    Run ``i`` is bit-identical to ``simulate(model, init, seeds[i], ...)`` whatever the other seeds and
-    the thread count; ``numba.set_num_threads`` (or ``NUMBA_NUM_THREADS``) limits the threads used.
+    Each run is one call of the compiled run loop, which releases the GIL, on a pool of
+    ``numba.get_num_threads()`` Python threads (``numba.set_num_threads`` or ``NUMBA_NUM_THREADS``
+    limits it). Run ``i`` is bit-identical to ``simulate(model, init, seeds[i], ...)`` whatever the other
+    seeds and the thread count.
 
     Parameters
     ----------
@@ -340,8 +364,15 @@ def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float,
     params = hooks.pack(model, dt)
     n_records = n_steps // record_every + 1
     rec = _records(model, n_records, init.n, _n_events(model, init.n, n_steps, dt), (len(states),))
-    _run_loop(kernel.run_batch, tuple(stacked[f] for f in FIELDS) + (agents,), params, keys, n_steps, record_every,
-              rec, params=params)
+    state_of = [tuple(stacked[f][b] for f in FIELDS) + (agents[b],) for b in range(len(states))]
+    records_of = [tuple(r[b] for r in rec) for b in range(len(states))]
+    loop, literals = _compiled_loop(kernel.run_model, (state_of[0], params, keys[0], n_steps, record_every,
+                                                       records_of[0]), params)
+
+    def run_one(b):
+        loop(state_of[b], params, keys[b], n_steps, record_every, records_of[b], *literals)
+
+    _each_on_threads(run_one, len(states), numba.get_num_threads())
     times = np.arange(n_records) * (record_every * dt)
     return [_observations(model, times, tuple(r[b] for r in rec),
                           State(**{f: stacked[f][b] for f in FIELDS}, agents=agents[b]), dt, record_every)

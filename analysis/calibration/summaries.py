@@ -16,7 +16,7 @@ columns; with mean/sd targets (or a covariance) Gaussian observation noise N(0, 
 added to each row, drawn from the same generator after the seeds (docs/calibration.md). Targets from
 ``samples`` add no noise. A run whose state or summaries are not finite is a row of NaN.
 
-Threads: the simulations of one call run in one compiled call that runs its ``n_sim`` replicates on
+Threads: the simulations of one call run their ``n_sim`` replicates in parallel on
 numba's threads (:func:`simcore.simulate_batch`), all of the machine's cores by default. Inside another
 library's worker processes that oversubscribes the cores (each worker spins as many threads). Pass
 ``threads=1`` (each call then sets ``numba.set_num_threads(1)`` and restores the previous count), or set

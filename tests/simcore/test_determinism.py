@@ -9,8 +9,10 @@ import hashlib
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 
@@ -19,6 +21,7 @@ from conftest import make_model
 from simcore import InitParams, initial_state, simulate, simulate_batch
 from simcore.params import HOLLAND_TABLE_1, PatternEntry, Patterns
 from simcore.rng import run_streams
+from simcore.simulate import _each_on_threads
 from simcore.state import pattern_counts
 from paths import TESTS
 
@@ -85,6 +88,40 @@ def test_batch_result_does_not_depend_on_batch_composition():
     alone = simulate_batch(model, INIT, [7], duration=0.5, dt=DT)[0]
     among_others = simulate_batch(model, INIT, [1, 2, 7, 4], duration=0.5, dt=DT)[2]
     assert_bit_identical(alone, among_others)
+
+
+def test_batch_does_not_depend_on_the_thread_count():
+    model = make_model("binocular", order="sequential")
+    seeds = [5, 6, 7]
+    previous = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one_thread = simulate_batch(model, INIT, seeds, duration=0.5, dt=DT)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        threaded = simulate_batch(model, INIT, seeds, duration=0.5, dt=DT)
+    finally:
+        numba.set_num_threads(previous)
+    for a, b in zip(one_thread, threaded):
+        assert_bit_identical(a, b)
+
+
+def test_a_batch_runs_the_one_run_loop_on_threads_without_the_gil():
+    assert simcore.kernel.run_model.targetoptions.get("nogil") is True
+    assert not hasattr(simcore.kernel, "run_batch")  # no second loop to compile
+
+
+def test_every_task_of_a_batch_ends_before_its_first_error_is_raised():
+    ran = []
+
+    def task(b):
+        time.sleep(0.01 * (3 - b))
+        ran.append(b)
+        if b == 0:
+            raise RuntimeError("run 0 failed")
+
+    with pytest.raises(RuntimeError, match="run 0 failed"):
+        _each_on_threads(task, 4, 2)
+    assert sorted(ran) == [0, 1, 2, 3]
 
 
 def fixed_run():
