@@ -36,13 +36,20 @@ from pathlib import Path
 
 from simcore.schema import ConfigError
 
-from .executors import SchedulerUnreachable, WorkerLost
 from .files import Unreadable, WriteFailed
 from .interrupts import exit_status
 from .lock import StoreLocked
 
 OK, BAD_INPUT, LOCKED, WRITE_FAILED, INCOMPLETE = 0, 2, 3, 4, 5
 WORKERS_PER_CORE = 8
+
+
+def _executor_error(err: BaseException, name: str) -> bool:
+    """Is ``err`` the executors' exception ``name``? Checked without importing :mod:`sweeps.executors`
+    (multiprocessing, concurrent.futures: every command would load them): no such error can exist unless
+    that module was imported."""
+    executors = sys.modules.get(f"{__package__}.executors")
+    return executors is not None and isinstance(err, getattr(executors, name))
 
 
 def explain(err: BaseException) -> tuple[int, str] | None:
@@ -52,11 +59,11 @@ def explain(err: BaseException) -> tuple[int, str] | None:
         return exit_status(err), f"interrupted ({name})"
     if isinstance(err, ConfigError):
         return BAD_INPUT, f"config error: {err}"
-    if isinstance(err, (Unreadable, SchedulerUnreachable)):
+    if isinstance(err, Unreadable) or _executor_error(err, "SchedulerUnreachable"):
         return BAD_INPUT, str(err)
     if isinstance(err, StoreLocked):
         return LOCKED, str(err)
-    if isinstance(err, WorkerLost):
+    if _executor_error(err, "WorkerLost"):
         return INCOMPLETE, f"a worker process died: {err}"
     if isinstance(err, WriteFailed):
         return WRITE_FAILED, (f"{err}; what was saved before is kept: free space or fix the folder, then run "

@@ -81,12 +81,14 @@ def test_console_script_runs_in_a_fresh_process(tmp_path):
 
 
 HEAVY = ("pandas", "matplotlib", "pyarrow", "jinja2", "tqdm", "emcee", "SALib", "scipy.stats", "scipy.optimize",
-         "scipy.spatial", "scipy.sparse", "analysis.viewer", "analysis.reports", "analysis.calibration")
+         "scipy.spatial", "scipy.sparse", "analysis.viewer", "analysis.reports", "analysis.calibration",
+         "multiprocessing", "sweeps.executors")
 
 
 def test_simulate_loads_only_what_it_needs(tmp_path):
     """`flocksweep simulate` (no --plot, no --tracks) imports none of the table, plotting, report, viewer or
-    calibration libraries: a fresh process runs the command, then lists what it loaded. (numba itself
+    calibration libraries, nor the executors' process pools: a fresh process runs the command, then lists
+    what it loaded. (numba itself
     imports scipy.linalg for its BLAS bindings, so scipy's other subpackages are what is checked.)"""
     code = ("import json, sys\nfrom flocksweep.cli import main\n"
             f"code = main(['simulate', {HOLLAND!r}, '--n', '3', '--duration', '0.016666666666666666'])\n"
