@@ -1,6 +1,6 @@
 """A tiny ``flocksweep simulate`` against numba's own start-up floor, interleaved (issue 30, start-up).
 
-    python bench/bench_simulate_startup.py [--repeats 9] [--model configs/models/holland.toml]
+    python bench/bench_simulate_startup.py [--repeats 9] [--model configs/models/holland.toml] [--pycache]
 
 The floor is what any numba program pays before its first compiled call returns: a new Python process
 that imports numba and calls one cached ``@njit(cache=True)`` function (written to a temporary module,
@@ -8,6 +8,8 @@ its cache filled beforehand). The tiny simulate is ``python -m flocksweep.cli si
 --duration <one step>`` with the kernels cached (run once beforehand). Both run as new processes in
 turn, ``--repeats`` times each, so both see the same load; reported: their medians (wall seconds), the
 median of the per-pair differences (simulate - floor; the target is <= 0.3 s) and the load average.
+``--pycache`` unsets ``PYTHONDONTWRITEBYTECODE`` for both (set on the reference machine, it makes every
+process compile each flocksweep module from source; an installed flocksweep keeps its bytecode).
 """
 from __future__ import annotations
 
@@ -40,10 +42,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=9)
     parser.add_argument("--model", default="configs/models/holland.toml")
+    parser.add_argument("--pycache", action="store_true", help="let both write and use __pycache__ "
+                                                               "(unset PYTHONDONTWRITEBYTECODE)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="numba-floor-") as tmp:
         Path(tmp, "floor_module.py").write_text(FLOOR_MODULE)
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join([tmp, str(ROOT), os.environ.get("PYTHONPATH", "")])}
+        base = {k: v for k, v in os.environ.items() if not (args.pycache and k == "PYTHONDONTWRITEBYTECODE")}
+        env = {**base, "PYTHONPATH": os.pathsep.join([tmp, str(ROOT), os.environ.get("PYTHONPATH", "")])}
         floor = [sys.executable, "-c", "import floor_module; floor_module.one(1)"]
         tiny = [sys.executable, "-m", "flocksweep.cli", "simulate", args.model, "--n", "3", "--duration",
                 "0.016666666666666666"]
@@ -55,7 +60,10 @@ def main() -> int:
             tinies.append(wall(tiny, env, ROOT))
     load = os.getloadavg()
     diffs = [t - f for t, f in zip(tinies, floors)]
-    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}; medians of {args.repeats} interleaved pairs")
+    bytecode = "bytecode kept" if args.pycache or not os.environ.get("PYTHONDONTWRITEBYTECODE") else \
+        "PYTHONDONTWRITEBYTECODE set"
+    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}; medians of {args.repeats} interleaved pairs; "
+          f"{bytecode}")
     print("| measure | seconds (median) | min-max |")
     print("|---|---:|---:|")
     print(f"| numba floor: import numba + one cached call | {statistics.median(floors):.3f} | "
