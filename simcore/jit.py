@@ -31,6 +31,7 @@ hooks and that kind's perception only. Python calls it through :func:`call_with_
 from __future__ import annotations
 
 import numba as nb
+from numba._dispatcher import compute_fingerprint
 
 COMPILED_ONLY = "a compiled hook: numba gives its body inside a run loop; it cannot be called from Python"
 KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
@@ -39,15 +40,32 @@ run_loop = nb.njit(**KERNEL_OPTIONS, nogil=True)  # a whole run: releases the GI
 inline = nb.njit(error_model="numpy", inline="always")  # never compiled alone: nothing to cache
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
+_SPECIALISED = {}  # (dispatcher, literal values, argument fingerprint) -> compiled specialisation
 
 
 def specialise(dispatcher, args, n_literal):
     """The compiled specialisation of ``dispatcher`` for ``args`` whose last ``n_literal`` are compile-time
     literals (``numba.literally``), compiled or loaded from the cache: a plain callable (for a ``nogil``
-    function it releases the GIL), called with the same arguments, literals included."""
+    function it releases the GIL), called with the same arguments, literals included.
+
+    Typing the arguments in Python costs about 0.8 ms for a run loop's groups of arrays (more than a short
+    run's whole simulation), so each specialisation is remembered for the process under the fingerprint
+    numba's own dispatcher uses to recognise argument types (dtype, dimensions, layout, writability of
+    every array, recursively through tuples): the same fingerprint is the same types. (A Python integer is
+    fingerprinted by kind alone; the loops' integer arguments, counts of steps and records, are far below
+    the 2**63 from which numba would type one as uint64.)"""
     head, tail = args[:len(args) - n_literal], tuple(int(a) for a in args[len(args) - n_literal:])
-    argtypes = tuple(dispatcher.typeof_pyval(a) for a in head) + tuple(nb.types.literal(a) for a in tail)
-    return dispatcher.compile(argtypes)
+    try:
+        key = (dispatcher, tail, compute_fingerprint(head))
+    except (TypeError, ValueError):   # a value numba cannot fingerprint: type it every time
+        key = None
+    found = _SPECIALISED.get(key) if key is not None else None
+    if found is None:
+        argtypes = tuple(dispatcher.typeof_pyval(a) for a in head) + tuple(nb.types.literal(a) for a in tail)
+        found = dispatcher.compile(argtypes)
+        if key is not None:
+            _SPECIALISED[key] = found
+    return found
 
 
 def call_with_literals(dispatcher, args, n_literal):
