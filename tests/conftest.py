@@ -60,12 +60,13 @@ if "FLOCKSWEEP_CACHE_DIR" not in os.environ:
 # train_flow its own closures): XLA's compiled programs go to one folder of this run, shared by the
 # workers and the commands they start, so a program is compiled once per run. A cached program is the
 # one XLA would compile again (the cache is keyed on the program and the compiler's options), so results
-# stay bit for bit those of a fresh compile. Every program, however quick to compile, is kept.
+# stay bit for bit those of a fresh compile. Every program, however quick to compile, is kept. A
+# JAX_COMPILATION_CACHE_DIR set by the caller is used instead (kept between test runs).
 if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
     os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="flocksweep-test-jax-")
-    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
-    os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
     atexit.register(shutil.rmtree, os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
 
 TABLE_1_VALUES = np.array([p.value for p in HOLLAND_TABLE_1], dtype=np.uint32)
 
