@@ -56,6 +56,17 @@ _drop_stale_test_kernels()
 if "FLOCKSWEEP_CACHE_DIR" not in os.environ:
     os.environ["FLOCKSWEEP_CACHE_DIR"] = tempfile.mkdtemp(prefix="flocksweep-test-cache-")
     atexit.register(shutil.rmtree, os.environ["FLOCKSWEEP_CACHE_DIR"], ignore_errors=True)
+# the npe tests compile the same small flows again and again (each calibrate command a new process, each
+# train_flow its own closures): XLA's compiled programs go to one folder of this run, shared by the
+# workers and the commands they start, so a program is compiled once per run. A cached program is the
+# one XLA would compile again (the cache is keyed on the program and the compiler's options), so results
+# stay bit for bit those of a fresh compile. Every program, however quick to compile, is kept. A
+# JAX_COMPILATION_CACHE_DIR set by the caller is used instead (kept between test runs).
+if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="flocksweep-test-jax-")
+    atexit.register(shutil.rmtree, os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
 
 TABLE_1_VALUES = np.array([p.value for p in HOLLAND_TABLE_1], dtype=np.uint32)
 

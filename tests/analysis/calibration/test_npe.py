@@ -21,7 +21,10 @@ from npe_tiny import CALIBRATION  # noqa: E402
 from simcore.schema import ConfigError  # noqa: E402
 
 REPLICATES = 4          # x = mean of 4 unit-variance draws around theta: posterior N(x, 1/4) (flat prior)
-SMALL = FlowSettings(width=32, layers=2, max_epochs=400, patience=40, learning_rate=1e-3, batch_size=50)
+# batches of 200 at a learning rate of 3e-3: a quarter of the steps of batches of 50 at 1e-3 (measured at
+# x = 1: mean 0.966, sd 0.488; coverage of the 200 held-out truths 0.425 and 0.870 against the exact 0.46
+# and 0.88; with batches of 50 at 1e-3: 0.970, 0.484, 0.420 and 0.865)
+SMALL = FlowSettings(width=32, layers=2, max_epochs=400, patience=40, learning_rate=3e-3, batch_size=200)
 
 
 def toy(n: int, seed: int):

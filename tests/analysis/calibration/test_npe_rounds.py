@@ -72,7 +72,9 @@ def test_a_gaussian_mean_posterior_is_recovered_in_two_truncated_rounds():
 
     # x = theta + N(0, 0.5^2) under a flat prior on [-5, 5]: the posterior at x = 1 is N(1, 0.5^2)
     prior, rng = JointPrior(["mu"], [Uniform(-5, 5)]), np.random.default_rng(0)
-    small = FlowSettings(width=32, layers=2, max_epochs=400, patience=40, learning_rate=1e-3, batch_size=50)
+    # batches of 200 at a learning rate of 2e-3: a quarter of the steps of batches of 50 at 1e-3 (the
+    # same flow; the posterior as close: measured mean 0.989 and sd 0.513 at 1e-3 and 50: 1.000, 0.501)
+    small = FlowSettings(width=32, layers=2, max_epochs=400, patience=40, learning_rate=2e-3, batch_size=200)
     theta1 = prior.sample(rng, 1000)
     x1 = theta1 + rng.normal(0, 0.5, theta1.shape)
     region = truncation_region(train_flow(theta1, x1, small, seed=3), [1.0], support_of(prior), seed=5)
@@ -81,8 +83,8 @@ def test_a_gaussian_mean_posterior_is_recovered_in_two_truncated_rounds():
     assert mass < 0.95                                       # round 2 is drawn from a truncated prior
     two = train_flow(np.concatenate([theta1, theta2]), np.concatenate([x1, x2]), small, seed=4)
     draws = two.sample([1.0], 4000, seed=1, support=region.contains)
-    assert abs(draws.mean() - 1.0) < 0.1                     # measured 1.000 (round 1 alone: 1.003)
-    assert 0.42 < draws.std() < 0.58                         # measured 0.501 (round 1 alone: 0.565)
+    assert abs(draws.mean() - 1.0) < 0.1                     # measured 0.989 (round 1 alone: 1.018)
+    assert 0.42 < draws.std() < 0.58                         # measured 0.513 (round 1 alone: 0.574)
 
 
 def _calibration_text() -> str:

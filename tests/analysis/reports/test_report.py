@@ -34,6 +34,14 @@ def smoke_results(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
+def smoke_report(smoke_results, tmp_path_factory):
+    """The smoke sweep's report (html and md), built once for the tests that read it."""
+    out = tmp_path_factory.mktemp("smoke_report") / "report"
+    build_report(smoke_results, out)
+    return out
+
+
+@pytest.fixture(scope="module")
 def holland_like(tmp_path_factory):
     """A small Holland-like grid: mode x direction x field, 12 boids, 4 s, 2 replicates (32 runs)."""
     data = {"name": "holland_like", "seed": 5, "replicates": 2, "model": {"preset": HOLLAND},
@@ -51,14 +59,13 @@ def holland_like(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_report_renders_every_figure_and_table(smoke_results, tmp_path):
-    result = build_report(smoke_results, tmp_path / "report")
-    html = result["paths"]["html"].read_text()
-    md = result["paths"]["md"].read_text()
+def test_report_renders_every_figure_and_table(smoke_report):
+    html = (smoke_report / "report.html").read_text()
+    md = (smoke_report / "report.md").read_text()
     figures = re.findall(r"\]\((figures/[^)]+\.(?:png|svg))\)", md)
     assert len(figures) >= 8
     for rel in figures:
-        path = tmp_path / "report" / rel
+        path = smoke_report / rel
         assert path.stat().st_size > 2000, rel
         if rel.endswith(".png"):
             assert path.read_bytes()[:8] == PNG
@@ -66,15 +73,15 @@ def test_report_renders_every_figure_and_table(smoke_results, tmp_path):
     assert not re.search(r"<img[^>]+src='(?!data:)", html)             # and nothing linked from outside
     for name in ("design", "factor_tests", "main_effects", "adjacent_comparisons", "two_way_tests",
                  "cell_summaries", "claims", "claim_tests"):
-        table = pd.read_csv(tmp_path / "report" / "tables" / f"{name}.csv")
+        table = pd.read_csv(smoke_report / "tables" / f"{name}.csv")
         assert len(table), name
-    tests = pd.read_csv(tmp_path / "report" / "tables" / "factor_tests.csv")
+    tests = pd.read_csv(smoke_report / "tables" / "factor_tests.csv")
     assert {"H", "p", "epsilon2", "p_holm"} <= set(tests.columns)
     assert set(tests["factor"]) == {"mode", "perception.field_deg"}
     for section in ("Overview", "Claims, tested", "Which factor matters", "Heatmaps", "Time series",
                     "Replicate adequacy"):
         assert section in md and section in unescape(html)
-    assert_smoke_comment_matches(pd.read_csv(tmp_path / "report" / "tables" / "claim_tests.csv"))
+    assert_smoke_comment_matches(pd.read_csv(smoke_report / "tables" / "claim_tests.csv"))
 
 
 def assert_smoke_comment_matches(claim_tests: pd.DataFrame) -> None:
@@ -89,12 +96,11 @@ def assert_smoke_comment_matches(claim_tests: pd.DataFrame) -> None:
 
 
 @pytest.mark.slow
-def test_report_tables_are_reproducible_from_the_results(smoke_results, tmp_path):
-    build_report(smoke_results, tmp_path / "a", formats=("md",))
-    build_report(smoke_results, tmp_path / "b", formats=("md",))
+def test_report_tables_are_reproducible_from_the_results(smoke_results, smoke_report, tmp_path):
+    build_report(smoke_results, tmp_path / "again", formats=("md",))     # a second, independent build
     for name in ("main_effects", "factor_tests", "cell_summaries"):
-        a = pd.read_csv(tmp_path / "a" / "tables" / f"{name}.csv")
-        b = pd.read_csv(tmp_path / "b" / "tables" / f"{name}.csv")
+        a = pd.read_csv(smoke_report / "tables" / f"{name}.csv")
+        b = pd.read_csv(tmp_path / "again" / "tables" / f"{name}.csv")
         pd.testing.assert_frame_equal(a, b)
 
 
