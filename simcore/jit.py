@@ -4,10 +4,7 @@
   (``cache=True``), IEEE arithmetic without fastmath, and numpy's error model (no per-division zero
   checks: x / 0 gives inf or nan, as in numpy). ``@run_loop`` is ``@kernel`` releasing the GIL
   (``nogil``): a batch of runs is several Python threads each calling the one compiled run loop.
-* ``@inline``: a small helper, inlined into its callers at numba's IR level, so it costs no call. It is
-  never compiled on its own (only a test calling it from Python would), so it has no disk cache: a
-  cached dispatcher costs every process about 0.2 ms to set up (numba checks its cache folder is
-  writable by creating a file), and simcore has over a hundred helpers.
+* ``@inline``: a small helper, inlined into its callers at numba's IR level, so it costs no call.
 * ``@leaf``: a per-boid entry point (perceive, steer, move, re-bin), called once per boid per step. It
   is compiled without numba's reference counting (``_nrt=False``): a leaf only reads and writes arrays
   its caller owns, never creates, returns or keeps one, so there is nothing to count, and a call costs
@@ -37,7 +34,7 @@ COMPILED_ONLY = "a compiled hook: numba gives its body inside a run loop; it can
 KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
 run_loop = nb.njit(**KERNEL_OPTIONS, nogil=True)  # a whole run: releases the GIL, so a batch runs on threads
-inline = nb.njit(error_model="numpy", inline="always")  # never compiled alone: nothing to cache
+inline = nb.njit(cache=True, error_model="numpy", inline="always")
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
 _SPECIALISED = {}  # (dispatcher, literal values, argument fingerprint) -> compiled specialisation
