@@ -23,8 +23,8 @@ _refresh_cache(_Path(__file__).parent)
 _HOMES = {**{name: "params" for name in ("InitParams", "ModelParams", "Preset", "RunSettings", "load_preset",
                                          "preset_from_dict")},
           "ConfigError": "schema",
-          **{name: "simulate" for name in ("MODEL_VERSION", "Observations", "advance", "simulate", "simulate_batch",
-                                           "simulate_preset")},
+          **{name: "simulate" for name in ("MODEL_VERSION", "Observations", "advance", "placeholder_observations",
+                                           "simulate", "simulate_batch", "simulate_preset")},
           "State": "state", "initial_state": "state"}
 __all__ = sorted(_HOMES)
 

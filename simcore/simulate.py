@@ -323,6 +323,25 @@ def simulate_preset(preset: Preset, seed, record_every: int | None = None,
     return simulate(preset.model, preset.init, seed, run.duration, run.dt, every, threads)
 
 
+def placeholder_observations(model: ModelParams, init: InitParams, seed, duration: float, dt: float,
+                             record_every: int = 1) -> Observations:
+    """What :func:`simulate` would return, in every array's type and shape, without running anything: every
+    record holds the initial state drawn from ``seed`` (nobody moves, nothing is perceived, no leaders,
+    triggers or captures; the Boids++ agents absent). For work that needs a run's shape and not its
+    dynamics, such as compiling the metric kernels in one process while another compiles the run loop
+    (:mod:`sweeps.warmup`): this compiles nothing."""
+    record_every = _check_record_every(record_every)
+    n_steps = _n_steps(duration, dt)
+    rng, _ = run_streams(seed)
+    state = initial_state(init, model.patterns, rng, model.world.dimensions)
+    n_records = n_steps // record_every + 1
+    rec = _records(model, n_records, state.n, 0)   # no triggers (counting their bound would compile)
+    rec[0][:] = state.pos
+    rec[1][:] = state.vel
+    times = np.arange(n_records) * (record_every * dt)
+    return _observations(model, times, rec, state, dt, record_every)
+
+
 def simulate_batch(model: ModelParams, init: InitParams, seeds, duration: float, dt: float,
                    record_every: int = 1) -> list[Observations]:
     """Several runs of one (model, init), one per seed, in parallel on numba's thread count.

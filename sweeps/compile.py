@@ -15,7 +15,11 @@ kinds may be compiled twice). A task runs, for each of its models, tiny simulati
 serially, as a batch of two runs and, in synchronous order, on two threads, and sends the runs back; the
 calling process measures their metrics, with and without the leadership metrics, as each task ends (the
 metric kernels are shared by every model, so they compile once, there). Together: every compiled path a
-sweep, a calibration or the test suite takes for those models. Each step counts the kernels numba
+sweep, a calibration or the test suite takes for those models. While the tasks compile, the calling
+process measures placeholder records of the same tiny runs (:func:`simcore.placeholder_observations`,
+the arrays and types of a run without simulating), so the metric kernels compile alongside the run
+loops rather than after the first of them; the real runs' metrics then load them (and compile what
+the placeholders did not reach). Each step counts the kernels numba
 compiled (rather than loaded from the cache). Results do not depend on it: a kernel compiled here is the
 one a run would have compiled itself. The command's arguments and entry are in
 :mod:`sweeps.compile_command` (which loads this module only when it runs).
@@ -31,7 +35,7 @@ from pathlib import Path
 from numba.core import event as numba_event
 
 from observables.summary import MetricSettings, measure_run
-from simcore import load_preset, simulate, simulate_batch
+from simcore import load_preset, placeholder_observations, simulate, simulate_batch
 
 SHIPPED_MODELS = Path(__file__).resolve().parent.parent / "configs" / "models"
 TINY_N = 5
@@ -101,6 +105,9 @@ def compile_kernels(paths=None, jobs: int = 2, report=print) -> list[GroupResult
     with concurrent.futures.ProcessPoolExecutor(max_workers=min(int(jobs), len(groups)),
                                                 mp_context=context) as pool:
         futures = {pool.submit(compile_group, key, models): key for key, models in groups}
+        start = time.perf_counter()   # meanwhile, here: the metric kernels, on placeholder records
+        compiled_metrics += measure_all(placeholder_runs([path for _, models in groups for path in models]))
+        metric_seconds += time.perf_counter() - start
         for done in concurrent.futures.as_completed(futures):
             result, runs = done.result()
             results[result.key] = result
@@ -138,6 +145,19 @@ def _simulations(path: str) -> list:
     if model.world.update_order == "synchronous" and model.dynamics != "boidspp":
         runs.append(simulate(model, init, 0, 2 * dt, dt, 1, threads=2))
     return [(model, obs) for obs in runs]
+
+
+def placeholder_runs(paths) -> list:
+    """(model, placeholder observations) of each model's tiny run: a run's arrays and types without
+    simulating (:func:`simcore.placeholder_observations`), for compiling the metric kernels while the
+    run loops compile elsewhere."""
+    runs = []
+    for path in paths:
+        preset = load_preset(path)
+        dt = preset.run.dt
+        init = dataclasses.replace(preset.init, n=TINY_N)
+        runs.append((preset.model, placeholder_observations(preset.model, init, 0, 2 * dt, dt, 1)))
+    return runs
 
 
 def measure_all(runs) -> int:

@@ -57,6 +57,7 @@ from .provenance import stamp
 from .status import resume_hint, status  # noqa: F401 - their home; imported from here too
 from .store import ResultsStore
 from .sweep_toml import portable, relocated, relocated_workdir
+from .warmup import warm_up_all
 
 FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
 HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
@@ -361,11 +362,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
              scheduler: str | None, progress: bool, batch_size: int | None) -> tuple[list[RunSpec], list[str]]:
     """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
     with their workers (not recorded) and the distinct reasons."""
-    for spec in _one_per_run_loop(plan.todo):
-        try:
-            worker.warm_up(spec)
-        except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
-            pass
+    warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
     batches = make_batches(plan.todo, workers, batch_size)
     task = functools.partial(worker.execute_batch, out_dir=store.root)
     failures, lost, reasons = 0, [], []

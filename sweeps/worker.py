@@ -29,7 +29,7 @@ import numpy as np
 
 from observables.observed import ObservedFlock
 from observables.summary import check_finite, every_nth, measure_run
-from simcore import simulate
+from simcore import placeholder_observations, simulate
 
 from .design import RunSpec
 from .external import run_external
@@ -107,15 +107,37 @@ def warm_up(spec: RunSpec) -> None:
     """Compile (or load from numba's cache) every kernel a run needs, on a 3-boid, 2-step run (the file's
     boids when the run starts from ``init.from_file``: its count is fixed; for a command model: the metric
     kernels, on a 3-individual observed flock), so that workers find them in the cache instead of each
-    compiling its own."""
+    compiling its own. :func:`warm_up_run` then :func:`warm_up_metrics`."""
+    warm_up_metrics(spec, warm_up_run(spec))
+
+
+def warm_up_run(spec: RunSpec):
+    """The run loop of ``spec``'s runs, compiled or loaded, on a 3-boid, 2-step run; returns its
+    observations (None for a command model: it has no run loop)."""
+    if spec.command is not None:
+        return None
+    run = spec.preset.run
+    return simulate(spec.preset.model, _warm_up_init(spec), 0, 2 * run.dt, run.dt, 1)
+
+
+def warm_up_metrics(spec: RunSpec, obs=None) -> None:
+    """The metric kernels of ``spec``'s runs, compiled or loaded, by measuring ``obs`` (from
+    :func:`warm_up_run`) or, without it, the placeholder records of the same tiny run
+    (:func:`simcore.placeholder_observations`: the same arrays and types, and nothing of the simulator
+    compiles); for a command model, a 3-individual observed flock."""
     if spec.command is not None:
         measure_run(_tiny_flock(), spec.metrics)
         return
-    run, init = spec.preset.run, spec.preset.init
-    if init.from_file is None:
-        init = dataclasses.replace(init, n=3)
-    obs = simulate(spec.preset.model, init, 0, 2 * run.dt, run.dt, 1)
+    if obs is None:
+        run = spec.preset.run
+        obs = placeholder_observations(spec.preset.model, _warm_up_init(spec), 0, 2 * run.dt, run.dt, 1)
     measure_run(obs, spec.metrics)
+
+
+def _warm_up_init(spec: RunSpec):
+    """A warm-up run's initial conditions: 3 boids (the file's, when it starts from ``init.from_file``)."""
+    init = spec.preset.init
+    return init if init.from_file is not None else dataclasses.replace(init, n=3)
 
 
 def _tiny_flock() -> ObservedFlock:

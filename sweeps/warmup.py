@@ -1,0 +1,89 @@
+"""Before a sweep's workers start: every kernel its runs need, compiled once (or loaded from numba's cache).
+
+``warm_up_all(specs)`` takes one run per run loop (the runner's ``_one_per_run_loop``) and, for each,
+compiles or loads its run loop on a tiny run (:func:`sweeps.worker.warm_up_run`), then its metric
+kernels by measuring that run (:func:`sweeps.worker.warm_up_metrics`), so that the workers find
+everything in the cache. A warm-up that fails is ignored here: the run fails in its worker and is
+recorded with its reason.
+
+Overlap. A first compile of a run loop takes about a minute on one core, and the metric kernels about
+20 s more, which do not need the run loop: they need only a run's arrays. So when numba starts to compile
+anything during the run loops' warm-up (never when everything is cached), one spawned process measures
+placeholder records of the same tiny runs (:func:`simcore.placeholder_observations`: a run's arrays and
+types, nothing of the simulator compiled) on the other core meanwhile; this process waits for it before
+its own measurements, which then load the metric kernels from the cache. A kernel compiled by the helper
+is the one this process would have compiled (same function, same argument types), so nothing a run
+computes depends on it; if the helper fails or misses a kernel, this process compiles it as before. The
+helper is stopped if the warm-up is interrupted.
+"""
+from __future__ import annotations
+
+from numba.core import event as numba_event
+
+from . import worker
+
+
+def measure_placeholders(specs) -> None:
+    """The metric kernels of each spec's runs, on placeholder records (the helper process's work)."""
+    for spec in specs:
+        try:
+            worker.warm_up_metrics(spec)
+        except Exception:  # noqa: BLE001 - best effort: the sweep's own warm-up compiles what is missing
+            pass
+
+
+class MetricsAlongside(numba_event.Listener):
+    """A numba compile listener: at the first compile it sees, starts :func:`measure_placeholders` of
+    ``specs`` in one spawned process (never a second); :meth:`wait` joins it, :meth:`stop` ends it."""
+
+    def __init__(self, specs):
+        self.specs = list(specs)
+        self.process = None
+
+    def on_start(self, event) -> None:
+        if self.process is None:
+            import multiprocessing   # only when something compiles (a command's start-up stays light)
+
+            self.process = multiprocessing.get_context("spawn").Process(
+                target=measure_placeholders, args=(self.specs,), name="flocksweep-metric-warm-up", daemon=True)
+            self.process.start()
+
+    def on_end(self, event) -> None:
+        pass
+
+    def wait(self) -> None:
+        if self.process is not None:
+            self.process.join()
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.is_alive():
+            self.process.terminate()
+            self.process.join()
+
+
+def warm_up_all(specs) -> MetricsAlongside:
+    """Warm up every spec's run loop, then its metric kernels (module docstring); returns the listener
+    (its ``process`` says whether a helper was started)."""
+    specs = list(specs)
+    helper = MetricsAlongside(specs)
+    try:
+        with numba_event.install_listener("numba:compile", helper):
+            runs = [(spec, _run_or_none(spec)) for spec in specs]
+        helper.wait()
+        for spec, obs in runs:
+            if obs is not False:
+                try:
+                    worker.warm_up_metrics(spec, obs)
+                except Exception:  # noqa: BLE001 - a run that cannot be measured fails in its worker
+                    pass
+    finally:
+        helper.stop()
+    return helper
+
+
+def _run_or_none(spec):
+    """The tiny run's observations (None for a command model), or False when it failed."""
+    try:
+        return worker.warm_up_run(spec)
+    except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
+        return False
