@@ -39,14 +39,21 @@ class MetricsAlongside(numba_event.Listener):
     def __init__(self, specs):
         self.specs = list(specs)
         self.process = None
+        self.failed = False   # the helper could not be started (e.g. specs that do not pickle)
 
     def on_start(self, event) -> None:
-        if self.process is None:
-            import multiprocessing   # only when something compiles (a command's start-up stays light)
+        if self.process is not None or self.failed:
+            return
+        import multiprocessing   # only when something compiles (a command's start-up stays light)
 
-            self.process = multiprocessing.get_context("spawn").Process(
-                target=measure_placeholders, args=(self.specs,), name="flocksweep-metric-warm-up", daemon=True)
-            self.process.start()
+        process = multiprocessing.get_context("spawn").Process(
+            target=measure_placeholders, args=(self.specs,), name="flocksweep-metric-warm-up", daemon=True)
+        try:   # inside numba's compile: never let the helper's trouble reach it
+            process.start()
+        except Exception:  # noqa: BLE001 - no helper: this process compiles the metric kernels itself
+            self.failed = True
+            return
+        self.process = process
 
     def on_end(self, event) -> None:
         pass

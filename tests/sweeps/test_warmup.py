@@ -98,3 +98,12 @@ def test_a_spec_that_cannot_be_measured_is_left_to_its_worker():
     bad = dataclasses.replace(specs()[0], metrics=None)   # measure_run would raise on it
     measure_placeholders([bad])   # the helper's work: no exception
     warm_up_all([bad])            # nor the warm-up's: the run fails in its worker, with its reason
+
+
+def test_a_helper_that_cannot_start_is_no_error_inside_numbas_compile():
+    helper = MetricsAlongside([lambda: None])   # a lambda does not pickle: the spawned process cannot start
+    helper.on_start(None)
+    assert helper.process is None and helper.failed
+    helper.on_start(None)   # not tried again
+    helper.wait()
+    helper.stop()
