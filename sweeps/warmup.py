@@ -14,13 +14,15 @@ types, nothing of the simulator compiled) on the other core meanwhile; this proc
 its own measurements, which then load the metric kernels from the cache. A kernel compiled by the helper
 is the one this process would have compiled (same function, same argument types), so nothing a run
 computes depends on it; if the helper fails or misses a kernel, this process compiles it as before. The
-helper is stopped if the warm-up is interrupted.
+helper is stopped if the warm-up is interrupted. No helper starts from a main script whose top level
+runs the sweep outside ``if __name__ == "__main__":`` (a serial sweep may; the spawned process would
+import the script and run it again, :mod:`sweeps.main_guard`).
 """
 from __future__ import annotations
 
 from numba.core import event as numba_event
 
-from . import worker
+from . import main_guard, worker
 
 
 def measure_placeholders(specs) -> None:
@@ -39,13 +41,18 @@ class MetricsAlongside(numba_event.Listener):
     def __init__(self, specs):
         self.specs = list(specs)
         self.process = None
-        self.failed = False   # the helper could not be started (e.g. specs that do not pickle)
+        self.failed = False   # no helper could be started (an unguarded main script, specs that do not pickle)
 
     def on_start(self, event) -> None:
         if self.process is not None or self.failed:
             return
         import multiprocessing   # only when something compiles (a command's start-up stays light)
 
+        try:   # a spawned process imports the main script: never start one from an unguarded script
+            main_guard.check_caller_guarded()   # (a serial sweep may run from one; it compiles alone)
+        except main_guard.UnguardedScript:
+            self.failed = True
+            return
         process = multiprocessing.get_context("spawn").Process(
             target=measure_placeholders, args=(self.specs,), name="flocksweep-metric-warm-up", daemon=True)
         try:   # inside numba's compile: never let the helper's trouble reach it

@@ -107,3 +107,17 @@ def test_a_helper_that_cannot_start_is_no_error_inside_numbas_compile():
     helper.on_start(None)   # not tried again
     helper.wait()
     helper.stop()
+
+
+def test_no_helper_is_spawned_from_an_unguarded_main_script(monkeypatch):
+    """A serial sweep may run from a script without ``if __name__ == "__main__":``; a spawned helper would
+    import that script and run its sweep again, so none is started (this process compiles alone)."""
+    from sweeps import main_guard
+
+    def unguarded():
+        raise main_guard.UnguardedScript(main_guard.message())
+
+    monkeypatch.setattr(main_guard, "check_caller_guarded", unguarded)
+    helper = MetricsAlongside(specs())
+    helper.on_start(None)
+    assert helper.process is None and helper.failed
