@@ -352,6 +352,9 @@ class Executor:
         if (self.kind == "local" and self.workers > 1) or (self.kind == "dask" and not self.scheduler):
             main_guard.refuse_in_spawned_import()   # a worker re-running an unguarded script: one line, exit
             main_guard.check_caller_guarded()       # the script itself: UnguardedScript before any worker starts
+            # before the first worker starts: a tracker killed earlier, or while the cluster starts (it
+            # creates the nannies' queues), is relaunched knowing the names registered with the dead one
+            mend_resource_tracker()
         if self.kind == "local" and self.workers > 1:
             self._start_pool()
         elif self.kind == "dask":

@@ -334,6 +334,37 @@ def test_a_killed_resource_tracker_is_restarted_quietly_and_keeps_the_pool_semap
     assert "KeyError" not in err and "Traceback" not in err and "relaunching" not in err, err
 
 
+TRACKER_DIED_BEFORE = """
+import multiprocessing, os, signal, sys, time
+from multiprocessing import resource_tracker
+from sweeps.executors import Executor
+
+if __name__ == "__main__":
+    lock = multiprocessing.get_context("spawn").Lock()   # starts the tracker, which records its name
+    os.kill(resource_tracker._resource_tracker._pid, signal.SIGKILL)
+    time.sleep(0.3)
+    with Executor(sys.argv[1], workers=int(sys.argv[2])) as pool:
+        print(pool.map(abs, [-1, -2, -3]))
+    del lock   # released: the tracker is told the name
+    time.sleep(0.5)   # the tracker prints what it is told to release as it reads it
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, workers", [("dask", 1), ("local", 2)])
+def test_a_tracker_killed_before_the_workers_start_is_relaunched_knowing_the_earlier_names(kind, workers, tmp_path):
+    """The kill battery's tracker trial on dask: the tracker killed just before or while the cluster
+    starts was relaunched by the cluster's own queues, before the executor's first turn mended it, and
+    every name registered earlier came back as a KeyError traceback when it was released."""
+    script = tmp_path / "killed_tracker.py"
+    script.write_text(TRACKER_DIED_BEFORE)
+    done = subprocess.run([sys.executable, str(script), kind, str(workers)], capture_output=True, text=True,
+                          env=faults.environment(), timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[1, 2, 3]", done.stderr
+    assert "KeyError" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+    assert "relaunching" not in done.stderr, done.stderr
+
+
 def test_a_tracker_relaunched_by_multiprocessing_itself_learns_the_pool_semaphores(capfd):
     """The tracker killed, then a new semaphore (multiprocessing relaunches the tracker on its own, before
     the executor's next turn): the relaunched tracker is told the live names, so releasing them at the
