@@ -14,7 +14,9 @@ types, nothing of the simulator compiled) on the other core meanwhile; this proc
 its own measurements, which then load the metric kernels from the cache. A kernel compiled by the helper
 is the one this process would have compiled (same function, same argument types), so nothing a run
 computes depends on it; if the helper fails or misses a kernel, this process compiles it as before. The
-helper is stopped if the warm-up is interrupted. No helper starts from a main script whose top level
+helper is stopped if the warm-up is interrupted, and if it is still running :data:`HELPER_LIMIT` seconds
+after this process is ready for it (stuck, or starved on a crowded machine): this process then compiles
+what is missing itself. No helper starts from a main script whose top level
 runs the sweep outside ``if __name__ == "__main__":`` (a serial sweep may; the spawned process would
 import the script and run it again, :mod:`sweeps.main_guard`).
 """
@@ -23,6 +25,9 @@ from __future__ import annotations
 from numba.core import event as numba_event
 
 from . import main_guard, worker
+
+HELPER_LIMIT = 300.0   # seconds the warm-up waits for its helper (its whole job is about 20 s on one core)
+FAILED = object()   # a warm-up run that failed (its run fails in its worker)
 
 
 def measure_placeholders(specs) -> None:
@@ -65,9 +70,11 @@ class MetricsAlongside(numba_event.Listener):
     def on_end(self, event) -> None:
         pass
 
-    def wait(self) -> None:
+    def wait(self, timeout: float = HELPER_LIMIT) -> None:
+        """Join the helper; one still running after ``timeout`` seconds is stopped."""
         if self.process is not None:
-            self.process.join()
+            self.process.join(timeout)
+            self.stop()
 
     def stop(self) -> None:
         if self.process is not None and self.process.is_alive():
@@ -82,10 +89,10 @@ def warm_up_all(specs) -> MetricsAlongside:
     helper = MetricsAlongside(specs)
     try:
         with numba_event.install_listener("numba:compile", helper):
-            runs = [(spec, _run_or_none(spec)) for spec in specs]
+            runs = [(spec, _tiny_run(spec)) for spec in specs]
         helper.wait()
         for spec, obs in runs:
-            if obs is not False:
+            if obs is not FAILED:
                 try:
                     worker.warm_up_metrics(spec, obs)
                 except Exception:  # noqa: BLE001 - a run that cannot be measured fails in its worker
@@ -95,9 +102,9 @@ def warm_up_all(specs) -> MetricsAlongside:
     return helper
 
 
-def _run_or_none(spec):
-    """The tiny run's observations (None for a command model), or False when it failed."""
+def _tiny_run(spec):
+    """The tiny run's observations (None for a command model), or :data:`FAILED`."""
     try:
         return worker.warm_up_run(spec)
     except Exception:  # noqa: BLE001 - a run that cannot even start is recorded by its worker
-        return False
+        return FAILED

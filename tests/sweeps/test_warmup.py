@@ -121,3 +121,17 @@ def test_no_helper_is_spawned_from_an_unguarded_main_script(monkeypatch):
     helper = MetricsAlongside(specs())
     helper.on_start(None)
     assert helper.process is None and helper.failed
+
+
+def test_a_helper_still_running_after_the_limit_is_stopped_and_the_warm_up_goes_on():
+    """A stuck helper (or one starved on a crowded machine) never holds the sweep: waiting is bounded."""
+    import multiprocessing
+    import time
+
+    helper = MetricsAlongside(specs())
+    helper.process = multiprocessing.get_context("spawn").Process(target=time.sleep, args=(60,), daemon=True)
+    helper.process.start()
+    started = time.monotonic()
+    helper.wait(timeout=1.0)
+    assert time.monotonic() - started < 15
+    assert not helper.process.is_alive() and helper.process.exitcode != 0
