@@ -49,7 +49,7 @@ from .boidspp_layout import (B, BI, COUNTERS, PHASE_HUNTING, PHASE_LEAVING, PHAS
                              PREY_POS, PREY_TARGET, PREY_VEL, SCOPE_FLOCK, SEP_INVERSE_SQUARE, TARGET_NEAREST,
                              pack_boidspp)
 from .dynamics import apply_boundary, new_frame
-from .jit import inline
+from .jit import inline, llvm_inline
 from .layout import BOUNDARY_PERIODIC, F, I
 from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, offset_to
 from .obstacle_avoidance import FAN_CLEAR, fan_avoid_direction
@@ -241,7 +241,7 @@ def flock_targets(i, pos, vel, sums, fp, ip):
     return ax, ay, az, cx, cy, cz, n_others
 
 
-@inline
+@llvm_inline
 def rules(i, m, nbrs, pos, vel, sums, vx, vy, vz, fp, ip, bp, bi):
     """The three blends in order (alignment, cohesion, separation) over boid i's m neighbours (or, for a
     rule whose scope is the flock, every other boid); a rule with nobody to follow leaves v as it is."""
@@ -311,7 +311,7 @@ def clamp_speed(vx, vy, vz, fx, fy, fz, lo, hi):
     return vx, vy, vz
 
 
-@inline
+@llvm_inline
 def boid_velocity(i, step, m, nbrs, pos, vel, fwd, up, side, agents, sums, fp, ip, bp, bi, key, table, kinds, fan):
     """Boid i's new velocity from the state it perceives (step 4 of the module docstring)."""
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC

@@ -31,7 +31,7 @@ from enum import IntEnum
 import numpy as np
 
 from .dynamics import apply_boundary
-from .jit import inline
+from .jit import inline, llvm_inline
 from .headings import float_dyn, heading_scratch, rotate_planar, set_heading, tilt, turn_toward, unit_heading
 from .layout import F, I, cos_deg
 from .rng import STREAM_COUZIN_NOISE, normal
@@ -54,7 +54,7 @@ def pack_couzin(couzin) -> np.ndarray:
     return np.array([value(couzin) for value in C_SLOTS.values()], dtype=np.float64)
 
 
-@inline
+@llvm_inline
 def desired_direction(i, m, nbrs, fwd, cp, planar):
     """The unit desired direction d of boid i from its m neighbours (module docstring, step 1)."""
     rr, ro = cp[C.R_R], cp[C.R_O]

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 
 
-from .jit import inline
+from .jit import inline, llvm_inline
 from .layout import BOUNDARY_PERIODIC, BOUNDARY_SPHERE_WRAP, F, I
 from .noise import drive_row
 from .rules import normalized
@@ -134,7 +134,7 @@ def apply_boundary(i, pos, fp, ip):
             pos[i, c] -= box * math.floor((pos[i, c] + 0.5 * box) / box)
 
 
-@inline
+@llvm_inline
 def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx, dvy, dvz, cap, draws, col):
     """One OpenSteer physics step of boid i under raw steering force (fx, fy, fz). A leader's escape
     adds (dvx, dvy, dvz) to the new velocity before truncation to ``cap`` (< 0: max_speed); with cruise or
@@ -173,7 +173,7 @@ def apply_steering(i, fx, fy, fz, pos, vel, fwd, up, side, acc, fp, ip, dvx, dvy
     apply_boundary(i, pos, fp, ip)
 
 
-@inline
+@llvm_inline
 def hartman_benes_step(i, sx, sy, sz, kx, ky, kz, mx, my, mz, pos, vel, fwd, up, side, acc, fp, ip,
                        dvx, dvy, dvz, cap, draws, col):
     """One Hartman-Benes frame of boid i (docs/model.md section 5): p' = p + dt v (the old velocity), then

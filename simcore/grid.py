@@ -34,7 +34,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .jit import inline, leaf
+from .jit import inline, leaf, llvm_inline, llvm_inline_nrt
 
 CELL_MARGIN = 1e-6   # cells are this much wider than the query radius
 MAX_CELL_COORD = 1e9  # beyond this many cells from the origin, rounding could misplace a boid
@@ -50,7 +50,7 @@ A_X, A_Y, A_Z, N_CELLS, LAYOUT = 0, 1, 2, 3, 4
 LISTS, SORTED = 0, 1
 
 
-@inline
+@llvm_inline_nrt
 def new_grid(n):
     """An empty grid for n boids (at most max(2n, 27) buckets)."""
     t = max(2 * n, 27)
@@ -138,7 +138,7 @@ def _fold_sizes(extent_x, extent_y, extent_z, budget):
     return ax, ay, az
 
 
-@inline
+@llvm_inline_nrt
 def build(grid, pos, radius, periodic, box, min_saving, lists):
     """Bin every boid in cells of side >= radius (1 + CELL_MARGIN); False when all pairs must be searched
     (see module docstring), or when the grid would save fewer than ``min_saving`` candidates per boid
@@ -270,7 +270,7 @@ def _near_gap(x, c, side, d):
     return max(gap - SKIP_TOLERANCE * side, 0.0)
 
 
-@inline
+@llvm_inline
 def runs(grid, i, pos, radius, first, last):
     """Sorted layout: the candidates of :func:`gather`, in its order, as runs ``first[r]:last[r]`` of
     ``grid.order`` / ``grid.spos`` (buckets that follow each other in memory merged); returns the count.
@@ -306,7 +306,7 @@ def runs(grid, i, pos, radius, first, last):
     return count
 
 
-@inline
+@llvm_inline
 def gather(grid, i, pos, cand, cpos):
     """Boids in the 27 cells around boid i (i included) into ``cand``, their positions into ``cpos``;
     returns their count.

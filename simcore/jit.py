@@ -5,11 +5,18 @@
   checks: x / 0 gives inf or nan, as in numpy). ``@run_loop`` is ``@kernel`` releasing the GIL
   (``nogil``): a batch of runs is several Python threads each calling the one compiled run loop.
 * ``@inline``: a small helper, inlined into its callers at numba's IR level, so it costs no call.
+* ``@llvm_inline``: a larger helper (more than about 25 lines, or one inlined at several sites), compiled
+  once on its own and inlined by LLVM instead (``forceinline``, without reference counting like a
+  leaf; ``@llvm_inline_nrt`` for the few that allocate arrays, with it: numba would otherwise inherit the
+  caller's setting). numba's IR inlining deep-copies and re-types the callee's IR at every site, nested
+  helpers included: for the large helpers that was about a fifth of the binocular run loop's first
+  compile. Every result is the same bit for bit, and a run takes the same time (bench/RESULTS.md,
+  issue 30).
 * ``@leaf``: a per-boid entry point (perceive, steer, move, re-bin), called once per boid per step. It
   is compiled without numba's reference counting (``_nrt=False``): a leaf only reads and writes arrays
   its caller owns, never creates, returns or keeps one, so there is nothing to count, and a call costs
   no atomic reference-count updates (with counting on, every array argument of every inlined helper
-  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` helpers. It is
+  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` and ``@llvm_inline`` helpers. It is
   also marked ``forceinline``: numba compiles (and caches) it on its own, and LLVM then inlines its
   machine-level code into the run loop that calls it. A call would pass every array of its groups
   flattened (7-9 words each: 200-250 words for ``perceive`` or ``sense``), and the loop would store them
@@ -17,7 +24,7 @@
   numba's own inlining (``inline="always"``) would give the same code, but it re-types the leaf inside
   every loop, and the first compile took ten times longer.
 
-Each ``@leaf`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
+Each ``@leaf``, ``@llvm_inline`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
 cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
 
 A run loop takes the dynamics and the perception kind as its last two arguments, ``dynamics`` and
@@ -35,6 +42,8 @@ KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
 run_loop = nb.njit(**KERNEL_OPTIONS, nogil=True)  # a whole run: releases the GIL, so a batch runs on threads
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
+llvm_inline = nb.njit(cache=True, error_model="numpy", _nrt=False, forceinline=True)
+llvm_inline_nrt = nb.njit(cache=True, error_model="numpy", _nrt=True, forceinline=True)  # allocates
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
 _SPECIALISED = {}  # (dispatcher, literal values, argument fingerprint) -> compiled specialisation

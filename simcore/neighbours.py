@@ -16,7 +16,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .jit import inline
+from .jit import inline, llvm_inline_nrt
 
 RULE_SEPARATION = 1
 RULE_ALIGNMENT = 2
@@ -39,7 +39,7 @@ for _b in range(64):
     _DEBRUIJN_INDEX[((1 << _b) * 0x03F79D71B4CB0A89 % (1 << 64)) >> 58] = _b
 
 
-@inline
+@llvm_inline_nrt
 def new_neighbours(n):
     """Neighbour buffers and scratch for a flock of n boids."""
     return Neighbours(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),

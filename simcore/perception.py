@@ -35,7 +35,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-from .jit import LEAF_OPTIONS, call_with_literal_kind, inline, kernel
+from .jit import LEAF_OPTIONS, call_with_literal_kind, inline, kernel, llvm_inline
 from .grid import LAYOUT, SORTED, gather, runs
 from .layout import (BOUNDARY_PERIODIC, F, I, PERCEPTION_BINOCULAR, PERCEPTION_OPENSTEER, PERCEPTION_SPHERE,
                      PERCEPTION_TOPOLOGICAL)
@@ -81,7 +81,7 @@ def _candidates(i, pos, fp, ip, periodic, box, nbrs, grid, use_grid):
     return 1, first, last, nbrs.cand, nbrs.cpos
 
 
-@inline
+@llvm_inline
 def _within(i, radius2, periodic, box, flat, d2, near, near_pos):
     """All pairs: the boids whose squared distance from boid i is at most ``radius2`` (boid i among them)
     into ``near``, ascending, and their positions (bit for bit) into ``near_pos``; returns their count.
@@ -127,7 +127,7 @@ def _sphere(i, n_runs, first, last, cand, cpos, pos, fp, periodic, box, nbrs):
     return m
 
 
-@inline
+@llvm_inline
 def _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, nbrs):
     near2 = fp[F.NEAR_R] * fp[F.NEAR_R]
     sep_r2 = fp[F.SEP_R] * fp[F.SEP_R]
@@ -165,7 +165,7 @@ def _opensteer(i, n_runs, first, last, cand, cpos, pos, fwd, fp, periodic, box, 
     return m
 
 
-@inline
+@llvm_inline
 def _in_eye(dx, dy, dz, ex, ey, ez, ax, ay, az, range2, cos_half, cos_half2, see_all):
     """Is offset d (from the boid's centre) in the view of the eye at offset e with gaze axis a?
 
@@ -225,7 +225,7 @@ def _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, ar
     return label
 
 
-@inline
+@llvm_inline
 def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
     """In-view neighbours with their eye labels; returns their count."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]

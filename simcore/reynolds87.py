@@ -40,7 +40,7 @@ from enum import IntEnum
 import numpy as np
 
 from .dynamics import apply_boundary, new_frame
-from .jit import inline
+from .jit import inline, llvm_inline
 from .layout import F, I
 from .noise import DRAWS, drive_row, store_draws
 from .obstacle_avoidance import steer_to_avoid
@@ -134,7 +134,7 @@ def distance_weight(dd, dist, k):
     return dist ** -k
 
 
-@inline
+@llvm_inline
 def boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds):
     """(ax, ay, az): the allocated acceleration of boid i from its m neighbours (module docstring)."""
     k = rp[R.FALLOFF]
@@ -195,7 +195,7 @@ def boid_accel(i, m, nbrs, pos, vel, fwd, up, rp, ri, table, kinds):
     return ax, ay, az
 
 
-@inline
+@llvm_inline
 def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp, draws, col):
     """Velocity, position, frame and boundary update of boid i under acceleration a (module docstring);
     boid i's noise draws (when cruise or noise is on) are in ``draws[i, col:]``."""

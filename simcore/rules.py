@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .jit import inline
+from .jit import inline, llvm_inline
 from .layout import F, I, SEPW_DISSIMILARITY, SEPW_SIMILARITY
 from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION
 
@@ -49,7 +49,7 @@ def normalized(x, y, z):
     return 0.0, 0.0, 0.0
 
 
-@inline
+@llvm_inline
 def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
     """Combined steering force of boid i (see module docstring)."""
     use_patterns = ip[I.PATTERNS] != 0
@@ -98,7 +98,7 @@ def opensteer_force(i, m, fwd, pattern, fp, ip, nb_idx, nb_off, nb_mask):
             ws_ * sz + wa_ * az + wc_ * cz)
 
 
-@inline
+@llvm_inline
 def hartman_benes_forces(i, m, vel, fp, nb_idx, nb_off):
     """Hartman-Benes steers of boid i from its m visible boids (docs/model.md section 5):
     s = sum_j (p_i - p_j) / |p_i - p_j|^f (f = gains.separation_falloff_exponent; 0 = the paper's literal

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 
-from .jit import inline, leaf
+from .jit import inline, leaf, llvm_inline, llvm_inline_nrt
 from .grid import A_X, A_Y, A_Z, LAYOUT, N_CELLS, SORTED, cell_coord
 from .layout import F, I
 from .neighbours import RULE_ALL, offset, offset_from, sort_by_index, store
@@ -28,7 +28,7 @@ SHELL_MARGIN = 1e-6  # cells: rounding of cell coordinates is far below this (co
 CELL_FACTOR = 1.2    # cell side over the expected distance of the k-th neighbour
 
 
-@inline
+@llvm_inline_nrt
 def cell_side(pos, fp, ip, periodic, box):
     """Grid cell side for k-nearest searches: about 1.2 times the expected k-th neighbour distance at the
     flock's mean density (bounding box, or the periodic box; at most a third of the box), and no more
@@ -103,7 +103,7 @@ def _axis_range(c, s, lo, hi, nc):
     return first, last
 
 
-@inline
+@llvm_inline
 def _shells(i, k, pos, fwd, r2, blind, cos_half_blind, periodic, box, grid, best):
     """k nearest through shells of grid cells; -1 when the search must fall back to all pairs."""
     nc = grid.shape[N_CELLS]
