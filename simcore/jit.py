@@ -16,16 +16,17 @@
   is compiled without numba's reference counting (``_nrt=False``): a leaf only reads and writes arrays
   its caller owns, never creates, returns or keeps one, so there is nothing to count, and a call costs
   no atomic reference-count updates (with counting on, every array argument of every inlined helper
-  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` and ``@llvm_inline`` helpers. It is
-  also marked ``forceinline``: numba compiles (and caches) it on its own, and LLVM then inlines its
+  costs two, which would dominate a boid's step). A leaf may call only ``@inline`` and ``@llvm_inline``
+  helpers. It is also marked ``forceinline``: numba compiles (and caches) it on its own, and LLVM then
+  inlines its
   machine-level code into the run loop that calls it. A call would pass every array of its groups
   flattened (7-9 words each: 200-250 words for ``perceive`` or ``sense``), and the loop would store them
   all again before every call: about a third of a small flock's whole run (bench/RESULTS.md, issue 30).
   numba's own inlining (``inline="always"``) would give the same code, but it re-types the leaf inside
   every loop, and the first compile took ten times longer.
 
-Each ``@leaf``, ``@llvm_inline`` and ``@kernel`` is compiled once and cached on its own, so the first compile and the
-cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
+Each ``@leaf``, ``@llvm_inline`` and ``@kernel`` is compiled once and cached on its own, so the first
+compile and the cold start stay short; ``simcore/_cache.py`` drops the cache when any source changes.
 
 A run loop takes the dynamics and the perception kind as its last two arguments, ``dynamics`` and
 ``kind``, made compile-time literals with ``numba.literally`` (:func:`simcore.hooks.sense`,
@@ -42,10 +43,10 @@ KERNEL_OPTIONS = dict(cache=True, error_model="numpy")
 kernel = nb.njit(**KERNEL_OPTIONS)
 run_loop = nb.njit(**KERNEL_OPTIONS, nogil=True)  # a whole run: releases the GIL, so a batch runs on threads
 inline = nb.njit(cache=True, error_model="numpy", inline="always")
-llvm_inline = nb.njit(cache=True, error_model="numpy", _nrt=False, forceinline=True)
-llvm_inline_nrt = nb.njit(cache=True, error_model="numpy", _nrt=True, forceinline=True)  # allocates
 LEAF_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False, forceinline=True)  # see ``@leaf`` above
 leaf = nb.njit(**LEAF_OPTIONS)
+llvm_inline = nb.njit(**LEAF_OPTIONS)   # a leaf's options: see ``@llvm_inline`` above
+llvm_inline_nrt = nb.njit(**{**LEAF_OPTIONS, "_nrt": True})   # one that allocates arrays
 _SPECIALISED = {}  # (dispatcher, literal values, argument fingerprint) -> compiled specialisation
 
 
