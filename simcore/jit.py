@@ -18,8 +18,7 @@
   no atomic reference-count updates (with counting on, every array argument of every inlined helper
   costs two, which would dominate a boid's step). A leaf may call only ``@inline`` and ``@llvm_inline``
   helpers. It is also marked ``forceinline``: numba compiles (and caches) it on its own, and LLVM then
-  inlines its
-  machine-level code into the run loop that calls it. A call would pass every array of its groups
+  inlines its machine-level code into the run loop that calls it. A call would pass every array of its groups
   flattened (7-9 words each: 200-250 words for ``perceive`` or ``sense``), and the loop would store them
   all again before every call: about a third of a small flock's whole run (bench/RESULTS.md, issue 30).
   numba's own inlining (``inline="always"``) would give the same code, but it re-types the leaf inside
