@@ -6,7 +6,8 @@ int64 (n,), ``off`` float64 (n, 3), ``mask`` int64 (n,) (rule bits ``RULE_*``) a
 float64 (n, 3) (the grid's gathered candidates, or the all-pairs search's boids within reach), ``occ_f`` float64 (4, n) and
 ``occ_i`` int64 (4, 2n + 66) (rows) for the perspective phase, the nearest-neighbour lists and sorting, ``bits``
 uint64 (n/64 + 1,) (all zero between uses) and ``slot`` int64 (n,) for sorting (and the binocular view
-phase's list of candidates within reach), ``d2`` float64 (n,): squared distances of the all-pairs search.
+phase's list of candidates within reach), ``d2`` float64 (n,): squared distances of the all-pairs search,
+``occ_s`` float32 (5, n): the perspective phase's single-precision screen.
 ``sort_by_index(m, nbrs)`` puts the first m slots in ascending index order.
 """
 from __future__ import annotations
@@ -30,7 +31,7 @@ INSERTION_SORT_MAX = 16  # neighbour lists up to this long are insertion-sorted 
 BITMAP_SPAN = 4         # ... through a bitmap when the flock needs at most this many 64-bit words per
                         # neighbour, else through a Shell sort of keys
 
-Neighbours = namedtuple("Neighbours", "idx off mask label cand cpos occ_f occ_i bits slot d2")
+Neighbours = namedtuple("Neighbours", "idx off mask label cand cpos occ_f occ_i bits slot d2 occ_s")
 
 # 64-bit de Bruijn sequence and table: the index of the lowest set bit of a word in one multiply
 _DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
@@ -45,7 +46,8 @@ def new_neighbours(n):
     return Neighbours(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64),
                       np.empty(n, np.int64), np.empty((n, 3)), np.empty((4, n)),
                       np.empty((4, 2 * n + 66), np.int64),
-                      np.zeros((n + 63) // 64 + 1, np.uint64), np.empty(n, np.int64), np.empty(n))
+                      np.zeros((n + 63) // 64 + 1, np.uint64), np.empty(n, np.int64), np.empty(n),
+                      np.empty((5, n), np.float32))
 
 
 @inline

@@ -36,10 +36,17 @@ from .layout import F
 DISC = IntEnum("DISC", "RHO UX UY UZ", start=0)
 BINS = IntEnum("BINS", "FLAG SLOT START KEY", start=0)
 
+SCREEN = IntEnum("SCREEN", "HI LO UX UY UZ", start=0)   # rows of nbrs.occ_s float32 (5, N)
+
+SCREEN_MIN = 32       # from this many in-view neighbours on, the all-pairs test is screened in float32
 ALL_PAIRS_MAX = 80     # up to this many in-view neighbours, every pair is tested (no sort)
 GRID_3D_MIN = 256     # from this many in-view neighbours on, a 3-D grid of directions
 ROBUST = 1e-7         # margin of a "robust" containment, relative to 1 + rho_j
 NOT_HIDDEN, HIDDEN, ROBUSTLY_HIDDEN = 0, 1, 2
+WIDEN = 1e-6                # the single-precision screen's relative widening of the radii, ...
+SLACK = np.float32(1e-5)    # ... its slack on squared chords (both far above float32 rounding: see
+CAP = 1e30                  # _occlude_all_pairs), and the cap on its radii
+ZERO32 = np.float32(0.0)
 
 
 @inline
@@ -194,21 +201,71 @@ def _occlude_sorted(m, disc, bins, axis):
 
 
 @inline
-def _occlude_all_pairs(m, disc, flags):
-    """Few neighbours: every pair gets the exact test of :func:`_hide`, without branches (so the compiler
-    can vectorise the inner loop); flags[k] is HIDDEN (1) or NOT_HIDDEN (0)."""
+def _screen_discs(m, disc, screen):
+    """The discs in single precision for the screen of :func:`_occlude_all_pairs`: each radius widened
+    upwards (row HI, for an occluder) and downwards (row LO, for the occluded) by ``WIDEN``, capped at
+    ``CAP`` so that float32 stays finite, and the centres."""
+    for a in range(m):
+        rho = disc[DISC.RHO, a]
+        screen[SCREEN.HI, a] = min(rho * (1.0 + WIDEN), CAP * (1.0 + WIDEN))
+        screen[SCREEN.LO, a] = min(rho * (1.0 - WIDEN), CAP)
+        screen[SCREEN.UX, a] = disc[DISC.UX, a]
+        screen[SCREEN.UY, a] = disc[DISC.UY, a]
+        screen[SCREEN.UZ, a] = disc[DISC.UZ, a]
+
+
+@inline
+def _occlude_all_pairs(m, disc, flags, screen):
+    """Few neighbours: every pair gets the containment test of :func:`_hide`, in double precision below
+    ``SCREEN_MIN`` slots. From there on, first in single precision (eight SIMD lanes instead of four), with
+    the radii widened and a slack on the squared chord, so that it flags every k the exact test would hide
+    (and a few more; a disc is not screened against itself: widened, it would contain itself); each flagged
+    k then gets the exact test against every j. The loops are branch-free (the compiler vectorises them);
+    flags[k] is HIDDEN (1) or NOT_HIDDEN (0), exactly as testing every pair in double precision.
+
+    Why no hidden k escapes the screen: the centres are unit vectors, so each float32 coordinate is within
+    3e-8 of its double, each chord component within 2e-7, and the squared chord within 2e-6 of the exact
+    one (``SLACK`` is 1e-5); the widened radii give a float32 gap at least 8e-7 (rho_j + rho_k) above the
+    exact gap, so its square stays above the exact square after rounding."""
+    if m < SCREEN_MIN:
+        _occlude_exactly(m, disc, flags)
+        return
+    _screen_discs(m, disc, screen)
+    hi, lo, sx, sy, sz = screen[SCREEN.HI], screen[SCREEN.LO], screen[SCREEN.UX], screen[SCREEN.UY], screen[SCREEN.UZ]
     rho, ux, uy, uz = disc[DISC.RHO], disc[DISC.UX], disc[DISC.UY], disc[DISC.UZ]
     for k in range(m):
-        rho_k, xk, yk, zk = rho[k], ux[k], uy[k], uz[k]
-        hidden = 0
+        lo_k, sx_k, sy_k, sz_k = lo[k], sx[k], sy[k], sz[k]
+        maybe = False
         for j in range(m):
-            gap = rho[j] - rho_k
-            dx = ux[j] - xk
-            dy = uy[j] - yk
-            dz = uz[j] - zk
-            dist2 = dx * dx + dy * dy + dz * dz
-            hidden |= (gap > 0.0) & (dist2 <= gap * gap)
-        flags[k] = hidden & (rho_k >= 0.0)
+            gap = hi[j] - lo_k
+            dx = sx[j] - sx_k
+            dy = sy[j] - sy_k
+            dz = sz[j] - sz_k
+            maybe |= (gap > ZERO32) & (dx * dx + dy * dy + dz * dz <= gap * gap + SLACK) & (j != k)
+        flags[k] = _hidden_exactly(k, m, rho, ux, uy, uz) if maybe else NOT_HIDDEN
+
+
+@inline
+def _hidden_exactly(k, m, rho, ux, uy, uz):
+    """HIDDEN (1) if some slot's disc contains slot k's by the exact test of :func:`_hide`, else NOT_HIDDEN;
+    branch-free over the m slots."""
+    rho_k, xk, yk, zk = rho[k], ux[k], uy[k], uz[k]
+    hidden = False
+    for j in range(m):
+        gap = rho[j] - rho_k
+        dx = ux[j] - xk
+        dy = uy[j] - yk
+        dz = uz[j] - zk
+        hidden |= (gap > 0.0) & (dx * dx + dy * dy + dz * dz <= gap * gap)
+    return np.int64(hidden & (rho_k >= 0.0))
+
+
+@inline
+def _occlude_exactly(m, disc, flags):
+    """Every pair in double precision (fewer than ``SCREEN_MIN`` slots: the screen would not pay)."""
+    rho, ux, uy, uz = disc[DISC.RHO], disc[DISC.UX], disc[DISC.UY], disc[DISC.UZ]
+    for k in range(m):
+        flags[k] = _hidden_exactly(k, m, rho, ux, uy, uz)
 
 
 @leaf
@@ -217,7 +274,7 @@ def occlude(m, fp, nbrs):
     disc, bins = nbrs.occ_f, nbrs.occ_i
     _discs(m, fp, nbrs)
     if m <= ALL_PAIRS_MAX:
-        _occlude_all_pairs(m, disc, bins[BINS.FLAG])
+        _occlude_all_pairs(m, disc, bins[BINS.FLAG], nbrs.occ_s)
     elif m < GRID_3D_MIN:
         axis = _widest_axis(m, disc)
         _sort_along(m, disc, bins, axis)

@@ -280,6 +280,71 @@ def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, peri
     return m
 
 
+UNSURE = 4  # code bit of :func:`_view_all_pairs`: a narrow-eye test could not decide without its square root
+
+
+@llvm_inline
+def _view_all_pairs(i, fwd, side, fp, periodic, box, flat, nbrs):
+    """:func:`_view_phase` over all pairs when each eye's field is at most 180 degrees, in passes that run
+    in SIMD lanes where they can: every boid's offset and squared distance from the mirrored positions
+    ``flat`` (offsets into the scratch rows ``nbrs.occ_f``, free until the perspective phase); the boids
+    within reach kept (their indices in ``nbrs.slot``, offsets moved up in place); the eye tests of those, a
+    code per boid in ``nbrs.cand``, branch-free; then the in-view ones stored in ascending order. The
+    arithmetic is :func:`_view_phase`'s, test for test, so the slots are the same bit for bit."""
+    f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
+    s0, s1, s2 = side[i, 0], side[i, 1], side[i, 2]
+    h, ce, se = fp[F.HEAD_R], fp[F.COS_EYE], fp[F.SIN_EYE]
+    cg, sg = fp[F.COS_GAZE], fp[F.SIN_GAZE]
+    lx, ly, lz = h * (ce * f0 - se * s0), h * (ce * f1 - se * s1), h * (ce * f2 - se * s2)
+    rx, ry, rz = h * (ce * f0 + se * s0), h * (ce * f1 + se * s1), h * (ce * f2 + se * s2)
+    alx, aly, alz = cg * f0 - sg * s0, cg * f1 - sg * s1, cg * f2 - sg * s2
+    arx, ary, arz = cg * f0 + sg * s0, cg * f1 + sg * s1, cg * f2 + sg * s2
+    rng = fp[F.RANGE]
+    range2 = rng * rng
+    reach2 = (rng + h) * (rng + h)
+    cos_half = fp[F.COS_HALF_FIELD]
+    cos_half2 = cos_half * cos_half
+    x, y, z = flat[0], flat[1], flat[2]
+    px, py, pz = x[i], y[i], z[i]
+    ox, oy, oz, d2 = nbrs.occ_f[0], nbrs.occ_f[1], nbrs.occ_f[2], nbrs.d2
+    near, code = nbrs.slot, nbrs.cand
+    n = x.shape[0]
+    n_near = 0
+    for c in range(n):
+        dx, dy, dz = offset_to(x[c], y[c], z[c], px, py, pz, periodic, box)
+        ox[c], oy[c], oz[c] = dx, dy, dz
+        d2[c] = dx * dx + dy * dy + dz * dz
+        near[c] = c
+        n_near += d2[c] <= reach2
+    if 2 * n_near > n:  # a dense flock: test every boid, the reach test among the others
+        n_near = n
+    else:  # a sparse one: keep the boids within reach first
+        n_near = 0
+        for c in range(n):
+            if d2[c] <= reach2:
+                near[n_near], d2[n_near] = c, d2[c]
+                ox[n_near], oy[n_near], oz[n_near] = ox[c], oy[c], oz[c]
+                n_near += 1
+    for t in range(n_near):
+        dx, dy, dz = ox[t], oy[t], oz[t]
+        in_l, unsure_l = _in_narrow_eye(dx, dy, dz, lx, ly, lz, alx, aly, alz, range2, cos_half2)
+        in_r, unsure_r = _in_narrow_eye(dx, dy, dz, rx, ry, rz, arx, ary, arz, range2, cos_half2)
+        code[t] = ((near[t] != i) & (d2[t] <= reach2)) * (in_l * EYE_LEFT + in_r * EYE_RIGHT
+                                                          + (unsure_l | unsure_r) * UNSURE)
+    m = 0
+    for t in range(n_near):
+        label = code[t]
+        if label != 0:
+            j = near[t]
+            dx, dy, dz = ox[t], oy[t], oz[t]
+            if label >= UNSURE:
+                label = _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, arz, range2,
+                               cos_half, cos_half2, False)
+            store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
+            m += label != 0
+    return m
+
+
 # The perceivers, one per kind, with a common signature (kind, i, pos, fwd, side, fp, ip, nbrs, grid,
 # use_grid). Each is compiled as a leaf (``LEAF_OPTIONS``) by numba's typing of ``perceive`` below, only
 # for a caller that asks for its kind; the unused ``kind`` argument is that literal.
@@ -304,8 +369,11 @@ def perceive_opensteer(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
 
 def perceive_binocular(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
-    n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
-    m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, fp[F.BOX], nbrs)
+    if not use_grid and fp[F.COS_HALF_FIELD] >= 0.0 and ip[I.SEE_ALL] == 0:
+        m = _view_all_pairs(i, fwd, side, fp, periodic, fp[F.BOX], grid.flat, nbrs)
+    else:
+        n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
+        m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, fp[F.BOX], nbrs)
     if ip[I.OCCLUSION] != 0 and m > 1:
         m = occlude(np.int64(m), fp, nbrs)  # int64 from the start: typing the call with the
         # literal 0 of the view phase's counter would compile occlude a second time

@@ -61,9 +61,9 @@ def finish_step_serial(step, r, record, work, state, params, records):
 def sense_chunk(c, chunk, step, state, params, key, work, buffers, grid_arrays, use_grid, dynamics, kind):
     """Chunk c of the perception phase. ``buffers``: the Neighbours fields, one slab per chunk, and
     ``grid_arrays`` the Grid's fields, as plain tuples (parallel loops take no named tuples)."""
-    idx, off, mask, label, cand, cpos, occ_f, occ_i, bits, slot, d2 = buffers
+    idx, off, mask, label, cand, cpos, occ_f, occ_i, bits, slot, d2, occ_s = buffers
     nbrs = Neighbours(idx[c], off[c], mask[c], label[c], cand[c], cpos[c], occ_f[c], occ_i[c], bits[c], slot[c],
-                      d2[c])
+                      d2[c], occ_s[c])
     head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat = grid_arrays
     grid = Grid(head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat)
     n = state[0].shape[0]
@@ -106,6 +106,7 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
     bits = np.zeros((n_chunks, (n + 63) // 64 + 1), np.uint64)
     slot = np.empty((n_chunks, n), np.int64)
     d2 = np.empty((n_chunks, n))
+    occ_s = np.empty((n_chunks, 5, n), np.float32)
     grid = cells.new_grid(n)
     head, nxt, prv, bucket, shape, lo, hi, cell_side = grid.head, grid.nxt, grid.prv, grid.bucket, grid.shape, \
         grid.lo, grid.hi, grid.side
@@ -129,7 +130,7 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
         if step == n_steps:
             if record:
                 nbrs = Neighbours(idx[0], off[0], mask[0], label[0], cand[0], cpos[0], occ_f[0], occ_i[0], bits[0],
-                                  slot[0], d2[0])
+                                  slot[0], d2[0], occ_s[0])
                 record_final_serial(r, state, params, nbrs, grid, prepare_chunks(grid, pos, fp, ip), records,
                                     kind)
             break
@@ -139,7 +140,7 @@ def run_threaded(state, params, key, n_steps, record_every, records, n_chunks, d
             sense_chunk(np.int64(c), chunk, step,
                         (pos, vel, fwd, up, side, acc, pattern, clock, escape, agents),
                         (fp, ip, (dfp, dip, table, kinds, fan)), key, ((steer, shared), visible, binocular, triggered),
-                        (idx, off, mask, label, cand, cpos, occ_f, occ_i, bits, slot, d2),
+                        (idx, off, mask, label, cand, cpos, occ_f, occ_i, bits, slot, d2, occ_s),
                         (head, nxt, prv, bucket, shape, lo, hi, cell_side, start, order, spos, flat), use_grid, dynamics,
                         kind)
         for c in nb.prange(n_chunks):
