@@ -1,7 +1,7 @@
 """The ``flocksweep`` command's entry point: interrupts are handled from its first instant.
 
-The console script calls :func:`main`. Importing the command line takes about a second (numpy, pandas,
-numba, pyarrow); Python's default SIGINT handler would turn a Ctrl-C in that second into a
+The console script calls :func:`console` (:func:`main`, then a quick exit). Importing the command line
+takes about a second (numpy, pandas, numba, pyarrow); Python's default SIGINT handler would turn a Ctrl-C in that second into a
 ``KeyboardInterrupt`` traceback and the status -2. So :func:`main` installs its own SIGINT and SIGTERM
 handlers before it imports anything heavy: a signal while starting ends the command with one line
 (``flocksweep: interrupted (SIGINT) while starting; nothing was done``) and the status of docs/errors.md
@@ -10,8 +10,11 @@ handlers before it imports anything heavy: a signal while starting ends the comm
 """
 from __future__ import annotations
 
+import atexit
+import os
 import signal
 import sys
+import threading
 
 NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
 
@@ -43,5 +46,33 @@ def main(argv=None) -> int:
         return 128 + stopped.signum
 
 
+def console() -> None:
+    """The console script: :func:`main`, then the process ends without the interpreter's teardown.
+
+    Once a command has returned, its output flushed and the ``atexit`` handlers run (multiprocessing's
+    finalizers, logging, temporary folders), nothing is left to do; tearing down every module of numpy,
+    pandas, numba and pyarrow would still take 0.3-0.5 s (bench/RESULTS.md). So the process ends there
+    with the command's status, unless a thread other than the main one is still running (then Python's
+    ordinary exit waits for it)."""
+    try:
+        code = main()
+    except SystemExit as stop:   # argparse's --help, --version and usage errors
+        code = stop.code
+    if isinstance(code, str) or threading.active_count() > 1:
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    os._exit(_flushed(code or 0))
+
+
+def _flushed(code: int) -> int:
+    """Flush the standard streams; as Python's own exit, status 120 when stdout cannot be written."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            code = code or (120 if stream is sys.stdout else 0)
+    return code
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

@@ -1,6 +1,6 @@
 """The one executor: where sweeps, calibrations and SBC compute their tasks.
 
-``Executor(kind="serial", workers=None, scheduler=None)`` is a context manager (pools start in
+``Executor(kind="serial", workers=None, scheduler=None, preload=())`` is a context manager (pools start in
 ``__enter__``, stop in ``__exit__``; importing this module starts nothing) with two ways to run a
 function over items:
 
@@ -25,7 +25,12 @@ Kinds:
   fork is not; each worker loads the kernels from numba's cache). Functions travel with cloudpickle,
   so closures work. Each worker runs compiled threaded kernels on ``cores // workers`` threads, ignores
   SIGINT (Ctrl-C is the parent's to handle: it stops the pool) and exits when the process that started
-  it dies (a watchdog thread waits on the parent's sentinel). At most ``workers`` tasks are in flight;
+  it dies (a watchdog thread waits on the parent's sentinel). At most ``workers`` tasks are in flight.
+  A pool starts its workers as tasks come, unless ``preload`` names modules: then every worker starts in
+  ``__enter__`` and imports them, while the caller prepares its tasks (a sweep's workers import
+  ``sweeps.worker``, about 1.5 s, during the design and the warm-up). A worker whose loop has ended
+  exits once multiprocessing's own exit steps are done (finalizers, streams flushed), without the
+  interpreter's teardown of numpy, pandas and numba, which the pool's shutdown would wait for;
 * ``dask``: a ``dask.distributed`` Client at ``scheduler`` (``tcp://host:8786``; a scheduler that does
   not answer within :data:`CONNECT_TIMEOUT` seconds is :class:`SchedulerUnreachable`), or a
   ``LocalCluster`` of ``workers`` single-threaded processes started here when no address is given.
@@ -52,10 +57,15 @@ workers at once instead of waiting for their tasks.
 """
 from __future__ import annotations
 
+import contextlib
+import importlib
 import logging
 import multiprocessing
+import multiprocessing.context
+import multiprocessing.util
 import os
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -244,13 +254,41 @@ def mend_resource_tracker() -> bool:
     return True
 
 
-def _init_worker(threads: int) -> None:
+class _QuickExitProcess(multiprocessing.context.SpawnProcess):
+    """A pool worker that, once its loop has ended normally, finishes as multiprocessing would (its
+    finalizers, the standard streams flushed) and exits without the interpreter's teardown of numpy,
+    pandas and numba (0.3-0.5 s that the pool's shutdown would wait for; bench/RESULTS.md)."""
+
+    def run(self):
+        super().run()
+        multiprocessing.util._exit_function()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        os._exit(0)
+
+
+class _QuickExitContext(multiprocessing.context.SpawnContext):
+    Process = _QuickExitProcess
+
+
+def _pool_context():
+    return _QuickExitContext() if START_METHOD == "spawn" else multiprocessing.get_context(START_METHOD)
+
+
+def _started() -> None:
+    """The task that makes a pool start a worker (:attr:`Executor.preload`)."""
+
+
+def _init_worker(threads: int, preload: tuple[str, ...] = ()) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches the whole process group: the parent handles it
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     _watch_parent()
     import numba
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    for name in preload:
+        importlib.import_module(name)
 
 
 def _call_pickled(payload):
@@ -332,7 +370,8 @@ def check_scheduler(address: str) -> None:
 class Executor:
     """Ordered ``map`` and ``as_completed`` over a kind of executor; see the module docstring."""
 
-    def __init__(self, kind: str = "serial", workers: int | None = None, scheduler: str | None = None):
+    def __init__(self, kind: str = "serial", workers: int | None = None, scheduler: str | None = None,
+                 preload: tuple[str, ...] = ()):
         if kind not in EXECUTORS:
             raise ValueError(f"executor: got {kind!r}; allowed: {', '.join(EXECUTORS)}")
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -342,6 +381,7 @@ class Executor:
         self.kind = kind
         self.workers = workers or os.cpu_count() or 1
         self.scheduler = scheduler
+        self.preload = tuple(preload)   # local pools: modules each worker imports as it starts, all started at once
         self.restarts = 0   # local pools restarted after a worker died
         self._pool = None
         self._client = None
@@ -365,8 +405,12 @@ class Executor:
         mend_resource_tracker()
         threads = max(1, (os.cpu_count() or 1) // self.workers)
         self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                         mp_context=multiprocessing.get_context(START_METHOD),
-                                         initializer=_init_worker, initargs=(threads,))
+                                         mp_context=_pool_context(),
+                                         initializer=_init_worker, initargs=(threads, self.preload))
+        if self.preload:   # start every worker now (a pool starts them as tasks come): they import meanwhile
+            for _ in range(self.workers):
+                with deferred(), _sigint_blocked():
+                    self._pool.submit(_started)
 
     def _start_dask(self) -> None:
         import dask

@@ -362,13 +362,17 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
              scheduler: str | None, progress: bool, batch_size: int | None) -> tuple[list[RunSpec], list[str]]:
     """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
     with their workers (not recorded) and the distinct reasons."""
-    warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
-    batches = make_batches(plan.todo, workers, batch_size)
+    with Executor(executor, workers, scheduler, preload=(worker.__name__,)) as pool:   # workers start importing
+        warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
+        return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
+
+
+def _run_batches(config: SweepConfig, store: ResultsStore, batches: list[list[RunSpec]], pool: Executor,
+                 progress: bool) -> tuple[list[RunSpec], list[str]]:
     task = functools.partial(worker.execute_batch, out_dir=store.root)
     failures, lost, reasons = 0, [], []
     last_batch_s, clock = 0.0, time.monotonic()
-    with _progress(len(plan.todo), config.name, progress) as bar, PartWriter(store) as writer, \
-            Executor(executor, workers, scheduler) as pool:
+    with _progress(sum(map(len, batches)), config.name, progress) as bar, PartWriter(store) as writer:
         for outcome in pool.as_completed(task, batches, idle=HEARTBEAT):
             if outcome is None:   # nothing finished yet: save what waits (serial: before the next batch)
                 writer.tick(last_batch_s if pool.in_process else 0.0)

@@ -48,3 +48,33 @@ def test_the_entry_point_runs_the_command_line(capsys):
 
     assert main(["status", "/nonexistent/folder"]) == 2
     assert "no sweep" in capsys.readouterr().err
+
+
+CONSOLE = """
+import atexit, sys
+atexit.register(lambda: print("atexit handler ran", file=sys.stderr))
+sys.argv = ["flocksweep", *sys.argv[1:]]
+from flocksweep.entry import console
+console()
+"""
+
+
+def _console(*args):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-c", CONSOLE, *args], env=env, capture_output=True, text=True,
+                          timeout=120)
+
+
+@pytest.mark.parametrize("args, status, out, err", [
+    (["--version"], 0, "flocksweep ", ""),                               # argparse's SystemExit(0)
+    (["status", "/nonexistent/folder"], 2, "", "no sweep stored here"),  # the command's own status
+    (["--no-such-option"], 2, "", "usage: flocksweep"),                  # a usage error
+])
+def test_the_console_script_keeps_status_output_and_exit_handlers(args, status, out, err):
+    """The quick exit (no interpreter teardown) still flushes both streams through pipes, keeps the
+    command's status and runs the atexit handlers."""
+    done = _console(*args)
+    assert done.returncode == status, done.stderr[-500:]
+    assert done.stdout.startswith(out)
+    assert err in done.stderr
+    assert done.stderr.rstrip().endswith("atexit handler ran")

@@ -11,6 +11,7 @@ import time
 
 import pytest
 
+from paths import ROOT
 from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 
@@ -111,6 +112,7 @@ def test_a_pool_heartbeats_while_its_tasks_run_and_stops_at_once_when_told():
 
 PARENT = """
 import os, sys, time
+from paths import ROOT
 from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 def pid(_):
@@ -241,3 +243,65 @@ def test_semaphore_names_pass_over_proxies_whose_object_is_gone():
     del lock
     names = _semaphore_names()
     assert kept._semlock.name in names and name not in names and len(proxies) == 2
+
+
+POOL_SCRIPT = """
+import multiprocessing.util, sys
+from sweeps.executors import Executor
+
+def task(folder):
+    def mark(name):
+        open(f"{folder}/{name}", "w").close()
+    multiprocessing.util.Finalize(None, mark, args=(multiprocessing.current_process().name,), exitpriority=1)
+    print("printed by a worker, never flushed", end="")
+    return multiprocessing.current_process().name
+
+if __name__ == "__main__":
+    with Executor("local", 2) as pool:
+        names = set(pool.map(task, [sys.argv[1]] * 8))
+    print("", len(names), "workers", flush=True)
+"""
+
+
+def test_local_workers_quick_exit_still_flushes_their_output_and_runs_their_finalizers(tmp_path):
+    """Pool workers end without the interpreter's teardown (``_QuickExitProcess``), but only after what
+    multiprocessing's own exit does: the finalizers registered in them ran and their unflushed output
+    reached the parent's stdout."""
+    script = tmp_path / "pool.py"
+    script.write_text(POOL_SCRIPT)
+    (tmp_path / "marks").mkdir()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, str(script), str(tmp_path / "marks")], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-1000:]
+    workers = int(done.stdout.split()[-2])
+    assert done.stdout.count("printed by a worker, never flushed") == 8
+    assert len(list((tmp_path / "marks").iterdir())) == workers >= 1
+
+
+PRELOAD_SCRIPT = """
+import os, sys, time
+from sweeps.executors import Executor
+
+if __name__ == "__main__":
+    sys.path.insert(0, sys.argv[1])   # spawned workers get this process's path
+    marks = os.path.join(sys.argv[1], "marks")
+    with Executor("local", 2, preload=("marker",)) as pool:
+        deadline = time.monotonic() + 120
+        while len(os.listdir(marks)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        print(len(os.listdir(marks)), "workers imported it before any task")
+"""
+
+
+def test_preload_starts_every_worker_at_once_and_imports_the_modules_before_any_task(tmp_path):
+    (tmp_path / "marks").mkdir()
+    (tmp_path / "marker.py").write_text("import os\nopen(os.path.join(os.path.dirname(__file__), 'marks', "
+                                        "str(os.getpid())), 'w').close()\n")
+    script = tmp_path / "preload.py"
+    script.write_text(PRELOAD_SCRIPT)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, str(script), str(tmp_path)], env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-1000:]
+    assert done.stdout.startswith("2 workers imported it before any task")
