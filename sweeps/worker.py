@@ -85,6 +85,12 @@ def _simulated(spec: RunSpec, out_dir, start: float) -> tuple:
 
 
 def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]:
+    row, columns = _execute(spec, out_dir)
+    return row, None if columns is None else pd.DataFrame(columns)
+
+
+def _execute(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
+    """The run's row and its series as columns (run_id, t, one per metric), None when it failed."""
     row = base_row(spec)
     start = time.perf_counter()
     try:
@@ -94,7 +100,7 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
             times, series, summary, sim_s = run_external(spec.command, spec.seed, spec.metrics, spec.run_id)
         row.update(summary)
         row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
-        return row, pd.DataFrame({"run_id": spec.run_id, "t": times, **series})
+        return row, {"run_id": np.full(len(times), spec.run_id, dtype=object), "t": times, **series}
     except WriteFailed:
         raise   # the disk's fault, not the run's
     except Exception as err:  # a failing run is recorded, never fatal to the sweep
@@ -152,10 +158,20 @@ def _tiny_flock() -> ObservedFlock:
 
 
 def execute_batch(specs: list[RunSpec], out_dir=None) -> tuple[list[dict], pd.DataFrame | None]:
-    rows, frames = [], []
+    rows, parts = [], []
     for spec in specs:
-        row, ts = execute_run(spec, out_dir)
+        row, columns = _execute(spec, out_dir)
         rows.append(row)
-        if ts is not None:
-            frames.append(ts)
-    return rows, (pd.concat(frames, ignore_index=True) if frames else None)
+        if columns is not None:
+            parts.append(columns)
+    return rows, _series_table(parts)
+
+
+def _series_table(parts: list[dict]) -> pd.DataFrame | None:
+    """The runs' series in one table, as ``pd.concat`` of one table per run would give (one table is
+    built, not one per run: about 1.3 ms a run)."""
+    if not parts:
+        return None
+    if any(part.keys() != parts[0].keys() for part in parts):
+        return pd.concat([pd.DataFrame(part) for part in parts], ignore_index=True)
+    return pd.DataFrame({key: np.concatenate([part[key] for part in parts]) for key in parts[0]})
