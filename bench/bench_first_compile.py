@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent.parent
-TINY = ["-m", "flocksweep.cli", "simulate", "configs/models/holland.toml", "--n", "3", "--duration",
+TINY = ["-m", "flocksweep.entry", "simulate", "configs/models/holland.toml", "--n", "3", "--duration",
         "0.016666666666666666"]
 EVERY_MODEL = """
 from pathlib import Path

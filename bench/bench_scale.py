@@ -172,7 +172,7 @@ def startup(repeats: int) -> dict:
     and ``numba_floor`` (import numba and call one kernel loaded from numba's cache: numba then sets up
     its compiler target, which imports its numpy implementations and scipy.linalg for BLAS)."""
     env = _env()
-    module = [sys.executable, "-m", "flocksweep.cli", *TINY]
+    module = [sys.executable, "-m", "flocksweep.entry", *TINY]
     subprocess.run(module, check=True, capture_output=True, env=env, cwd=ROOT)  # compile or load once
     with tempfile.TemporaryDirectory(prefix="numba-floor-") as tmp:
         floor = Path(tmp) / "floor.py"
@@ -192,7 +192,7 @@ def startup(repeats: int) -> dict:
 def compile_time() -> dict:
     with tempfile.TemporaryDirectory(prefix="numba-cache-") as cache:
         start = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "flocksweep.cli", *TINY], capture_output=True, text=True,
+        done = subprocess.run([sys.executable, "-m", "flocksweep.entry", *TINY], capture_output=True, text=True,
                               env=_env(cache_dir=cache), cwd=ROOT, check=True)
         seconds = time.perf_counter() - start
     notices = done.stderr.count("compiling")

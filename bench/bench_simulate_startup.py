@@ -4,7 +4,7 @@
 
 The floor is what any numba program pays before its first compiled call returns: a new Python process
 that imports numba and calls one cached ``@njit(cache=True)`` function (written to a temporary module,
-its cache filled beforehand). The tiny simulate is ``python -m flocksweep.cli simulate MODEL --n 3
+its cache filled beforehand). The tiny simulate is ``python -m flocksweep.entry simulate MODEL --n 3
 --duration <one step>`` with the kernels cached (run once beforehand). Both run as new processes in
 turn, ``--repeats`` times each, so both see the same load; reported: their medians (wall seconds), the
 median of the per-pair differences (simulate - floor; the target is <= 0.3 s) and the load average.
@@ -50,7 +50,7 @@ def main() -> int:
         base = {k: v for k, v in os.environ.items() if not (args.pycache and k == "PYTHONDONTWRITEBYTECODE")}
         env = {**base, "PYTHONPATH": os.pathsep.join([tmp, str(ROOT), os.environ.get("PYTHONPATH", "")])}
         floor = [sys.executable, "-c", "import floor_module; floor_module.one(1)"]
-        tiny = [sys.executable, "-m", "flocksweep.cli", "simulate", args.model, "--n", "3", "--duration",
+        tiny = [sys.executable, "-m", "flocksweep.entry", "simulate", args.model, "--n", "3", "--duration",
                 "0.016666666666666666"]
         wall(floor, env, ROOT)  # fill both caches
         wall(tiny, env, ROOT)

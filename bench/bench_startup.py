@@ -79,7 +79,7 @@ def main() -> None:
         for command in chosen:
             words = command.format(results=args.results, scratch=scratch).split()
             rows.append((f"flocksweep {command.replace(' --out {scratch}', '')}",
-                         timed([sys.executable, "-m", "flocksweep.cli", *words], args.repeats, roots, args.pycache)))
+                         timed([sys.executable, "-m", "flocksweep.entry", *words], args.repeats, roots, args.pycache)))
     print(f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, on {os.cpu_count()} cores; "
           f"median (min-max) of {args.repeats}; __pycache__ "
           f"{'used' if args.pycache or not os.environ.get('PYTHONDONTWRITEBYTECODE') else 'off'}")

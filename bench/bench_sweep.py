@@ -57,7 +57,7 @@ def main() -> None:
     parser.add_argument("--sweep", default="configs/sweeps/holland648.toml")
     parser.add_argument("--workers", type=int, default=os.cpu_count())
     args = parser.parse_args()
-    exe = [sys.executable, "-m", "flocksweep.cli", "run", args.sweep, "--no-progress", "--workers", str(args.workers)]
+    exe = [sys.executable, "-m", "flocksweep.entry", "run", args.sweep, "--no-progress", "--workers", str(args.workers)]
     full, again, peaks, overheads, command_overheads = [], [], [], [], []
     for _ in range(args.repeats):
         with tempfile.TemporaryDirectory() as tmp:
