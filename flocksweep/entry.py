@@ -52,13 +52,14 @@ def console() -> None:
     Once a command has returned, its output flushed and the ``atexit`` handlers run (multiprocessing's
     finalizers, logging, temporary folders), nothing is left to do; tearing down every module of numpy,
     pandas, numba and pyarrow would still take 0.3-0.5 s (bench/RESULTS.md). So the process ends there
-    with the command's status, unless a thread other than the main one is still running (then Python's
-    ordinary exit waits for it)."""
+    with the command's status, unless a thread other than the main one that Python's exit would wait for
+    (not a daemon) is still running: then Python's ordinary exit waits for it."""
     try:
         code = main()
     except SystemExit as stop:   # argparse's --help, --version and usage errors
         code = stop.code
-    if isinstance(code, str) or threading.active_count() > 1:
+    if isinstance(code, str) or any(not thread.daemon for thread in threading.enumerate()
+                                    if thread is not threading.main_thread()):
         sys.exit(code)
     atexit._run_exitfuncs()
     os._exit(_flushed(code or 0))

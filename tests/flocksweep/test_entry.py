@@ -78,3 +78,14 @@ def test_the_console_script_keeps_status_output_and_exit_handlers(args, status, 
     assert done.stdout.startswith(out)
     assert err in done.stderr
     assert done.stderr.rstrip().endswith("atexit handler ran")
+
+
+def test_the_console_script_waits_for_a_thread_that_python_would_wait_for():
+    script = ("import sys, threading, time\n"
+              "threading.Thread(target=lambda: (time.sleep(0.5), print('thread done', flush=True))).start()\n"
+              + CONSOLE)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", script, "--version"], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-500:]
+    assert done.stdout.splitlines()[-1] == "thread done"
