@@ -284,7 +284,7 @@ UNSURE = 4  # code bit of :func:`_view_all_pairs`: a narrow-eye test could not d
 
 
 @llvm_inline
-def _view_all_pairs(i, fwd, side, fp, periodic, box, flat, nbrs):
+def _view_all_pairs(i, fwd, side, fp, ip, periodic, box, flat, nbrs):
     """:func:`_view_phase` over all pairs when each eye's field is at most 180 degrees, in passes that run
     in SIMD lanes where they can: every boid's offset and squared distance from the mirrored positions
     ``flat`` (offsets into the scratch rows ``nbrs.occ_f``, free until the perspective phase); the boids
@@ -339,7 +339,7 @@ def _view_all_pairs(i, fwd, side, fp, periodic, box, flat, nbrs):
             dx, dy, dz = ox[t], oy[t], oz[t]
             if label >= UNSURE:
                 label = _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, arz, range2,
-                               cos_half, cos_half2, False)
+                               cos_half, cos_half2, ip[I.SEE_ALL] != 0)   # False here, typed as _view_phase's
             store(nbrs, m, j, dx, dy, dz, RULE_ALL, label)
             m += label != 0
     return m
@@ -370,7 +370,7 @@ def perceive_opensteer(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
 def perceive_binocular(kind, i, pos, fwd, side, fp, ip, nbrs, grid, use_grid):
     periodic = ip[I.BOUNDARY] == BOUNDARY_PERIODIC
     if not use_grid and fp[F.COS_HALF_FIELD] >= 0.0 and ip[I.SEE_ALL] == 0:
-        m = _view_all_pairs(i, fwd, side, fp, periodic, fp[F.BOX], grid.flat, nbrs)
+        m = _view_all_pairs(i, fwd, side, fp, ip, periodic, fp[F.BOX], grid.flat, nbrs)
     else:
         n_runs, first, last, cand, cpos = _candidates(i, pos, fp, ip, periodic, fp[F.BOX], nbrs, grid, use_grid)
         m = _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, fp[F.BOX], nbrs)

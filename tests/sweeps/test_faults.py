@@ -152,7 +152,7 @@ def test_a_run_whose_worker_always_dies_is_left_missing_never_failed(tmp_path, m
 @pytest.mark.slow
 def test_finished_runs_are_saved_on_time_while_a_worker_is_busy_with_a_long_run(tmp_path, monkeypatch):
     monkeypatch.setattr(runner, "FLUSH_SECONDS", 1.0)
-    sweep = write_sweep(tmp_path, values="[6, 7, 8, 9, 10, 11, 12, 13, 400]")
+    sweep = write_sweep(tmp_path, values="[6, 7, 8, 9, 10, 11, 12, 13, 1000]")   # the long run: several seconds
     out = tmp_path / "out"
     config = load_sweep(sweep, ["run.duration=6.0", "run.warmup=0.5"])
     done = threading.Event()
@@ -164,7 +164,7 @@ def test_finished_runs_are_saved_on_time_while_a_worker_is_busy_with_a_long_run(
         while len(saved) < 8 and not done.is_set() and time.monotonic() < deadline:
             time.sleep(0.1)
             saved = ResultsStore(out).all_rows() if (out / "runs").is_dir() else saved
-        # every small run is on disk while the 400-boid run still computes
+        # every small run is on disk while the 1,000-boid run still computes
         assert not done.is_set(), "the long run ended before the small runs were saved"
         assert sorted(saved["init.n"]) == [6, 7, 8, 9, 10, 11, 12, 13]
     finally:
