@@ -225,23 +225,33 @@ def _label(i, j, dx, dy, dz, lx, ly, lz, alx, aly, alz, rx, ry, rz, arx, ary, ar
     return label
 
 
-@llvm_inline
-def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
-    """In-view neighbours with their eye labels; returns their count."""
+@inline
+def _eyes(i, fwd, side, fp):
+    """Boid i's eye offsets from its centre and gaze axes: (left offset, right offset, left axis, right
+    axis) as 12 numbers; the left eye uses -side, the right +side."""
     f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
     s0, s1, s2 = side[i, 0], side[i, 1], side[i, 2]
     h, ce, se = fp[F.HEAD_R], fp[F.COS_EYE], fp[F.SIN_EYE]
     cg, sg = fp[F.COS_GAZE], fp[F.SIN_GAZE]
-    # eye offsets from the boid's centre and gaze axes; left uses -side, right +side
-    lx, ly, lz = h * (ce * f0 - se * s0), h * (ce * f1 - se * s1), h * (ce * f2 - se * s2)
-    rx, ry, rz = h * (ce * f0 + se * s0), h * (ce * f1 + se * s1), h * (ce * f2 + se * s2)
-    alx, aly, alz = cg * f0 - sg * s0, cg * f1 - sg * s1, cg * f2 - sg * s2
-    arx, ary, arz = cg * f0 + sg * s0, cg * f1 + sg * s1, cg * f2 + sg * s2
-    rng = fp[F.RANGE]
-    range2 = rng * rng
-    reach2 = (rng + h) * (rng + h)  # no eye sees beyond range + head_radius from the centre
-    cos_half = fp[F.COS_HALF_FIELD]
-    cos_half2 = cos_half * cos_half
+    return (h * (ce * f0 - se * s0), h * (ce * f1 - se * s1), h * (ce * f2 - se * s2),
+            h * (ce * f0 + se * s0), h * (ce * f1 + se * s1), h * (ce * f2 + se * s2),
+            cg * f0 - sg * s0, cg * f1 - sg * s1, cg * f2 - sg * s2,
+            cg * f0 + sg * s0, cg * f1 + sg * s1, cg * f2 + sg * s2)
+
+
+@inline
+def _view_limits(fp):
+    """(range^2, reach^2, cos of the half field, its square); no eye sees beyond reach = range + head
+    radius from the boid's centre."""
+    rng, h, cos_half = fp[F.RANGE], fp[F.HEAD_R], fp[F.COS_HALF_FIELD]
+    return rng * rng, (rng + h) * (rng + h), cos_half, cos_half * cos_half
+
+
+@llvm_inline
+def _view_phase(i, n_runs, first, last, cand, cpos, pos, fwd, side, fp, ip, periodic, box, nbrs):
+    """In-view neighbours with their eye labels; returns their count."""
+    lx, ly, lz, rx, ry, rz, alx, aly, alz, arx, ary, arz = _eyes(i, fwd, side, fp)
+    range2, reach2, cos_half, cos_half2 = _view_limits(fp)
     see_all = ip[I.SEE_ALL] != 0
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     near = nbrs.slot  # scratch: the candidates within reach, in candidate order
@@ -291,19 +301,8 @@ def _view_all_pairs(i, fwd, side, fp, ip, periodic, box, flat, nbrs):
     within reach kept (their indices in ``nbrs.slot``, offsets moved up in place); the eye tests of those, a
     code per boid in ``nbrs.cand``, branch-free; then the in-view ones stored in ascending order. The
     arithmetic is :func:`_view_phase`'s, test for test, so the slots are the same bit for bit."""
-    f0, f1, f2 = fwd[i, 0], fwd[i, 1], fwd[i, 2]
-    s0, s1, s2 = side[i, 0], side[i, 1], side[i, 2]
-    h, ce, se = fp[F.HEAD_R], fp[F.COS_EYE], fp[F.SIN_EYE]
-    cg, sg = fp[F.COS_GAZE], fp[F.SIN_GAZE]
-    lx, ly, lz = h * (ce * f0 - se * s0), h * (ce * f1 - se * s1), h * (ce * f2 - se * s2)
-    rx, ry, rz = h * (ce * f0 + se * s0), h * (ce * f1 + se * s1), h * (ce * f2 + se * s2)
-    alx, aly, alz = cg * f0 - sg * s0, cg * f1 - sg * s1, cg * f2 - sg * s2
-    arx, ary, arz = cg * f0 + sg * s0, cg * f1 + sg * s1, cg * f2 + sg * s2
-    rng = fp[F.RANGE]
-    range2 = rng * rng
-    reach2 = (rng + h) * (rng + h)
-    cos_half = fp[F.COS_HALF_FIELD]
-    cos_half2 = cos_half * cos_half
+    lx, ly, lz, rx, ry, rz, alx, aly, alz, arx, ary, arz = _eyes(i, fwd, side, fp)
+    range2, reach2, cos_half, cos_half2 = _view_limits(fp)
     x, y, z = flat[0], flat[1], flat[2]
     px, py, pz = x[i], y[i], z[i]
     ox, oy, oz, d2 = nbrs.occ_f[0], nbrs.occ_f[1], nbrs.occ_f[2], nbrs.d2
