@@ -203,7 +203,7 @@ def cmd_run(args) -> int:
             print(f"  results directory: {out}")
             return 0
         print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
-              f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.0f} ms x {len(plan.todo)} runs, "
+              f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.1f} ms x {len(plan.todo)} runs, "
               f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")
         if est["compile_s"]:
             print(f"  first compile: {est['compile_s']:.0f} s, done now by this dry run (numba's cache had no run loop "

@@ -404,7 +404,7 @@ def test_dry_run_counts_runs_and_cost_and_writes_nothing(tmp_path, capsys):
     assert "tiny: 8 runs; 0 done, 0 failed" in printed and "8 to run" in printed
     assert "(5,760 boid-steps;" in printed  # 8 runs x 8 boids x 90 steps
     wall = re.search(r"estimated wall time: about (\d+) s = start-up ([\d.]+) s \+ simulation ([\d.]+) s \+ "
-                     r"per-run overhead (\d+) ms x 8 runs, on 1 worker", printed)
+                     r"per-run overhead ([\d.]+) ms x 8 runs, on 1 worker", printed)
     assert wall, printed   # what the user waits for: start-up and per-run overhead, not the simulation alone
     total, startup, simulation, per_run = (float(g) for g in wall.groups())
     assert startup > 0 and per_run > 0
