@@ -42,6 +42,7 @@ import argparse
 import importlib
 import os
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 
 from simcore.schema import ConfigError, suggest
@@ -172,6 +173,30 @@ def _add_run(sub) -> None:
 
 
 def cmd_run(args) -> int:
+    with _early_pool(args) as pool:
+        return _run(args, pool)
+
+
+def _early_pool(args):
+    """A plain run on a local pool of several processes: the pool, started before anything else is
+    imported or read, so its workers import the simulator meanwhile (about a second saved on every sweep);
+    otherwise, or with flags the checks will refuse, nothing (the sweep starts its own executor)."""
+    if (args.executor != "local" or args.scheduler is not None or args.dry_run or args.until_ci
+            or args.until_claims):
+        return nullcontext()
+    try:
+        check_workers(args.workers, args.executor)
+    except ConfigError:
+        return nullcontext()   # refused, with its message, by check_run_args
+    workers = args.workers or os.cpu_count() or 1
+    if workers < 2:
+        return nullcontext()
+    from sweeps.executors import Executor
+
+    return Executor("local", workers, preload=("sweeps.worker",))
+
+
+def _run(args, pool) -> int:
     from flocksweep.command_line import check_run_args, sweep_from_args
     from sweeps.runner import resume_hint, run_sweep
 
@@ -189,8 +214,10 @@ def cmd_run(args) -> int:
         return run_until_claims_command(args, config, out)
     result = run_sweep(config, args.sweep_text, out, args.executor, args.workers,
                        args.scheduler, args.force, args.retry_failed, args.dry_run, not args.no_progress,
-                       args.batch_size, yes=args.yes)
+                       args.batch_size, yes=args.yes, pool=pool)
     plan = result.plan
+    if pool is not None and not plan.todo:
+        pool.close(wait=False)   # never used: its workers need not finish importing
     if args.dry_run:
         est = result.estimate
         print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "

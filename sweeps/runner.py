@@ -27,6 +27,7 @@ whatever the executor is busy with, and all of them at the end or on an interrup
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -306,10 +307,13 @@ class SweepResult:
 def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: str = "local",
               workers: int | None = None, scheduler: str | None = None, force: bool = False, retry_failed: bool = False,
               dry_run: bool = False, progress: bool = True, batch_size: int | None = None,
-              specs: list[RunSpec] | None = None, yes: bool = False) -> SweepResult:
+              specs: list[RunSpec] | None = None, yes: bool = False, pool: Executor | None = None) -> SweepResult:
     """Run the sweep (or the given subset ``specs`` of its design); see the module docstring. ``sweep_text``
     is stored as ``sweep.toml``; None stores the text of the file the sweep was read from, or for a sweep
-    built in Python :meth:`SweepConfig.to_toml`. The public entry point is :func:`sweeps.run_sweep`."""
+    built in Python :meth:`SweepConfig.to_toml`. ``pool``: an entered ``local`` :class:`Executor` of
+    ``workers`` processes to compute on, started by the caller (the command line starts it first thing,
+    so its workers import while the sweep is read and designed); the caller closes it. The public entry
+    point is :func:`sweeps.run_sweep`."""
     main_guard.refuse_in_spawned_import()   # a worker re-running an unguarded script never runs its sweep
     if sweep_text is None:
         sweep_text = config.text if config.text is not None else config.to_toml()
@@ -338,7 +342,7 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
                        else relocated_workdir(sweep_text, config.command.workdir, out_dir))
         store.write_inputs(stored_text, effective, model_record(config, out_dir), design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
-        lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size)
+        lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size, pool)
                          if plan.todo else ([], []))
         table = store.consolidate(design)
         store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
@@ -359,10 +363,15 @@ def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
 
 
 def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
-             scheduler: str | None, progress: bool, batch_size: int | None) -> tuple[list[RunSpec], list[str]]:
-    """Compute the plan's runs in batches on the executor, writing parts on time; returns the runs lost
-    with their workers (not recorded) and the distinct reasons."""
-    with Executor(executor, workers, scheduler, preload=(worker.__name__,)) as pool:   # workers start importing
+             scheduler: str | None, progress: bool, batch_size: int | None,
+             started: Executor | None = None) -> tuple[list[RunSpec], list[str]]:
+    """Compute the plan's runs in batches on the executor (or the ``started`` pool), writing parts on
+    time; returns the runs lost with their workers (not recorded) and the distinct reasons."""
+    if started is not None and (executor, workers) != (started.kind, started.workers):
+        raise ValueError(f"pool: a {started.description} pool, for a sweep on executor {executor!r} with "
+                         f"{workers} worker(s)")
+    with (contextlib.nullcontext(started) if started is not None   # the caller's, already importing
+          else Executor(executor, workers, scheduler, preload=(worker.__name__,))) as pool:   # workers start importing
         warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
         return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
 

@@ -7,6 +7,7 @@ import os
 import pickle
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -135,3 +136,97 @@ def test_a_helper_still_running_after_the_limit_is_stopped_and_the_warm_up_goes_
     helper.wait(timeout=1.0)
     assert time.monotonic() - started < 15
     assert not helper.process.is_alive() and helper.process.exitcode != 0
+
+
+# -- known warm: a warm-up that found everything in numba's cache is not done again -----------------------
+
+def packages():
+    import observables
+    import simcore
+
+    return Path(simcore.__file__).parent, Path(observables.__file__).parent
+
+
+@pytest.fixture
+def record(tmp_path, monkeypatch):
+    """Warm-ups recorded in a file of this test's own (the real record is the session's)."""
+    from sweeps import warmup
+
+    here = warmup.WarmRecord(tmp_path / "warm.txt", packages())
+    monkeypatch.setattr(warmup.WarmRecord, "here", classmethod(lambda cls: here))
+    return here
+
+
+def test_a_warm_up_known_warm_is_skipped_and_loads_nothing(record, monkeypatch):
+    from sweeps import worker
+
+    first = warm_up_all(specs())
+    assert not first.skipped and record.path.exists()
+
+    def loaded(*args, **kwargs):
+        raise AssertionError("a known warm-up loaded a kernel")
+
+    monkeypatch.setattr(worker, "warm_up_run", loaded)
+    monkeypatch.setattr(worker, "warm_up_metrics", loaded)
+    assert warm_up_all(specs()).skipped
+
+
+def test_other_run_loops_or_metric_families_are_warmed_up_again(record):
+    warm_up_all(specs())
+    leadership = expand(sweep_from_dict(sweep(leadership_metrics=True), ROOT))[:1]
+    vicsek = dataclasses.replace(specs()[0], preset=load_preset(ROOT / "configs" / "models" / "vicsek.toml"))
+    for other in (leadership, [vicsek]):
+        keys = record.keys(other)
+        assert not record.knows(keys)   # its family is not recorded ...
+    assert record.knows(record.keys(specs()))   # ... the first is
+
+
+def test_the_record_is_void_after_any_source_file_changes(tmp_path):
+    """Numba's cache misses when a kernel's source file is edited or touched (or numba, Python or the CPU
+    changes): so does the record."""
+    from sweeps.warmup import WarmRecord
+
+    package = tmp_path / "pkg"
+    package.mkdir()
+    source = package / "kernels.py"
+    source.write_text("x = 1\n")
+    record = WarmRecord(tmp_path / "warm.txt", (package,))
+    record.add(record.keys(specs()))
+    assert record.knows(record.keys(specs()))
+    os.utime(source, ns=(source.stat().st_atime_ns, source.stat().st_mtime_ns + 1_000_000))   # touched
+    assert not record.knows(record.keys(specs()))
+    record.add(record.keys(specs()))
+    assert record.knows(record.keys(specs()))
+    source.write_text("x = 22\n")   # edited
+    assert not record.knows(record.keys(specs()))
+
+
+def test_a_failed_warm_up_is_not_recorded(record, monkeypatch):
+    from sweeps import worker
+
+    def fails(spec):
+        raise RuntimeError("no run")
+
+    monkeypatch.setattr(worker, "warm_up_run", fails)
+    assert not warm_up_all(specs()).skipped
+    assert not record.path.exists()
+    bad = dataclasses.replace(specs()[0], metrics=None)   # cannot even be described: warmed up, not recorded
+    assert record.keys([bad]) is None
+    assert not warm_up_all([bad]).skipped and not record.path.exists()
+
+
+def test_nothing_is_recorded_with_a_cache_directory_of_its_own(monkeypatch):
+    from sweeps.warmup import WarmRecord
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "/tmp/elsewhere")
+    assert WarmRecord.here() is None
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    here = WarmRecord.here()
+    assert here is None or here.path.parent == packages()[0] / "__pycache__"
+
+
+def test_a_damaged_record_means_warm_up(record):
+    record.path.write_bytes(b"\xff\xfe not text")
+    assert not record.knows(record.keys(specs()))
+    warm_up_all(specs())   # warmed up, and the record rewritten
+    assert record.knows(record.keys(specs()))

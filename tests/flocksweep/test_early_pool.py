@@ -1,0 +1,101 @@
+"""flocksweep/cli.py: a plain local run starts its pool first thing, so its workers import the simulator
+while the sweep is read and designed; anything else starts no early pool."""
+from __future__ import annotations
+
+import multiprocessing
+from contextlib import nullcontext
+
+import pandas as pd
+import pytest
+from pandas.testing import assert_frame_equal
+
+from flocksweep import cli
+from paths import ROOT
+from sweeps import executors, runner
+
+HOLLAND = ROOT / "configs" / "models" / "holland.toml"
+TIMING = ["wall_s", "sim_s", "part"]
+
+
+def args_of(*flags):
+    argv = ["run", "s.toml", *flags]
+    return cli.build_parser(cli._command_of(argv)).parse_args(argv)
+
+
+def write_sweep(folder):
+    path = folder / "tiny.toml"
+    path.write_text(f"""name = "tiny"
+seed = 5
+[model]
+preset = "{HOLLAND}"
+[run]
+n = 8
+duration = 1.0
+record_interval = 0.5
+warmup = 0.25
+[[axes]]
+key = "perception.field_deg"
+values = [60, 120, 180]
+""")
+    return path
+
+
+@pytest.mark.parametrize("flags", [("--workers", "2"), ("--workers", "2", "--force"), ("--workers", "3", "--retry-failed")])
+def test_a_plain_local_run_gets_an_early_pool(flags):
+    pool = cli._early_pool(args_of(*flags))
+    assert isinstance(pool, executors.Executor)   # not started yet: entered by cmd_run
+    assert (pool.kind, pool.workers, pool.preload) == ("local", int(flags[1]), ("sweeps.worker",))
+
+
+@pytest.mark.parametrize("flags", [("--executor", "serial"), ("--executor", "dask"), ("--workers", "1"),
+                                   ("--workers", "2", "--dry-run"), ("--workers", "2", "--until-claims"),
+                                   ("--workers", "2", "--until-ci", "polarization_mean=0.1"),
+                                   ("--workers", "0"), ("--workers", "100000")])
+def test_other_runs_and_refused_flags_get_none(flags):
+    assert isinstance(cli._early_pool(args_of(*flags)), nullcontext)
+
+
+def test_a_refused_worker_count_is_still_named(tmp_path, capsys):
+    assert cli.main(["run", str(write_sweep(tmp_path)), "--workers", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--workers" in capsys.readouterr().err
+
+
+def test_the_run_computes_on_the_early_pool_with_the_serial_results(tmp_path, monkeypatch, capsys):
+    sweep = write_sweep(tmp_path)
+    assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(tmp_path / "serial"),
+                     "--no-progress"]) == 0
+
+    def no_second_pool(*args, **kwargs):
+        raise AssertionError("the sweep started a pool of its own")
+
+    monkeypatch.setattr(runner, "Executor", no_second_pool)
+    assert cli.main(["run", str(sweep), "--workers", "2", "--batch-size", "1", "--out", str(tmp_path / "pool"),
+                     "--no-progress"]) == 0
+    assert "3 runs, 3 ok, 0 failed" in capsys.readouterr().out
+    serial, pool = (pd.read_parquet(tmp_path / d / "runs.parquet").drop(columns=TIMING) for d in ("serial", "pool"))
+    assert_frame_equal(serial, pool, check_exact=True)
+    assert not multiprocessing.active_children()
+
+
+def test_a_pool_with_nothing_to_do_is_stopped_without_waiting(tmp_path, monkeypatch):
+    sweep, out = write_sweep(tmp_path), tmp_path / "out"
+    assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(out), "--no-progress"]) == 0
+    closed = []
+    close = executors.Executor.close
+
+    def recorded(self, wait=True):
+        closed.append((self._pool is not None, wait))
+        close(self, wait)
+
+    monkeypatch.setattr(executors.Executor, "close", recorded)
+    assert cli.main(["run", str(sweep), "--workers", "2", "--out", str(out), "--no-progress"]) == 0
+    assert closed[0] == (True, False)   # every run was done: its workers were stopped, not waited for
+    assert not multiprocessing.active_children()
+
+
+def test_a_bad_sweep_stops_the_early_pool(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(write_sweep(tmp_path).read_text().replace("n = 8", "n = -8"))
+    assert cli.main(["run", str(bad), "--workers", "2", "--out", str(tmp_path / "o")]) == 2
+    assert "init.n: got -8" in capsys.readouterr().err
+    assert not multiprocessing.active_children() and not (tmp_path / "o").exists()
