@@ -55,7 +55,7 @@ def on_the_boundary(rng, count: int, relative: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("relative", [-1e-6, -1e-12, 0.0, 1e-12, 1e-6])
-@pytest.mark.parametrize("in_view", [SCREEN_MIN - 2, SCREEN_MIN + 8, ALL_PAIRS_MAX - 1])
+@pytest.mark.parametrize("in_view", [SCREEN_MIN - 2, SCREEN_MIN + 4, ALL_PAIRS_MAX, ALL_PAIRS_MAX + 20])
 def test_boundary_pairs_are_decided_as_in_double_precision(relative, in_view):
     rng = np.random.default_rng(int(1e6 * relative) % 97 + in_view)
     pairs = on_the_boundary(rng, 6, relative)

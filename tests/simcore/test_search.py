@@ -120,7 +120,7 @@ def brute_force_hidden(state, i, n, body):
     return idx, ((gap > 0) & (s <= gap * gap)).any(axis=0)
 
 
-@pytest.mark.parametrize("n, body, min_hidden", [(700, 0.4, 50), (120, 0.7, 10), (60, 1.0, 5)])
+@pytest.mark.parametrize("n, body, min_hidden", [(700, 0.4, 50), (120, 0.7, 10), (60, 1.0, 5), (40, 1.6, 1)])
 def test_occlusion_hides_the_brute_force_set(n, body, min_hidden):
     """Hundreds of in-view neighbours (the 3-D direction grid of the perspective phase), fewer than
     ``GRID_3D_MIN`` (the slots sorted along one axis) and at most ``ALL_PAIRS_MAX`` (every pair tested
