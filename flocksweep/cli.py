@@ -180,9 +180,15 @@ def cmd_run(args) -> int:
 def _early_pool(args):
     """A plain run on a local pool of several processes: the pool, started before anything else is
     imported or read, so its workers import the simulator meanwhile (about a second saved on every sweep);
-    otherwise, or with flags the checks will refuse, nothing (the sweep starts its own executor)."""
+    otherwise, or with flags the checks will refuse, nothing (the sweep starts its own executor when it
+    has runs to compute). Nor for a sweep whose results table is already there (without ``--force`` or
+    ``--retry-failed``): run again, it most likely has nothing to compute, and workers importing for
+    nothing would slow its answer down by about half a second."""
     if (args.executor != "local" or args.scheduler is not None or args.dry_run or args.until_ci
             or args.until_claims):
+        return nullcontext()
+    folder = _results_folder(args)
+    if not (args.force or args.retry_failed) and folder is not None and (folder / "runs.parquet").exists():
         return nullcontext()
     try:
         check_workers(args.workers, args.executor)
@@ -194,6 +200,22 @@ def _early_pool(args):
     from sweeps.executors import Executor
 
     return Executor("local", workers, preload=("sweeps.worker",))
+
+
+def _results_folder(args) -> Path | None:
+    """Where the run will store its results, told before the sweep is read: ``--out``, or the sweep
+    file's name under ``results/`` (None when that cannot be told this early)."""
+    if args.out is not None:
+        return Path(args.out)
+    if args.sweep is None or any(o.split("=", 1)[0].strip() == "name" for o in args.overrides or ()):
+        return None
+    import tomllib
+
+    try:
+        name = tomllib.loads(Path(args.sweep).read_text()).get("name")
+    except (OSError, UnicodeError, ValueError):
+        return None
+    return Path("results") / name if isinstance(name, str) and name else None
 
 
 def _run(args, pool) -> int:

@@ -17,8 +17,8 @@ HOLLAND = ROOT / "configs" / "models" / "holland.toml"
 TIMING = ["wall_s", "sim_s", "part"]
 
 
-def args_of(*flags):
-    argv = ["run", "s.toml", *flags]
+def args_of(*flags, sweep="s.toml"):
+    argv = ["run", sweep, *flags]
     return cli.build_parser(cli._command_of(argv)).parse_args(argv)
 
 
@@ -80,6 +80,7 @@ def test_the_run_computes_on_the_early_pool_with_the_serial_results(tmp_path, mo
 def test_a_pool_with_nothing_to_do_is_stopped_without_waiting(tmp_path, monkeypatch):
     sweep, out = write_sweep(tmp_path), tmp_path / "out"
     assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(out), "--no-progress"]) == 0
+    (out / "runs.parquet").unlink()   # as if interrupted before its table: the pool starts early
     closed = []
     close = executors.Executor.close
 
@@ -99,3 +100,22 @@ def test_a_bad_sweep_stops_the_early_pool(tmp_path, capsys):
     assert cli.main(["run", str(bad), "--workers", "2", "--out", str(tmp_path / "o")]) == 2
     assert "init.n: got -8" in capsys.readouterr().err
     assert not multiprocessing.active_children() and not (tmp_path / "o").exists()
+
+
+def test_a_finished_sweep_run_again_gets_no_early_pool(tmp_path, monkeypatch):
+    """Its results table is there: most likely nothing to compute, so no workers import for nothing; with
+    --force or --retry-failed (work to do) the pool starts early again."""
+    sweep, out = write_sweep(tmp_path), tmp_path / "out"
+    assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out))), executors.Executor)
+    assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(out), "--no-progress"]) == 0
+    assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out))), nullcontext)
+    for flag in ("--force", "--retry-failed"):
+        assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out), flag)), executors.Executor)
+    monkeypatch.chdir(tmp_path)   # without --out: the sweep file's name under results/
+    (tmp_path / "results").mkdir()
+    out.rename(tmp_path / "results" / "tiny")
+    argv = ["run", str(sweep), "--workers", "2"]
+    assert isinstance(cli._early_pool(cli.build_parser(cli._command_of(argv)).parse_args(argv)), nullcontext)
+    renamed = argv + ["--set", "name=other"]   # another folder: told only once the sweep is read
+    assert isinstance(cli._early_pool(cli.build_parser(cli._command_of(renamed)).parse_args(renamed)),
+                      executors.Executor)
