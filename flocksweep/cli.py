@@ -199,7 +199,7 @@ def _early_pool(args):
         return nullcontext()
     from sweeps.executors import Executor
 
-    return Executor("local", workers, preload=("sweeps.worker",))
+    return Executor("local", workers, preload=("sweeps.worker:prepare",))
 
 
 def _results_folder(args) -> Path | None:

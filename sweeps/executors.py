@@ -27,8 +27,9 @@ Kinds:
   SIGINT (Ctrl-C is the parent's to handle: it stops the pool) and exits when the process that started
   it dies (a watchdog thread waits on the parent's sentinel). At most ``workers`` tasks are in flight.
   A pool starts its workers as tasks come, unless ``preload`` names modules: then every worker starts in
-  ``__enter__`` and imports them, while the caller prepares its tasks (a sweep's workers import
-  ``sweeps.worker``, about 1.5 s, during the design and the warm-up). A worker whose loop has ended
+  ``__enter__`` and imports them (an entry ``"module:function"`` also calls that function), while the
+  caller prepares its tasks (a sweep's workers import ``sweeps.worker`` and call its ``prepare``, about
+  1 s, while the sweep is read and designed). A worker whose loop has ended
   exits once multiprocessing's own exit steps are done (finalizers, streams flushed), without the
   interpreter's teardown of numpy, pandas and numba, which the pool's shutdown would wait for;
 * ``dask``: a ``dask.distributed`` Client at ``scheduler`` (``tcp://host:8786``; a scheduler that does
@@ -287,8 +288,11 @@ def _init_worker(threads: int, preload: tuple[str, ...] = ()) -> None:
     import numba
 
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    for name in preload:
-        importlib.import_module(name)
+    for entry in preload:   # "module" or "module:function" (then called)
+        name, _, function = entry.partition(":")
+        module = importlib.import_module(name)
+        if function:
+            getattr(module, function)()
 
 
 def _call_pickled(payload):

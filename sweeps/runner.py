@@ -371,7 +371,7 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
         raise ValueError(f"pool: a {started.description} pool, for a sweep on executor {executor!r} with "
                          f"{workers} worker(s)")
     with (contextlib.nullcontext(started) if started is not None   # the caller's, already importing
-          else Executor(executor, workers, scheduler, preload=(worker.__name__,))) as pool:   # workers start importing
+          else Executor(executor, workers, scheduler, preload=(f"{worker.__name__}:prepare",))) as pool:   # workers start importing
         warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
         return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
 

@@ -44,7 +44,7 @@ values = [60, 120, 180]
 def test_a_plain_local_run_gets_an_early_pool(flags):
     pool = cli._early_pool(args_of(*flags))
     assert isinstance(pool, executors.Executor)   # not started yet: entered by cmd_run
-    assert (pool.kind, pool.workers, pool.preload) == ("local", int(flags[1]), ("sweeps.worker",))
+    assert (pool.kind, pool.workers, pool.preload) == ("local", int(flags[1]), ("sweeps.worker:prepare",))
 
 
 @pytest.mark.parametrize("flags", [("--executor", "serial"), ("--executor", "dask"), ("--workers", "1"),

@@ -305,3 +305,37 @@ def test_preload_starts_every_worker_at_once_and_imports_the_modules_before_any_
                           timeout=300)
     assert done.returncode == 0, done.stderr[-1000:]
     assert done.stdout.startswith("2 workers imported it before any task")
+
+
+def test_a_preload_entry_with_a_function_calls_it_after_the_import(tmp_path):
+    (tmp_path / "marks").mkdir()
+    (tmp_path / "marker.py").write_text("import os\ndef mark():\n    open(os.path.join(os.path.dirname(__file__), "
+                                        "'marks', 'called-' + str(os.getpid())), 'w').close()\n")
+    script = tmp_path / "preload.py"
+    script.write_text(PRELOAD_SCRIPT.replace('preload=("marker",)', 'preload=("marker:mark",)')
+                      .replace("workers imported it", "workers called it"))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, str(script), str(tmp_path)], env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-1000:]
+    assert done.stdout.startswith("2 workers called it before any task")
+    assert all(name.startswith("called-") for name in os.listdir(tmp_path / "marks"))
+
+
+def test_the_sweep_workers_preparation_compiles_nothing():
+    from numba.core import event
+
+    from sweeps import worker
+
+    compiled = []
+
+    class Count(event.Listener):
+        def on_start(self, ev):
+            compiled.append(ev)
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Count()):
+        worker.prepare()
+    assert not compiled
