@@ -370,10 +370,21 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
     if started is not None and (executor, workers) != (started.kind, started.workers):
         raise ValueError(f"pool: a {started.description} pool, for a sweep on executor {executor!r} with "
                          f"{workers} worker(s)")
-    with (contextlib.nullcontext(started) if started is not None   # the caller's, already importing
+    with (_borrowed(started) if started is not None   # the caller's, already importing
           else Executor(executor, workers, scheduler, preload=(f"{worker.__name__}:prepare",))) as pool:   # workers start importing
         warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
         return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
+
+
+@contextlib.contextmanager
+def _borrowed(pool: Executor):
+    """The caller's pool for the sweep's batches: left running when they end, but stopped at once on an
+    error or an interrupt, as the sweep's own pool would be (no worker writes after the store's lock)."""
+    try:
+        yield pool
+    except BaseException:
+        pool.close(wait=False)
+        raise
 
 
 def _run_batches(config: SweepConfig, store: ResultsStore, batches: list[list[RunSpec]], pool: Executor,

@@ -3,7 +3,7 @@ while the sweep is read and designed; anything else starts no early pool."""
 from __future__ import annotations
 
 import multiprocessing
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 
 import pandas as pd
 import pytest
@@ -119,3 +119,28 @@ def test_a_finished_sweep_run_again_gets_no_early_pool(tmp_path, monkeypatch):
     renamed = argv + ["--set", "name=other"]   # another folder: told only once the sweep is read
     assert isinstance(cli._early_pool(cli.build_parser(cli._command_of(renamed)).parse_args(renamed)),
                       executors.Executor)
+
+
+def test_an_interrupted_sweep_stops_the_early_pool_before_it_lets_go_of_the_store(tmp_path, monkeypatch):
+    """As with the sweep's own pool: no worker is left to write into the folder once its lock is released."""
+    from sweeps import store as stores
+
+    sweep, out = write_sweep(tmp_path), tmp_path / "out"
+    alive_at_release = []
+    lock = stores.ResultsStore.lock
+
+    @contextmanager
+    def watched(self):
+        try:
+            with lock(self) as store:
+                yield store
+        finally:
+            alive_at_release.append(len(multiprocessing.active_children()))
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(stores.ResultsStore, "lock", watched)
+    monkeypatch.setattr(runner, "_run_batches", interrupted)
+    assert cli.main(["run", str(sweep), "--workers", "2", "--out", str(out), "--no-progress"]) != 0
+    assert alive_at_release == [0]
