@@ -13,8 +13,9 @@ what the user gives overrides. Rows are numbered in the order of that table. The
   t), ``variable`` names the array (default: the file's only numeric array of 3 dimensions). Without a
   ``t`` channel the times are ``layout.time`` (a variable of one time per sample) or the sample index
   in frames (``fps``). nan positions are missed detections.
-* ``idtracker``: idtracker.ai's ``trajectories.npy`` (a pickled dictionary: open only files you trust)
-  or an ``.npz`` with the same keys: ``trajectories`` (frames, individuals, 2) in pixels, nan where an
+* ``idtracker``: idtracker.ai's ``trajectories.npy`` (a dictionary saved by numpy, read as data only:
+  arrays, numbers and text, never a class or function the file names, see :mod:`.npy_file`), a bare
+  (frames, individuals, 2) array, or an ``.npz`` with the same keys: ``trajectories`` (frames, individuals, 2) in pixels, nan where an
   individual was not seen, ``frames_per_second`` and ``body_length`` (pixels), which become the
   defaults of ``fps`` and ``body_length_px`` (lengths in body lengths).
 * ``trex``: TRex's per-individual exports, a folder of ``<video>_fish<k>.npz`` (or ``.csv``) files, or
@@ -230,24 +231,58 @@ def _mat(path: Path, source) -> tuple[pd.DataFrame, dict]:
 
 # -------------------------------------------------------------------------------------------- idtracker.ai
 
-def _idtracker(path: Path, source) -> tuple[pd.DataFrame, dict]:
+IDTRACKER_CONVERT = ("if the file is yours and you trust it, convert it once to .npz in Python: d = np.load(path, "
+                     "allow_pickle=True).item(); np.savez('trajectories.npz', trajectories=d['trajectories'], "
+                     "frames_per_second=d['frames_per_second'], body_length=d['body_length'])")
+
+
+def _idtracker_data(path: Path) -> dict:
+    """The keys of an idtracker.ai file: an ``.npy`` read as data only (:mod:`.npy_file`), or an ``.npz``."""
+    from .npy_file import NotData, read_npy
     try:
-        data = np.load(path, allow_pickle=path.suffix.lower() == ".npy")
-        if isinstance(data, np.ndarray) and data.dtype == object and data.shape == ():
-            data = data.item()
-        data = dict(data) if not isinstance(data, np.ndarray) else {"trajectories": data}
-    except Exception as err:  # noqa: BLE001
+        if path.suffix.lower() == ".npz":
+            with np.load(path, allow_pickle=False) as archive:
+                return {key: archive[key] for key in archive.files}
+        data = read_npy(path)
+    except NotData as err:
+        raise ConfigError(str(path), f"not opened: {err}; {IDTRACKER_CONVERT}") from None
+    except Exception as err:  # noqa: BLE001 - an unreadable file is the user's input problem
         raise ConfigError(str(path), f"cannot read it as idtracker.ai trajectories: {err}") from None
+    if data.dtype == object and data.shape == ():
+        data = data.item()
+    if isinstance(data, np.ndarray):
+        return {"trajectories": data}
+    if not isinstance(data, dict):
+        raise ConfigError(str(path), f"not idtracker.ai trajectories: it holds a {type(data).__name__}, not a "
+                                     "dictionary or an array")
+    return data
+
+
+def _positive_number(value) -> float | None:
+    """``value`` as a float when it is one finite positive number (a stored setting), else None."""
+    try:
+        number = float(value) if value is not None and np.ndim(value) == 0 else None
+    except (TypeError, ValueError):
+        return None
+    return number if number is not None and np.isfinite(number) and number > 0 else None
+
+
+def _idtracker(path: Path, source) -> tuple[pd.DataFrame, dict]:
+    data = _idtracker_data(path)
     if "trajectories" not in data:
         raise ConfigError(str(path), f"not idtracker.ai trajectories: no 'trajectories' (keys: {', '.join(data)})")
-    traj = np.asarray(data["trajectories"], dtype=np.float64)
+    try:
+        traj = np.asarray(data["trajectories"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(str(path), "trajectories holds values that are not numbers; expected (frames, "
+                                     "individuals, 2) positions in pixels") from None
     if traj.ndim != 3 or traj.shape[2] != 2:
         raise ConfigError(str(path), f"trajectories has shape {traj.shape}; expected (frames, individuals, 2)")
     defaults = {"units": {"length": "px", "time": "frame"}}
     for key, setting in (("frames_per_second", "fps"), ("body_length", "body_length_px")):
-        value = data.get(key)
-        if value is not None and np.ndim(value) == 0 and np.isfinite(float(value)) and float(value) > 0:
-            defaults[setting] = float(value)
+        value = _positive_number(data.get(key))
+        if value is not None:
+            defaults[setting] = value
     s, n, _ = traj.shape
     frames = np.arange(s, dtype=np.float64)[None, :]
     keep = np.ones((n, s), dtype=bool)

@@ -1,0 +1,113 @@
+"""A ``.npy`` file read as data, never as code.
+
+``read_npy(path)`` returns what the file holds: a plain numeric array (read with ``allow_pickle=False``,
+its declared shape checked against the file's size before anything is allocated), or, for an array of
+objects (idtracker.ai's ``trajectories.npy`` is ``np.save`` of a dictionary), the objects rebuilt by a
+restricted unpickler. That unpickler knows only what numpy writes for arrays, scalars and dtypes, plus
+``collections.OrderedDict`` and paths (kept as text); any other class or function a file names, which is
+how a pickle runs code, is refused with :class:`NotData` before anything is called. A file that is not
+an ``.npy`` file at all (a raw pickle renamed ``.npy`` included) is refused too: ``np.load``'s fallback
+to ``pickle.load`` is never reached.
+
+Plain Python values (dicts, lists, strings, numbers, None) need no class and are read as they are.
+"""
+from __future__ import annotations
+
+import io
+import pickle
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+import numpy as np
+
+#: how the numpy versions that write idtracker.ai's files name the functions an array's pickle calls
+_NUMPY_CORE = ("numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric", "numpy._core.numeric")
+_NUMPY_FUNCTIONS = {"_reconstruct", "scalar", "_frombuffer"}
+
+
+class NotData(ValueError):
+    """The file asks for a class or function beyond arrays, scalars and dtypes: it could run code."""
+
+
+def _path_text(*parts) -> str:
+    return str(PurePosixPath(*map(str, parts)))
+
+
+def _windows_path_text(*parts) -> str:
+    return str(PureWindowsPath(*map(str, parts)))
+
+
+def _encode(text, encoding="latin1"):
+    """``_codecs.encode`` as protocol-2 pickles use it for bytes (only text to bytes)."""
+    if not isinstance(text, str) or not isinstance(encoding, str):
+        raise NotData("_codecs.encode with other than text")
+    return text.encode(encoding)
+
+
+def _allowed(module: str, name: str):
+    import numpy._core.multiarray as multiarray
+    import numpy._core.numeric as numeric
+    if module in _NUMPY_CORE and name in _NUMPY_FUNCTIONS:
+        return getattr(multiarray if name != "_frombuffer" else numeric, name)
+    if module == "numpy" and name in ("ndarray", "dtype"):
+        return getattr(np, name)
+    if module == "numpy.dtypes" and name.endswith("DType"):
+        return np.dtype           # a dtype class stands for the dtype it makes
+    if module == "collections" and name == "OrderedDict":
+        from collections import OrderedDict
+        return OrderedDict
+    if module in ("pathlib", "pathlib._local") and name in ("PosixPath", "PurePosixPath"):
+        return _path_text
+    if module in ("pathlib", "pathlib._local") and name in ("WindowsPath", "PureWindowsPath"):
+        return _windows_path_text
+    if module in ("_codecs", "codecs") and name == "encode":
+        return _encode
+    return None
+
+
+class _DataUnpickler(pickle.Unpickler):
+    """An unpickler that builds arrays, scalars, dtypes and plain values, and nothing else."""
+
+    def find_class(self, module: str, name: str):
+        found = _allowed(module, name)
+        if found is None:
+            raise NotData(f"it names {module}.{name}, which is not array data (a pickle that names a class or "
+                          "function can run code, so it is not opened)")
+        return found
+
+    def persistent_load(self, pid):
+        raise NotData("it refers to objects outside the file")
+
+
+def _header(handle) -> tuple[tuple, bool, np.dtype]:
+    from numpy.lib import format as npy
+    try:
+        version = npy.read_magic(handle)
+    except ValueError:
+        raise NotData("it is not a .npy file (no numpy header); a raw pickle is never opened") from None
+    readers = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}
+    if version not in readers:     # 3.0 differs from 2.0 only by utf-8 field names, which no track file has
+        raise ValueError(f".npy format version {version[0]}.{version[1]} is not read; save it with numpy's "
+                         "defaults (np.save)")
+    return readers[version](handle)
+
+
+def read_npy(path) -> object:
+    """What ``path`` (an ``.npy`` file) holds, as data; :class:`NotData` for anything that would run code,
+    ``ValueError`` for a damaged or truncated file."""
+    path = Path(path)
+    with open(path, "rb") as handle:
+        shape, fortran, dtype = _header(handle)
+        start = handle.tell()
+        size = handle.seek(0, io.SEEK_END) - start
+        handle.seek(start)
+        if not dtype.hasobject:
+            need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if need > size:
+                raise ValueError(f"its header declares {shape} of {dtype} ({need:,} bytes) but the file holds "
+                                 f"{size:,} bytes after it: a truncated or damaged file")
+            handle.seek(0)
+            return np.load(handle, allow_pickle=False)
+        array = _DataUnpickler(handle).load()
+    if not isinstance(array, np.ndarray):
+        raise NotData("its object array did not rebuild as an array")
+    return array
