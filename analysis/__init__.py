@@ -5,7 +5,7 @@ its subpackages: the names below load theirs on first use (module ``__getattr__`
 
 Python API::
 
-    from analysis import report, Calibration, calibrate, summary_simulator
+    from flocksweep.analysis import report, Calibration, calibrate, summary_simulator
     report("results/smoke")                                         # HTML/Markdown report, tables
     cal = Calibration.from_toml("configs/calibration/recover_holland.toml", ["method.steps=200"])
     idata = calibrate(cal, out_dir="results/calibration/recover")   # ArviZ InferenceData
@@ -20,26 +20,15 @@ Python API::
 """
 from __future__ import annotations
 
-# No import statements here: the namespace stays below every layer (tests/test_architecture.py); the
-# public names resolve through _HOMES on first use.
+# Only the namespace's name helper is imported here: importing flocksweep.analysis loads none of its
+# subpackages (tests/test_architecture.py); the public names load their homes on first use.
+from flocksweep.lazy import public_names
+
 __all__ = ["Calibration", "CalibrationSimulator", "calibrate", "load_calibration_results", "report",
            "run_calibration", "summary_simulator"]
 
-_HOMES = {"report": ("reports.report", "build_report"), "Calibration": ("calibration.config", "CalibrationConfig"),
-          "calibrate": ("calibration.run", "calibrate"), "run_calibration": ("calibration.run", "run_calibration"),
-          "load_calibration_results": ("calibration.inference", "load_calibration_results"),
-          "summary_simulator": ("calibration.summaries", "summary_simulator"),
-          "CalibrationSimulator": ("calibration.summaries", "CalibrationSimulator")}
-
-
-def __getattr__(name: str):
-    if name in _HOMES:
-        import importlib
-
-        module, attribute = _HOMES[name]
-        return getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+__getattr__, __dir__ = public_names(__name__, globals(), {
+    "report": ("reports.report", "build_report"), "Calibration": ("calibration.config", "CalibrationConfig"),
+    "calibrate": "calibration.run", "run_calibration": "calibration.run",
+    "load_calibration_results": "calibration.inference", "summary_simulator": "calibration.summaries",
+    "CalibrationSimulator": "calibration.summaries"})

@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parent.parent
 CHILD = """
 import hashlib, statistics, sys, time
 import numba
-from simcore import load_preset
-from simcore.simulate import simulate_batch
+from flocksweep.simcore import load_preset
+from flocksweep.simcore.simulate import simulate_batch
 pre = load_preset(sys.argv[1] + "/configs/models/holland.toml",
                   ["init.n=20", "run.duration=5.0", "perception.field_deg=150", "perception.direction_deg=45"])
 seeds = list(range(16))

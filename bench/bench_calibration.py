@@ -25,9 +25,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def evaluation(path: str, repeats: int) -> None:
-    from analysis.calibration.config import load_calibration
-    from analysis.calibration.likelihood import synthetic_loglik
-    from analysis.calibration.run import simulate_fn, summary_simulator
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.likelihood import synthetic_loglik
+    from flocksweep.analysis.calibration.run import simulate_fn, summary_simulator
 
     config = load_calibration(path)
     fn = simulate_fn(config, summary_simulator(config))
@@ -45,10 +45,10 @@ def evaluation(path: str, repeats: int) -> None:
 
 
 def emulator(path: str) -> None:
-    from analysis.calibration.config import load_calibration
-    from analysis.calibration.emulated import observation_covariance, run_emulator_mcmc
-    from analysis.calibration.surrogates import build_surrogate
-    from analysis.calibration.training import training_set
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.emulated import observation_covariance, run_emulator_mcmc
+    from flocksweep.analysis.calibration.surrogates import build_surrogate
+    from flocksweep.analysis.calibration.training import training_set
 
     config = load_calibration(path)
     settings = config.method

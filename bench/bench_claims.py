@@ -24,8 +24,8 @@ HERE = Path(__file__).resolve().parent.parent
 METRICS = """
 import time, inspect
 import numpy as np
-from simcore import load_preset, simulate_preset
-from observables.metrics import frame_metrics
+from flocksweep.simcore import load_preset, simulate_preset
+from flocksweep.observables.metrics import frame_metrics
 preset = load_preset("{root}/configs/models/holland.toml", ["init.n=100", "run.duration=30"])
 runs = [simulate_preset(preset, seed=s) for s in range(4)]
 extra = {{"record_interval": 1.0}} if "record_interval" in inspect.signature(frame_metrics).parameters else {{}}
@@ -48,9 +48,9 @@ def metrics_ms(checkout: Path) -> float:
 
 
 def claims_seconds(results: str) -> dict:
-    from analysis.reports.claims.evaluate import evaluate
-    from analysis.reports.claims.load import claims_of
-    from sweeps.results import load_results
+    from flocksweep.analysis.reports.claims.evaluate import evaluate
+    from flocksweep.analysis.reports.claims.load import claims_of
+    from flocksweep.sweeps.results import load_results
 
     loaded = load_results(results)
     claims, columns, _ = claims_of(loaded)

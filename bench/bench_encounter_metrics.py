@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from observables.encounters import obstacle_metrics, predator_metrics, prey_metrics
-from observables.metrics import frame_metrics
-from simcore.obstacle_spec import Obstacle
+from flocksweep.observables.encounters import obstacle_metrics, predator_metrics, prey_metrics
+from flocksweep.observables.metrics import frame_metrics
+from flocksweep.simcore.obstacle_spec import Obstacle
 
 
 def scene(rng) -> tuple:

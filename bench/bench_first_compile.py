@@ -28,7 +28,7 @@ TINY = ["-m", "flocksweep.entry", "simulate", "configs/models/holland.toml", "--
         "0.016666666666666666"]
 EVERY_MODEL = """
 from pathlib import Path
-from simcore import load_preset, simulate
+from flocksweep.simcore import load_preset, simulate
 for path in sorted(Path("configs/models").glob("*.toml")):
     preset = load_preset(path, ["init.n=5"])
     simulate(preset.model, preset.init, 1, 2 * preset.run.dt, preset.run.dt)

@@ -24,9 +24,9 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from simcore import simulate  # noqa: E402
-from sweeps.config import load_sweep  # noqa: E402
-from sweeps.design import expand  # noqa: E402
+from flocksweep.simcore import simulate  # noqa: E402
+from flocksweep.sweeps.config import load_sweep  # noqa: E402
+from flocksweep.sweeps.design import expand  # noqa: E402
 
 
 def main() -> None:

@@ -26,11 +26,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 WORKER = """
 import json, sys, time
-from sweeps.config import load_sweep
-from sweeps.design import expand
-from sweeps.worker import warm_up, _simulate
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.worker import warm_up, _simulate
 try:
-    from observables.summary import every_nth, measure_run
+    from flocksweep.observables.summary import every_nth, measure_run
 except ImportError:  # a checkout from before observables: simulation only
     measure_run = None
 specs = expand(load_sweep(sys.argv[1]))

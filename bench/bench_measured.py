@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.calibration.config import load_calibration
-from analysis.calibration.run import summary_simulator
-from analysis.calibration.simulator import SummarySimulator
-from observables.measured import measure_tracks, track_settings
-from observables.tracks import TrackSource, load_tracks, track_source, tracks_frame
-from simcore import load_preset, simulate_preset
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.run import summary_simulator
+from flocksweep.analysis.calibration.simulator import SummarySimulator
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.tracks import TrackSource, load_tracks, track_source, tracks_frame
+from flocksweep.simcore import load_preset, simulate_preset
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "configs/tracks/synthetic_holland.csv.gz"

@@ -23,8 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-from simcore import load_preset, simulate_preset  # noqa: E402
-from simcore.params import OBSTACLE_DYNAMICS  # noqa: E402
+from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
+from flocksweep.simcore.params import OBSTACLE_DYNAMICS  # noqa: E402
 
 COURSE = ROOT / "configs/models/reynolds87_obstacles.toml"
 

@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-from simcore import load_preset, simulate_preset  # noqa: E402
+from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
 
 
 def variants(model: str, n: int, duration: float):

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.calibration.config import load_calibration
-from analysis.calibration.posterior_command import posteriors
-from analysis.calibration.run import run_calibration
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.posterior_command import posteriors
+from flocksweep.analysis.calibration.run import run_calibration
 
 FILE = Path(__file__).resolve().parents[1] / "configs/calibration/recover_holland.toml"
 REFERENCE = {"field": {"median": 149.0, "q5": 134.2, "q95": 168.0, "sd": 10.4, "truth": 150.0},
@@ -61,10 +61,10 @@ def against_reference(summary: pd.DataFrame) -> dict:
 
 def curve(budgets, heldout: int, ensembles, out: Path) -> list[dict]:
     """Width and coverage against simulations on one shared training sweep (module docstring)."""
-    from analysis.calibration.npe import (NPEStream, _jax_seed, coverage_check, simulated_rows, support_of,
+    from flocksweep.analysis.calibration.npe import (NPEStream, _jax_seed, coverage_check, simulated_rows, support_of,
                                           training_design, training_sweep)
-    from analysis.calibration.npe_flow import train_ensemble
-    from sweeps.runner import run_sweep
+    from flocksweep.analysis.calibration.npe_flow import train_ensemble
+    from flocksweep.sweeps.runner import run_sweep
 
     largest = max(budgets)
     config = load_calibration(FILE, [f"method.npe.simulations={largest}", f"method.npe.heldout={heldout}"], "npe")

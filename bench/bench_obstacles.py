@@ -21,9 +21,9 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 import numba as nb  # noqa: E402
 import numpy as np  # noqa: E402
 
-from simcore import obstacle_avoidance as avoid  # noqa: E402
-from simcore import obstacles as geo  # noqa: E402
-from simcore.obstacle_spec import Obstacle, pack_obstacles  # noqa: E402
+from flocksweep.simcore import obstacle_avoidance as avoid  # noqa: E402
+from flocksweep.simcore import obstacles as geo  # noqa: E402
+from flocksweep.simcore.obstacle_spec import Obstacle, pack_obstacles  # noqa: E402
 
 SINGLE = {
     "sphere": Obstacle("sphere", centre=(0, 0, 0), radius=3.0),

@@ -24,7 +24,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from simcore import load_preset, simulate_preset  # noqa: E402
+from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
 
 
 def models(n: int, duration: float) -> dict:

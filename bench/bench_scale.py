@@ -61,10 +61,10 @@ def _python(code: str, threads: int | None = None) -> dict:
 
 _PER_STEP = """
 import json, statistics, time
-from simcore import load_preset
-from simcore.simulate import advance
-from simcore.rng import run_streams
-from simcore.state import initial_state
+from flocksweep.simcore import load_preset
+from flocksweep.simcore.simulate import advance
+from flocksweep.simcore.rng import run_streams
+from flocksweep.simcore.state import initial_state
 p = load_preset({path!r}, {overrides!r} + ["init.n={n}"])
 rng, key = run_streams(1)
 state = initial_state(p.init, p.model.patterns, rng)
@@ -106,7 +106,7 @@ def scaling(sizes, steps: int, repeats: int) -> list[dict]:
 def holland1000(repeats: int) -> dict:
     code = """
 import json, statistics, time
-from simcore import load_preset, simulate_preset
+from flocksweep.simcore import load_preset, simulate_preset
 p = load_preset({path!r}, ["init.n=1000", "init.scale_with_n=true", "perception.range=20", "perception.field_deg=120",
                           "perception.direction_deg=60", "perception.occlusion=true", "run.duration=5",
                           "run.record_interval=5"])
@@ -127,10 +127,10 @@ print(json.dumps({{"boid_steps_per_s": statistics.median(rates), "min": min(rate
 def big(n: int, steps: int) -> dict:
     code = """
 import json, resource, statistics, time, numba
-from simcore import load_preset
-from simcore.simulate import advance
-from simcore.rng import run_streams
-from simcore.state import initial_state
+from flocksweep.simcore import load_preset
+from flocksweep.simcore.simulate import advance
+from flocksweep.simcore.rng import run_streams
+from flocksweep.simcore.state import initial_state
 p = load_preset({path!r}, ["world.boundary=open", "init.scale_with_n=true", "init.n={n}"])
 rng, key = run_streams(1)
 state = initial_state(p.init, p.model.patterns, rng)

@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-from simcore import load_preset, simulate_preset  # noqa: E402
+from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
 
 MODELS = {
     "opensteer": (ROOT / "configs/models/opensteer.toml", []),
@@ -50,8 +50,8 @@ def measure(model: str, n: int, repeats: int) -> dict:
 
 
 def cold_start(repeats: int = 3) -> float:
-    """Median seconds for a new process to import simcore and finish a one-step simulation."""
-    code = ("import time; t = time.perf_counter(); from simcore import load_preset, simulate_preset; "
+    """Median seconds for a new process to import flocksweep.simcore and finish a one-step simulation."""
+    code = ("import time; t = time.perf_counter(); from flocksweep.simcore import load_preset, simulate_preset; "
             f"p = load_preset(r'{MODELS['holland'][0]}', ['run.duration=0.016666666666666666']); "
             "simulate_preset(p, 0); print(time.perf_counter() - t)")
     times = []

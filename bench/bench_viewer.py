@@ -25,11 +25,11 @@ def _median_range(values) -> str:
 
 
 def main() -> None:
-    from analysis.viewer.page import MB, build_page
-    from analysis.viewer.resimulate import record_step_for
-    from analysis.viewer.track import from_observations
+    from flocksweep.analysis.viewer.page import MB, build_page
+    from flocksweep.analysis.viewer.resimulate import record_step_for
+    from flocksweep.analysis.viewer.track import from_observations
     from browser import Browser, measure_fps
-    from simcore import load_preset, simulate_preset
+    from flocksweep.simcore import load_preset, simulate_preset
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, nargs="+", default=[100, 1000])

@@ -44,7 +44,7 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from simcore import State, advance, load_preset  # noqa: E402
+from flocksweep.simcore import State, advance, load_preset  # noqa: E402
 
 PRESET = ROOT / "configs" / "models" / "opensteer_plugin.toml"
 DT = 1.0 / 60.0
@@ -172,7 +172,7 @@ def fidelity(exe: Path, n: int, seed: int, workdir: Path) -> dict:
     np.savez(path, pos=first.pos, fwd=first.fwd, speed=states[0, :, 12], up=first.up, acc=first.acc)
     preset = load_preset(PRESET, [f"init.from_file={json.dumps(str(path))}", f"init.n={n}",
                                   f"run.duration={FIDELITY_STEPS * DT!r}"])
-    from simcore import simulate_preset
+    from flocksweep.simcore import simulate_preset
 
     free = simulate_preset(preset, seed=0, record_every=1)
     drift = [float(np.abs(free.pos[k] - states[k, :, 0:3]).max()) for k in range(FIDELITY_STEPS + 1)]
@@ -192,8 +192,8 @@ def time_cxx(exe: Path, n: int, steps: int, seed: int) -> float:
 
 def own_state(n: int, seed: int) -> State:
     """flocksweep's own initial state of the plugin preset with n boids, drawn from ``seed``."""
-    from simcore.rng import run_streams
-    from simcore.state import initial_state
+    from flocksweep.simcore.rng import run_streams
+    from flocksweep.simcore.state import initial_state
 
     preset = load_preset(PRESET, [f"init.n={n}"])
     rng, _ = run_streams(seed)

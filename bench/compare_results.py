@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from observables.summary import ENCOUNTER_FAMILIES, summary_columns
+from flocksweep.observables.summary import ENCOUNTER_FAMILIES, summary_columns
 
 TIMING = ("wall_s", "sim_s", "part")
 

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))   # document this checkout, installed or not
+sys.path.insert(0, str(ROOT))   # this checkout first; its layers resolve through the editable install
 
 project = "flocksweep"
 author = "the flocksweep developers"

@@ -7,9 +7,9 @@ desired velocity is that direction (plus Gaussian noise) at ``cruise_speed``; it
 import math
 from dataclasses import dataclass
 
-from simcore.plugin import PluginParams, parameter, slots
-from simcore.rng import STREAM_PLUGIN, normal
-from simcore.schema import ConfigError
+from flocksweep.simcore.plugin import PluginParams, parameter, slots
+from flocksweep.simcore.rng import STREAM_PLUGIN, normal
+from flocksweep.simcore.schema import ConfigError
 
 
 @dataclass(frozen=True)

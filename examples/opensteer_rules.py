@@ -2,8 +2,8 @@
 those of the built-in ``opensteer`` dynamics bit for bit (without leadership), through the plug-in interface."""
 from dataclasses import dataclass
 
-from simcore.plugin import PluginParams
-from simcore.rules import opensteer_force
+from flocksweep.simcore.plugin import PluginParams
+from flocksweep.simcore.rules import opensteer_force
 
 
 @dataclass(frozen=True)

@@ -14,20 +14,27 @@ Python API (each name loads its home module on first use, so ``import flocksweep
 ``fs.__version__`` (and ``flocksweep --version``) is the installed package's version, read from its
 metadata: pyproject.toml's ``version`` is the one place it is written.
 
-The same names stay importable from their layers (``from simcore import simulate``, ``from sweeps import
-run_sweep, load_results``, ``from analysis import calibrate, report``); this table only forwards to them.
+The same names stay importable from their layers (``from flocksweep.simcore import simulate``, ``from
+flocksweep.sweeps import run_sweep, load_results``, ``from flocksweep.analysis import calibrate, report``); this
+table only forwards to them. ``flocksweep`` is the one top-level import name of the distribution: the
+repository's layer folders (``simcore/``, ``observables/``, ``sweeps/``, ``analysis/``) are installed as its
+subpackages (pyproject.toml's package-dir), and this ``__init__`` and :mod:`flocksweep.lazy` import only the
+standard library, so every layer may sit below them.
 """
 from __future__ import annotations
+
+from .lazy import public_names
 
 __all__ = ["Calibration", "Results", "Sweep", "__version__", "calibrate", "load_calibration_results",
            "load_preset", "load_results", "report", "run_calibration", "run_sweep", "simulate",
            "simulate_batch", "simulate_preset", "summary_simulator"]
 
 # name -> (package of the layer that owns it, attribute); each resolves through that package's own table
-_HOMES = {name: ("simcore", name) for name in ("load_preset", "simulate", "simulate_batch", "simulate_preset")}
-_HOMES.update({name: ("sweeps", name) for name in ("Sweep", "Results", "run_sweep", "load_results")})
-_HOMES.update({name: ("analysis", name) for name in ("Calibration", "calibrate", "load_calibration_results",
-                                                     "report", "run_calibration", "summary_simulator")})
+_HOMES = {name: ("flocksweep.simcore", name) for name in ("load_preset", "simulate", "simulate_batch",
+                                                          "simulate_preset")}
+_HOMES.update({name: ("flocksweep.sweeps", name) for name in ("Sweep", "Results", "run_sweep", "load_results")})
+_HOMES.update({name: ("flocksweep.analysis", name) for name in ("Calibration", "calibrate", "load_calibration_results",
+                                                                "report", "run_calibration", "summary_simulator")})
 
 
 def version() -> str:
@@ -40,16 +47,10 @@ def version() -> str:
         return "0+unknown (not installed: pip install -e .)"
 
 
+_forward, __dir__ = public_names(__name__, globals(), _HOMES)
+
+
 def __getattr__(name: str):
     if name == "__version__":
         return version()
-    if name in _HOMES:
-        import importlib
-
-        package, attribute = _HOMES[name]
-        return getattr(importlib.import_module(package), attribute)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+    return _forward(name)

@@ -31,12 +31,12 @@ from pathlib import Path
 
 import tomli_w
 
-from simcore.schema import ConfigError, apply_overrides, parse_value
+from flocksweep.simcore.schema import ConfigError, apply_overrides, parse_value
 
-from sweeps.config import SweepConfig, load_sweep, sweep_from_dict
-from sweeps.design import base_preset
-from sweeps.failures import check_count, check_out, check_workers
-from sweeps.model_set import model_overrides
+from flocksweep.sweeps.config import SweepConfig, load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import base_preset
+from flocksweep.sweeps.failures import check_count, check_out, check_workers
+from flocksweep.sweeps.model_set import model_overrides
 
 FORMS = "KEY=V1,V2,... or KEY=linspace(START,STOP,NUM) or KEY=range(START,STOP,STEP)"
 _CALL = re.compile(r"^(linspace|range)\((.*)\)$")

@@ -7,3 +7,8 @@ over the individuals present (``observed``), the observation model that measures
 same way (``observation``) and tracks to tables (``measured``); docs/measured.md. This layer sits
 directly on ``simcore`` and below ``sweeps``: it imports nothing else of ours (docs/architecture.md).
 """
+from pathlib import Path as _Path
+
+from flocksweep.simcore._cache import refresh as _refresh_cache
+
+_refresh_cache(_Path(__file__).parent, __name__)   # numba's cache of this package's kernels kept in step

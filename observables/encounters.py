@@ -37,8 +37,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simcore.obstacle_spec import pack_obstacles
-from simcore.obstacles import clearances
+from flocksweep.simcore.obstacle_spec import pack_obstacles
+from flocksweep.simcore.obstacles import clearances
 
 from .columns import (FAMILIES, OBSTACLE_SCALARS, OBSTACLE_SERIES, PREDATOR_SCALARS,  # noqa: F401 - declared there
                       PREDATOR_SERIES, PREY_SCALARS, PREY_SERIES, encounter_columns)

@@ -33,8 +33,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from simcore.rng import seed_sequence
-from simcore.schema import ConfigError, check_non_negative, check_positive, check_within
+from flocksweep.simcore.rng import seed_sequence
+from flocksweep.simcore.schema import ConfigError, check_non_negative, check_positive, check_within
 
 from .observed import ObservedFlock
 from .resample import RECORDED, SNAP, resample, velocity_steps

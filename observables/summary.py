@@ -44,7 +44,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
+from flocksweep.simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
 from .columns import RUN_COLUMNS, summary_columns  # noqa: F401 - declared there, part of this module's face
 from .directional_correlation import (DCD_MAX_DELAY, DCD_METRIC_NAMES, DirectionalCorrelation, dcd_scalars,

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from simcore.schema import ConfigError, suggest
+from flocksweep.simcore.schema import ConfigError, suggest
 
 from .track_names import FORMATS, LONG_FORMATS, WIDE_FORMATS  # noqa: F401 - declared there, part of this face
 

@@ -46,7 +46,7 @@ from typing import Literal, TYPE_CHECKING
 
 import numpy as np
 
-from simcore.schema import ConfigError, build, suggest
+from flocksweep.simcore.schema import ConfigError, build, suggest
 
 from .track_formats import detect_format, read_table, read_wide
 from .track_names import LENGTH_UNITS, RECORDED, ROLES, WIDE_FORMATS  # noqa: F401 - declared there, part of this face

@@ -2,7 +2,7 @@
 
 Public API::
 
-    from simcore import load_preset, simulate, simulate_preset, simulate_batch
+    from flocksweep.simcore import load_preset, simulate, simulate_preset, simulate_batch
     preset = load_preset("configs/models/holland.toml", ["perception.field_deg=180"])
     obs = simulate_preset(preset, seed=1)           # Observations: times, pos, vel, visible, ...
 
@@ -14,12 +14,14 @@ import sys as _sys
 import types as _types
 from pathlib import Path as _Path
 
+from flocksweep.lazy import public_names as _public_names
+
 from ._cache import refresh as _refresh_cache
 
-_refresh_cache(_Path(__file__).parent)
+_refresh_cache(_Path(__file__).parent, __name__)
 
-# name -> module that defines it; loaded on first use, so ``import simcore.schema`` (the command line's
-# help, version and status) does not import numba
+# name -> module that defines it; loaded on first use, so ``import flocksweep.simcore.schema`` (the command
+# line's help, version and status) does not import numba
 _HOMES = {**{name: "params" for name in ("InitParams", "ModelParams", "Preset", "RunSettings", "load_preset",
                                          "preset_from_dict")},
           "ConfigError": "schema",
@@ -27,23 +29,12 @@ _HOMES = {**{name: "params" for name in ("InitParams", "ModelParams", "Preset", 
                                            "simulate", "simulate_batch", "simulate_preset")},
           "State": "state", "initial_state": "state"}
 __all__ = sorted(_HOMES)
-
-
-def __getattr__(name: str):
-    if name in _HOMES:
-        import importlib
-
-        return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+__getattr__, __dir__ = _public_names(__name__, globals(), _HOMES)
 
 
 class _Package(_types.ModuleType):
     """``simcore.simulate`` stays the function when the submodule of that name is imported (the import
-    system sets the submodule as the package's attribute); the module is ``sys.modules["simcore.simulate"]``."""
+    system sets the submodule as the package's attribute); the module is ``sys.modules["flocksweep.simcore.simulate"]``."""
 
     def __setattr__(self, name, value):
         if name == "simulate" and isinstance(value, _types.ModuleType):

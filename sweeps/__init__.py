@@ -1,8 +1,8 @@
 """sweeps: config-driven parameter sweeps of the simulator and their results folders (layer 3).
 
-Python API (loaded on first use, so ``import sweeps`` loads nothing)::
+Python API (loaded on first use, so ``import flocksweep.sweeps`` loads nothing)::
 
-    from sweeps import Sweep, run_sweep, load_results
+    from flocksweep.sweeps import Sweep, run_sweep, load_results
     sweep = Sweep.from_toml("configs/sweeps/smoke.toml")          # or Sweep.from_dict({...})
     result = run_sweep(sweep, "results/smoke", executor="local")  # resumable, one row per run
     runs = load_results("results/smoke", with_fixed=True).runs    # pandas, fixed settings as columns
@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from flocksweep.lazy import public_names
+
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
     from .api import RunsLost, run_sweep
     from .main_guard import UnguardedScript
@@ -32,21 +34,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
 __all__ = ["Results", "ResultsStore", "RunsLost", "Sweep", "SweepConfig", "SweepResult", "UnguardedScript", "load_results",
            "run_sweep"]
 
-_HOMES = {"run_sweep": ("api", "run_sweep"), "RunsLost": ("api", "RunsLost"),
-          "UnguardedScript": ("main_guard", "UnguardedScript"), "Sweep": ("config", "SweepConfig"),
-          "SweepConfig": ("config", "SweepConfig"), "Results": ("results", "Results"),
-          "load_results": ("results", "load_results"), "SweepResult": ("runner", "SweepResult"),
-          "ResultsStore": ("store", "ResultsStore")}
-
-
-def __getattr__(name: str):
-    if name in _HOMES:
-        import importlib
-
-        module, attribute = _HOMES[name]
-        return getattr(importlib.import_module(f"{__name__}.{module}"), attribute)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(list(globals()) + __all__)
+__getattr__, __dir__ = public_names(__name__, globals(), {
+    "run_sweep": "api", "RunsLost": "api", "UnguardedScript": "main_guard", "Sweep": ("config", "SweepConfig"),
+    "SweepConfig": "config", "Results": "results", "load_results": "results", "SweepResult": "runner",
+    "ResultsStore": "store"})

@@ -31,7 +31,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from simcore.schema import ConfigError, get_dotted
+from flocksweep.simcore.schema import ConfigError, get_dotted
 
 MAX_RUNS = 100_000            # a larger design needs --yes
 SPEC_BYTES = 4096             # memory per run while the design is built (spec + design row), from above

@@ -11,7 +11,7 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from simcore.schema import ConfigError, check_at_least, check_within
+from flocksweep.simcore.schema import ConfigError, check_at_least, check_within
 
 from .expressions import Expression
 

@@ -55,10 +55,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from observables.directional_correlation import DCD_METRIC_NAMES
-from observables.leadership import LEADERSHIP_METRIC_NAMES
-from observables.summary import ENCOUNTER_FAMILIES, summary_columns
-from simcore.schema import ConfigError, build, linked_to, read_toml, resolve_path, suggest, to_dict
+from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
+from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
+from flocksweep.observables.summary import ENCOUNTER_FAMILIES, summary_columns
+from flocksweep.simcore.schema import ConfigError, build, linked_to, read_toml, resolve_path, suggest, to_dict
 
 from .claim_schema import (COMMON, DIRECTIONS, ID, KEYS, KINDS, METHODS, REQUIRED, Claim, ClaimsFile,  # noqa: F401
                            ClaimTable, IncludeTable, PowerTable, Source, Test, TestTable)

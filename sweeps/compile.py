@@ -34,8 +34,8 @@ from pathlib import Path
 
 from numba.core import event as numba_event
 
-from observables.summary import MetricSettings, measure_run
-from simcore import load_preset, placeholder_observations, simulate, simulate_batch
+from flocksweep.observables.summary import MetricSettings, measure_run
+from flocksweep.simcore import load_preset, placeholder_observations, simulate, simulate_batch
 
 SHIPPED_MODELS = Path(__file__).resolve().parent.parent / "configs" / "models"
 TINY_N = 5

@@ -1,29 +1,17 @@
-"""``flocksweep compile [MODEL.toml ...] [--jobs K]``: the command (``DESCRIPTION``, ``add_arguments``,
-``run``; registered in ``flocksweep/cli.py``'s ``DELEGATED``). The work is :func:`sweeps.compile.compile_kernels`;
+"""``flocksweep compile [MODEL.toml ...] [--jobs K]``: the command's work,
+``run(args)``, for its declaration in ``flocksweep/commands/compile.py``. The kernels are compiled by :func:`sweeps.compile.compile_kernels`;
 this module imports neither numba nor the simulator until the command runs, so ``compile --help`` is quick.
 """
 from __future__ import annotations
 
 import os
 import time
-from pathlib import Path
-
-DESCRIPTION = ("Compile every kernel the models need (default: every preset of configs/models) into numba's "
-               "on-disk cache, several model families at once, so that processes starting together (a sweep's "
-               "workers, a test run split over workers, cluster jobs on one file system) load them instead of "
-               "each compiling its own. Kernels already cached are loaded, not compiled again.")
-
-
-def add_arguments(parser) -> None:
-    """``flocksweep compile``'s arguments."""
-    parser.add_argument("models", nargs="*", type=Path, help="model preset TOMLs (default: every shipped preset)")
-    parser.add_argument("--jobs", type=int, help="processes compiling at once (default: all cores)")
 
 
 def run(args) -> int:
     """``flocksweep compile``: bad input (a --jobs below 1, a missing or invalid preset) is refused before
     anything compiles."""
-    from simcore import load_preset
+    from flocksweep.simcore import load_preset
 
     from .compile import compile_kernels
     from .failures import check_count

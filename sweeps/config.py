@@ -105,12 +105,12 @@ from dataclasses import dataclass, field, replace as with_fields
 from pathlib import Path
 from typing import Any, Literal
 
-from observables.columns import EVERY_METRIC_COLUMN
-from observables.directional_correlation import DCD_MAX_DELAY
-from observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
-from simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
-from simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
+from flocksweep.observables.columns import EVERY_METRIC_COLUMN
+from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
+from flocksweep.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
+from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
+from flocksweep.simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
+from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
                             set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns

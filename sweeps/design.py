@@ -30,10 +30,10 @@ import itertools
 import json
 from dataclasses import dataclass
 
-from observables.directional_correlation import DCD_MAX_DELAY
-from observables.summary import ENCOUNTER_SETTINGS, MetricSettings
-from simcore.params import Preset, preset_from_dict
-from simcore.schema import ConfigError, get_dotted
+from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
+from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MetricSettings
+from flocksweep.simcore.params import Preset, preset_from_dict
+from flocksweep.simcore.schema import ConfigError, get_dotted
 
 from .config import Storage, SweepConfig, check_window
 from .external import ExternalRun

@@ -20,8 +20,7 @@ checksums say so) is written without pandas, byte for byte the same (:mod:`sweep
 other export loads the results with :func:`sweeps.results.load_results` (:func:`export_with_pandas`),
 verifying and warning as it does.
 CSV: comma-separated, a header row, missing values (NaN, a failed run's metrics) as empty fields,
-booleans as ``True``/``False``. ``flocksweep/cli.py`` registers the command with :func:`add_arguments` and
-:func:`run`.
+booleans as ``True``/``False``. ``flocksweep export`` (declared in ``flocksweep/commands/export.py``) calls :func:`run`.
 """
 from __future__ import annotations
 
@@ -32,10 +31,6 @@ from .quick_export import runs_csv, runs_parquet
 
 CHUNK_RUNS = 1000   # runs whose time series are read, sorted and written together
 FORMATS = ("csv", "parquet")
-DESCRIPTION = ("Write a sweep's runs table (one row per run; with --with-fixed every fixed setting as a column) "
-               "and optionally its metric time series (long format) as CSV or Parquet, for R, spreadsheets "
-               "and other tools.")
-
 
 def export_results(results_dir, fmt: str, out_dir=None, with_fixed: bool = False,
                    timeseries: bool = False) -> dict:
@@ -102,18 +97,6 @@ def _write_series(results, path: Path, fmt: str) -> tuple[Path, int, int]:
             writer.close()
     return path, rows, len(schema.names)
 
-
-def add_arguments(p) -> None:
-    p.add_argument("dir", type=Path, help="results directory of a sweep (the --out of flocksweep run)")
-    kind = p.add_mutually_exclusive_group(required=True)
-    kind.add_argument("--csv", dest="format", action="store_const", const="csv", help="write CSV files")
-    kind.add_argument("--parquet", dest="format", action="store_const", const="parquet", help="write Parquet files")
-    p.add_argument("--with-fixed", action="store_true",
-                   help="add every fixed (not swept) setting as a column of the runs table (dotted preset keys, "
-                        "analysis.<setting>)")
-    p.add_argument("--timeseries", action="store_true",
-                   help="also write the metric time series of every ok run (long format: run_id, t, metrics)")
-    p.add_argument("--out", type=Path, help="output folder (default RESULTS/export)")
 
 
 def run(args) -> int:

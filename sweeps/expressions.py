@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from simcore.params import canonical_key
-from simcore.schema import ConfigError
+from flocksweep.simcore.params import canonical_key
+from flocksweep.simcore.schema import ConfigError
 
 MAX_LENGTH = 4000   # characters of an expression
 MAX_DEPTH = 60      # levels of its syntax tree

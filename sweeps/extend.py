@@ -27,8 +27,8 @@ import copy
 import dataclasses
 from pathlib import Path
 
-from simcore.params import canonical_key
-from simcore.schema import get_dotted
+from flocksweep.simcore.params import canonical_key
+from flocksweep.simcore.schema import get_dotted
 
 from .config import SweepConfig, sweep_from_dict
 from .design import RunSpec, base_preset, expand, stored_spec

@@ -69,11 +69,11 @@ from typing import Any
 
 import numpy as np
 
-from observables.measured import measure_tracks, track_settings
-from observables.resample import RECORDED
-from observables.summary import MetricSettings, summary_columns
-from observables.tracks import TrackSource, load_tracks
-from simcore.schema import ConfigError, suggest
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.resample import RECORDED
+from flocksweep.observables.summary import MetricSettings, summary_columns
+from flocksweep.observables.tracks import TrackSource, load_tracks
+from flocksweep.simcore.schema import ConfigError, suggest
 
 PLACEHOLDERS = ("seed", "out", "scratch", "params", "params_json", "params_toml")
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")

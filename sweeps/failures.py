@@ -34,7 +34,7 @@ import os
 import sys
 from pathlib import Path
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 from .files import Unreadable, WriteFailed
 from .interrupts import exit_status

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import json
 
-from simcore.params import canonical_key, preset_from_dict
-from simcore.schema import ConfigError
+from flocksweep.simcore.params import canonical_key, preset_from_dict
+from flocksweep.simcore.schema import ConfigError
 
 
 def flat_settings(table: dict, prefix: str = "") -> dict:

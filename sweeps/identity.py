@@ -14,8 +14,8 @@ from __future__ import annotations
 import hashlib
 import json
 
-from observables.summary import encounter_settings
-from simcore import MODEL_VERSION
+from flocksweep.observables.summary import encounter_settings
+from flocksweep.simcore import MODEL_VERSION
 
 
 def canonical(obj) -> str:

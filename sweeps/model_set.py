@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from simcore.params import KEY_ALIASES, ModelParams
+from flocksweep.simcore.params import KEY_ALIASES, ModelParams
 
 PRESET_TABLES = frozenset({f.name for f in dataclasses.fields(ModelParams)} | {"init", "run"} | set(KEY_ALIASES))
 

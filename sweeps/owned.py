@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 from .files import write_json
 

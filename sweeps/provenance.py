@@ -43,7 +43,7 @@ def machine() -> dict:
 
 
 def stamp() -> dict:
-    from simcore.simulate import MODEL_VERSION   # here: importing the simulator loads numba (status stays quick)
+    from flocksweep.simcore.simulate import MODEL_VERSION   # here: importing the simulator loads numba (status stays quick)
 
     return {"model_version": MODEL_VERSION, "packages": package_versions(), "git_revision": git_revision(),
             "machine": machine()}

@@ -37,8 +37,8 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.fs
 
-from observables.columns import FAMILIES, summary_columns   # the names only: no kernels, no numba
-from simcore.params import canonical_key
+from flocksweep.observables.columns import FAMILIES, summary_columns   # the names only: no kernels, no numba
+from flocksweep.simcore.params import canonical_key
 
 from .fixed_settings import fixed_settings, flat_settings  # noqa: F401 - also read from here
 from .store import ResultsStore

@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from simcore import simulate
+from flocksweep.simcore import simulate
 
 from . import worker
 from .budget import check_sweep
@@ -134,7 +134,7 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool
       cheapest run, once warm;
     * ``total_s``: start-up + (simulation + per-run overhead x runs) / workers, without the compile.
     """
-    from simcore.simulate import compile_seconds
+    from flocksweep.simcore.simulate import compile_seconds
 
     startup = _process_age()
     if any(s.command is not None for s in todo):   # a dry run executes nothing: a command's time is unknown

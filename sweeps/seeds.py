@@ -40,7 +40,7 @@ from enum import IntEnum, unique
 
 import numpy as np
 
-from simcore.rng import seed_sequence
+from flocksweep.simcore.rng import seed_sequence
 
 SEED_BITS = 63
 

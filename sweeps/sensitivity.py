@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from simcore.schema import ConfigError, check_at_least
+from flocksweep.simcore.schema import ConfigError, check_at_least
 
 from .seeds import Tag, generator
 

@@ -23,9 +23,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from observables.summary import MetricSettings, summarize_run
-from observables.tracks import TRACKS_SIDECAR, tracks_frame
-from simcore import Observations, Preset, simulate_preset
+from flocksweep.observables.summary import MetricSettings, summarize_run
+from flocksweep.observables.tracks import TRACKS_SIDECAR, tracks_frame
+from flocksweep.simcore import Observations, Preset, simulate_preset
 
 from .files import write_csv, write_json, write_parquet
 from .provenance import stamp
@@ -53,7 +53,7 @@ def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, descript
 def run_single(preset: Preset, seed, out_dir=None, record_every: int | None = None, tracks: str | None = None
                ) -> tuple[dict, list[Path], Observations]:
     """Simulate and write the trajectory and parameters; returns (summary, written paths, observations)."""
-    from simcore.simulate import compile_seconds
+    from flocksweep.simcore.simulate import compile_seconds
 
     started, compiling = time.perf_counter(), compile_seconds()
     obs = simulate_preset(preset, seed, record_every)

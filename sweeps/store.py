@@ -57,7 +57,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from observables.columns import EVERY_METRIC_COLUMN
+from flocksweep.observables.columns import EVERY_METRIC_COLUMN
 
 from .checksums import CHANGED, CHECKSUMS, SELF_CHECKSUM, checksum, content_checksum  # noqa: F401 - also read from here
 from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text

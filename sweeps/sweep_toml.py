@@ -20,7 +20,7 @@ from pathlib import Path, PurePath
 import numpy as np
 import tomli_w
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 from .claims import with_claims
 

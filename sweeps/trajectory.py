@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from observables.encounters import AGENTS, agent_positions
+from flocksweep.observables.encounters import AGENTS, agent_positions
 
 from .files import atomic_path
 

@@ -142,9 +142,8 @@ class WarmRecord:
     def here(cls) -> "WarmRecord | None":
         """The record next to simcore's cached kernels; None with ``NUMBA_CACHE_DIR`` set or where the
         package cannot be written."""
-        import observables
-        import simcore
-
+        import flocksweep.observables as observables
+        import flocksweep.simcore as simcore
         if os.environ.get("NUMBA_CACHE_DIR"):
             return None
         packages = (Path(simcore.__file__).parent, Path(observables.__file__).parent)

@@ -30,9 +30,9 @@ import pandas as pd
 
 import numpy as np
 
-from observables.observed import ObservedFlock
-from observables.summary import check_finite, every_nth, measure_run
-from simcore import placeholder_observations, simulate
+from flocksweep.observables.observed import ObservedFlock
+from flocksweep.observables.summary import check_finite, every_nth, measure_run
+from flocksweep.simcore import placeholder_observations, simulate
 
 from .design import RunSpec
 from .external import run_external

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from simcore import State
-from simcore.params import HOLLAND_TABLE_1, ModelParams, Patterns, Perception, Steering, Vehicle, World
-from simcore.state import frame_from_forward
+from flocksweep.simcore import State
+from flocksweep.simcore.params import HOLLAND_TABLE_1, ModelParams, Patterns, Perception, Steering, Vehicle, World
+from flocksweep.simcore.state import frame_from_forward
 
 # test modules import these helpers and tests/reference.py by module name, whatever pytest's import mode
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -29,8 +29,8 @@ def _drop_stale_test_kernels() -> None:
     the tests' own differ from the last run (as ``simcore/_cache.py`` does for simcore)."""
     import hashlib
 
-    import simcore
-    from simcore._cache import STAMP, sources_digest
+    import flocksweep.simcore as simcore
+    from flocksweep.simcore._cache import STAMP, sources_digest
 
     tests = Path(__file__).resolve().parent
     digest = hashlib.sha256(sources_digest(Path(simcore.__file__).parent).encode())
@@ -137,7 +137,7 @@ def pytest_sessionstart(session):
     config = session.config
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
-    from sweeps.compile import compile_kernels
+    from flocksweep.sweeps.compile import compile_kernels
 
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     say = reporter.write_line if reporter is not None else print

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simcore.obstacle_spec import Obstacle, pack_obstacles
+from flocksweep.simcore.obstacle_spec import Obstacle, pack_obstacles
 
 AXES = np.eye(3)
 

@@ -297,7 +297,7 @@ def kernel_step_agrees(model, state, dt, k, tol=1e-12):
     """One kernel step (``simcore.advance``) from ``state`` against :func:`step`: every state array to
     ``tol``, the visible and binocular counts exactly, patterns unchanged (``k``: the step, for messages).
     Returns the kernel's observations and the reference's result."""
-    from simcore import advance
+    from flocksweep.simcore import advance
 
     obs = advance(model, state, 1, dt)
     ref = step(state.pos, state.vel, state.fwd, state.up, state.side, state.acc, state.pattern, model, dt)

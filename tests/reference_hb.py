@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from simcore.rng import STREAM_LEADERSHIP, normal
+from flocksweep.simcore.rng import STREAM_LEADERSHIP, normal
 
 # The escape profile of docs/model.md section 5 (Figure 5 of the paper, 30 samples equally spaced on [0, 1]).
 PROFILE_SAMPLES = (0.01, 0.05, 0.10, 0.16, 0.27, 0.40, 0.55, 0.72, 0.85, 0.96,

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from reference_hb import banked_frame, boundary, box_of, offset
-from simcore.rng import STREAM_COUZIN_NOISE, STREAM_VICSEK_NOISE, normal, uniform01
+from flocksweep.simcore.rng import STREAM_COUZIN_NOISE, STREAM_VICSEK_NOISE, normal, uniform01
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
 

@@ -19,12 +19,12 @@ def test_the_docs_site_builds_without_warnings(tmp_path):
     assert done.returncode == 0, done.stderr[-5000:]
     assert not done.stderr.strip(), done.stderr[-5000:]
     api = {page: (out / "api" / f"{page}.html").read_text(encoding="utf-8") for page in ("simcore", "sweeps", "analysis")}
-    for page, names in {"simcore": ["simcore.load_preset", "simcore.simulate_preset", "simcore.Preset"],
-                        "sweeps": ["sweeps.run_sweep", "sweeps.load_results", "sweeps.config.SweepConfig",
-                                   "sweeps.config.SweepConfig.from_toml", "sweeps.config.SweepConfig.from_dict"],
-                        "analysis": ["analysis.report", "analysis.calibrate", "analysis.summary_simulator",
-                                     "analysis.calibration.config.CalibrationConfig",
-                                     "analysis.calibration.config.CalibrationConfig.from_toml"]}.items():
+    for page, names in {"simcore": ["flocksweep.simcore.load_preset", "flocksweep.simcore.simulate_preset", "flocksweep.simcore.Preset"],
+                        "sweeps": ["flocksweep.sweeps.run_sweep", "flocksweep.sweeps.load_results", "flocksweep.sweeps.config.SweepConfig",
+                                   "flocksweep.sweeps.config.SweepConfig.from_toml", "flocksweep.sweeps.config.SweepConfig.from_dict"],
+                        "analysis": ["flocksweep.analysis.report", "flocksweep.analysis.calibrate", "flocksweep.analysis.summary_simulator",
+                                     "flocksweep.analysis.calibration.config.CalibrationConfig",
+                                     "flocksweep.analysis.calibration.config.CalibrationConfig.from_toml"]}.items():
         for name in names:
             assert f'id="{name}"' in api[page], name
     assert "NUMBA_NUM_THREADS" in api["analysis"]       # summary_simulator's thread use is documented

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import pytest
 
-from simcore import boidspp_params, params
-from simcore.params import InitParams, ModelParams, RunSettings
-from simcore.units import Units
+from flocksweep.simcore import boidspp_params, params
+from flocksweep.simcore.params import InitParams, ModelParams, RunSettings
+from flocksweep.simcore.units import Units
 from paths import ROOT
 
 MODEL_DOC = ROOT / "docs" / "model.md"

@@ -1,8 +1,8 @@
 """A tiny Holland sweep as a dict, and its run ids (tests of a sweep's [run] metric settings)."""
 from __future__ import annotations
 
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand
 from paths import ROOT
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.viewer.track import from_arrays
+from flocksweep.analysis.viewer.track import from_arrays
 
 MAGENTA = "#ff00ff"
 

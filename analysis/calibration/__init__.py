@@ -1,6 +1,6 @@
 """analysis.calibration: fitting a flocking model's free parameters to observed flock statistics.
 
-Python API (loaded on first use, so ``import analysis.calibration`` stays light):
+Python API (loaded on first use, so ``import flocksweep.analysis.calibration`` stays light):
 
 * ``load_calibration(path, overrides=()) -> CalibrationConfig``: read and validate a calibration TOML;
 * ``calibrate(config, out_dir=None, ...) -> arviz.InferenceData``: run it, write its outputs (posterior.nc,
@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from flocksweep.lazy import public_names
+
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
     from .config import CalibrationConfig, load_calibration
     from .inference import load_calibration_results
@@ -33,13 +35,6 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
 __all__ = ["CalibrationConfig", "CalibrationRun", "calibrate", "load_calibration", "load_calibration_results",
            "run_calibration"]
 
-_HOMES = {"CalibrationConfig": "config", "load_calibration": "config", "load_calibration_results": "inference",
-          "CalibrationRun": "run", "calibrate": "run", "run_calibration": "run"}
-
-
-def __getattr__(name: str):
-    if name in _HOMES:
-        import importlib
-
-        return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = public_names(__name__, globals(), {
+    "CalibrationConfig": "config", "load_calibration": "config", "load_calibration_results": "inference",
+    "CalibrationRun": "run", "calibrate": "run", "run_calibration": "run"})

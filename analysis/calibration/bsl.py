@@ -70,7 +70,7 @@ from typing import Callable
 
 import numpy as np
 
-from sweeps.seeds import Tag, generator
+from flocksweep.sweeps.seeds import Tag, generator
 
 from .checks import integer
 from .likelihood import METHODS, min_replicates, synthetic_loglik

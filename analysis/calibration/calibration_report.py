@@ -24,9 +24,9 @@ import math
 
 import pandas as pd
 
-from analysis.reports.document import Figure, Heading, Para, Table, to_html, to_markdown
-from analysis.reports.labels import parameter_label
-from simcore.schema import to_dict
+from flocksweep.analysis.reports.document import Figure, Heading, Para, Table, to_html, to_markdown
+from flocksweep.analysis.reports.labels import parameter_label
+from flocksweep.simcore.schema import to_dict
 
 from .accounting import lines
 from .flock_check import flock_messages

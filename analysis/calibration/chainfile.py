@@ -36,8 +36,8 @@ import emcee
 import h5py
 import numpy as np
 
-from sweeps.files import WriteFailed, write_failed
-from sweeps.interrupts import deferred
+from flocksweep.sweeps.files import WriteFailed, write_failed
+from flocksweep.sweeps.interrupts import deferred
 
 GROUP = "mcmc"
 DIGESTS = {"chain_model": "the model (preset, fixed overrides, run settings)",

@@ -49,11 +49,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from simcore.schema import ConfigError, build, check_at_least, read_config, read_toml, resolve_path
-from sweeps.config import check_name
-from sweeps.files import json_ready
-from sweeps.seeds import CompareStream, Tag, generator
-from sweeps.store import OutputFolder
+from flocksweep.simcore.schema import ConfigError, build, check_at_least, read_config, read_toml, resolve_path
+from flocksweep.sweeps.config import check_name
+from flocksweep.sweeps.files import json_ready
+from flocksweep.sweeps.seeds import CompareStream, Tag, generator
+from flocksweep.sweeps.store import OutputFolder
 
 from .config import CalibrationConfig, calibration_from_dict
 from .npe import simulated_rows, training_sweep
@@ -123,7 +123,7 @@ def load_comparison(path, overrides=()) -> Comparison:
 def simulate_model(comparison: Comparison, m: int, folder: Path, executor: str = "local", workers=None,
                    scheduler=None, progress: bool = False):
     """Model m's simulations (module docstring)."""
-    from sweeps.runner import run_sweep
+    from flocksweep.sweeps.runner import run_sweep
 
     name, config = comparison.models[m]
     count = comparison.simulations + comparison.heldout
@@ -191,7 +191,7 @@ def run_comparison(comparison: Comparison, out=None, executor: str = "local", wo
 
 
 def _write(folder: OutputFolder, comparison: Comparison, choice: dict, computed: dict, held_labels) -> None:
-    from analysis.reports.document import Heading, Para, Table, to_html, to_markdown
+    from flocksweep.analysis.reports.document import Heading, Para, Table, to_html, to_markdown
 
     names = comparison.names
     confusion = pd.DataFrame(choice["confusion"], index=pd.Index(names, name="true model"), columns=names)

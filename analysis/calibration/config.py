@@ -103,16 +103,16 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from observables.directional_correlation import DCD_METRIC_NAMES
-from observables.leadership import LEADERSHIP_METRIC_NAMES
-from observables.metrics import METRIC_NAMES
-from observables.observation import Observation
-from observables.summary import MetricSettings, encounter_settings
-from simcore.params import Preset, canonical_key, preset_from_dict
-from simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, input_file, read_config,
+from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
+from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
+from flocksweep.observables.metrics import METRIC_NAMES
+from flocksweep.observables.observation import Observation
+from flocksweep.observables.summary import MetricSettings, encounter_settings
+from flocksweep.simcore.params import Preset, canonical_key, preset_from_dict
+from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, input_file, read_config,
                             resolve_path, suggest)
-from sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
-from sweeps.model_set import model_overrides
+from flocksweep.sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
+from flocksweep.sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
 from .flock_check import check_flock_table

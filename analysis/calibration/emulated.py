@@ -49,7 +49,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from sweeps.seeds import Tag, generator, seeds_for
+from flocksweep.sweeps.seeds import Tag, generator, seeds_for
 
 from .checks import integer
 from .diagnostics import predictive_check

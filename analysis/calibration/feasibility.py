@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from simcore.params import Preset
-from simcore.schema import ConfigError
-from sweeps.budget import BudgetError, available_memory, check_runs, human
+from flocksweep.simcore.params import Preset
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.budget import BudgetError, available_memory, check_runs, human
 
 MAX_SIMULATIONS = 20_000_000   # a larger chain needs --yes (the shipped studies run up to a few million)
 

@@ -40,7 +40,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from simcore.schema import ConfigError, suggest
+from flocksweep.simcore.schema import ConfigError, suggest
 
 from .diagnostics import predictive_check
 

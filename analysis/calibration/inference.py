@@ -50,8 +50,8 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from sweeps.files import atomic_path
-from sweeps.seeds import Tag, generator
+from flocksweep.sweeps.files import atomic_path
+from flocksweep.sweeps.seeds import Tag, generator
 
 POSTERIOR_FILE = "posterior.nc"
 VERSION = "0.1.0"

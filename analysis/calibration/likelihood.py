@@ -45,7 +45,7 @@ import math
 import numpy as np
 from scipy import linalg, special
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 METHODS = ("gaussian", "unbiased")
 CONSTANT_RTOL = 1e-12

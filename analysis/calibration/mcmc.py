@@ -65,11 +65,11 @@ import numpy as np
 
 from pathlib import Path
 
-from simcore.rng import seed_sequence
-from simcore.schema import ConfigError
-from sweeps.files import write_failed
-from sweeps.quarantine import quarantine
-from sweeps.seeds import Tag, generator
+from flocksweep.simcore.rng import seed_sequence
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.files import write_failed
+from flocksweep.sweeps.quarantine import quarantine
+from flocksweep.sweeps.seeds import Tag, generator
 
 from .chainfile import ChainFile, DamagedChain, check_chain, differences, stored_attrs
 from .checks import integer

@@ -30,7 +30,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from simcore.schema import ConfigError, build, check_choice, field_names, resolve_path, unknown_key
+from flocksweep.simcore.schema import ConfigError, build, check_choice, field_names, resolve_path, unknown_key
 
 from .likelihood import min_replicates
 from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings, NpeSettings

@@ -56,12 +56,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from simcore import MODEL_VERSION
-from simcore.schema import ConfigError
-from sweeps.config import SweepConfig
-from sweeps.files import json_ready
-from sweeps.runner import run_sweep
-from sweeps.seeds import NPEStream, Tag, generator
+from flocksweep.simcore import MODEL_VERSION
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.config import SweepConfig
+from flocksweep.sweeps.files import json_ready
+from flocksweep.sweeps.runner import run_sweep
+from flocksweep.sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
 from .simulator import summary_simulator
@@ -245,7 +245,7 @@ def _train(config, folder, executor, phases, cost):
 
 def _heldout(config, folder):
     """The held-out simulations of a stored training sweep (runs found done, none computed)."""
-    from sweeps.results import load_results
+    from flocksweep.sweeps.results import load_results
 
     theta = training_design(config)
     table = load_results(folder.path("training")).runs

@@ -47,8 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simcore.schema import ConfigError, check_at_least
-from sweeps.files import atomic_path
+from flocksweep.simcore.schema import ConfigError, check_at_least
+from flocksweep.sweeps.files import atomic_path
 
 FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 QUANTILE = 1e-4
 REGION_DRAWS = 20_000

@@ -64,7 +64,7 @@ from typing import Callable
 import numpy as np
 from scipy import optimize as _opt
 
-from sweeps.seeds import Tag, common_seeds, generator, seeds_for
+from flocksweep.sweeps.seeds import Tag, common_seeds, generator, seeds_for
 
 from .checks import integer
 from .likelihood import METHODS, min_replicates, standardized_distance, synthetic_loglik

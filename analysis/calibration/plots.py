@@ -34,7 +34,7 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-from analysis.reports.plotting import pyplot, save
+from flocksweep.analysis.reports.plotting import pyplot, save
 
 from .diagnostics import _bin_probs, _names, ecdf_counts, sbc_histogram
 

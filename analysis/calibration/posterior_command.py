@@ -1,6 +1,6 @@
 """``flocksweep posterior ESTIMATOR --targets FLOCKS.csv``: one posterior per observed flock from a trained
-``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; a command module of the CLI
-(``DESCRIPTION``, ``add_arguments(parser)``, ``run(args)``; see ``flocksweep/cli.py``, ``DELEGATED``).
+``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; the command's work,
+``run(args)``, for its declaration in ``flocksweep/commands/posterior.py``.
 
 ``posteriors(estimator_dir, table, draws=4000, seed=0) -> DataFrame``: the table's rows (one observed
 flock or flight each: the estimator's statistic columns, e.g. the per-flight rows ``flocksweep
@@ -16,24 +16,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from simcore.schema import ConfigError
-from sweeps.failures import check_count, check_out
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.failures import check_count, check_out
 
 if TYPE_CHECKING:
     import pandas as pd
-
-DESCRIPTION = ("Amortised inference: the estimator a `flocksweep calibrate` run of method npe trained (its "
-               "estimator/ folder) gives the posterior of every row of a table of observed flocks (one row "
-               "per flock or flight, a column per statistic) in seconds, without simulating.")
-
-
-def add_arguments(p) -> None:
-    p.add_argument("estimator", type=Path, help="a trained estimator folder, e.g. results/calibration/NAME/estimator")
-    p.add_argument("--targets", type=Path, required=True,
-                   help="CSV or Parquet: one row per observed flock, a column per statistic of the estimator")
-    p.add_argument("--draws", type=int, default=4000, help="posterior draws per flock (default 4000)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
-    p.add_argument("--out", type=Path, help="write the table here (CSV; default: print it)")
 
 
 def _read_table(path: Path) -> pd.DataFrame:

@@ -29,7 +29,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import special, stats
 
-from simcore.schema import ConfigError, build, check_choice, join, suggest
+from flocksweep.simcore.schema import ConfigError, build, check_choice, join, suggest
 
 _LOG_2PI = math.log(2.0 * math.pi)
 

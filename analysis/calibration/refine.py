@@ -58,7 +58,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from sweeps.extend import add_points
+from flocksweep.sweeps.extend import add_points
 
 from .emulated import confirm, posterior_median
 from .simulator import summary_simulator

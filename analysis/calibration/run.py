@@ -80,14 +80,14 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from analysis.reports.labels import parameter_label
-from simcore import MODEL_VERSION
-from simcore.schema import to_dict
-from sweeps.executors import Executor
-from sweeps.files import atomic_path, json_ready
-from sweeps.progress import Phases, bar
-from sweeps.seeds import Tag, generator
-from sweeps.store import OutputFolder
+from flocksweep.analysis.reports.labels import parameter_label
+from flocksweep.simcore import MODEL_VERSION
+from flocksweep.simcore.schema import to_dict
+from flocksweep.sweeps.executors import Executor
+from flocksweep.sweeps.files import atomic_path, json_ready
+from flocksweep.sweeps.progress import Phases, bar
+from flocksweep.sweeps.seeds import Tag, generator
+from flocksweep.sweeps.store import OutputFolder
 
 from .accounting import Accounting
 from .bsl import run_bsl, simulate_keyed

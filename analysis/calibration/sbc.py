@@ -76,14 +76,14 @@ from typing import Callable, Sequence
 import numpy as np
 from tqdm import tqdm
 
-from simcore.rng import seed_sequence
-from simcore.schema import ConfigError
-from sweeps import seeds
-from sweeps.executors import Executor
-from sweeps.files import json_ready
-from sweeps.progress import Phases
-from sweeps.seeds import SBCStream, Tag
-from sweeps.store import OutputFolder
+from flocksweep.simcore.rng import seed_sequence
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps import seeds
+from flocksweep.sweeps.executors import Executor
+from flocksweep.sweeps.files import json_ready
+from flocksweep.sweeps.progress import Phases
+from flocksweep.sweeps.seeds import SBCStream, Tag
+from flocksweep.sweeps.store import OutputFolder
 
 from .accounting import Accounting
 from .bsl import run_bsl

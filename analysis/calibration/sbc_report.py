@@ -24,8 +24,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from sweeps.files import read_json, write_csv, write_json, write_text
-from sweeps.seeds import ECDF_BAND, Tag, generator
+from flocksweep.sweeps.files import read_json, write_csv, write_json, write_text
+from flocksweep.sweeps.seeds import ECDF_BAND, Tag, generator
 
 from .accounting import total_simulations
 from .diagnostics import ecdf_counts, sbc_uniformity

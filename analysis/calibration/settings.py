@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Literal
 
-from simcore.schema import ConfigError, check_at_least
+from flocksweep.simcore.schema import ConfigError, check_at_least
 
 from .npe_flow import FlowSettings
 

@@ -58,15 +58,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from observables.directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
-from observables.leadership import LEADERSHIP_METRIC_NAMES
-from observables.metrics import FRAGMENTATION_COHESION
-from observables.observation import observe_run
-from observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
-from simcore.params import Preset, preset_from_dict
-from simcore.schema import ConfigError, suggest
-from simcore.simulate import simulate_batch
-from sweeps.seeds import seeds_for
+from flocksweep.observables.directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
+from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
+from flocksweep.observables.metrics import FRAGMENTATION_COHESION
+from flocksweep.observables.observation import observe_run
+from flocksweep.observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
+from flocksweep.simcore.params import Preset, preset_from_dict
+from flocksweep.simcore.schema import ConfigError, suggest
+from flocksweep.simcore.simulate import simulate_batch
+from flocksweep.sweeps.seeds import seeds_for
 
 from .checks import integer
 

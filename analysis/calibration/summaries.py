@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.seeds import generator
+from flocksweep.sweeps.seeds import generator
 
 from .config import CalibrationConfig, load_calibration
 from .run import seeded_fn, simulate_fn

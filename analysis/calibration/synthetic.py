@@ -25,10 +25,10 @@ import numpy as np
 
 from pathlib import Path
 
-from simcore.schema import ConfigError, read_config
+from flocksweep.simcore.schema import ConfigError, read_config
 
-from sweeps.model_set import model_overrides
-from sweeps.seeds import common_seeds
+from flocksweep.sweeps.model_set import model_overrides
+from flocksweep.sweeps.seeds import common_seeds
 
 from .config import CalibrationConfig, calibration_from_dict
 from .flock_check import flock_columns

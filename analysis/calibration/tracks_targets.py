@@ -49,14 +49,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from observables.columns import PERCEPTION_SERIES
-from observables.leadership import LEADERSHIP_METRIC_NAMES
-from observables.measured import Measurement, measure_tracks, track_settings
-from observables.observation import Observation
-from observables.summary import MetricSettings, default_group_radius
-from observables.tracks import TrackSource, load_tracks, track_source
-from observables.validation import TrackError
-from simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
+from flocksweep.observables.columns import PERCEPTION_SERIES
+from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
+from flocksweep.observables.measured import Measurement, measure_tracks, track_settings
+from flocksweep.observables.observation import Observation
+from flocksweep.observables.summary import MetricSettings, default_group_radius
+from flocksweep.observables.tracks import TrackSource, load_tracks, track_source
+from flocksweep.observables.validation import TrackError
+from flocksweep.simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
 
 UNOBSERVABLE = PERCEPTION_SERIES + tuple(LEADERSHIP_METRIC_NAMES)
 

@@ -47,12 +47,12 @@ from pathlib import Path
 
 import numpy as np
 
-from observables.directional_correlation import DCD_METRIC_NAMES
-from observables.metrics import FRAGMENTATION_COHESION
-from simcore.params import canonical_key, preset_from_dict
-from simcore.schema import ConfigError, get_dotted
-from sweeps.results import load_results
-from sweeps.store import ResultsStore
+from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
+from flocksweep.observables.metrics import FRAGMENTATION_COHESION
+from flocksweep.simcore.params import canonical_key, preset_from_dict
+from flocksweep.simcore.schema import ConfigError, get_dotted
+from flocksweep.sweeps.results import load_results
+from flocksweep.sweeps.store import ResultsStore
 
 FRAGMENTATION_COLUMNS = ("time_to_fragmentation", "fragmented")
 IGNORED_PRESET_KEYS = ("description",)

@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.viewer.hooks import preset_page
-from analysis.viewer.page import build_runs_page
-from analysis.viewer.track import from_observations, from_observed
-from sweeps.seeds import Tag, generator, seeds_for
+from flocksweep.analysis.viewer.hooks import preset_page
+from flocksweep.analysis.viewer.page import build_runs_page
+from flocksweep.analysis.viewer.track import from_observations, from_observed
+from flocksweep.sweeps.seeds import Tag, generator, seeds_for
 
 from .emulated import observation_covariance
 from .flock_check import flock_columns

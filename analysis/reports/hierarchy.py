@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from observables.directional_correlation import MIN_CORR, DirectionalCorrelation
+from flocksweep.observables.directional_correlation import MIN_CORR, DirectionalCorrelation
 
 from .plotting import pyplot, save
 

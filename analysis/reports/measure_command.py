@@ -11,7 +11,7 @@ Lengths given here (group radius, max speed) are in the analysis units: body len
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
 when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
 ``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
-``--out``. ``flocksweep/cli.py`` registers it with :func:`add_arguments` and :func:`run`; bad tracks, and
+``--out``. The command is declared in ``flocksweep/commands/measure.py``, whose handler calls :func:`run`; bad tracks, and
 tracks of which no flock could be measured, exit with status 2 after listing every problem (and writing
 ``validation.csv``); warnings and flocks not measured are printed on stderr (the first 10).
 """
@@ -20,60 +20,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from observables.track_names import FORMATS, LENGTH_UNITS, RECORDED, ROLES
-from simcore.schema import ConfigError
-from sweeps.failures import check_out
+from flocksweep.observables.track_names import LENGTH_UNITS, RECORDED
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.failures import check_out
 
 # the reading and measuring (observables: numpy and the numba kernels; .measured: pandas, matplotlib) are
 # imported by run(), so that `flocksweep measure --help` starts in a fraction of a second
-
-DESCRIPTION = ("Compute every flock metric from measured trajectories (long format: flock, id, t, x, y[, z]"
-               "[, vx, vy, vz]): validate them, resample onto a regular interval, and write a runs table (one "
-               "row per flock), time series per flock, a validation table and a short report with figures.")
-
-
-def add_arguments(p) -> None:
-    p.add_argument("tracks", type=Path, help="track file or folder: long CSV (also .csv.gz) or Parquet, one row per "
-                                             "detection, or a tracker's or logger's file (--format)")
-    p.add_argument("--group-radius", type=float, required=True, metavar="R",
-                   help="individuals closer than R are linked into one group (analysis length units: body "
-                        "lengths with --body-length, else metres); groups, cohesion and the shape metrics use it")
-    p.add_argument("--format", choices=FORMATS, default=None,
-                   help="file format (default: detected from the file): long csv or parquet; mat (MATLAB, with "
-                        "--layout), idtracker (trajectories.npy/.npz), trex (a folder of per-individual exports), "
-                        "trajr (a folder of one CSV per individual), movebank (GPS, projected to metres)")
-    p.add_argument("--fps", type=float, metavar="HZ", help="frames per second, for times given as frame numbers")
-    p.add_argument("--body-length-px", type=float, metavar="PX",
-                   help="body length in pixels, for tracks in pixels (lengths become body lengths)")
-    p.add_argument("--layout", nargs="+", default=[], metavar="KEY=VALUE",
-                   help="a .mat file's array: variable=NAME axes=individual,channel,sample channels=x,y,vx,vy "
-                        "[time=NAME]")
-    p.add_argument("--columns", nargs="+", default=[], metavar="ROLE=NAME",
-                   help=f"column map, e.g. id=bird t=time; roles: {', '.join(ROLES)}")
-    p.add_argument("--units", nargs="+", default=[], metavar="KIND=UNIT",
-                   help="length=m|cm|mm|km|bl|px and time=s|ms|min|h|datetime|frame (default m and s, or what the "
-                        "format implies); a bare unit such as cm means length")
-    p.add_argument("--body-length", type=float, metavar="METRES",
-                   help="body length in metres: lengths become body lengths (BL), speeds BL/s")
-    p.add_argument("--interval", type=float, metavar="S",
-                   help="resample onto this sampling interval (default: each flock's median sample spacing)")
-    p.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2.5 intervals)")
-    p.add_argument("--velocity-interval", metavar="S|recorded",
-                   help="difference positions over S seconds (a whole number of intervals), or 'recorded' "
-                        "(default: recorded when the file has velocities, else one interval)")
-    p.add_argument("--warmup", type=float, default=0.0, help="seconds at the start left out of window means")
-    p.add_argument("--fragmentation-cohesion", type=float, default=None,
-                   help="cohesion below this counts as fragmented (default 0.5, "
-                        "observables.metrics.FRAGMENTATION_COHESION)")
-    p.add_argument("--max-speed", type=float, metavar="V",
-                   help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
-    p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
-                   help="samples reached at an impossible speed: stop (default), keep them, or drop them")
-    p.add_argument("--dcd-max-delay", type=float, default=None, metavar="S",
-                   help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
-    p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
-    p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def _pairs(items, flag: str, bare: str | None = None) -> dict:
@@ -107,7 +59,7 @@ SETTING_FLAGS = {"group_radius": "--group-radius", "warmup": "--warmup",
 
 def _print_warnings(issues, line_offset, out: Path) -> None:
     """The errors (flocks not measured) and warnings on stderr, the first SHOWN_WARNINGS of them."""
-    from observables.validation import describe
+    from flocksweep.observables.validation import describe
 
     loud = [i for i in issues if i.level in ("error", "warning")]
     for issue in loud[:SHOWN_WARNINGS]:
@@ -117,11 +69,11 @@ def _print_warnings(issues, line_offset, out: Path) -> None:
 
 
 def run(args) -> int:
-    from observables.directional_correlation import DCD_MAX_DELAY
-    from observables.measured import track_settings
-    from observables.metrics import FRAGMENTATION_COHESION
-    from observables.tracks import track_source
-    from observables.validation import TrackError
+    from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
+    from flocksweep.observables.measured import track_settings
+    from flocksweep.observables.metrics import FRAGMENTATION_COHESION
+    from flocksweep.observables.tracks import track_source
+    from flocksweep.observables.validation import TrackError
 
     from .measured import measure_folder
 

@@ -32,14 +32,14 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from observables.measured import Measurement, measure_tracks, velocity_label
-from observables.resample import RECORDED
-from observables.summary import MetricSettings, run_directional_correlation
-from observables.tracks import TrackSource, load_tracks, read_sidecar
-from observables.validation import TrackError, issues_table
-from sweeps.files import write_parquet
-from sweeps.progress import Phases
-from sweeps.store import OutputFolder
+from flocksweep.observables.measured import Measurement, measure_tracks, velocity_label
+from flocksweep.observables.resample import RECORDED
+from flocksweep.observables.summary import MetricSettings, run_directional_correlation
+from flocksweep.observables.tracks import TrackSource, load_tracks, read_sidecar
+from flocksweep.observables.validation import TrackError, issues_table
+from flocksweep.sweeps.files import write_parquet
+from flocksweep.sweeps.progress import Phases
+from flocksweep.sweeps.store import OutputFolder
 
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
 from .hierarchy import hierarchy_figure

@@ -13,7 +13,7 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
-from sweeps.files import atomic_path
+from flocksweep.sweeps.files import atomic_path
 
 from .layout import fix_overlaps, raise_fonts
 

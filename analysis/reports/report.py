@@ -38,16 +38,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from observables.metrics import polarization
-from simcore import simulate
-from simcore.params import canonical_key
-from sweeps.design import rebuild
-from sweeps.files import write_text
-from sweeps.owned import OwnedFolder
-from sweeps.progress import Phases
-from sweeps.results import Results, load_results
-from sweeps.status import computed
-from sweeps.store import ResultsStore
+from flocksweep.observables.metrics import polarization
+from flocksweep.simcore import simulate
+from flocksweep.simcore.params import canonical_key
+from flocksweep.sweeps.design import rebuild
+from flocksweep.sweeps.files import write_text
+from flocksweep.sweeps.owned import OwnedFolder
+from flocksweep.sweeps.progress import Phases
+from flocksweep.sweeps.results import Results, load_results
+from flocksweep.sweeps.status import computed
+from flocksweep.sweeps.store import ResultsStore
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown

@@ -55,13 +55,13 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from simcore.params import canonical_key, preset_from_dict
-from simcore.schema import build
-from sweeps.config import parse_design
-from sweeps.design import integer_keys
-from sweeps.results import Results
-from sweeps.sensitivity import DesignTable, SensitivityDesign
-from sweeps.store import ResultsStore
+from flocksweep.simcore.params import canonical_key, preset_from_dict
+from flocksweep.simcore.schema import build
+from flocksweep.sweeps.config import parse_design
+from flocksweep.sweeps.design import integer_keys
+from flocksweep.sweeps.results import Results
+from flocksweep.sweeps.sensitivity import DesignTable, SensitivityDesign
+from flocksweep.sweeps.store import ResultsStore
 
 SAMPLE_KINDS = ("lhs", "sobol", "random")
 

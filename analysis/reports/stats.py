@@ -65,7 +65,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from sweeps.confidence import ci_halfwidth
+from flocksweep.sweeps.confidence import ci_halfwidth
 
 __all__ = [
     "main_effect", "bootstrap_mean_ci", "factor_test", "two_way_test", "holm", "cliffs_delta",

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.viewer.palette import AGENT_COLOURS
+from flocksweep.analysis.viewer.palette import AGENT_COLOURS
 
 from .obstacle_artists import draw_obstacles
 from .plotting import pyplot, save

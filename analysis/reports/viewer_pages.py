@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from analysis.viewer.hooks import showcase_page
-from analysis.viewer.resimulate import NotReproduced
+from flocksweep.analysis.viewer.hooks import showcase_page
+from flocksweep.analysis.viewer.resimulate import NotReproduced
 
 from .document import Gallery, Heading, Para
 

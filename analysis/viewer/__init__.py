@@ -2,7 +2,7 @@
 
 Public API (importing this package loads nothing heavy)::
 
-    from analysis.viewer import view, animate
+    from flocksweep.analysis.viewer import view, animate
     page = view(obs, "flock.html", preset=preset)      # Observations, Track, trajectory .npz or arrays
     page                                                # in Jupyter: the page inline
     anim = animate(obs, "flock.gif", preset=preset, rotate=True)

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.files import atomic_path
+from flocksweep.sweeps.files import atomic_path
 
 from .encode import COLOR_MODES, TABLE_1_HEX, check_agents, default_color_by
 from .observables import frame_observables

@@ -13,65 +13,17 @@ found). Several ``--run`` ids make one page of several runs with a run menu (eac
 checked; the URL fragment ``#run=ID`` picks the run shown; the size cap holds for the whole page).
 Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
 showcase>.html`` (``runs-<first id>-and-<K>-more.html`` for several runs), or the trajectory's path with
-``.html``. ``flocksweep/cli.py`` registers the subcommand
-with :func:`add_arguments` and :func:`run`.
+``.html``. The command is declared in
+``flocksweep/commands/view.py``; its handler calls :func:`run`.
 """
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-from simcore.schema import ConfigError
-from sweeps.progress import Phases
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.progress import Phases
 
-from .palette import COLOR_MODES
-
-DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
-               "(simulated), a sweep run (re-simulated and checked bit for bit) or a saved trajectory; "
-               "--animate also exports a GIF or MP4.")
-
-
-def add_arguments(p) -> None:
-    p.add_argument("source", help="model preset TOML, sweep results directory, or trajectory .npz")
-    sweep = p.add_argument_group("sweep runs (SOURCE is a results directory)")
-    sweep.add_argument("--run", metavar="RUN_ID", nargs="+",
-                       help="run id (or a unique prefix of >= 6 characters); several ids: one page with a run "
-                            "menu, the URL fragment #run=ID picks the run shown")
-    sweep.add_argument("--where", metavar='"KEY=VALUE, ..."',
-                       help='parameter point, e.g. "perception.field_deg=60, init.n=100" (n = init.n)')
-    sweep.add_argument("--replicate", type=int, default=0, help="replicate at the --where point (default 0)")
-    sweep.add_argument("--showcase", metavar="NAME", help="an entry of the sweep's [report.showcase], e.g. sample1")
-    model = p.add_argument_group("model presets (SOURCE is a model TOML)")
-    model.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a preset key (repeatable)")
-    model.add_argument("--seed", type=int, help="run seed (default 0)")
-    model.add_argument("--n", type=int, help="number of boids (init.n)")
-    model.add_argument("--duration", type=float, help="simulated seconds (run.duration)")
-    model.add_argument("--dt", type=float, help="time step in seconds (run.dt)")
-    page = p.add_argument_group("page and animation")
-    page.add_argument("--out", type=Path, metavar="PAGE.html",
-                      help="page path (default: results/view/<model>-seed<S>.html for a model, "
-                           "RESULTS_DIR/viewer/<run or showcase>.html for a sweep run, the .npz path with "
-                           ".html for a trajectory)")
-    page.add_argument("--color-by", choices=("auto",) + COLOR_MODES, default="auto",
-                      help="initial colouring (switchable in the page; auto: pattern in pattern mode, leader "
-                           "with change of leadership, else boid)")
-    page.add_argument("--start-time", type=float, metavar="SECONDS",
-                      help="the simulated second the page opens at (default: the start; the page's URL can also "
-                           "say it: PAGE.html#t=15&color=group)")
-    page.add_argument("--trail", type=float, default=2.0, metavar="SECONDS", help="trail length (default 2 s)")
-    page.add_argument("--max-mb", type=float, default=5.0, help="page size cap: frames are thinned to fit (default 5)")
-    page.add_argument("--stride", type=int, help="keep every K-th recorded step (overrides --max-mb)")
-    page.add_argument("--animate", type=Path, metavar="OUT.gif|OUT.mp4", help="also write an animation")
-    page.add_argument("--no-page", action="store_true", help="with --animate: write only the animation")
-    page.add_argument("--fps", type=float, default=20.0, help="animation frames per second (default 20)")
-    page.add_argument("--speed", type=float, default=1.0, help="simulated seconds per second of animation")
-    page.add_argument("--rotate", action="store_true", help="animation camera turns slowly about the vertical")
-    page.add_argument("--size", default="640x480", metavar="WxH",
-                      help="animation size in pixels, 16 to 3840 a side (default 640x480)")
-    page.add_argument("--dpi", type=int, default=100, help="animation dots per inch (text size; default 100)")
-    page.add_argument("--no-progress", action="store_true",
-                      help="no progress on stderr (the phases as they start, the animation's frames)")
 
 
 def _kind(source: Path) -> str:
@@ -83,7 +35,7 @@ def _kind(source: Path) -> str:
     if source.suffix == ".npz":
         return "trajectory"
     if source.suffix == ".toml":
-        from simcore.params import read_toml
+        from flocksweep.simcore.params import read_toml
 
         data = read_toml(source)
         if "axes" in data or isinstance(data.get("model"), dict):
@@ -131,8 +83,8 @@ def _size(text: str) -> tuple[int, int]:
 
 def _model_track(args):
 
-    from simcore import load_preset, simulate_preset
-    from sweeps.budget import check_runs
+    from flocksweep.simcore import load_preset, simulate_preset
+    from flocksweep.sweeps.budget import check_runs
 
     from .resimulate import record_step_for
     from .track import from_observations

@@ -14,9 +14,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from simcore import simulate_preset
-from sweeps.design import rebuild
-from sweeps.store import ResultsStore
+from flocksweep.simcore import simulate_preset
+from flocksweep.sweeps.design import rebuild
+from flocksweep.sweeps.store import ResultsStore
 
 from .animation import poster
 from .page import build_page

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from observables.groups import neighbour_graph
-from observables.metrics import frame_metrics, polarization
-from observables.summary import world_box
+from flocksweep.observables.groups import neighbour_graph
+from flocksweep.observables.metrics import frame_metrics, polarization
+from flocksweep.observables.summary import world_box
 
 from .track import DEFAULT_GROUP_RADIUS, Track, metric_settings
 

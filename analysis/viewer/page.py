@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sweeps.files import write_text
+from flocksweep.sweeps.files import write_text
 
 from .encode import (check_agents, heading_stream, label_stream, page_data, position_stream,
                      speed_stream, stream)
@@ -41,7 +41,7 @@ WINDOW = 20                   # consecutive frames per sample of a size estimate
 
 @lru_cache(maxsize=None)
 def _asset(relative: str) -> str:
-    return resources.files("analysis.viewer").joinpath(relative).read_text(encoding="utf-8")
+    return resources.files(__package__).joinpath(relative).read_text(encoding="utf-8")
 
 
 def _inline(text: str, name: str) -> str:

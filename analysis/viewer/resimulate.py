@@ -28,13 +28,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from observables.summary import every_nth
-from simcore import simulate
-from simcore.params import canonical_key
-from simcore.schema import parse_value
-from sweeps.design import stored_spec
-from sweeps.store import ResultsStore
-from sweeps.worker import execute_run
+from flocksweep.observables.summary import every_nth
+from flocksweep.simcore import simulate
+from flocksweep.simcore.params import canonical_key
+from flocksweep.simcore.schema import parse_value
+from flocksweep.sweeps.design import stored_spec
+from flocksweep.sweeps.store import ResultsStore
+from flocksweep.sweeps.worker import execute_run
 
 from .observables import record_metrics
 

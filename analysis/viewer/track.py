@@ -30,12 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from observables.summary import default_group_radius, world_box
-from simcore import Observations, preset_from_dict
-from simcore.schema import ConfigError
-from sweeps.design import rebuild
-from sweeps.store import ResultsStore
-from sweeps.trajectory import read_trajectory
+from flocksweep.observables.summary import default_group_radius, world_box
+from flocksweep.simcore import Observations, preset_from_dict
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.design import rebuild
+from flocksweep.sweeps.store import ResultsStore
+from flocksweep.sweeps.trajectory import read_trajectory
 
 DEFAULT_GROUP_RADIUS = 20.0  # used, and said so in the page, when nothing tells the run's radius
 

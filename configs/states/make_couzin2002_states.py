@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from observables.summary import observation_metrics
-from simcore import load_preset, simulate_preset
+from flocksweep.observables.summary import observation_metrics
+from flocksweep.simcore import load_preset, simulate_preset
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE.parent / "models"

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from simcore import load_preset, simulate
+from flocksweep.simcore import load_preset, simulate
 
 HERE = Path(__file__).resolve().parent
 TRUTH = {"steering.separation_weight": 12.0, "vehicle.max_speed": 7.0}

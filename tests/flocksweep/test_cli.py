@@ -81,8 +81,8 @@ def test_console_script_runs_in_a_fresh_process(tmp_path):
 
 
 HEAVY = ("pandas", "matplotlib", "pyarrow", "jinja2", "tqdm", "emcee", "SALib", "scipy.stats", "scipy.optimize",
-         "scipy.spatial", "scipy.sparse", "analysis.viewer", "analysis.reports", "analysis.calibration",
-         "multiprocessing", "sweeps.executors")
+         "scipy.spatial", "scipy.sparse", "flocksweep.analysis.viewer", "flocksweep.analysis.reports", "flocksweep.analysis.calibration",
+         "multiprocessing", "flocksweep.sweeps.executors")
 
 
 def test_simulate_loads_only_what_it_needs(tmp_path):
@@ -99,13 +99,13 @@ def test_simulate_loads_only_what_it_needs(tmp_path):
     assert done.returncode == 0, done.stderr
     status, modules = json.loads(done.stdout.strip().splitlines()[-1])
     assert status == 0
-    assert "simcore.kernel" in modules                       # it did simulate
+    assert "flocksweep.simcore.kernel" in modules                       # it did simulate
     loaded = [m for m in modules if any(m == h or m.startswith(h + ".") for h in HEAVY)]
     assert loaded == []
 
 
 def test_help_lists_every_command_and_each_command_declares_its_arguments(capsys):
-    from flocksweep.cli import COMMANDS
+    from flocksweep.commands import ORDER as COMMANDS
 
     with pytest.raises(SystemExit):
         main(["--help"])

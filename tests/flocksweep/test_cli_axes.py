@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 from flocksweep.cli import main
 from flocksweep.command_line import parse_axis_flag
 from paths import ROOT

@@ -10,8 +10,9 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from flocksweep import cli
+from flocksweep.commands import run as run_command
 from paths import ROOT
-from sweeps import executors, runner
+from flocksweep.sweeps import executors, runner
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
 TIMING = ["wall_s", "sim_s", "part"]
@@ -42,9 +43,9 @@ values = [60, 120, 180]
 
 @pytest.mark.parametrize("flags", [("--workers", "2"), ("--workers", "2", "--force"), ("--workers", "3", "--retry-failed")])
 def test_a_plain_local_run_gets_an_early_pool(flags):
-    pool = cli._early_pool(args_of(*flags))
+    pool = run_command._early_pool(args_of(*flags))
     assert isinstance(pool, executors.Executor)   # not started yet: entered by cmd_run
-    assert (pool.kind, pool.workers, pool.preload) == ("local", int(flags[1]), ("sweeps.worker:prepare",))
+    assert (pool.kind, pool.workers, pool.preload) == ("local", int(flags[1]), ("flocksweep.sweeps.worker:prepare",))
 
 
 @pytest.mark.parametrize("flags", [("--executor", "serial"), ("--executor", "dask"), ("--workers", "1"),
@@ -52,7 +53,7 @@ def test_a_plain_local_run_gets_an_early_pool(flags):
                                    ("--workers", "2", "--until-ci", "polarization_mean=0.1"),
                                    ("--workers", "0"), ("--workers", "100000")])
 def test_other_runs_and_refused_flags_get_none(flags):
-    assert isinstance(cli._early_pool(args_of(*flags)), nullcontext)
+    assert isinstance(run_command._early_pool(args_of(*flags)), nullcontext)
 
 
 def test_a_refused_worker_count_is_still_named(tmp_path, capsys):
@@ -106,24 +107,24 @@ def test_a_finished_sweep_run_again_gets_no_early_pool(tmp_path, monkeypatch):
     """Its results table is there: most likely nothing to compute, so no workers import for nothing; with
     --force or --retry-failed (work to do) the pool starts early again."""
     sweep, out = write_sweep(tmp_path), tmp_path / "out"
-    assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out))), executors.Executor)
+    assert isinstance(run_command._early_pool(args_of("--workers", "2", "--out", str(out))), executors.Executor)
     assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(out), "--no-progress"]) == 0
-    assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out))), nullcontext)
+    assert isinstance(run_command._early_pool(args_of("--workers", "2", "--out", str(out))), nullcontext)
     for flag in ("--force", "--retry-failed"):
-        assert isinstance(cli._early_pool(args_of("--workers", "2", "--out", str(out), flag)), executors.Executor)
+        assert isinstance(run_command._early_pool(args_of("--workers", "2", "--out", str(out), flag)), executors.Executor)
     monkeypatch.chdir(tmp_path)   # without --out: the sweep file's name under results/
     (tmp_path / "results").mkdir()
     out.rename(tmp_path / "results" / "tiny")
     argv = ["run", str(sweep), "--workers", "2"]
-    assert isinstance(cli._early_pool(cli.build_parser(cli._command_of(argv)).parse_args(argv)), nullcontext)
+    assert isinstance(run_command._early_pool(cli.build_parser(cli._command_of(argv)).parse_args(argv)), nullcontext)
     renamed = argv + ["--set", "name=other"]   # another folder: told only once the sweep is read
-    assert isinstance(cli._early_pool(cli.build_parser(cli._command_of(renamed)).parse_args(renamed)),
+    assert isinstance(run_command._early_pool(cli.build_parser(cli._command_of(renamed)).parse_args(renamed)),
                       executors.Executor)
 
 
 def test_an_interrupted_sweep_stops_the_early_pool_before_it_lets_go_of_the_store(tmp_path, monkeypatch):
     """As with the sweep's own pool: no worker is left to write into the folder once its lock is released."""
-    from sweeps import store as stores
+    from flocksweep.sweeps import store as stores
 
     sweep, out = write_sweep(tmp_path), tmp_path / "out"
     alive_at_release = []

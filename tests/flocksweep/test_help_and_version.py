@@ -55,10 +55,10 @@ def loaded_modules(argv, cwd) -> list[str]:
 
 
 @pytest.mark.parametrize("argv, forbidden", [
-    (["--help"], ("numba", "pandas", "simcore.simulate", "matplotlib")),
-    (["--version"], ("numba", "pandas", "simcore.simulate", "matplotlib")),
-    (["view", "--help"], ("numba", "simcore.simulate", "matplotlib")),
-    (["status", "."], ("numba", "simcore.simulate", "matplotlib", "scipy.stats")),
+    (["--help"], ("numba", "pandas", "flocksweep.simcore.simulate", "matplotlib")),
+    (["--version"], ("numba", "pandas", "flocksweep.simcore.simulate", "matplotlib")),
+    (["view", "--help"], ("numba", "flocksweep.simcore.simulate", "matplotlib")),
+    (["status", "."], ("numba", "flocksweep.simcore.simulate", "matplotlib", "scipy.stats")),
 ])
 def test_commands_that_simulate_nothing_import_no_simulator(argv, forbidden, tmp_path):
     modules = loaded_modules(argv, tmp_path)
@@ -69,11 +69,11 @@ def test_commands_that_simulate_nothing_import_no_simulator(argv, forbidden, tmp
 
 def test_measure_help_imports_neither_numpy_nor_the_kernels_and_states_the_true_defaults(tmp_path, capsys):
     modules = loaded_modules(["measure", "--help"], tmp_path)
-    assert "analysis.reports.measure_command" in modules
-    for heavy in ("numpy", "numba", "pandas", "matplotlib", "observables.metrics", "observables.measured"):
+    assert "flocksweep.commands.measure" in modules and "flocksweep.analysis.reports.measure_command" not in modules
+    for heavy in ("numpy", "numba", "pandas", "matplotlib", "flocksweep.observables.metrics", "flocksweep.observables.measured"):
         assert not any(m == heavy or m.startswith(heavy + ".") for m in modules), heavy
-    from observables.directional_correlation import DCD_MAX_DELAY
-    from observables.metrics import FRAGMENTATION_COHESION
+    from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
+    from flocksweep.observables.metrics import FRAGMENTATION_COHESION
 
     with pytest.raises(SystemExit):
         main(["measure", "--help"])
@@ -84,15 +84,15 @@ def test_measure_help_imports_neither_numpy_nor_the_kernels_and_states_the_true_
 @pytest.mark.slow
 def test_status_of_a_finished_sweep_reads_its_parts_without_numba(tmp_path):
     """status reads and checks every runs part (its metric columns: observables.columns, no kernels)."""
-    from sweeps.config import sweep_from_dict
-    from sweeps.runner import run_sweep
+    from flocksweep.sweeps.config import sweep_from_dict
+    from flocksweep.sweeps.runner import run_sweep
     from tiny_sweeps import sweep
 
     data = {**sweep(), "axes": [{"key": "perception.field_deg", "values": [60, 180]}]}
     run_sweep(sweep_from_dict(data, ROOT), "# test\n", tmp_path / "tiny", executor="serial", progress=False)
     assert list((tmp_path / "tiny" / "runs").glob("part-*.parquet"))
     modules = loaded_modules(["status", str(tmp_path / "tiny")], tmp_path)
-    assert "sweeps.status" in modules and "observables.columns" in modules
-    for heavy in ("numba", "simcore.simulate", "observables.metrics", "observables.kernels", "sweeps.config",
+    assert "flocksweep.sweeps.status" in modules and "flocksweep.observables.columns" in modules
+    for heavy in ("numba", "flocksweep.simcore.simulate", "flocksweep.observables.metrics", "flocksweep.observables.kernels", "flocksweep.sweeps.config",
                   "matplotlib"):
         assert not any(m == heavy or m.startswith(heavy + ".") for m in modules), heavy

@@ -10,7 +10,7 @@ import pytest
 
 from flocksweep.cli import main
 from malformed import EXPRESSIONS, NUMBERS, SIZES, SPECIAL_FILES, TABLES, attempt
-from simcore.schema import ConfigError, read_input
+from flocksweep.simcore.schema import ConfigError, read_input
 
 
 def test_a_fifo_as_sweep_file_is_refused_without_blocking(tmp_path, capsys):

@@ -13,7 +13,7 @@ import pytest
 
 from flocksweep.cli import main
 from paths import ROOT
-from simcore import plugin as plugins
+from flocksweep.simcore import plugin as plugins
 
 SWEEP = ROOT / "examples" / "couzin_like_sweep.toml"
 SMALL = ["--set", "run.n=12"]   # 20 s runs (400 steps): the flock settles at its spacing

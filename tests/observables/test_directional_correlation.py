@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from observables.directional_correlation import correlation_curves, dcd_metrics, directional_correlation
+from flocksweep.observables.directional_correlation import correlation_curves, dcd_metrics, directional_correlation
 from planted_flocks import turning_flock, write_planted_tracks
 
 
@@ -90,8 +90,8 @@ def test_bad_arguments_are_named():
 
 
 def test_tracks_measure_the_same_delays_as_the_arrays(tmp_path):
-    from observables.measured import measure_tracks, track_settings
-    from observables.tracks import TrackSource, load_tracks
+    from flocksweep.observables.measured import measure_tracks, track_settings
+    from flocksweep.observables.tracks import TrackSource, load_tracks
     planted, interval = [0, 2, 4, 7, 3], 0.2
     vel = write_planted_tracks(tmp_path / "f.parquet", planted, 120, interval)
     table = load_tracks(tmp_path / "f.parquet", TrackSource())
@@ -108,7 +108,7 @@ HB_SEEDS = (0, 1, 2)
 def escape_episodes(obs, group_radius: float, escape: float):
     """(the leader's index in its group, the group's velocities over the escape window) of every trigger
     event whose window [t0, t0 + escape] fits in the run and whose group has at least 3 boids."""
-    from observables.groups import groups
+    from flocksweep.observables.groups import groups
     interval = obs.record_every * obs.dt
     length = int(np.floor(escape / interval + 1e-9))
     for step, leader in obs.triggers:
@@ -131,7 +131,7 @@ def test_the_hierarchy_puts_hartman_benes_leaders_ahead_of_their_followers():
     measure tells leaders from the rest. Hartman-Benes preset, X = 0.2, 20 boids, records 0.1 s apart,
     30 s, seeds 0-2; the leader's group at the trigger (visibility sphere e); delays up to 2 s."""
     from paths import ROOT
-    from simcore import load_preset, simulate
+    from flocksweep.simcore import load_preset, simulate
     preset = load_preset(ROOT / "configs/models/hartman_benes.toml",
                          ["leadership.x=0.2", "init.n=20", "run.record_interval=0.1"])
     rng = np.random.default_rng(0)

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from observables.encounters import (PREDATOR_SCALARS, PREDATOR_SERIES, encounter_columns,
+from flocksweep.observables.encounters import (PREDATOR_SCALARS, PREDATOR_SERIES, encounter_columns,
                                              obstacle_metrics, predator_metrics, prey_metrics, remerge_time)
-from observables.metrics import METRIC_NAMES
-from observables.summary import (ENCOUNTER_FAMILIES, MetricSettings, encounter_settings, every_nth,
+from flocksweep.observables.metrics import METRIC_NAMES
+from flocksweep.observables.summary import (ENCOUNTER_FAMILIES, MetricSettings, encounter_settings, every_nth,
                                           measure_run, summary_columns)
-from simcore.obstacle_spec import Obstacle
-from simcore.schema import ConfigError
-from simcore.simulate import Observations
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.simcore.simulate import Observations
 
 SPHERE = Obstacle(kind="sphere", centre=(0.0, 0.0, 0.0), radius=2.0)
 GROUND = Obstacle(kind="plane", centre=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0))

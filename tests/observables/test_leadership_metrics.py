@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from observables.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input,
+from flocksweep.observables.leadership import (LEADERSHIP_METRIC_NAMES, follow_curve, leadership_input,
                                              leadership_metrics)
-from observables.summary import observation_leadership
-from simcore import load_preset, simulate_preset
+from flocksweep.observables.summary import observation_leadership
+from flocksweep.simcore import load_preset, simulate_preset
 from paths import ROOT
 
 PRESET = ROOT / "configs" / "models" / "hartman_benes.toml"

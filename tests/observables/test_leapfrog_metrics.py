@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from observables.metrics import (aspect_heading, elongation_heading, frame_metrics, group_shape,
+from flocksweep.observables.metrics import (aspect_heading, elongation_heading, frame_metrics, group_shape,
                                           overtake_rate)
-from observables.summary import MetricSettings, summarize_run, summary_columns
-from simcore import load_preset, simulate_preset
+from flocksweep.observables.summary import MetricSettings, summarize_run, summary_columns
+from flocksweep.simcore import load_preset, simulate_preset
 from paths import ROOT
 
 PLUS_X = np.array([1.0, 0.0, 0.0])

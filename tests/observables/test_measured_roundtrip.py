@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from observables.measured import measure_tracks, track_settings
-from observables.columns import PERCEPTION_SERIES
-from observables.metrics import METRIC_NAMES
-from observables.observation import Observation, observe_run
-from observables.summary import MetricSettings, measure_run, summarize_run, summary_columns
-from observables.tracks import TrackSource, load_tracks, tracks_frame
-from simcore import load_preset, simulate_preset
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.columns import PERCEPTION_SERIES
+from flocksweep.observables.metrics import METRIC_NAMES
+from flocksweep.observables.observation import Observation, observe_run
+from flocksweep.observables.summary import MetricSettings, measure_run, summarize_run, summary_columns
+from flocksweep.observables.tracks import TrackSource, load_tracks, tracks_frame
+from flocksweep.simcore import load_preset, simulate_preset
 from paths import ROOT
 
 

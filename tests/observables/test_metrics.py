@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from observables.metrics import mean_speed, polarization
+from flocksweep.observables.metrics import mean_speed, polarization
 
 
 def test_aligned_flock_has_polarization_one():
@@ -50,15 +50,15 @@ def test_time_series_shape_and_mean_speed():
 import pytest  # noqa: E402
 from scipy.sparse.csgraph import connected_components  # noqa: E402
 
-from observables.columns import PERCEPTION_SERIES  # noqa: E402
-from observables.groups import groups, neighbour_graph  # noqa: E402
-from observables.metrics import (  # noqa: E402
+from flocksweep.observables.columns import PERCEPTION_SERIES  # noqa: E402
+from flocksweep.observables.groups import groups, neighbour_graph  # noqa: E402
+from flocksweep.observables.metrics import (  # noqa: E402
     METRIC_NAMES, aspect_heading, binocular_share, elongation, frame_metrics, group_shape, gyration_radius,
     milling, segregation, speed_cv, summarize, visible_mean, visible_sd,
 )
-from observables.summary import default_group_radius, observation_metrics, world_box  # noqa: E402
-from simcore import load_preset, simulate_preset  # noqa: E402
-from simcore.params import ModelParams, Perception, World  # noqa: E402
+from flocksweep.observables.summary import default_group_radius, observation_metrics, world_box  # noqa: E402
+from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
+from flocksweep.simcore.params import ModelParams, Perception, World  # noqa: E402
 from paths import ROOT
 
 CONFIGS = ROOT / "configs" / "models"
@@ -333,8 +333,8 @@ def test_visible_sd_by_hand_and_against_its_numpy_twin():
 def test_visible_sd_in_the_run_row_is_its_window_mean_and_final():
     """A hand-built run: the row's visible_sd_mean is the mean over the records after the warm-up of the
     across-boid sd, visible_sd_final its last record's."""
-    from observables.summary import MetricSettings, summarize_run
-    from simcore.simulate import Observations
+    from flocksweep.observables.summary import MetricSettings, summarize_run
+    from flocksweep.simcore.simulate import Observations
 
     visible = np.array([[9, 0, 0, 0], [3, 3, 3, 3], [0, 2, 4, 2], [1, 1, 1, 5]], np.int32)   # record 0: warm-up
     pos = np.zeros((4, 4, 3))

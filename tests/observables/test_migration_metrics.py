@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from observables.migration import migration_metrics
-from observables.summary import MetricSettings, summarize_run, summary_columns
-from simcore import InitParams, simulate
-from simcore.params import ModelParams, Perception, World
-from simcore.reynolds_params import Reynolds
+from flocksweep.observables.migration import migration_metrics
+from flocksweep.observables.summary import MetricSettings, summarize_run, summary_columns
+from flocksweep.simcore import InitParams, simulate
+from flocksweep.simcore.params import ModelParams, Perception, World
+from flocksweep.simcore.reynolds_params import Reynolds
 
 
 def straight_flight(direction, speed=2.0, n=5, records=11, dt=0.5):

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from flocksweep.cli import main
-from observables.npy_file import NotData, read_npy
-from observables.track_formats import detect_format
-from observables.tracks import load_tracks, track_source
-from simcore.schema import ConfigError
+from flocksweep.observables.npy_file import NotData, read_npy
+from flocksweep.observables.track_formats import detect_format
+from flocksweep.observables.tracks import load_tracks, track_source
+from flocksweep.simcore.schema import ConfigError
 from paths import ROOT
 
 

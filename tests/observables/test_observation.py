@@ -7,15 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from observables.measured import track_settings
-from observables.metrics import frame_metrics
-from observables.observation import Observation, detect, observe_run, predicted_velocity_sd
-from observables.resample import resample
-from observables.summary import measure_run, summarize_run
-from observables.tracks import RawFlock
-from simcore import load_preset, simulate
-from simcore.schema import ConfigError
-from simcore.simulate import Observations
+from flocksweep.observables.measured import track_settings
+from flocksweep.observables.metrics import frame_metrics
+from flocksweep.observables.observation import Observation, detect, observe_run, predicted_velocity_sd
+from flocksweep.observables.resample import resample
+from flocksweep.observables.summary import measure_run, summarize_run
+from flocksweep.observables.tracks import RawFlock
+from flocksweep.simcore import load_preset, simulate
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.simcore.simulate import Observations
 from paths import ROOT
 
 HOLLAND = ROOT / "configs/models/holland.toml"

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from observables.metrics import frame_metrics
-from observables.summary import MetricSettings, summarize_run
-from simcore import load_preset, simulate_preset
+from flocksweep.observables.metrics import frame_metrics
+from flocksweep.observables.summary import MetricSettings, summarize_run
+from flocksweep.simcore import load_preset, simulate_preset
 from paths import ROOT
 
 

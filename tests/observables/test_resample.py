@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from observables.metrics import METRIC_NAMES, frame_metrics
-from observables.observed import ObservedFlock, present_metrics
-from observables.resample import MAX_RECORD_VALUES, check_size, record_grid, resample, velocity_steps
-from observables.summary import MetricSettings, measure_run
-from observables.tracks import RawFlock
+from flocksweep.observables.metrics import METRIC_NAMES, frame_metrics
+from flocksweep.observables.observed import ObservedFlock, present_metrics
+from flocksweep.observables.resample import MAX_RECORD_VALUES, check_size, record_grid, resample, velocity_steps
+from flocksweep.observables.summary import MetricSettings, measure_run
+from flocksweep.observables.tracks import RawFlock
 
 
 def raw_from(times_per_id, position, name="A", vel=None) -> RawFlock:

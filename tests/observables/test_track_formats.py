@@ -7,14 +7,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from observables.columns import PERCEPTION_SERIES
-from observables.measured import measure_tracks, track_settings
-from observables.observation import Observation, observe_run
-from observables.summary import MetricSettings, measure_run, summarize_run
-from observables.track_formats import detect_format, project_wgs84
-from observables.tracks import TrackSource, load_tracks, track_source
-from simcore import load_preset, simulate_preset
-from simcore.schema import ConfigError
+from flocksweep.observables.columns import PERCEPTION_SERIES
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.observation import Observation, observe_run
+from flocksweep.observables.summary import MetricSettings, measure_run, summarize_run
+from flocksweep.observables.track_formats import detect_format, project_wgs84
+from flocksweep.observables.tracks import TrackSource, load_tracks, track_source
+from flocksweep.simcore import load_preset, simulate_preset
+from flocksweep.simcore.schema import ConfigError
 from paths import ROOT
 
 RADIUS = 4.0

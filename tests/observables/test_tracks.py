@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from observables.measured import measure_tracks, track_settings
-from observables.tracks import TrackSource, load_tracks, raw_flocks, track_source
-from observables.validation import TrackError, check_flock, infer_interval, issues_table
-from simcore.schema import ConfigError
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.tracks import TrackSource, load_tracks, raw_flocks, track_source
+from flocksweep.observables.validation import TrackError, check_flock, infer_interval, issues_table
+from flocksweep.simcore.schema import ConfigError
 
 
 def straight_tracks(n: int = 4, samples: int = 11, interval: float = 0.5, flocks=("A",), speed=(1.0, 0.0, 0.0)):

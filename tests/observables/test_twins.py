@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import reference_metrics as ref
-from observables import kernels
-from observables.leadership import follow_curve, leadership_metrics
-from observables.metrics import frame_metrics, milling, segregation
-from simcore.rng import hash4, uniform01
+from flocksweep.observables import kernels
+from flocksweep.observables.leadership import follow_curve, leadership_metrics
+from flocksweep.observables.metrics import frame_metrics, milling, segregation
+from flocksweep.simcore.rng import hash4, uniform01
 
 RTOL, ATOL = 1e-9, 1e-12
 CASES = [(seed, box) for seed in range(6) for box in (None, 30.0)]

@@ -16,11 +16,11 @@ import pytest
 
 import reference_boidspp as twin
 from conftest import flock_state
-from simcore import advance, simulate, simulate_batch
-from simcore.boidspp_params import BoidsPP
-from simcore.obstacle_spec import Obstacle
-from simcore.params import InitParams, ModelParams, Perception, Vehicle, World, model_dict
-from simcore.schema import ConfigError, build
+from flocksweep.simcore import advance, simulate, simulate_batch
+from flocksweep.simcore.boidspp_params import BoidsPP
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.params import InitParams, ModelParams, Perception, Vehicle, World, model_dict
+from flocksweep.simcore.schema import ConfigError, build
 
 TOL = 1e-9
 N = 24
@@ -209,7 +209,7 @@ def test_bad_tables_name_the_key(table, extra, key):
 
 
 def lone_boid(x=0.0, speed=5.0):
-    from simcore.state import State, frame_from_forward
+    from flocksweep.simcore.state import State, frame_from_forward
 
     fwd = np.array([[1.0, 0.0, 0.0]])
     up, side = frame_from_forward(fwd)
@@ -218,8 +218,8 @@ def lone_boid(x=0.0, speed=5.0):
 
 
 def test_a_boid_heading_for_a_sphere_goes_round_it_only_with_avoidance():
-    from simcore.obstacle_spec import pack_obstacles
-    from simcore.obstacles import clearances
+    from flocksweep.simcore.obstacle_spec import pack_obstacles
+    from flocksweep.simcore.obstacles import clearances
 
     ball = (Obstacle(kind="sphere", centre=(12.0, 0.0, 0.0), radius=2.0),)
     table, kinds = pack_obstacles(ball)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import importlib
 import re
 
-simulate_module = importlib.import_module("simcore.simulate")   # the module (simcore.simulate is the function)
+simulate_module = importlib.import_module("flocksweep.simcore.simulate")   # the module (simcore.simulate is the function)
 
 
 def test_each_run_loop_compile_is_announced_with_an_estimate_and_timed(capsys, monkeypatch):

@@ -13,15 +13,15 @@ from typing import Literal
 import numpy as np
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from observables.summary import MetricSettings, summary_columns
-from simcore import ConfigError, load_preset, preset_from_dict
-from simcore.params import KEY_ALIASES, canonical_key, read_toml
-from simcore.schema import build, resolve_path, set_dotted
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand
-from sweeps.files import json_ready, write_json
-from sweeps.seeds import ECDF_BAND, SBCStream, Tag
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.observables.summary import MetricSettings, summary_columns
+from flocksweep.simcore import ConfigError, load_preset, preset_from_dict
+from flocksweep.simcore.params import KEY_ALIASES, canonical_key, read_toml
+from flocksweep.simcore.schema import build, resolve_path, set_dotted
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.files import json_ready, write_json
+from flocksweep.sweeps.seeds import ECDF_BAND, SBCStream, Tag
 from paths import ROOT
 
 MODELS = ROOT / "configs" / "models"

@@ -16,13 +16,13 @@ import numba
 import numpy as np
 import pytest
 
-import simcore
+import flocksweep.simcore as simcore
 from conftest import make_model
-from simcore import InitParams, initial_state, simulate, simulate_batch
-from simcore.params import HOLLAND_TABLE_1, PatternEntry, Patterns
-from simcore.rng import run_streams
-from simcore.simulate import _each_on_threads
-from simcore.state import pattern_counts
+from flocksweep.simcore import InitParams, initial_state, simulate, simulate_batch
+from flocksweep.simcore.params import HOLLAND_TABLE_1, PatternEntry, Patterns
+from flocksweep.simcore.rng import run_streams
+from flocksweep.simcore.simulate import _each_on_threads
+from flocksweep.simcore.state import pattern_counts
 from paths import TESTS
 
 DT = 1 / 60

@@ -26,20 +26,20 @@ class Count(event.Listener):
         func = ev.data["dispatcher"].py_func
         runs[-1][f"{func.__module__}.{func.__qualname__}"] += 1
 event.register("numba:compile", Count())
-from simcore import load_preset, simulate_preset
+from flocksweep.simcore import load_preset, simulate_preset
 for name in sys.argv[2:]:
     runs.append(collections.Counter())
     preset = load_preset(sys.argv[1] + "/configs/models/" + name, ["init.n=12", "run.duration=0.1"])
     simulate_preset(preset, 1)
-print(json.dumps([{k: v for k, v in run.items() if k.startswith("simcore.")} for run in runs]))
+print(json.dumps([{k: v for k, v in run.items() if k.startswith("flocksweep.simcore.")} for run in runs]))
 """
 
-RUN_LOOP = "simcore.kernel.run_model"
-PERCEIVERS = {kind: f"simcore.perception.perceive_{kind}" for kind in ("sphere", "opensteer", "binocular",
+RUN_LOOP = "flocksweep.simcore.kernel.run_model"
+PERCEIVERS = {kind: f"flocksweep.simcore.perception.perceive_{kind}" for kind in ("sphere", "opensteer", "binocular",
                                                                         "topological")}
-NEAREST, OCCLUDE = "simcore.topological.nearest", "simcore.occlusion.occlude"
-OTHER_DYNAMICS = ("simcore.hartman_benes.", "simcore.reynolds87.", "simcore.boidspp.", "simcore.couzin2002.",
-                  "simcore.vicsek.", "simcore.headings.")
+NEAREST, OCCLUDE = "flocksweep.simcore.topological.nearest", "flocksweep.simcore.occlusion.occlude"
+OTHER_DYNAMICS = tuple(f"flocksweep.simcore.{name}." for name in
+                       ("hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek", "headings"))
 
 
 def compiles(cache, *models) -> tuple[list[dict], str]:
@@ -56,14 +56,14 @@ def compiles(cache, *models) -> tuple[list[dict], str]:
 def test_a_run_compiles_its_own_perception_kind_once_and_the_notice_is_printed_once(tmp_path):
     cache = tmp_path / "cache"
     (holland, opensteer), stderr = compiles(cache, "holland.toml", "opensteer.toml")
-    assert {RUN_LOOP, PERCEIVERS["binocular"], OCCLUDE, "simcore.opensteer.sense",
-            "simcore.opensteer.move"} <= set(holland)
+    assert {RUN_LOOP, PERCEIVERS["binocular"], OCCLUDE, "flocksweep.simcore.opensteer.sense",
+            "flocksweep.simcore.opensteer.move"} <= set(holland)
     assert not [name for name in holland if name.startswith(OTHER_DYNAMICS)]
     assert set(holland).isdisjoint({PERCEIVERS["sphere"], PERCEIVERS["opensteer"], PERCEIVERS["topological"],
                                     NEAREST})
     # the second kind adds its run loop, its perceiver and the perceiver's own helper (an @llvm_inline,
     # compiled on its own), nothing else (the other leaves are shared)
-    assert opensteer == {RUN_LOOP: 1, PERCEIVERS["opensteer"]: 1, "simcore.perception._opensteer": 1}
+    assert opensteer == {RUN_LOOP: 1, PERCEIVERS["opensteer"]: 1, "flocksweep.simcore.perception._opensteer": 1}
     assert {name: count for name, count in holland.items() if count != 1} == {}
     assert stderr.count("compiling the simulation kernels") == 1
 

@@ -18,10 +18,10 @@ import math
 import numpy as np
 import pytest
 
-from simcore import State
-from simcore.params import ModelParams, Perception
-from simcore.probe import perceived
-from simcore.state import frame_from_forward
+from flocksweep.simcore import State
+from flocksweep.simcore.params import ModelParams, Perception
+from flocksweep.simcore.probe import perceived
+from flocksweep.simcore.state import frame_from_forward
 
 LEFT, RIGHT, BOTH = 1, 2, 3
 SEP, ALI, COH = 1, 2, 4  # rule mask bits: separation, alignment, cohesion

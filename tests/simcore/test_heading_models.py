@@ -18,12 +18,12 @@ from scipy import stats
 import reference_headings as ref
 from conftest import state_from, unit_vectors
 from paths import ROOT
-from simcore import InitParams, advance, simulate, simulate_batch
-from simcore.couzin_params import Couzin
-from simcore.params import ModelParams, Perception, World, model_dict
-from simcore.schema import ConfigError
-from simcore.state import State
-from simcore.vicsek_params import Vicsek
+from flocksweep.simcore import InitParams, advance, simulate, simulate_batch
+from flocksweep.simcore.couzin_params import Couzin
+from flocksweep.simcore.params import ModelParams, Perception, World, model_dict
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.simcore.state import State
+from flocksweep.simcore.vicsek_params import Vicsek
 
 FIELDS = ref.STATE_KEYS
 N_STEPS = 5
@@ -219,7 +219,7 @@ def test_model_level_checks():
         World(dimensions=4)
     with pytest.raises(ConfigError, match="perception.kind"):
         ModelParams(dynamics="vicsek")
-    from simcore.params import Leadership
+    from flocksweep.simcore.params import Leadership
     with pytest.raises(ConfigError, match="leadership.x"):
         ModelParams(dynamics="couzin2002", perception=Perception(kind="sphere"), leadership=Leadership(x=0.5))
     with pytest.raises(ValueError, match="z = "):
@@ -241,8 +241,8 @@ def test_canonical_form_and_sphere():
 @pytest.mark.parametrize("preset, key", [("vicsek.toml", "noise.kappa=10"), ("couzin2002_swarm.toml", "cruise.speed=3"),
                                          ("couzin2002_torus.toml", "noise.speed_sd=0.1")])
 def test_the_shared_noise_and_cruise_are_refused_where_the_model_has_its_own(preset, key):
-    from simcore import load_preset
-    from simcore.schema import ConfigError
+    from flocksweep.simcore import load_preset
+    from flocksweep.simcore.schema import ConfigError
 
     with pytest.raises(ConfigError, match=key.split(".")[0]):
         load_preset(ROOT / "configs" / "models" / preset, [key])

@@ -14,10 +14,10 @@ import pytest
 
 from conftest import unit_vectors
 from paths import ROOT
-from simcore import ConfigError, advance, load_preset, simulate_preset
-from simcore.params import preset_from_dict
-from simcore.rng import run_streams
-from simcore.state import State
+from flocksweep.simcore import ConfigError, advance, load_preset, simulate_preset
+from flocksweep.simcore.params import preset_from_dict
+from flocksweep.simcore.rng import run_streams
+from flocksweep.simcore.state import State
 from flocksweep.cli import main
 
 OPENSTEER = ROOT / "configs" / "models" / "opensteer.toml"
@@ -44,7 +44,7 @@ def test_run_starts_from_the_file_state_exactly(tmp_path):
     assert np.array_equal(obs.pos[0], arrays["pos"])
     assert np.array_equal(obs.vel[0], arrays["fwd"] * arrays["speed"][:, None])
     # the same as advancing that state by hand (frame from the heading, as a random start builds it)
-    from simcore.state import frame_from_forward
+    from flocksweep.simcore.state import frame_from_forward
     up, side = frame_from_forward(arrays["fwd"])
     state = State(pos=arrays["pos"], vel=arrays["fwd"] * arrays["speed"][:, None], fwd=arrays["fwd"], up=up,
                   side=side, acc=np.zeros((30, 3)), pattern=np.zeros(30, np.uint32))
@@ -61,7 +61,7 @@ def test_up_and_acceleration_are_used_as_given(tmp_path):
     acc = rng.normal(size=(10, 3))
     write_state(tmp_path / "s.npz", n=10, fwd=fwd, up=up, acc=acc)
     preset = preset_with(tmp_path / "s.npz", "init.n=10", "run.duration=0.016666666666666666")
-    from simcore.state import initial_state
+    from flocksweep.simcore.state import initial_state
     state = initial_state(preset.init, preset.model.patterns, np.random.default_rng(0))
     assert np.array_equal(state.up, up) and np.array_equal(state.acc, acc) and np.array_equal(state.fwd, fwd)
     np.testing.assert_allclose(state.side, np.cross(fwd, up) / np.linalg.norm(np.cross(fwd, up), axis=1)[:, None])

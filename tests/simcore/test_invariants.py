@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import flock_state, make_model, state_from
-from simcore import InitParams, advance, simulate
-from simcore.params import Steering, Vehicle
-from simcore.probe import perceived, steering
+from flocksweep.simcore import InitParams, advance, simulate
+from flocksweep.simcore.params import Steering, Vehicle
+from flocksweep.simcore.probe import perceived, steering
 
 DT = 1 / 60
 KINDS = ("sphere", "opensteer", "binocular")

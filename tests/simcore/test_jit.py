@@ -9,7 +9,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from simcore.jit import call_with_literals, specialise
+from flocksweep.simcore.jit import call_with_literals, specialise
 
 
 @numba.njit(cache=True)

@@ -16,8 +16,8 @@ import pytest
 
 import reference
 from conftest import flock_state, make_model
-from simcore import advance
-from simcore.probe import perceived
+from flocksweep.simcore import advance
+from flocksweep.simcore.probe import perceived
 
 RULE_BITS = {"separation": 1, "alignment": 2, "cohesion": 4}
 RTOL = ATOL = 1e-12

@@ -10,9 +10,9 @@ import math
 import numpy as np
 
 from conftest import make_model
-from simcore.jit import leaf
-from simcore.layout import FLOAT_SLOTS, HB, INT_SLOTS, OS, STEER_WIDTH, F, I, pack
-from simcore.params import Gains, Leadership, ModelParams, Perception, Steering, Vehicle
+from flocksweep.simcore.jit import leaf
+from flocksweep.simcore.layout import FLOAT_SLOTS, HB, INT_SLOTS, OS, STEER_WIDTH, F, I, pack
+from flocksweep.simcore.params import Gains, Leadership, ModelParams, Perception, Steering, Vehicle
 
 
 def test_enums_follow_the_declarations():

@@ -21,11 +21,11 @@ from scipy.stats import norm
 
 import reference_hb as ref_hb
 from conftest import flock_state, state_from
-from simcore import advance, load_preset, preset_from_dict, simulate, simulate_batch
-from simcore.layout import pack
-from simcore.leadership import decide, profile
-from simcore.params import read_toml
-from simcore.state import FIELDS
+from flocksweep.simcore import advance, load_preset, preset_from_dict, simulate, simulate_batch
+from flocksweep.simcore.layout import pack
+from flocksweep.simcore.leadership import decide, profile
+from flocksweep.simcore.params import read_toml
+from flocksweep.simcore.state import FIELDS
 from paths import ROOT
 
 MODELS = ROOT / "configs" / "models"

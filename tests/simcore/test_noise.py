@@ -20,11 +20,11 @@ from scipy import stats
 import reference_noise as twin
 from conftest import state_from
 from paths import ROOT
-from simcore import advance, load_preset, simulate, simulate_batch
-from simcore.layout import F, I, pack
-from simcore.noise import drive, store_draws, turn_in_plane, vmf_turn
-from simcore.rng import run_streams
-from simcore.schema import ConfigError
+from flocksweep.simcore import advance, load_preset, simulate, simulate_batch
+from flocksweep.simcore.layout import F, I, pack
+from flocksweep.simcore.noise import drive, store_draws, turn_in_plane, vmf_turn
+from flocksweep.simcore.rng import run_streams
+from flocksweep.simcore.schema import ConfigError
 
 Z = 5.0
 DT = 1 / 60

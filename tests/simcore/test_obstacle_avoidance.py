@@ -16,8 +16,8 @@ import pytest
 
 import reference_obstacles as ref
 from obstacle_scenes import box, cylinder, frame_from, packed, plane, random_obstacle, random_rays, sphere, unit
-from simcore import obstacle_avoidance as avoid
-from simcore import silhouettes as sil
+from flocksweep.simcore import obstacle_avoidance as avoid
+from flocksweep.simcore import silhouettes as sil
 
 B, M = 0.5, 1.0
 S2 = math.sqrt(2.0)
@@ -316,8 +316,8 @@ def test_fan_choice_agrees_with_brute_force_in_random_scenes():
 ALLOCATION_PROBE = """
 import numba as nb
 from numba.core.runtime import rtsys
-from simcore import obstacle_avoidance as avoid, obstacles as geo, silhouettes as sil
-from simcore.obstacle_spec import Obstacle, pack_obstacles
+from flocksweep.simcore import obstacle_avoidance as avoid, obstacles as geo, silhouettes as sil
+from flocksweep.simcore.obstacle_spec import Obstacle, pack_obstacles
 
 table, kinds = pack_obstacles((
     Obstacle("box", centre=(10, 0, 0), half_extents=(1, 1, 1)),

@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from simcore.obstacle_spec import (COLUMN_NAMES, KIND_BOX, KIND_CYLINDER, KIND_PLANE, KIND_SPHERE, OBS_AX, OBS_AZ,
+from flocksweep.simcore.obstacle_spec import (COLUMN_NAMES, KIND_BOX, KIND_CYLINDER, KIND_PLANE, KIND_SPHERE, OBS_AX, OBS_AZ,
                                    OBS_BOUND, OBS_CX, OBS_CZ, OBS_HALF_LENGTH, OBS_HX, OBS_HZ, OBS_NX, OBS_NZ,
                                    OBS_RADIUS, OBSTACLE_COLUMNS, OBSTACLE_KINDS, Obstacle, canonical_obstacles,
                                    obstacle_from_dict, obstacles_from_dicts, pack_obstacles)
-from simcore.schema import ConfigError, build
+from flocksweep.simcore.schema import ConfigError, build
 
 GOOD = [
     {"kind": "sphere", "centre": [1, 2, 3], "radius": 2},
@@ -147,7 +147,7 @@ def test_no_obstacles_pack_to_empty_arrays_of_the_right_shape():
 
 def test_a_preset_without_obstacles_keeps_its_canonical_form():
     """world.obstacles is left out of the canonical dict when empty, so existing run ids stay."""
-    from simcore.params import load_preset
+    from flocksweep.simcore.params import load_preset
     from paths import ROOT
 
     preset = load_preset(ROOT / "configs/models/opensteer.toml")
@@ -156,8 +156,8 @@ def test_a_preset_without_obstacles_keeps_its_canonical_form():
 
 
 def test_obstacles_on_a_model_that_does_not_avoid_them_are_an_error():
-    from simcore.params import preset_from_dict
-    from simcore.schema import ConfigError
+    from flocksweep.simcore.params import preset_from_dict
+    from flocksweep.simcore.schema import ConfigError
 
     with pytest.raises(ConfigError, match=r"world\.obstacles.*'opensteer'"):
         preset_from_dict({"world": {"obstacles": [{"kind": "sphere", "centre": [0, 0, 9], "radius": 2.0}]}})

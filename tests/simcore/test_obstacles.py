@@ -16,7 +16,7 @@ import pytest
 
 import reference_obstacles as ref
 from obstacle_scenes import box, cylinder, packed, plane, random_obstacle, random_rays, sphere
-from simcore import obstacles as geo
+from flocksweep.simcore import obstacles as geo
 
 B = 0.5
 SPHERE = sphere((10, 0, 0), 1.0)

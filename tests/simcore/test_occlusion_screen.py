@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from conftest import make_model, state_from, unit_vectors
-from simcore.occlusion import ALL_PAIRS_MAX, CAP, SCREEN_MIN
-from simcore.probe import perceived
+from flocksweep.simcore.occlusion import ALL_PAIRS_MAX, CAP, SCREEN_MIN
+from flocksweep.simcore.probe import perceived
 from test_search import brute_force_hidden
 
 BODY = 0.5

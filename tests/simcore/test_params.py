@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from simcore import ConfigError, Preset, load_preset, preset_from_dict
-from simcore.params import InitParams, ModelParams, Perception, RunSettings
+from flocksweep.simcore import ConfigError, Preset, load_preset, preset_from_dict
+from flocksweep.simcore.params import InitParams, ModelParams, Perception, RunSettings
 from paths import ROOT
 
 MODELS = ROOT / "configs" / "models"

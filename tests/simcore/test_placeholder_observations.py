@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from paths import ROOT
-from simcore import load_preset, placeholder_observations, simulate
+from flocksweep.simcore import load_preset, placeholder_observations, simulate
 
 MODELS = sorted((ROOT / "configs" / "models").glob("*.toml"))
 ARRAYS = ("times", "pos", "vel", "visible", "binocular", "leader", "triggers", "pattern", "predator", "prey",
@@ -69,7 +69,7 @@ class Count(event.Listener):
     def on_end(self, ev):
         pass
 event.register("numba:compile", Count())
-from simcore import load_preset, placeholder_observations
+from flocksweep.simcore import load_preset, placeholder_observations
 preset = load_preset(sys.argv[1] + "/configs/models/hartman_benes.toml", ["leadership.x=4.0"])
 obs = placeholder_observations(preset.model, preset.init, 1, 1.0, preset.run.dt, 6)
 print(len(starts), obs.pos.shape[0])

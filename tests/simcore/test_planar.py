@@ -29,15 +29,15 @@ import reference_noise as ref_noise
 import reference_reynolds as ref_rey
 from conftest import flock_state
 from paths import ROOT
-from simcore import advance, load_preset, simulate, simulate_batch
-from simcore.boidspp_params import BoidsPP
-from simcore.layout import F, pack
-from simcore.noise import drive
-from simcore.obstacle_spec import Obstacle
-from simcore.params import ModelParams, Patterns, Perception, World
-from simcore.reynolds_params import Reynolds
-from simcore.schema import ConfigError, build
-from simcore.state import State, planar_frame
+from flocksweep.simcore import advance, load_preset, simulate, simulate_batch
+from flocksweep.simcore.boidspp_params import BoidsPP
+from flocksweep.simcore.layout import F, pack
+from flocksweep.simcore.noise import drive
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.params import ModelParams, Patterns, Perception, World
+from flocksweep.simcore.reynolds_params import Reynolds
+from flocksweep.simcore.schema import ConfigError, build
+from flocksweep.simcore.state import State, planar_frame
 
 MODELS = ROOT / "configs" / "models"
 FIELDS = ("pos", "vel", "fwd", "up", "side", "acc")
@@ -356,8 +356,8 @@ def test_what_lies_out_of_the_plane_is_refused_by_name():
 
 def test_planar_start_has_patterns_only_in_pattern_mode():
     flat = load_preset(MODELS / "holland_pattern.toml", ["world.dimensions=2", "init.n=50"])
-    from simcore.rng import run_streams
-    from simcore.state import initial_state
+    from flocksweep.simcore.rng import run_streams
+    from flocksweep.simcore.state import initial_state
     state = initial_state(flat.init, flat.model.patterns, run_streams(3)[0], 2)
     assert_in_plane(state)
     assert len(set(state.pattern.tolist())) > 1

@@ -23,14 +23,14 @@ import pytest
 import reference
 from conftest import flock_state
 from paths import ROOT
-from simcore import ConfigError, advance, load_preset, preset_from_dict, simulate, simulate_batch
-from simcore import hooks
-from simcore import plugin as plugins
+from flocksweep.simcore import ConfigError, advance, load_preset, preset_from_dict, simulate, simulate_batch
+from flocksweep.simcore import hooks
+from flocksweep.simcore import plugin as plugins
 
 COUZIN = ROOT / "examples" / "couzin_like.toml"
 PROBE = '''
 from dataclasses import dataclass
-from simcore.plugin import PluginParams, parameter
+from flocksweep.simcore.plugin import PluginParams, parameter
 
 
 @dataclass(frozen=True)
@@ -144,9 +144,9 @@ def test_a_stored_spec_whose_module_changed_is_refused(module_dir):
 
 
 def test_the_run_id_follows_the_module_source():
-    from sweeps.identity import run_id
-    from observables.summary import MetricSettings
-    from sweeps.config import Storage
+    from flocksweep.sweeps.identity import run_id
+    from flocksweep.observables.summary import MetricSettings
+    from flocksweep.sweeps.config import Storage
 
     spec = couzin().to_dict()
     changed = {**spec, "plugin_sha256": "f" * 64}
@@ -241,7 +241,7 @@ def test_runs_are_bit_identical_alone_batched_and_threaded():
 STALE_RUN = textwrap.dedent("""
     import sys
     import numpy as np
-    from simcore import load_preset, simulate
+    from flocksweep.simcore import load_preset, simulate
     preset = load_preset(sys.argv[1]).replace({"dynamics": "plugin_stale_probe", "plugin": {},
                                                "init.n": 6, "perception.radius": 1.0})
     obs = simulate(preset.model, preset.init, 1, 2.0, preset.run.dt, 10)

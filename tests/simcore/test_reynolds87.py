@@ -17,12 +17,12 @@ import pytest
 
 import reference_reynolds as ref
 from conftest import flock_state, state_from, unit_vectors
-from simcore import InitParams, advance, simulate, simulate_batch
-from simcore.obstacle_spec import Obstacle
-from simcore.params import ModelParams, Perception, World, model_dict
-from simcore.reynolds87 import ALLOC_PRIORITY, ALLOC_PRIORITY_MAGNITUDE, ALLOC_WEIGHTED_SUM, allocate
-from simcore.reynolds_params import Reynolds
-from simcore.schema import ConfigError
+from flocksweep.simcore import InitParams, advance, simulate, simulate_batch
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.params import ModelParams, Perception, World, model_dict
+from flocksweep.simcore.reynolds87 import ALLOC_PRIORITY, ALLOC_PRIORITY_MAGNITUDE, ALLOC_WEIGHTED_SUM, allocate
+from flocksweep.simcore.reynolds_params import Reynolds
+from flocksweep.simcore.schema import ConfigError
 
 FIELDS = ("pos", "vel", "fwd", "up", "side", "acc")
 N_STEPS = 6
@@ -230,7 +230,7 @@ def test_bad_reynolds_keys_are_named(keys, key):
 def test_model_level_checks():
     with pytest.raises(ConfigError, match="perception.kind"):
         ModelParams(dynamics="reynolds87")
-    from simcore.params import Leadership, Patterns
+    from flocksweep.simcore.params import Leadership, Patterns
     with pytest.raises(ConfigError, match="leadership.x"):
         ModelParams(dynamics="reynolds87", perception=Perception(kind="sphere"), leadership=Leadership(x=0.5))
     with pytest.raises(ConfigError, match="patterns.enabled"):

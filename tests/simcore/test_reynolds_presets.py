@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from paths import ROOT
-from simcore import load_preset, simulate_preset
-from simcore.obstacle_spec import pack_obstacles
-from simcore.obstacles import clearances
+from flocksweep.simcore import load_preset, simulate_preset
+from flocksweep.simcore.obstacle_spec import pack_obstacles
+from flocksweep.simcore.obstacles import clearances
 
 OPEN = ROOT / "configs/models/reynolds87.toml"
 COURSE = ROOT / "configs/models/reynolds87_obstacles.toml"

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from simcore.rng import (STREAM_LEADERSHIP, STREAM_RANDOM_FORCE, STREAM_TARGETS, normal, run_streams,
+from flocksweep.simcore.rng import (STREAM_LEADERSHIP, STREAM_RANDOM_FORCE, STREAM_TARGETS, normal, run_streams,
                          seed_sequence, uniform01)
 
 N = 100_000

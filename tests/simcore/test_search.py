@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from conftest import flock_state, make_model, state_from, unit_vectors
-from simcore import advance, load_preset, simulate
-from simcore.kernel import AUTO_MIN_SAVING
-from simcore.occlusion import ALL_PAIRS_MAX, GRID_3D_MIN
-from simcore.params import InitParams, Leadership, ModelParams, Perception, World
-from simcore.probe import perceived
+from flocksweep.simcore import advance, load_preset, simulate
+from flocksweep.simcore.kernel import AUTO_MIN_SAVING
+from flocksweep.simcore.occlusion import ALL_PAIRS_MAX, GRID_3D_MIN
+from flocksweep.simcore.params import InitParams, Leadership, ModelParams, Perception, World
+from flocksweep.simcore.probe import perceived
 
 N = 160
 STEPS = 6
@@ -190,7 +190,7 @@ def test_leadership_triggers_are_recorded_in_boid_order_when_threaded():
 def test_every_sorting_path_gives_all_pairs_order(n, radius):
     """Neighbour lists longer than the insertion-sort limit are ordered through a bitmap (small flocks) or a
     Shell sort of keys (big ones): both give the all-pairs lists, bit for bit."""
-    from simcore.neighbours import BITMAP_SPAN, INSERTION_SORT_MAX
+    from flocksweep.simcore.neighbours import BITMAP_SPAN, INSERTION_SORT_MAX
     state = flock_state(3, n, ball_radius=7.0 * (n / 160) ** (1 / 3))
     lists = [perceived(make_model("sphere", radius=radius, search=s), state, i) for s in ("grid", "all_pairs")
              for i in range(0, n, n // 20)]
@@ -210,9 +210,9 @@ def test_a_boid_leaving_the_grid_mid_step_hands_the_rest_of_the_step_to_all_pair
     """Sequential order: boid 0 moves first, past the grid's coordinate limit, so the grid is dropped for
     the rest of the step; boids 1.. then search all pairs from the mirrored positions (simcore.grid.mirror),
     which must hold everyone's current position: the run equals the all-pairs run bit for bit."""
-    from simcore.grid import CELL_MARGIN, MAX_CELL_COORD
-    from simcore.layout import pack
-    from simcore.perception import query_radius
+    from flocksweep.simcore.grid import CELL_MARGIN, MAX_CELL_COORD
+    from flocksweep.simcore.layout import pack
+    from flocksweep.simcore.perception import query_radius
 
     state = flock_state(21, N, ball_radius=BALL)
     grid = model_for(kind, "open", "sequential", "grid")

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import make_model, state_from
-from simcore import ConfigError, InitParams, simulate
-from simcore.params import Leadership, ModelParams, Perception
-from simcore.probe import perceived
+from flocksweep.simcore import ConfigError, InitParams, simulate
+from flocksweep.simcore.params import Leadership, ModelParams, Perception
+from flocksweep.simcore.probe import perceived
 
 EAST = [1.0, 0.0, 0.0]
 

@@ -8,10 +8,10 @@ import typing
 import pytest
 
 from paths import ROOT
-from simcore import load_preset
-from simcore.params import InitParams, ModelParams, RunSettings, preset_from_dict, read_toml
-from simcore.schema import ConfigError
-from simcore.units import LENGTH_POWER, NO_LENGTH, REFUSED
+from flocksweep.simcore import load_preset
+from flocksweep.simcore.params import InitParams, ModelParams, RunSettings, preset_from_dict, read_toml
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.simcore.units import LENGTH_POWER, NO_LENGTH, REFUSED
 
 MODELS = ROOT / "configs" / "models"
 
@@ -116,8 +116,8 @@ def test_overrides_are_in_the_files_units():
 def test_the_pigeon_preset_flies_as_docs_model_md_says():
     """docs/model.md section 12.4: one group at about 14 m/s, 1.7 m apart, polarization about 0.997 (two
     seeds, the first 10 s left out; bounds a little wider than the 8 seeds' range stated there)."""
-    from observables.summary import MetricSettings, summarize_run
-    from simcore import simulate_batch
+    from flocksweep.observables.summary import MetricSettings, summarize_run
+    from flocksweep.simcore import simulate_batch
 
     p = load_preset(MODELS / "pigeon.toml")
     assert p.units.body_length_m == 0.3 and p.model.cruise.speed == pytest.approx(14.0 / 0.3)

@@ -3,10 +3,10 @@ reynolds.migration_direction and the Boids++ prey's target centre alike."""
 import numpy as np
 import pytest
 
-from simcore.boidspp_params import Prey
-from simcore.obstacle_spec import Obstacle
-from simcore.reynolds_params import Reynolds
-from simcore.schema import ConfigError, check_vector3, unit_vector3
+from flocksweep.simcore.boidspp_params import Prey
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.reynolds_params import Reynolds
+from flocksweep.simcore.schema import ConfigError, check_vector3, unit_vector3
 
 
 @pytest.mark.parametrize("bad, message", [(None, "list of 3 numbers"), ([1, 2], "list of 3 numbers"),

@@ -16,11 +16,11 @@ import pytest
 
 from malformed import CASES, QUICK, attempt
 from paths import ROOT
-from simcore import load_preset, simulate
-from simcore.schema import ConfigError, apply_overrides, read_toml
-from sweeps import budget
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.design import expand
+from flocksweep.simcore import load_preset, simulate
+from flocksweep.simcore.schema import ConfigError, apply_overrides, read_toml
+from flocksweep.sweeps import budget
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import expand
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
 BY_NAME = {case.name: case for case in CASES}

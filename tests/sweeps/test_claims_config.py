@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from simcore.schema import ConfigError
-from sweeps.claims import claims_from_records, read_claims_file, table_columns, with_claims
-from sweeps.config import RESERVED_COLUMNS, load_sweep, sweep_from_dict
-from sweeps.expressions import ExpressionError, parse
-from sweeps.runner import run_sweep
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.claims import claims_from_records, read_claims_file, table_columns, with_claims
+from flocksweep.sweeps.config import RESERVED_COLUMNS, load_sweep, sweep_from_dict
+from flocksweep.sweeps.expressions import ExpressionError, parse
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -10,9 +10,9 @@ import numba
 import pytest
 
 from paths import ROOT
-from simcore import load_preset
+from flocksweep.simcore import load_preset
 from flocksweep.cli import main
-from sweeps.compile import CompileCounter, group_models, shipped_models
+from flocksweep.sweeps.compile import CompileCounter, group_models, shipped_models
 
 MODELS = ROOT / "configs" / "models"
 
@@ -70,7 +70,7 @@ def test_a_bad_preset_is_named_before_anything_compiles(tmp_path, capsys):
 PROBE = textwrap.dedent("""
     import glob, sys
     from numba.core import event as numba_event
-    from sweeps.compile import CompileCounter, _simulations, measure_all
+    from flocksweep.sweeps.compile import CompileCounter, _simulations, measure_all
     counter = CompileCounter()
     with numba_event.install_listener("numba:compile", counter):
         runs = []

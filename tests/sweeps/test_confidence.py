@@ -5,9 +5,9 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from analysis.reports.stats import cell_summary
-from sweeps.confidence import ci_halfwidth
-from sweeps.runner import halfwidths
+from flocksweep.analysis.reports.stats import cell_summary
+from flocksweep.sweeps.confidence import ci_halfwidth
+from flocksweep.sweeps.runner import halfwidths
 
 
 def test_the_half_width_is_student_t_and_infinite_below_two_values():

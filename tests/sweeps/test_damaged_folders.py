@@ -22,12 +22,12 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from paths import ROOT
-from sweeps import files, runner, store as store_module, trajectory, worker
+from flocksweep.sweeps import files, runner, store as store_module, trajectory, worker
 from flocksweep.cli import main
-from sweeps.config import load_sweep
-from sweeps.files import WriteFailed
-from sweeps.runner import run_sweep, status
-from sweeps.store import ResultsStore
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.files import WriteFailed
+from flocksweep.sweeps.runner import run_sweep, status
+from flocksweep.sweeps.store import ResultsStore
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
 TIMING = ["wall_s", "sim_s", "part"]
@@ -175,7 +175,7 @@ def test_a_changed_stored_file_is_detected_named_set_aside_and_recomputed(damage
     """Every stored file kind (runs part, time series part, runs table, manifest): status, load_results
     and report name the changed file and never merge it; run quarantines it and recomputes what it held,
     giving the uninterrupted result bit for bit."""
-    from sweeps.results import load_results
+    from flocksweep.sweeps.results import load_results
 
     sweep = write_sweep(tmp_path)
     out = tmp_path / "out"

@@ -8,12 +8,12 @@ import math
 
 import pytest
 
-from observables.directional_correlation import DCD_METRIC_NAMES
-from simcore import ConfigError
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.design import expand, rebuild
-from sweeps.runner import model_record
-from sweeps.worker import execute_run
+from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import expand, rebuild
+from flocksweep.sweeps.runner import model_record
+from flocksweep.sweeps.worker import execute_run
 from paths import ROOT
 from tiny_sweeps import run_ids, sweep
 

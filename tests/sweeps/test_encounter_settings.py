@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from simcore import ConfigError
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand, rebuild
-from sweeps.runner import model_record
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand, rebuild
+from flocksweep.sweeps.runner import model_record
 from paths import ROOT
 from tiny_sweeps import HOLLAND, run_ids, sweep
 
@@ -71,7 +71,7 @@ steps = 100
 
 
 def test_a_calibration_file_refuses_them_as_they_are_no_targets(tmp_path):
-    from analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.config import load_calibration
 
     path = tmp_path / "cal.toml"
     path.write_text(CALIBRATION.format(extra="prey_reach = 2.0\n"))
@@ -90,9 +90,9 @@ def test_a_run_with_a_predator_stores_its_metrics_series_and_track(tmp_path, mon
 
     import numpy as np
 
-    from observables.summary import every_nth, measure_run
-    from simcore import simulate
-    from sweeps import worker
+    from flocksweep.observables.summary import every_nth, measure_run
+    from flocksweep.simcore import simulate
+    from flocksweep.sweeps import worker
 
     def with_predator(*args, **kwargs):
         obs = simulate(*args, **kwargs)
@@ -124,7 +124,7 @@ def test_simulate_prints_and_records_the_encounter_summary(tmp_path, monkeypatch
 
     import numpy as np
 
-    from sweeps import single
+    from flocksweep.sweeps import single
     from flocksweep.cli import main
 
     def with_agents(preset, seed, record_every=None, threads=None):
@@ -149,10 +149,10 @@ def test_simulate_prints_and_records_the_encounter_summary(tmp_path, monkeypatch
 def test_the_simulate_summary_counts_obstacle_collisions_over_the_whole_run():
     import numpy as np
 
-    from simcore.obstacle_spec import Obstacle
-    from simcore.simulate import Observations
-    from observables.summary import MetricSettings
-    from sweeps.single import summarize
+    from flocksweep.simcore.obstacle_spec import Obstacle
+    from flocksweep.simcore.simulate import Observations
+    from flocksweep.observables.summary import MetricSettings
+    from flocksweep.sweeps.single import summarize
 
     # two boids along x past a sphere of radius 2 at the origin, at heights 0 and 2.3 (body radius 0.5):
     # both overlap at x = 0, the first also at x = +-2; the deepest gap is 0 - 2 - 0.5

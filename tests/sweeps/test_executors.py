@@ -12,7 +12,7 @@ import time
 import pytest
 
 from paths import ROOT
-from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
+from flocksweep.sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 
 def square(x):
@@ -113,7 +113,7 @@ def test_a_pool_heartbeats_while_its_tasks_run_and_stops_at_once_when_told():
 PARENT = """
 import os, sys, time
 from paths import ROOT
-from sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
+from flocksweep.sweeps.executors import MAX_ATTEMPTS, Executor, WorkerLost
 
 def pid(_):
     time.sleep(0.5)
@@ -159,7 +159,7 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path):
 INTERRUPTED_SPAWN = """
 import os, queue, signal, sys, threading, time
 import multiprocessing.util as util
-from sweeps.executors import Executor
+from flocksweep.sweeps.executors import Executor
 
 requests, done, spawned, sent = queue.Queue(), queue.Queue(), [], [0]
 
@@ -234,7 +234,7 @@ def test_semaphore_names_pass_over_proxies_whose_object_is_gone():
     import multiprocessing
     import weakref
 
-    from sweeps.executors import _semaphore_names
+    from flocksweep.sweeps.executors import _semaphore_names
 
     lock = multiprocessing.get_context("spawn").Lock()
     kept = multiprocessing.get_context("spawn").Lock()
@@ -247,7 +247,7 @@ def test_semaphore_names_pass_over_proxies_whose_object_is_gone():
 
 POOL_SCRIPT = """
 import multiprocessing.util, sys
-from sweeps.executors import Executor
+from flocksweep.sweeps.executors import Executor
 
 def task(folder):
     def mark(name):
@@ -281,7 +281,7 @@ def test_local_workers_quick_exit_still_flushes_their_output_and_runs_their_fina
 
 PRELOAD_SCRIPT = """
 import os, sys, time
-from sweeps.executors import Executor
+from flocksweep.sweeps.executors import Executor
 
 if __name__ == "__main__":
     sys.path.insert(0, sys.argv[1])   # spawned workers get this process's path
@@ -325,7 +325,7 @@ def test_a_preload_entry_with_a_function_calls_it_after_the_import(tmp_path):
 def test_the_sweep_workers_preparation_compiles_nothing():
     from numba.core import event
 
-    from sweeps import worker
+    from flocksweep.sweeps import worker
 
     compiled = []
 

@@ -8,11 +8,11 @@ import json
 import pandas as pd
 import pytest
 
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand
-from sweeps.extend import add_points, stored_sweep
-from sweeps.results import load_results
-from sweeps.runner import run_sweep
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.extend import add_points, stored_sweep
+from flocksweep.sweeps.results import load_results
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -18,15 +18,15 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from flocksweep.cli import main
-from observables.measured import measure_tracks, track_settings
-from observables.resample import RECORDED
-from observables.summary import summary_columns
-from observables.tracks import TrackSource, load_tracks
-from simcore.schema import ConfigError
-from sweeps.config import load_sweep
-from sweeps.design import expand
-from sweeps.external import CommandFailed, run_command
-from sweeps.runner import run_sweep
+from flocksweep.observables.measured import measure_tracks, track_settings
+from flocksweep.observables.resample import RECORDED
+from flocksweep.observables.summary import summary_columns
+from flocksweep.observables.tracks import TrackSource, load_tracks
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.external import CommandFailed, run_command
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT, TESTS
 
 FAULTY = TESTS / "sweeps" / "faulty_sim.py"
@@ -205,12 +205,12 @@ def test_a_sweep_with_faults_records_them_and_completes_the_rest(tmp_path):
     table = result.table.set_index(result.table["fault"].where(result.table["fault"] != "none",
                                                                "ok" + result.table["noise"].astype(str)))
     assert list(table["status"]) == ["ok", "ok", "ok", "failed", "failed", "failed"]
-    assert table.loc["hang", "error"].startswith("sweeps.external.CommandFailed: timed out after 4 s "
+    assert table.loc["hang", "error"].startswith("flocksweep.sweeps.external.CommandFailed: timed out after 4 s "
                                                  "(model.timeout_s); killed; stderr ends:\nfaulty_sim: hanging")
     assert "MalformedOutput: the output tracks.csv is not tracks that can be measured: TrackError" in \
         table.loc["malformed", "error"]
     assert "no column for role 'id'" in table.loc["malformed", "error"]
-    assert table.loc["crash", "error"] == ("sweeps.external.CommandFailed: faulty_sim.py failed: exit status 3; "
+    assert table.loc["crash", "error"] == ("flocksweep.sweeps.external.CommandFailed: faulty_sim.py failed: exit status 3; "
                                            "stderr ends:\nfaulty_sim: injected crash\nTraceback: none, on purpose")
     metrics = list(summary_columns(leadership=False))
     ok = table[table["status"] == "ok"]
@@ -280,8 +280,8 @@ def test_a_command_dies_with_the_worker_that_started_it(tmp_path):
     marker = f"external-orphan-{tmp_path.name}"
     sweep = write_sweep(tmp_path, "", cmd=json.dumps([sys.executable, "-c", "import time; time.sleep(600)",
                                                       "{out}", marker]))
-    script = ("import sys; from pathlib import Path; from sweeps.config import load_sweep; "
-              "from sweeps.external import run_command; c = load_sweep(sys.argv[1]).command; "
+    script = ("import sys; from pathlib import Path; from flocksweep.sweeps.config import load_sweep; "
+              "from flocksweep.sweeps.external import run_command; c = load_sweep(sys.argv[1]).command; "
               "s = Path(sys.argv[2]); s.mkdir(); run_command(c, c.values({}), 1, s)")
     worker = subprocess.Popen([sys.executable, "-c", script, str(sweep), str(tmp_path / "scratch")],
                               env={**os.environ, "PYTHONPATH": str(ROOT)})
@@ -324,7 +324,7 @@ def test_the_netlogo_wrapper_pattern(tmp_path):
 
 
 def test_a_value_is_one_of_the_declared_choices():
-    from sweeps.external import Parameter
+    from flocksweep.sweeps.external import Parameter
 
     choice = Parameter(default=2, choices=(1, 2, "a", True))
     assert [repr(choice.check(v, "k")) for v in (2.0, True, 1, "a")] == ["2", "True", "1", "'a'"]

@@ -25,12 +25,12 @@ from pandas.testing import assert_frame_equal
 
 import faults
 from paths import ROOT
-from sweeps import lock, runner, worker
+from flocksweep.sweeps import lock, runner, worker
 from flocksweep.cli import main
-from sweeps.config import load_sweep
-from sweeps.interrupts import Terminated
-from sweeps.runner import run_sweep, status
-from sweeps.store import ResultsStore, StoreLocked
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.interrupts import Terminated
+from flocksweep.sweeps.runner import run_sweep, status
+from flocksweep.sweeps.store import ResultsStore, StoreLocked
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
 TIMING = ["wall_s", "sim_s", "part"]
@@ -235,7 +235,7 @@ def test_a_lock_whose_leftovers_exit_in_the_grace_period_is_taken(tmp_path, monk
 def test_a_killed_runner_frees_the_folder_at_once(tmp_path):
     folder = tmp_path / "out"
     script = tmp_path / "runner.py"
-    script.write_text("import sys, time\nfrom sweeps.store import ResultsStore\n"
+    script.write_text("import sys, time\nfrom flocksweep.sweeps.store import ResultsStore\n"
                       "with ResultsStore(sys.argv[1]).lock():\n    print('locked', flush=True)\n    time.sleep(60)\n")
     proc = subprocess.Popen([sys.executable, str(script), str(folder)], stdout=subprocess.PIPE, text=True,
                             env=faults.environment())
@@ -321,7 +321,7 @@ def _square(x):
 def test_a_killed_resource_tracker_is_restarted_quietly_and_keeps_the_pool_semaphores(capfd):
     from multiprocessing import resource_tracker
 
-    from sweeps.executors import Executor, mend_resource_tracker
+    from flocksweep.sweeps.executors import Executor, mend_resource_tracker
 
     with Executor("local", workers=2) as pool:
         assert pool.map(_square, range(4)) == [0, 1, 4, 9]
@@ -337,7 +337,7 @@ def test_a_killed_resource_tracker_is_restarted_quietly_and_keeps_the_pool_semap
 TRACKER_DIED_BEFORE = """
 import multiprocessing, os, signal, sys, time
 from multiprocessing import resource_tracker
-from sweeps.executors import Executor
+from flocksweep.sweeps.executors import Executor
 
 if __name__ == "__main__":
     lock = multiprocessing.get_context("spawn").Lock()   # starts the tracker, which records its name
@@ -372,7 +372,7 @@ def test_a_tracker_relaunched_by_multiprocessing_itself_learns_the_pool_semaphor
     import multiprocessing
     from multiprocessing import resource_tracker
 
-    from sweeps.executors import Executor
+    from flocksweep.sweeps.executors import Executor
 
     with Executor("local", workers=2) as pool:
         assert pool.map(_square, range(4)) == [0, 1, 4, 9]

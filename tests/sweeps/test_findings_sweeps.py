@@ -12,9 +12,9 @@ import tomllib
 import pandas as pd
 import pytest
 
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.design import expand, rebuild
-from sweeps.runner import design_table, model_record, run_sweep
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import expand, rebuild
+from flocksweep.sweeps.runner import design_table, model_record, run_sweep
 from paths import ROOT
 
 SWEEPS = ROOT / "configs" / "sweeps"
@@ -99,12 +99,12 @@ def test_a_shrunken_allocation_sweep_runs_and_its_claims_are_judged_from_the_sto
     """reynolds87_allocation shrunk (N = 12, 8 s, 2 paired replicates, one budget): runs, its stored
     tables give the claims their factors back (the obstacle list as text, the label as the level), both
     claims reach a verdict, and a stored run rebuilt from its row resimulates to the same collisions."""
-    from observables.summary import summarize_run
-    from analysis.reports.claims.evaluate import evaluate
-    from analysis.reports.claims.load import claims_of
-    from simcore import simulate
-    from sweeps.results import load_results
-    from sweeps.store import ResultsStore
+    from flocksweep.observables.summary import summarize_run
+    from flocksweep.analysis.reports.claims.evaluate import evaluate
+    from flocksweep.analysis.reports.claims.load import claims_of
+    from flocksweep.simcore import simulate
+    from flocksweep.sweeps.results import load_results
+    from flocksweep.sweeps.store import ResultsStore
 
     data = tomllib.loads((SWEEPS / "reynolds87_allocation.toml").read_text())
     data["run"].update(n=12, duration=8.0)

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from sweeps import worker
-from sweeps.config import load_sweep
-from sweeps.design import expand
+from flocksweep.sweeps import worker
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.design import expand
 from paths import ROOT
 
 SWEEPS = ROOT / "configs" / "sweeps"

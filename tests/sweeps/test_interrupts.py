@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from sweeps.executors import Executor
-from sweeps.interrupts import Terminated, deferred, exit_status, signals_as_exceptions
+from flocksweep.sweeps.executors import Executor
+from flocksweep.sweeps.interrupts import Terminated, deferred, exit_status, signals_as_exceptions
 
 
 def handlers():

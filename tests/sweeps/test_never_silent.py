@@ -13,7 +13,7 @@ import textwrap
 
 import pytest
 
-from sweeps.main_guard import guarded_lines
+from flocksweep.sweeps.main_guard import guarded_lines
 from paths import ROOT
 
 GUARD_HINT = "guard your script with if __name__ == '__main__'"
@@ -55,9 +55,8 @@ def test_the_guard_is_found_whichever_way_round_and_only_its_body_counts():
 
 
 POOL_SCRIPT = """
-from sweeps.executors import Executor
-import sweeps.main_guard as guard
-
+from flocksweep.sweeps.executors import Executor
+import flocksweep.sweeps.main_guard as guard
 def square(x):
     return x * x
 
@@ -91,7 +90,7 @@ def test_a_worker_re_running_an_unguarded_script_stops_the_parent_at_once(tmp_pa
 
 def dying_batch(n_dies: int):
     """worker.execute_batch, but the worker process dies (exit status 9) on the batch of init.n == n_dies."""
-    from sweeps import worker
+    from flocksweep.sweeps import worker
 
     real = worker.execute_batch
 
@@ -104,7 +103,7 @@ def dying_batch(n_dies: int):
 
 @pytest.mark.slow
 def test_run_sweep_raises_when_runs_were_lost_with_the_cause_and_what_was_saved(tmp_path, monkeypatch):
-    from sweeps import RunsLost, Sweep, run_sweep, worker
+    from flocksweep.sweeps import RunsLost, Sweep, run_sweep, worker
 
     sweep = Sweep.from_dict({"name": "lossy", "seed": 3, "model": {"preset": str(ROOT / "configs/models/holland.toml")},
                              "run": {"n": 6, "duration": 1.0, "record_interval": 0.5, "warmup": 0.5},

@@ -8,9 +8,9 @@ import pytest
 from pandas.testing import assert_frame_equal
 
 from paths import ROOT
-from sweeps.config import load_sweep
-from sweeps.runner import run_sweep
-from sweeps.store import ResultsStore
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.runner import run_sweep
+from flocksweep.sweeps.store import ResultsStore
 
 SWEEP = ROOT / "examples" / "couzin_like_sweep.toml"
 SMALL = ["run.n=12", "run.duration=4.0", "run.warmup=1.0", "replicates=1"]

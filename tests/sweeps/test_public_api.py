@@ -13,11 +13,11 @@ import pandas as pd
 import pyarrow.dataset as ds
 import pytest
 
-from simcore import load_preset
-from simcore.schema import ConfigError
-from sweeps import ResultsStore, Sweep, load_results, run_sweep
+from flocksweep.simcore import load_preset
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps import ResultsStore, Sweep, load_results, run_sweep
 from flocksweep.cli import main
-from sweeps.design import expand
+from flocksweep.sweeps.design import expand
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -108,7 +108,7 @@ def test_a_run_computed_again_appears_once_from_its_latest_part(tmp_path):
     out = tmp_path / "results"
     run_sweep(sweep, out, executor="serial", progress=False, batch_size=8)
     again = expand(sweep)[:3]
-    from sweeps.runner import run_sweep as run_specs   # the subset form the --until rounds use
+    from flocksweep.sweeps.runner import run_sweep as run_specs   # the subset form the --until rounds use
 
     run_specs(sweep, None, out, executor="serial", progress=False, force=True, specs=again)
     assert not run_sweep(sweep, out, executor="serial", progress=False).plan.todo   # the whole design again

@@ -20,11 +20,11 @@ import pyarrow as pa
 import pytest
 
 from paths import ROOT
-from simcore import load_preset
-from sweeps.export import export_results, export_with_pandas
-from sweeps.files import write_parquet
-from sweeps.quick_export import _cells, _constant, _large_text, _pandas_metadata, runs_csv, runs_parquet, stored_runs
-from sweeps.store import ResultsStore
+from flocksweep.simcore import load_preset
+from flocksweep.sweeps.export import export_results, export_with_pandas
+from flocksweep.sweeps.files import write_parquet
+from flocksweep.sweeps.quick_export import _cells, _constant, _large_text, _pandas_metadata, runs_csv, runs_parquet, stored_runs
+from flocksweep.sweeps.store import ResultsStore
 
 RUNS = ["a1b2c3d4e5f6", "b2c3d4e5f6a1", "c3d4e5f6a1b2", "d4e5f6a1b2c3", "e5f6a1b2c3d4"]
 HOLLAND = ROOT / "configs/models/holland.toml"

@@ -14,13 +14,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simcore import ConfigError
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand
-from sweeps.identity import point_key
-from sweeps.results import swept_columns
-from sweeps.runner import design_table
-from sweeps.seeds import run_seed
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.identity import point_key
+from flocksweep.sweeps.results import swept_columns
+from flocksweep.sweeps.runner import design_table
+from flocksweep.sweeps.seeds import run_seed
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

@@ -3,7 +3,7 @@ computed runs, never a rerun that found everything done; first computed and last
 grew; older manifests by their own times."""
 from __future__ import annotations
 
-from sweeps.status import computed
+from flocksweep.sweeps.status import computed
 
 
 def invocation(started, finished, runs):

@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 
 from paths import ROOT
-from sweeps.status import cache_path, status
-from sweeps.store import ResultsStore
+from flocksweep.sweeps.status import cache_path, status
+from flocksweep.sweeps.store import ResultsStore
 
 RUNS = ["a1b2c3d4e5f6", "b2c3d4e5f6a1", "c3d4e5f6a1b2", "d4e5f6a1b2c3"]
 
@@ -117,11 +117,10 @@ def test_the_fast_path_imports_neither_pandas_nor_pyarrow(tmp_path):
 
 
 def test_new_checking_code_means_a_full_check(tmp_path, monkeypatch):
-    import sweeps.status
-
+    import flocksweep.sweeps.status as status_module
     code = tmp_path / "store.py"
     code.write_text("# the checks\n")
-    monkeypatch.setattr(sweeps.status, "CODE", (code,))
+    monkeypatch.setattr(status_module, "CODE", (code,))
     root = finished_store(tmp_path / "tiny")
     status(root, remember=True)
     assert status(root, remember=True)["checked"].startswith("unchanged since")

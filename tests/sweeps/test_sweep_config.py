@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simcore import ConfigError
-from sweeps import runner
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps import runner
 from flocksweep.cli import main
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.design import expand
-from sweeps.runner import Plan, SweepResult, design_table, run_sweep
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.runner import Plan, SweepResult, design_table, run_sweep
 from paths import ROOT
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
@@ -435,7 +435,7 @@ def test_values_equal_after_resolution_do_not_give_duplicate_run_ids():
 
 
 def test_leadership_metrics_are_switched_on_when_leadership_is_swept_or_on():
-    from sweeps.config import load_sweep as load
+    from flocksweep.sweeps.config import load_sweep as load
 
     configs = ROOT / "configs" / "sweeps"
     assert load(configs / "leadership.toml").metrics.leadership

@@ -20,14 +20,14 @@ import pandas as pd
 import pytest
 from pandas.testing import assert_frame_equal
 
-from observables.metrics import METRIC_NAMES
-from simcore import simulate
-from sweeps import worker
+from flocksweep.observables.metrics import METRIC_NAMES
+from flocksweep.simcore import simulate
+from flocksweep.sweeps import worker
 from flocksweep.cli import main
-from sweeps.config import load_sweep
-from sweeps.design import expand
-from sweeps.runner import run_sweep, status
-from sweeps.store import ResultsStore, StoreLocked
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.runner import run_sweep, status
+from flocksweep.sweeps.store import ResultsStore, StoreLocked
 from paths import ROOT
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"

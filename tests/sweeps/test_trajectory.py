@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.viewer.track import from_npz
-from observables.summary import every_nth
-from simcore.simulate import Observations
-from sweeps.trajectory import OPTIONAL, REQUIRED, read_trajectory, write_trajectory
+from flocksweep.analysis.viewer.track import from_npz
+from flocksweep.observables.summary import every_nth
+from flocksweep.simcore.simulate import Observations
+from flocksweep.sweeps.trajectory import OPTIONAL, REQUIRED, read_trajectory, write_trajectory
 
 
 def observations(records: int = 5, n: int = 3, agents: bool = True) -> Observations:

@@ -11,19 +11,19 @@ from pathlib import Path
 
 import pytest
 
-from observables.summary import MetricSettings
+from flocksweep.observables.summary import MetricSettings
 from paths import ROOT
-from simcore import load_preset, placeholder_observations, simulate
-from sweeps.config import sweep_from_dict
-from sweeps.design import expand
-from sweeps.warmup import MetricsAlongside, measure_placeholders, warm_up_all
+from flocksweep.simcore import load_preset, placeholder_observations, simulate
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.warmup import MetricsAlongside, measure_placeholders, warm_up_all
 from tiny_sweeps import sweep
 
 MODELS = sorted((ROOT / "configs" / "models").glob("*.toml"))
 MEASURE_IN_A_FRESH_CACHE = """
 import pickle, sys
 from numba.core import event
-from observables.summary import measure_run
+from flocksweep.observables.summary import measure_run
 compiled = []
 class Count(event.Listener):
     def on_start(self, ev):
@@ -113,7 +113,7 @@ def test_a_helper_that_cannot_start_is_no_error_inside_numbas_compile():
 def test_no_helper_is_spawned_from_an_unguarded_main_script(monkeypatch):
     """A serial sweep may run from a script without ``if __name__ == "__main__":``; a spawned helper would
     import that script and run its sweep again, so none is started (this process compiles alone)."""
-    from sweeps import main_guard
+    from flocksweep.sweeps import main_guard
 
     def unguarded():
         raise main_guard.UnguardedScript(main_guard.message())
@@ -141,16 +141,15 @@ def test_a_helper_still_running_after_the_limit_is_stopped_and_the_warm_up_goes_
 # -- known warm: a warm-up that found everything in numba's cache is not done again -----------------------
 
 def packages():
-    import observables
-    import simcore
-
+    import flocksweep.observables as observables
+    import flocksweep.simcore as simcore
     return Path(simcore.__file__).parent, Path(observables.__file__).parent
 
 
 @pytest.fixture
 def record(tmp_path, monkeypatch):
     """Warm-ups recorded in a file of this test's own (the real record is the session's)."""
-    from sweeps import warmup
+    from flocksweep.sweeps import warmup
 
     here = warmup.WarmRecord(tmp_path / "warm.txt", packages())
     monkeypatch.setattr(warmup.WarmRecord, "here", classmethod(lambda cls: here))
@@ -158,7 +157,7 @@ def record(tmp_path, monkeypatch):
 
 
 def test_a_warm_up_known_warm_is_skipped_and_loads_nothing(record, monkeypatch):
-    from sweeps import worker
+    from flocksweep.sweeps import worker
 
     first = warm_up_all(specs())
     assert not first.skipped and record.path.exists()
@@ -184,7 +183,7 @@ def test_other_run_loops_or_metric_families_are_warmed_up_again(record):
 def test_the_record_is_void_after_any_source_file_changes(tmp_path):
     """Numba's cache misses when a kernel's source file is edited or touched (or numba, Python or the CPU
     changes): so does the record."""
-    from sweeps.warmup import WarmRecord
+    from flocksweep.sweeps.warmup import WarmRecord
 
     package = tmp_path / "pkg"
     package.mkdir()
@@ -202,7 +201,7 @@ def test_the_record_is_void_after_any_source_file_changes(tmp_path):
 
 
 def test_a_failed_warm_up_is_not_recorded(record, monkeypatch):
-    from sweeps import worker
+    from flocksweep.sweeps import worker
 
     def fails(spec):
         raise RuntimeError("no run")
@@ -216,7 +215,7 @@ def test_a_failed_warm_up_is_not_recorded(record, monkeypatch):
 
 
 def test_nothing_is_recorded_with_a_cache_directory_of_its_own(monkeypatch):
-    from sweeps.warmup import WarmRecord
+    from flocksweep.sweeps.warmup import WarmRecord
 
     monkeypatch.setenv("NUMBA_CACHE_DIR", "/tmp/elsewhere")
     assert WarmRecord.here() is None

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from sweeps.seeds import Tag, named_generator
+from flocksweep.sweeps.seeds import Tag, named_generator
 
 from ..stats import holm
 from .kinds import LeafData, LeafResult, leaf_data, leaf_result

@@ -11,9 +11,9 @@ id used twice, is a :class:`~simcore.schema.ConfigError`.
 """
 from __future__ import annotations
 
-from simcore.schema import ConfigError
-from sweeps.claims import claims_from_records, read_claims_file, table_columns
-from sweeps.config import RESERVED_COLUMNS
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.claims import claims_from_records, read_claims_file, table_columns
+from flocksweep.sweeps.config import RESERVED_COLUMNS
 
 
 def claims_of(results, files=()) -> tuple[tuple, object, list]:

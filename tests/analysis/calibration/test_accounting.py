@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-import analysis.calibration.simulator as simulator_module
-from analysis.calibration.accounting import Accounting, lines
+import flocksweep.analysis.calibration.simulator as simulator_module
+from flocksweep.analysis.calibration.accounting import Accounting, lines
 from flocksweep.cli import main
 from paths import ROOT
 

@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis.calibration.bsl import run_bsl
-from analysis.calibration.mcmc import ChainResult
-from analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.analysis.calibration.bsl import run_bsl
+from flocksweep.analysis.calibration.mcmc import ChainResult
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
 
 SD = 1.0
 N_SIM = 20
@@ -179,7 +179,7 @@ def test_de_moves_are_seeded_resumable_and_recover_the_posterior(tmp_path):
 
 def gaussian_chain(steps, path=None, resume=False, **kw):
     """run_chain on an exact standard normal log density: a cheap chain for the stopping rule."""
-    from analysis.calibration.mcmc import run_chain
+    from flocksweep.analysis.calibration.mcmc import run_chain
 
     prior = wide_prior()
 
@@ -193,7 +193,7 @@ def gaussian_chain(steps, path=None, resume=False, **kw):
 
 @pytest.mark.slow
 def test_until_converged_stops_at_the_first_check_where_the_verdicts_hold_and_is_resumable(tmp_path):
-    from analysis.calibration.diagnostics import sampled_enough
+    from flocksweep.analysis.calibration.diagnostics import sampled_enough
 
     capped = gaussian_chain(5000, until_converged=True, check_every=20)
     stopped = capped.chain.shape[0]

@@ -12,13 +12,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration import calibrate, load_calibration_results, run_calibration
-from analysis.calibration.inference import arviz
-from analysis.calibration.run import summary_simulator
-from simcore import ConfigError
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration import calibrate, load_calibration_results, run_calibration
+from flocksweep.analysis.calibration.inference import arviz
+from flocksweep.analysis.calibration.run import summary_simulator
+from flocksweep.simcore import ConfigError
 from flocksweep.cli import main
-from sweeps.seeds import common_seeds
+from flocksweep.sweeps.seeds import common_seeds
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

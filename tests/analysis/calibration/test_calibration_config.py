@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration.config import CalibrationConfig, load_calibration
-from analysis.calibration.settings import EmceeSettings, EmulatorSettings, OptimizeSettings
-from analysis.calibration.priors import TruncatedNormal, Uniform
-from simcore.schema import ConfigError
+from flocksweep.analysis.calibration.config import CalibrationConfig, load_calibration
+from flocksweep.analysis.calibration.settings import EmceeSettings, EmulatorSettings, OptimizeSettings
+from flocksweep.analysis.calibration.priors import TruncatedNormal, Uniform
+from flocksweep.simcore.schema import ConfigError
 from paths import ROOT
 
 PRESET = (ROOT / "configs/models/holland.toml").as_posix()   # this checkout's, found from this file
@@ -243,7 +243,7 @@ def test_frozen(tmp_path):
 @pytest.mark.parametrize("path", sorted((ROOT / "configs/calibration").glob("*.toml")),
                          ids=lambda p: p.stem)
 def test_shipped_calibrations_are_valid(path):
-    from analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.config import load_calibration
 
     config = load_calibration(path)
     assert config.name == path.stem

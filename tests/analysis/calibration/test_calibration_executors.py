@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.calibration.bsl import run_bsl
-from analysis.calibration.optimize import run_optimize
-from analysis.calibration.priors import JointPrior, Uniform
-from sweeps.executors import Executor
+from flocksweep.analysis.calibration.bsl import run_bsl
+from flocksweep.analysis.calibration.optimize import run_optimize
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.sweeps.executors import Executor
 
 OBSERVED = np.array([1.3, -0.4])
 

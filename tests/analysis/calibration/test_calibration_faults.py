@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 
 import faults
-from analysis.calibration import chainfile
-from analysis.calibration.bsl import run_bsl
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.mcmc import ChainMismatch
-from analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.analysis.calibration import chainfile
+from flocksweep.analysis.calibration.bsl import run_bsl
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.mcmc import ChainMismatch
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
 from paths import ROOT
-from simcore import ConfigError
+from flocksweep.simcore import ConfigError
 from flocksweep.cli import main
-from sweeps.files import WriteFailed
+from flocksweep.sweeps.files import WriteFailed
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
 
@@ -183,7 +183,7 @@ def test_a_failed_write_that_leaves_the_file_unreadable_deletes_nothing_and_a_re
     def unreadable(path):
         raise chainfile.DamagedChain(f"{path} cannot be read as a chain file (KeyError: addr overflow)")
     monkeypatch.setattr(chainfile.ChainFile, "_stage", full)
-    monkeypatch.setattr("analysis.calibration.mcmc.stored_attrs", unreadable)
+    monkeypatch.setattr("flocksweep.analysis.calibration.mcmc.stored_attrs", unreadable)
     with pytest.raises(WriteFailed) as info:
         toy_chain(path)
     assert info.value.filename == str(path) and "became unreadable" in str(info.value)
@@ -260,7 +260,7 @@ def test_the_chain_file_stays_readable_by_emcee_and_h5py(tmp_path):
 
 @pytest.mark.slow
 def test_an_interrupted_calibration_saves_its_chain_and_resumes_bit_for_bit(tmp_path, capsys, monkeypatch):
-    from analysis.calibration import simulator
+    from flocksweep.analysis.calibration import simulator
 
     config = str(ROOT / "configs/calibration/recover_holland.toml")
     settings = ["--no-progress", "--set", "method.kind=emcee", "--set", "method.emcee.steps=4", "--set", "method.n_sim=6", "--set", "run.n=6",

@@ -16,10 +16,10 @@ import numba
 import numpy as np
 import pytest
 
-from analysis import Calibration, summary_simulator
-from analysis.calibration.bsl import simulate_keyed
-from analysis.calibration.run import simulate_fn, summary_simulator as bare_simulator
-from sweeps.seeds import Tag, generator
+from flocksweep.analysis import Calibration, summary_simulator
+from flocksweep.analysis.calibration.bsl import simulate_keyed
+from flocksweep.analysis.calibration.run import simulate_fn, summary_simulator as bare_simulator
+from flocksweep.sweeps.seeds import Tag, generator
 from paths import ROOT
 
 CALIBRATION = ROOT / "configs/calibration/recover_holland.toml"
@@ -88,7 +88,7 @@ def test_spawned_workers_give_the_calibrations_rows_bit_for_bit(config):
 PYABC_SCRIPT = """
 import json, sys, zlib
 import pyabc
-from analysis import Calibration, summary_simulator
+from flocksweep.analysis import Calibration, summary_simulator
 
 class Model:
     '''pyABC model: the calibration's summaries with a seed derived from the parameters (reproducible).'''

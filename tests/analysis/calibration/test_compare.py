@@ -8,10 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from analysis.calibration.compare import CONFIDENT, load_comparison, model_choice
+from flocksweep.analysis.calibration.compare import CONFIDENT, load_comparison, model_choice
 from flocksweep.cli import main
 from paths import ROOT
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 MODELS = ROOT / "configs/models"
 RUN = '[run]\nn = 10\nduration = 2.0\nrecord_interval = 0.5\nwarmup = 1.0\ngroup_radius = 20.0\n'

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from analysis.calibration import diagnostics as dg
-from analysis.calibration import plots
-from analysis.calibration.priors import JointPrior, Normal, Uniform
+from flocksweep.analysis.calibration import diagnostics as dg
+from flocksweep.analysis.calibration import plots
+from flocksweep.analysis.calibration.priors import JointPrior, Normal, Uniform
 
 
 def ar1_chain(rng, steps, walkers, phis, mu=0.0, sigma=1.0):

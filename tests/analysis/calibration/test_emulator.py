@@ -18,16 +18,16 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.emulated import (confirm, emulated_loglik, emulated_logliks, observation_covariance,
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.emulated import (confirm, emulated_loglik, emulated_logliks, observation_covariance,
                                            posterior_median, run_emulator_mcmc)
-from analysis.calibration.surrogates import GPSurrogate, RBFSurrogate, Surrogate, build_surrogate, prior_outside_box
-from analysis.calibration.training import TrainingSet, group_replicates, training_set
-from analysis.calibration.priors import JointPrior, Uniform
-from analysis.calibration.simulator import SummarySimulator
-from simcore import ConfigError
-from sweeps.config import load_sweep
-from sweeps.runner import run_sweep
+from flocksweep.analysis.calibration.surrogates import GPSurrogate, RBFSurrogate, Surrogate, build_surrogate, prior_outside_box
+from flocksweep.analysis.calibration.training import TrainingSet, group_replicates, training_set
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.analysis.calibration.simulator import SummarySimulator
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

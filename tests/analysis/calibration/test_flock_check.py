@@ -9,14 +9,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration import run_calibration
-from analysis.calibration.calibration_report import verdict_lines
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.flock_check import FLOCK_STATS, flock_check, flock_columns, flock_messages
-from analysis.calibration.run import summary_simulator
+from flocksweep.analysis.calibration import run_calibration
+from flocksweep.analysis.calibration.calibration_report import verdict_lines
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.flock_check import FLOCK_STATS, flock_check, flock_columns, flock_messages
+from flocksweep.analysis.calibration.run import summary_simulator
 from paths import ROOT
-from simcore import ConfigError
-from sweeps.seeds import common_seeds
+from flocksweep.simcore import ConfigError
+from flocksweep.sweeps.seeds import common_seeds
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
 

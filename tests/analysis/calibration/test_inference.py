@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.diagnostics import arviz_verdicts, default_burn, integrated_times
-from analysis.calibration.inference import (arviz, arviz_diagnostics, chain_inference_data, load_calibration_results,
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.diagnostics import arviz_verdicts, default_burn, integrated_times
+from flocksweep.analysis.calibration.inference import (arviz, arviz_diagnostics, chain_inference_data, load_calibration_results,
                                             write_inference_data)
-from analysis.calibration.mcmc import ChainResult, run_chain
+from flocksweep.analysis.calibration.mcmc import ChainResult, run_chain
 from paths import ROOT
 
 MEAN = np.array([180.0, 45.0])

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.calibration.informative import rank_statistics
-from analysis.calibration.training import group_replicates
+from flocksweep.analysis.calibration.informative import rank_statistics
+from flocksweep.analysis.calibration.training import group_replicates
 
 REPLICATES = 5
 

@@ -6,9 +6,9 @@ import json
 
 import pytest
 
-from analysis.calibration.config import load_calibration
-from analysis.calibration.settings import EmceeSettings, EmulatorSettings, NpeSettings, OptimizeSettings
-from simcore.schema import ConfigError
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.settings import EmceeSettings, EmulatorSettings, NpeSettings, OptimizeSettings
+from flocksweep.simcore.schema import ConfigError
 from flocksweep.cli import main
 from paths import ROOT
 

@@ -12,13 +12,13 @@ from scipy import stats
 
 pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
 
-from analysis.calibration.config import load_calibration  # noqa: E402
-from analysis.calibration.npe import coverage_check, estimator_identity  # noqa: E402
-from analysis.calibration.npe_flow import (MEMBER_SEED_STEP, Ensemble, FlowSettings, load_estimator,  # noqa: E402
+from flocksweep.analysis.calibration.config import load_calibration  # noqa: E402
+from flocksweep.analysis.calibration.npe import coverage_check, estimator_identity  # noqa: E402
+from flocksweep.analysis.calibration.npe_flow import (MEMBER_SEED_STEP, Ensemble, FlowSettings, load_estimator,  # noqa: E402
                                            train_ensemble, train_flow)
 from flocksweep.cli import main  # noqa: E402
 from npe_tiny import CALIBRATION  # noqa: E402
-from simcore.schema import ConfigError  # noqa: E402
+from flocksweep.simcore.schema import ConfigError  # noqa: E402
 
 REPLICATES = 4          # x = mean of 4 unit-variance draws around theta: posterior N(x, 1/4) (flat prior)
 # batches of 200 at a learning rate of 3e-3: a quarter of the steps of batches of 50 at 1e-3 (measured at

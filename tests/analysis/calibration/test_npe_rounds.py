@@ -12,11 +12,11 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.calibration.npe import support_of
-from analysis.calibration.npe_rounds import QUANTILE, truncated_prior_draws, truncation_region
-from analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.analysis.calibration.npe import support_of
+from flocksweep.analysis.calibration.npe_rounds import QUANTILE, truncated_prior_draws, truncation_region
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
 from npe_tiny import CALIBRATION
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 
 class Gaussian:
@@ -68,7 +68,7 @@ def test_a_region_too_small_to_sample_is_a_config_error_naming_rounds():
 @pytest.mark.slow
 def test_a_gaussian_mean_posterior_is_recovered_in_two_truncated_rounds():
     pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
-    from analysis.calibration.npe_flow import FlowSettings, train_flow
+    from flocksweep.analysis.calibration.npe_flow import FlowSettings, train_flow
 
     # x = theta + N(0, 0.5^2) under a flat prior on [-5, 5]: the posterior at x = 1 is N(1, 0.5^2)
     prior, rng = JointPrior(["mu"], [Uniform(-5, 5)]), np.random.default_rng(0)
@@ -128,8 +128,8 @@ def test_two_rounds_resume_after_round_one_reusing_its_runs_and_estimator(tmp_pa
 
 
 def test_rounds_are_validated_and_one_round_keeps_the_estimator_identity(tmp_path):
-    from analysis.calibration.config import load_calibration
-    from analysis.calibration.npe import estimator_identity
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.npe import estimator_identity
 
     path = tmp_path / "cal.toml"
     path.write_text(_calibration_text().replace("rounds = 2", "rounds = 1"))

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis.calibration.optimize import OptimizeResult, crn_objective, run_optimize
-from analysis.calibration.priors import JointPrior, Normal, Uniform
-from sweeps.seeds import common_seeds, seeds_for
+from flocksweep.analysis.calibration.optimize import OptimizeResult, crn_objective, run_optimize
+from flocksweep.analysis.calibration.priors import JointPrior, Normal, Uniform
+from flocksweep.sweeps.seeds import common_seeds, seeds_for
 
 SD = 0.5
 N_SIM = 50
@@ -94,7 +94,7 @@ def test_crn_objective_deterministic():
 
 
 def test_loglik_objective_is_negative_log_posterior():
-    from analysis.calibration.likelihood import synthetic_loglik
+    from flocksweep.analysis.calibration.likelihood import synthetic_loglik
     f = crn_objective(toy(), OBSERVED, prior(), seed=5, n_sim=N_SIM)
     theta = np.array([0.3, -0.7])
     sims = toy()(theta, common_seeds(5, N_SIM))

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.run import run_calibration
-from analysis.calibration.synthetic import synthetic_observation
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.run import run_calibration
+from flocksweep.analysis.calibration.synthetic import synthetic_observation
 from paths import ROOT
 
 PRESET = str(ROOT / "examples" / "couzin_like.toml")

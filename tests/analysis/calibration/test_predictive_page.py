@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration.config import load_calibration
-from analysis.calibration.flock_check import flock_columns
-from analysis.calibration.run import predictive_runs
-from analysis.calibration.viewer_page import (PREDICTIVE_PAGE, NotReproduced, nearest_draw, predictive_page,
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.flock_check import flock_columns
+from flocksweep.analysis.calibration.run import predictive_runs
+from flocksweep.analysis.calibration.viewer_page import (PREDICTIVE_PAGE, NotReproduced, nearest_draw, predictive_page,
                                               predictive_track)
 from flocksweep.cli import main
 from test_tracks_targets import THETA, calibration_text, runs, tracks, write_config  # noqa: F401 - fixtures

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from analysis.calibration.likelihood import standardized_distance, synthetic_loglik
-from analysis.calibration.priors import (JointPrior, LogUniform, Normal, TruncatedNormal, Uniform,
+from flocksweep.analysis.calibration.likelihood import standardized_distance, synthetic_loglik
+from flocksweep.analysis.calibration.priors import (JointPrior, LogUniform, Normal, TruncatedNormal, Uniform,
                                          prior_from_dict)
-from simcore.schema import ConfigError
+from flocksweep.simcore.schema import ConfigError
 
 PRIORS = {
     "uniform": (Uniform(-1.0, 3.0), stats.uniform(loc=-1.0, scale=4.0)),

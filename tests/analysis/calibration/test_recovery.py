@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.run import run_calibration
-from analysis.calibration.synthetic import synthetic_observation, truth_vector
-from simcore import ConfigError
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.run import run_calibration
+from flocksweep.analysis.calibration.synthetic import synthetic_observation, truth_vector
+from flocksweep.simcore import ConfigError
 from flocksweep.cli import main
 from paths import ROOT
 

@@ -21,17 +21,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration.calibration_report import _share_lines
-from analysis.calibration.config import calibration_from_dict
-from analysis.calibration.emulated import emulated_logliks
-from analysis.calibration.refine import confirmation_passed, emulator_share, select_points
-from analysis.calibration.run import run_calibration, summary_simulator
-from analysis.calibration.surrogates import build_surrogate
-from analysis.calibration.training import group_replicates
-from simcore import ConfigError
+from flocksweep.analysis.calibration.calibration_report import _share_lines
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.analysis.calibration.emulated import emulated_logliks
+from flocksweep.analysis.calibration.refine import confirmation_passed, emulator_share, select_points
+from flocksweep.analysis.calibration.run import run_calibration, summary_simulator
+from flocksweep.analysis.calibration.surrogates import build_surrogate
+from flocksweep.analysis.calibration.training import group_replicates
+from flocksweep.simcore import ConfigError
 from flocksweep.cli import main
-from sweeps.results import load_results
-from sweeps.seeds import common_seeds
+from flocksweep.sweeps.results import load_results
+from flocksweep.sweeps.seeds import common_seeds
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

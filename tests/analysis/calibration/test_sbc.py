@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration import sbc, sbc_report
-from analysis.calibration.config import load_calibration
-from analysis.calibration.priors import JointPrior, Uniform
-from sweeps.seeds import SBCStream
+from flocksweep.analysis.calibration import sbc, sbc_report
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.priors import JointPrior, Uniform
+from flocksweep.sweeps.seeds import SBCStream
 from paths import ROOT
 
 SBC_CONFIG = ROOT / "configs/calibration/sbc_range.toml"
@@ -158,8 +158,8 @@ def test_worker_processes_give_the_same_results(tmp_path):
 
 
 def test_shipped_config_data_model_matches_the_likelihood_and_runs(tmp_path):
-    from analysis.calibration.run import simulate_fn
-    from analysis.calibration.simulator import SummarySimulator
+    from flocksweep.analysis.calibration.run import simulate_fn
+    from flocksweep.analysis.calibration.simulator import SummarySimulator
 
     config = load_calibration(SBC_CONFIG, ["method.n_sim=4"])
     assert config.dim == 1 and config.method.kind == "emcee" and config.targets.cov is not None

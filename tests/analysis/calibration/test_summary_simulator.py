@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator
-from observables.leadership import leadership_metrics
-from observables.metrics import frame_metrics, summarize
-from observables.summary import default_group_radius, world_box
-from simcore.params import read_toml
-from simcore.schema import ConfigError, set_dotted
-from simcore.simulate import simulate
-from sweeps.seeds import common_seeds, seeds_for
+from flocksweep.analysis.calibration.simulator import ALL_COLUMNS, SummarySimulator
+from flocksweep.observables.leadership import leadership_metrics
+from flocksweep.observables.metrics import frame_metrics, summarize
+from flocksweep.observables.summary import default_group_radius, world_box
+from flocksweep.simcore.params import read_toml
+from flocksweep.simcore.schema import ConfigError, set_dotted
+from flocksweep.simcore.simulate import simulate
+from flocksweep.sweeps.seeds import common_seeds, seeds_for
 from paths import ROOT
 
 MODELS = ROOT / "configs" / "models"

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from analysis.calibration.config import calibration_from_dict
-from simcore import ConfigError
+from flocksweep.analysis.calibration.config import calibration_from_dict
+from flocksweep.simcore import ConfigError
 from paths import ROOT
 
 

@@ -6,17 +6,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration.flock_check import flock_columns, observed_flock
+from flocksweep.analysis.calibration.flock_check import flock_columns, observed_flock
 
-from analysis.calibration.config import load_calibration
-from analysis.calibration.emulated import observation_covariance
-from analysis.calibration.run import summary_simulator
-from analysis.calibration.simulator import SummarySimulator
-from observables.observation import observe_run
-from observables.summary import MetricSettings, summarize_run
-from observables.tracks import tracks_frame
-from simcore import load_preset, simulate
-from simcore.schema import ConfigError
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.emulated import observation_covariance
+from flocksweep.analysis.calibration.run import summary_simulator
+from flocksweep.analysis.calibration.simulator import SummarySimulator
+from flocksweep.observables.observation import observe_run
+from flocksweep.observables.summary import MetricSettings, summarize_run
+from flocksweep.observables.tracks import tracks_frame
+from flocksweep.simcore import load_preset, simulate
+from flocksweep.simcore.schema import ConfigError
 from flocksweep.cli import main
 from paths import ROOT
 
@@ -207,7 +207,7 @@ def test_the_simulator_without_observation_is_unchanged_and_with_it_deterministi
     for row, seed in zip(bare, (5, 6)):
         alone = summarize_run(simulate(preset.model, preset.init, seed, 3.0, preset.run.dt, 30), settings)
         assert np.array_equal(row, [alone[c] for c in columns])
-    from observables.observation import Observation
+    from flocksweep.observables.observation import Observation
     observation = Observation(interval=0.1, velocity_interval=0.2, detection_probability=0.9, position_sd=0.1)
     seen = SummarySimulator(data, ["steering.separation_weight"], columns, 2, 1.0, observation=observation)
     first = seen.simulate([12.0], [5, 6])

@@ -110,9 +110,9 @@ def test_stored_claims_that_no_longer_fit_the_results_are_listed_not_fatal(sweep
     not fit is an error."""
     import json
 
-    from analysis.reports.claims.load import claims_of
-    from simcore.schema import ConfigError
-    from sweeps.results import load_results
+    from flocksweep.analysis.reports.claims.load import claims_of
+    from flocksweep.simcore.schema import ConfigError
+    from flocksweep.sweeps.results import load_results
 
     out = tmp_path / "results"
     assert main(["run", str(sweep_file), "--out", str(out), "--executor", "serial", "--no-progress"]) == 0

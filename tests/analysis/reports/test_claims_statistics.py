@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from analysis.reports.claims import statistics as S
+from flocksweep.analysis.reports.claims import statistics as S
 
 RTOL = 1e-9
 

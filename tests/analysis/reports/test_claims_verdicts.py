@@ -11,12 +11,12 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.reports.claims.evaluate import (INCONCLUSIVE, NOT, PARTLY, SUPPORTED, Outcome, combine, evaluate,
+from flocksweep.analysis.reports.claims.evaluate import (INCONCLUSIVE, NOT, PARTLY, SUPPORTED, Outcome, combine, evaluate,
                                               leaf_table)
-from analysis.reports.claims.kinds import leaf_data, leaf_result
-from analysis.reports.stats import holm
-from simcore.schema import ConfigError
-from sweeps.claims import claims_from_records, read_claims_file, table_columns
+from flocksweep.analysis.reports.claims.kinds import leaf_data, leaf_result
+from flocksweep.analysis.reports.stats import holm
+from flocksweep.simcore.schema import ConfigError
+from flocksweep.sweeps.claims import claims_from_records, read_claims_file, table_columns
 from paths import ROOT
 
 CLAIMS = ROOT / "configs" / "claims"
@@ -108,7 +108,7 @@ def true_trend_power(effect: float, sd: float, levels: int, replicates: int, alp
     f = np.repeat(np.arange(levels, dtype=float), 2 * replicates)
     g = np.tile(np.repeat([0.0, 1.0], replicates), levels)
     Y = effect * (f - f.mean()) / (levels - 1) + g + rng.normal(0, sd, (trials, f.size))
-    from analysis.reports.claims.statistics import spearman
+    from flocksweep.analysis.reports.claims.statistics import spearman
     _, p, sign = spearman(f, Y)
     return float(((p < alpha) & (sign == 1)).mean())
 

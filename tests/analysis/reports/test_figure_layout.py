@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.reports import layout, plotting
+from flocksweep.analysis.reports import layout, plotting
 from paths import ROOT
 
 
@@ -49,11 +49,11 @@ def test_save_mends_what_the_checks_find(tmp_path, captured):
 
 @pytest.mark.slow
 def test_every_report_figure_and_a_trace_plot_are_readable(tmp_path, captured):
-    from analysis.reports.report import build_report
-    from analysis.reports.traces import plot_traces
-    from simcore import load_preset, simulate_preset
-    from sweeps.config import load_sweep
-    from sweeps.runner import run_sweep
+    from flocksweep.analysis.reports.report import build_report
+    from flocksweep.analysis.reports.traces import plot_traces
+    from flocksweep.simcore import load_preset, simulate_preset
+    from flocksweep.sweeps.config import load_sweep
+    from flocksweep.sweeps.runner import run_sweep
 
     smoke = ROOT / "configs/sweeps/smoke.toml"
     run_sweep(load_sweep(smoke), smoke.read_text(), tmp_path / "smoke", executor="serial", progress=False)

@@ -14,8 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.reports import figures
-from analysis.reports.traces import draw_traces, plot_traces
+from flocksweep.analysis.reports import figures
+from flocksweep.analysis.reports.traces import draw_traces, plot_traces
 from paths import ROOT
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import pytest
 
-from analysis.reports.claims.evaluate import evaluate
-from analysis.reports.claims.load import claims_of
+from flocksweep.analysis.reports.claims.evaluate import evaluate
+from flocksweep.analysis.reports.claims.load import claims_of
 from paths import ROOT
-from sweeps import load_results, run_sweep
-from sweeps.config import sweep_from_dict
+from flocksweep.sweeps import load_results, run_sweep
+from flocksweep.sweeps.config import sweep_from_dict
 
 
 def judged(tmp_path, data):

@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from observables.metrics import frame_metrics, summarize
-from observables.summary import summary_columns
+from flocksweep.observables.metrics import frame_metrics, summarize
+from flocksweep.observables.summary import summary_columns
 from flocksweep.cli import main
 from paths import ROOT
 

@@ -12,11 +12,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.reports.report import ReportError, build_report, resolve_metrics
+from flocksweep.analysis.reports.report import ReportError, build_report, resolve_metrics
 from flocksweep.cli import main
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.results import load_results
-from sweeps.runner import halfwidths, run_sweep, run_until_ci
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.results import load_results
+from flocksweep.sweeps.runner import halfwidths, run_sweep, run_until_ci
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")

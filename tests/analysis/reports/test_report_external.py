@@ -6,9 +6,9 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from analysis.reports.report import build_report
-from sweeps.config import load_sweep
-from sweeps.runner import run_sweep
+from flocksweep.analysis.reports.report import build_report
+from flocksweep.sweeps.config import load_sweep
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 

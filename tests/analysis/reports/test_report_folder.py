@@ -7,12 +7,12 @@ import json
 
 import pytest
 
-from analysis.reports.report import REPORT_RECORD, build_report
+from flocksweep.analysis.reports.report import REPORT_RECORD, build_report
 from paths import ROOT
-from simcore import ConfigError
+from flocksweep.simcore import ConfigError
 from flocksweep.cli import main
-from sweeps.config import sweep_from_dict
-from sweeps.runner import run_sweep
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.runner import run_sweep
 
 HOLLAND = str(ROOT / "configs" / "models" / "holland.toml")
 
@@ -80,7 +80,7 @@ def test_an_output_path_that_is_a_file_is_a_config_error(results, tmp_path):
 
 @pytest.mark.slow
 def test_an_interrupted_build_is_rerun_by_the_same_command(results, tmp_path, monkeypatch, capsys):
-    from analysis.reports import report
+    from flocksweep.analysis.reports import report
 
     out = tmp_path / "rep"
     argv = ["report", str(results), "--out", str(out), "--format", "md"]

@@ -16,16 +16,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from observables.summary import summary_columns
-from analysis.reports.report import build_report
-from analysis.reports.sensitivity import (ContinuousDesign, continuous_design, correlations, morris_indices,
+from flocksweep.observables.summary import summary_columns
+from flocksweep.analysis.reports.report import build_report
+from flocksweep.analysis.reports.sensitivity import (ContinuousDesign, continuous_design, correlations, morris_indices,
                                           noise_share, partial_dependence, sample_outputs, smoother, sobol_indices)
-from sweeps.config import load_sweep, sweep_from_dict
-from sweeps.design import expand
-from sweeps.runner import design_table, model_record, run_sweep
-from sweeps.sensitivity import SensitivityDesign
-from sweeps.store import ResultsStore
-from sweeps.worker import base_row
+from flocksweep.sweeps.config import load_sweep, sweep_from_dict
+from flocksweep.sweeps.design import expand
+from flocksweep.sweeps.runner import design_table, model_record, run_sweep
+from flocksweep.sweeps.sensitivity import SensitivityDesign
+from flocksweep.sweeps.store import ResultsStore
+from flocksweep.sweeps.worker import base_row
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -131,7 +131,7 @@ def test_ishigami_through_the_sweep_store_and_the_report(tmp_path):
 def test_continuous_design_is_rebuilt_from_the_stored_sweep(tmp_path):
     config = ishigami_sweep(8)
     store_toy_results(config, tmp_path / "results")
-    from sweeps.results import load_results
+    from flocksweep.sweeps.results import load_results
 
     results = load_results(tmp_path / "results")
     design = continuous_design(results)

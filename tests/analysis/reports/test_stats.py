@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from analysis.reports import stats as S
+from flocksweep.analysis.reports import stats as S
 
 
 def level_table(rng, n_per_level, shifts, levels=None, sd=1.0):

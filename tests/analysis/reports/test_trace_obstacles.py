@@ -7,9 +7,9 @@ import pytest
 
 matplotlib.use("Agg")
 
-from analysis.reports.obstacle_artists import box_faces, cylinder_parts, plane_patch, sphere_grid  # noqa: E402
-from analysis.reports.traces import draw_traces, plot_traces  # noqa: E402
-from simcore.obstacle_spec import Obstacle  # noqa: E402
+from flocksweep.analysis.reports.obstacle_artists import box_faces, cylinder_parts, plane_patch, sphere_grid  # noqa: E402
+from flocksweep.analysis.reports.traces import draw_traces, plot_traces  # noqa: E402
+from flocksweep.simcore.obstacle_spec import Obstacle  # noqa: E402
 
 OBSTACLES = (Obstacle(kind="sphere", centre=(0, 5, 0), radius=2.0),
              Obstacle(kind="plane", centre=(0, -1, 0), normal=(0, 1, 0)),
@@ -89,7 +89,7 @@ def test_plot_traces_writes_a_picture_with_obstacles_and_agents(tmp_path, suffix
 
 
 def test_thumbnails_pass_obstacles_and_agents_to_each_panel(tmp_path, monkeypatch):
-    from analysis.reports import figures
+    from flocksweep.analysis.reports import figures
 
     drawn = []
 

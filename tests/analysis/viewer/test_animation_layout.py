@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.reports import layout
-from analysis.viewer.animation import _Drawing, source_frames
+from flocksweep.analysis.reports import layout
+from flocksweep.analysis.viewer.animation import _Drawing, source_frames
 from viewer_data import milling_track
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from analysis.viewer import animate
-from analysis.viewer.animation import (AnimationUnavailable, check_options, frame_count, poster, source_frames,
+from flocksweep.analysis.viewer import animate
+from flocksweep.analysis.viewer.animation import (AnimationUnavailable, check_options, frame_count, poster, source_frames,
                                      write_animation)
 from viewer_data import milling_track
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.viewer.track import from_npz, from_observations, recorded_agents
-from simcore import load_preset, simulate_preset
+from flocksweep.analysis.viewer.track import from_npz, from_observations, recorded_agents
+from flocksweep.simcore import load_preset, simulate_preset
 from flocksweep.cli import main
 from paths import ROOT
 

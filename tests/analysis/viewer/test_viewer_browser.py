@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.viewer import view
-from analysis.viewer.track import from_arrays, recorded_agents
+from flocksweep.analysis.viewer import view
+from flocksweep.analysis.viewer.track import from_arrays, recorded_agents
 from browser import Browser
 from viewer_data import milling_arrays, milling_track
 from paths import TESTS
@@ -241,7 +241,7 @@ def test_a_page_of_several_runs_shows_the_run_its_fragment_names_and_switching_w
     ids = ["aaaa11112222", "bbbb33334444", "cccc55556666"]
     runs = [replace(base, pos=base.pos * (1 + k), info={"run id": run, "seed": k}, title=f"run {run}")
             for k, run in enumerate(ids)]
-    from analysis.viewer import view_runs
+    from flocksweep.analysis.viewer import view_runs
 
     path = view_runs(runs, ids, tmp_path / "runs.html", color_by="boid", max_mb=None).path
     times = np.asarray(base.times)

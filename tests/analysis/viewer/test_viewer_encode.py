@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.viewer import view
-from analysis.viewer.encode import (check_agents, check_scene, decode_stream, heading_stream, label_stream,
+from flocksweep.analysis.viewer import view
+from flocksweep.analysis.viewer.encode import (check_agents, check_scene, decode_stream, heading_stream, label_stream,
                                     position_stream, speed_stream, stream)
-from analysis.viewer.observables import frame_observables
-from analysis.viewer.palette import AGENT_COLOURS
-from analysis.viewer.page import build_page, choose_stride, estimate_bytes
-from analysis.viewer.track import Track, as_track, from_arrays, from_npz
+from flocksweep.analysis.viewer.observables import frame_observables
+from flocksweep.analysis.viewer.palette import AGENT_COLOURS
+from flocksweep.analysis.viewer.page import build_page, choose_stride, estimate_bytes
+from flocksweep.analysis.viewer.track import Track, as_track, from_arrays, from_npz
 from viewer_data import milling_arrays, milling_track
 from paths import ROOT
 
@@ -145,7 +145,7 @@ def test_page_is_self_contained_and_carries_the_data():
 def test_metrics_in_the_page_are_the_sweep_metrics():
     """The panel's numbers follow the definitions of observables.metrics (to rounding), on a flock that
     splits into several groups."""
-    from observables.metrics import frame_metrics
+    from flocksweep.observables.metrics import frame_metrics
 
     rng = np.random.default_rng(4)
     pos = np.cumsum(rng.normal(0, 0.4, (40, 25, 3)), axis=0) + rng.normal(0, 6, (1, 25, 3))
@@ -196,8 +196,8 @@ def test_jupyter_display_and_repr(tmp_path):
 
 
 def test_trajectory_npz_with_params_json_is_shown_with_its_preset(tmp_path):
-    from simcore import load_preset
-    from sweeps.single import run_single
+    from flocksweep.simcore import load_preset
+    from flocksweep.sweeps.single import run_single
 
     preset = load_preset(ROOT / "configs/models/holland.toml", ["init.n=8", "run.duration=0.5"])
     run_single(preset, 4, tmp_path / "run", record_every=1)
@@ -227,7 +227,7 @@ def test_predator_and_prey_colours_lie_outside_every_boid_colouring():
     maps sampled finely, and Table 1's pattern colours (RGB distance > 60 of 441)."""
     import matplotlib
 
-    from analysis.viewer.palette import TABLE_1_HEX
+    from flocksweep.analysis.viewer.palette import TABLE_1_HEX
 
     def rgb(hex_colour):
         return np.array(matplotlib.colors.to_rgb(hex_colour)) * 255

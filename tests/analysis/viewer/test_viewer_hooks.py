@@ -11,12 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration.config import load_calibration
-from analysis.reports.report import build_report
-from analysis.viewer.encode import decode_stream
-from analysis.calibration.viewer_page import MEDIAN_PAGE, posterior_median_page
-from sweeps.config import sweep_from_dict
-from sweeps.runner import run_sweep
+from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.reports.report import build_report
+from flocksweep.analysis.viewer.encode import decode_stream
+from flocksweep.analysis.calibration.viewer_page import MEDIAN_PAGE, posterior_median_page
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -70,8 +70,8 @@ def test_calibration_writes_a_page_at_the_posterior_median(tmp_path):
     assert data["info"]["median field"] == "151.3" and data["info"]["seed"] == config.seed
     assert data["n"] == 20 and data["frames"] == 61
     # the same run, simulated directly, is what the page shows
-    from analysis.calibration.simulator import SummarySimulator
-    from simcore import simulate_preset
+    from flocksweep.analysis.calibration.simulator import SummarySimulator
+    from flocksweep.simcore import simulate_preset
 
     preset = SummarySimulator(config.preset_data, config.keys, config.targets.columns, 1,
                               config.warmup).preset(np.array([151.3, 44.6]))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.viewer.track import from_arrays, from_observed
-from observables.observed import ObservedFlock
+from flocksweep.analysis.viewer.track import from_arrays, from_observed
+from flocksweep.observables.observed import ObservedFlock
 
 
 def _flock(present: np.ndarray) -> ObservedFlock:

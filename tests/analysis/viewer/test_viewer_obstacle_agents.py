@@ -9,13 +9,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from analysis.viewer import view
-from analysis.viewer.encode import check_scene, page_data
-from analysis.viewer.observables import frame_observables
-from analysis.viewer.palette import AGENT_COLOURS
-from analysis.viewer.track import agents_of, from_npz, from_observations, obstacle_scene, scene_of
-from simcore.obstacle_spec import Obstacle
-from simcore.simulate import Observations
+from flocksweep.analysis.viewer import view
+from flocksweep.analysis.viewer.encode import check_scene, page_data
+from flocksweep.analysis.viewer.observables import frame_observables
+from flocksweep.analysis.viewer.palette import AGENT_COLOURS
+from flocksweep.analysis.viewer.track import agents_of, from_npz, from_observations, obstacle_scene, scene_of
+from flocksweep.simcore.obstacle_spec import Obstacle
+from flocksweep.simcore.simulate import Observations
 
 OBSTACLES = (Obstacle(kind="sphere", centre=(0, 0, 0), radius=3.0),
              Obstacle(kind="plane", centre=(0, -10, 0), normal=(0, 1, 0)),
@@ -115,7 +115,7 @@ def test_the_page_draws_obstacles_agents_and_agent_trails(tmp_path):
 def test_stills_and_animations_draw_the_agents_in_their_colours(tmp_path):
     from PIL import Image
 
-    from analysis.viewer.animation import poster, write_animation
+    from flocksweep.analysis.viewer.animation import poster, write_animation
 
     obs = circling_run(frames=21)
     with_agents = from_observations(obs)

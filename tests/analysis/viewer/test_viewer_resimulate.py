@@ -13,13 +13,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from observables.summary import every_nth
-from analysis.viewer.encode import decode_stream
-from analysis.viewer.resimulate import (NotReproduced, RunNotFound, parse_where, record_step_for, reproduce,
+from flocksweep.observables.summary import every_nth
+from flocksweep.analysis.viewer.encode import decode_stream
+from flocksweep.analysis.viewer.resimulate import (NotReproduced, RunNotFound, parse_where, record_step_for, reproduce,
                                         select_run)
 from flocksweep.cli import main
-from sweeps.config import sweep_from_dict
-from sweeps.runner import run_sweep
+from flocksweep.sweeps.config import sweep_from_dict
+from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -177,7 +177,7 @@ def test_cli_views_a_model_preset_and_a_trajectory(tmp_path, capsys):
     assert data["n"] == 12 and data["frames"] == 61 and data["info"]["seed"] == 3
     assert data["params"]["perception.field_deg"] == 200.0
     # the page shows the simulation itself: same seed, same positions (to the quantum)
-    from simcore import load_preset, simulate_preset
+    from flocksweep.simcore import load_preset, simulate_preset
 
     preset = load_preset(HOLLAND, ["perception.field_deg=200", "init.n=12", "run.duration=1.0"])
     obs = simulate_preset(preset, 3, record_every=1)

@@ -10,8 +10,8 @@ from dataclasses import replace
 
 import pytest
 
-from analysis.viewer import view, view_runs
-from analysis.viewer.page import overhead_bytes
+from flocksweep.analysis.viewer import view, view_runs
+from flocksweep.analysis.viewer.page import overhead_bytes
 from viewer_data import milling_track
 
 IDS = ["aaaa11112222", "bbbb33334444", "cccc55556666"]

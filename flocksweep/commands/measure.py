@@ -1,0 +1,68 @@
+"""``flocksweep measure``: flock metrics of measured tracks (tables and a report).
+
+The options and the handler; the work is :mod:`flocksweep.analysis.reports.measure_command`."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from flocksweep.command import Command
+
+HELP = "flock metrics of measured tracks (tables and a report)"
+DESCRIPTION = ("Compute every flock metric from measured trajectories (long format: flock, id, t, x, y[, z]"
+               "[, vx, vy, vz]): validate them, resample onto a regular interval, and write a runs table (one "
+               "row per flock), time series per flock, a validation table and a short report with figures.")
+
+
+def arguments(p) -> None:
+    from flocksweep.observables.track_names import FORMATS, ROLES   # only when its options are declared
+
+    p.add_argument("tracks", type=Path, help="track file or folder: long CSV (also .csv.gz) or Parquet, one row per "
+                                             "detection, or a tracker's or logger's file (--format)")
+    p.add_argument("--group-radius", type=float, required=True, metavar="R",
+                   help="individuals closer than R are linked into one group (analysis length units: body "
+                        "lengths with --body-length, else metres); groups, cohesion and the shape metrics use it")
+    p.add_argument("--format", choices=FORMATS, default=None,
+                   help="file format (default: detected from the file): long csv or parquet; mat (MATLAB, with "
+                        "--layout), idtracker (trajectories.npy/.npz), trex (a folder of per-individual exports), "
+                        "trajr (a folder of one CSV per individual), movebank (GPS, projected to metres)")
+    p.add_argument("--fps", type=float, metavar="HZ", help="frames per second, for times given as frame numbers")
+    p.add_argument("--body-length-px", type=float, metavar="PX",
+                   help="body length in pixels, for tracks in pixels (lengths become body lengths)")
+    p.add_argument("--layout", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="a .mat file's array: variable=NAME axes=individual,channel,sample channels=x,y,vx,vy "
+                        "[time=NAME]")
+    p.add_argument("--columns", nargs="+", default=[], metavar="ROLE=NAME",
+                   help=f"column map, e.g. id=bird t=time; roles: {', '.join(ROLES)}")
+    p.add_argument("--units", nargs="+", default=[], metavar="KIND=UNIT",
+                   help="length=m|cm|mm|km|bl|px and time=s|ms|min|h|datetime|frame (default m and s, or what the "
+                        "format implies); a bare unit such as cm means length")
+    p.add_argument("--body-length", type=float, metavar="METRES",
+                   help="body length in metres: lengths become body lengths (BL), speeds BL/s")
+    p.add_argument("--interval", type=float, metavar="S",
+                   help="resample onto this sampling interval (default: each flock's median sample spacing)")
+    p.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2.5 intervals)")
+    p.add_argument("--velocity-interval", metavar="S|recorded",
+                   help="difference positions over S seconds (a whole number of intervals), or 'recorded' "
+                        "(default: recorded when the file has velocities, else one interval)")
+    p.add_argument("--warmup", type=float, default=0.0, help="seconds at the start left out of window means")
+    p.add_argument("--fragmentation-cohesion", type=float, default=None,
+                   help="cohesion below this counts as fragmented (default 0.5, "
+                        "observables.metrics.FRAGMENTATION_COHESION)")
+    p.add_argument("--max-speed", type=float, metavar="V",
+                   help="impossible speed (analysis units/s; default 10 x each flock's median step speed)")
+    p.add_argument("--bad-speeds", choices=("error", "keep", "drop"), default=None,
+                   help="samples reached at an impossible speed: stop (default), keep them, or drop them")
+    p.add_argument("--dcd-max-delay", type=float, default=None, metavar="S",
+                   help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
+    p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
+    p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def handler(args) -> int:
+    from flocksweep.analysis.reports.measure_command import run
+
+    return run(args)
+
+
+COMMAND = Command("measure", HELP, DESCRIPTION, arguments, handler)
