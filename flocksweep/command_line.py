@@ -134,5 +134,8 @@ def check_run_args(args) -> None:
     check_out("--out", args.out)
     if args.scheduler is not None and args.executor != "dask":
         raise ConfigError("--scheduler", "only applies with --executor dask")
+    if args.workers is not None and args.executor == "cluster":
+        raise ConfigError("--workers", "not used with --executor cluster: the cluster's workers are "
+                                       "cluster.jobs x cluster.processes (--set cluster.jobs=N)")
     if args.scheduler is not None and not args.scheduler.strip():
         raise ConfigError("--scheduler", "got an empty address; expected tcp://HOST:PORT")

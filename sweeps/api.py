@@ -43,8 +43,10 @@ def run_sweep(sweep: SweepConfig, out: str | Path, executor: str = "local", work
         :meth:`Sweep.from_dict <sweeps.config.SweepConfig.from_dict>`.
     out : str or pathlib.Path
         The results folder. Runs already stored there are skipped (resume).
-    executor : {"local", "serial", "dask"}, default "local"
-        A local process pool, this process, or a Dask cluster (:class:`sweeps.executors.Executor`).
+    executor : {"local", "serial", "dask", "cluster"}, default "local"
+        A local process pool, this process, a Dask cluster, or batch jobs on a SLURM/PBS/SGE/LSF cluster
+        as the sweep's ``[cluster]`` table declares them (:class:`sweeps.executors.Executor`,
+        :mod:`sweeps.cluster`).
         The results do not depend on it.
     workers : int, optional
         Worker processes (default: every core).

@@ -68,6 +68,10 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
 
     [report]                        # free-form settings for `flocksweep report`
 
+    [cluster]                       # where `flocksweep run --executor cluster` runs it: batch jobs on a
+    kind = "slurm"                  # SLURM, PBS, SGE or LSF cluster (sweeps.cluster); never part of a
+    jobs = 4                        # run's identity
+
     include_claims = ["../claims/holland.toml"]   # (top level) shared claims files, tested by the report
     [[claims]]                      # a hypothesis about the results (sweeps/claims.py, docs/claims.md)
     id = "wider-is-aligned"
@@ -114,6 +118,7 @@ from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_
                             set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns
+from .cluster import ClusterSettings, cluster_settings
 from .external import CommandModel, CommandTable, command_metrics, command_model
 from .store import RESERVED_COLUMNS  # noqa: F401 - the runs table's own columns, declared there
 from .model_set import flat_changes, model_overrides
@@ -301,6 +306,7 @@ class SweepFile:
     claims: tuple[ClaimTable, ...] = field(default=(), metadata={"expected": "an array of tables: [[claims]]"})
     include_claims: tuple[Any, ...] = field(default=(), metadata={
         "expected": 'a list of claims files, e.g. ["../claims/holland.toml"]'})
+    cluster: Any = field(default=None, metadata={"expected": 'a table: [cluster] kind = "slurm", ... (sweeps.cluster)'})
 
     def __post_init__(self):
         object.__setattr__(self, "model", model_table(self.model))   # ModelTable or external.CommandTable
@@ -404,6 +410,8 @@ class SweepConfig(FileConfig, loader="load_sweep"):
     claims: tuple = field(default=(), repr=False, compare=False, hash=False)  # sweeps.claims.Claim, validated
     text: str | None = field(default=None, repr=False, compare=False, hash=False)  # the file's text, if read from one
     command: CommandModel | None = None   # an external simulator ([model] command, sweeps.external) instead of a preset
+    # where the runs may execute (--executor cluster): never part of a run's identity (sweeps.cluster)
+    cluster: ClusterSettings | None = field(default=None, repr=False, compare=False, hash=False)
 
     @classmethod
     def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
@@ -591,7 +599,8 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
                        preset_path=preset_path, preset_data=preset_data, metrics=metrics,
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
                        report=table.report, source=data, design=design,
-                       points=parse_points(table.points, axes, keys), claims=claims, command=command)
+                       points=parse_points(table.points, axes, keys), claims=claims, command=command,
+                       cluster=cluster_settings(table.cluster))
 
 
 def check_parameters(command: CommandModel, axes: tuple[Axis, ...], block) -> None:

@@ -1,6 +1,6 @@
 """The one executor: where sweeps, calibrations and SBC compute their tasks.
 
-``Executor(kind="serial", workers=None, scheduler=None, preload=())`` is a context manager (pools start in
+``Executor(kind="serial", workers=None, scheduler=None, preload=(), cluster=None)`` is a context manager (pools start in
 ``__enter__``, stop in ``__exit__``; importing this module starts nothing) with two ways to run a
 function over items:
 
@@ -39,6 +39,10 @@ Kinds:
   handle, and one pressed while the cluster starts is raised once it is whole, so it is closed whole,
   never lost); their logs are silenced (a task's error reaches the caller as its outcome), and so are
   this process's distributed loggers while an interrupted cluster is closed.
+* ``cluster``: a ``dask.distributed`` Client on a batch-scheduled cluster (SLURM, PBS, SGE, LSF): the
+  workers are batch jobs that ``cluster`` (a :class:`sweeps.cluster.ClusterSettings`) describes,
+  submitted in ``__enter__`` and cancelled when the executor closes (:mod:`sweeps.cluster`); tasks run
+  as with ``dask``, and ``workers`` is the jobs' worker processes in all.
 
 Lost workers are an infrastructure fault, never a task's failure. When a local worker dies (killed,
 out of memory, a crash in compiled code), the pool is restarted and the tasks it was running are run
@@ -80,7 +84,7 @@ from typing import Any, NamedTuple
 from .interrupts import deferred, raise_if_received
 from . import main_guard
 
-EXECUTORS = ("serial", "local", "dask")
+EXECUTORS = ("serial", "local", "dask", "cluster")
 START_METHOD = "spawn"
 MAX_ATTEMPTS = 3        # runs of a task whose worker died before it is given up as lost
 CONNECT_TIMEOUT = 10.0  # seconds to reach a dask scheduler
@@ -375,15 +379,18 @@ class Executor:
     """Ordered ``map`` and ``as_completed`` over a kind of executor; see the module docstring."""
 
     def __init__(self, kind: str = "serial", workers: int | None = None, scheduler: str | None = None,
-                 preload: tuple[str, ...] = ()):
+                 preload: tuple[str, ...] = (), cluster=None):
         if kind not in EXECUTORS:
             raise ValueError(f"executor: got {kind!r}; allowed: {', '.join(EXECUTORS)}")
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ValueError(f"workers: got {workers!r}; expected an integer >= 1")
         if scheduler and kind != "dask":
             raise ValueError("scheduler: only used with executor 'dask'")
+        if (cluster is None) != (kind != "cluster"):
+            raise ValueError("cluster: the settings of executor 'cluster', and only of it")
         self.kind = kind
-        self.workers = workers or os.cpu_count() or 1
+        self.cluster = cluster
+        self.workers = cluster.workers if cluster is not None else workers or os.cpu_count() or 1
         self.scheduler = scheduler
         self.preload = tuple(preload)   # local pools: modules each worker imports as it starts, all started at once
         self.restarts = 0   # local pools restarted after a worker died
@@ -401,7 +408,7 @@ class Executor:
             mend_resource_tracker()
         if self.kind == "local" and self.workers > 1:
             self._start_pool()
-        elif self.kind == "dask":
+        elif self.kind in ("dask", "cluster"):
             self._start_dask()
         return self
 
@@ -424,6 +431,12 @@ class Executor:
         try:
             if self.scheduler:
                 self._client = connect(self.scheduler)
+            elif self.cluster is not None:
+                from .cluster import start_cluster
+
+                with deferred():   # a Ctrl-C while the jobs are submitted: raised once they are, to cancel them
+                    self._cluster = start_cluster(self.cluster)
+                self._client = Client(self._cluster)
             else:
                 self._immune = _workers_ignore_sigint()
                 self._immune.__enter__()
@@ -494,6 +507,8 @@ class Executor:
             return "serial (this process, threaded batches)"
         if self._pool is not None:
             return f"local ({self.workers} processes)"
+        if self.cluster is not None:
+            return self.cluster.describe()
         return f"dask ({self.scheduler or f'LocalCluster of {self.workers}'})"
 
     # -- running -------------------------------------------------------------------------------------

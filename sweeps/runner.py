@@ -43,6 +43,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from flocksweep.simcore import simulate
+from flocksweep.simcore.schema import ConfigError
 
 from . import worker
 from .budget import check_sweep
@@ -318,7 +319,7 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     if sweep_text is None:
         sweep_text = config.text if config.text is not None else config.to_toml()
     started = time.time()
-    workers = workers or os.cpu_count() or 1
+    workers = cluster_workers(config) if executor == "cluster" else workers or os.cpu_count() or 1
     if not dry_run and ((executor == "local" and workers > 1) or (executor == "dask" and not scheduler)):
         main_guard.check_caller_guarded()   # before anything is written: UnguardedScript
     if specs is None:
@@ -350,6 +351,17 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
                        quarantined=quarantined)
 
 
+def cluster_workers(config: SweepConfig) -> int:
+    """The worker processes of the sweep's ``[cluster]`` (:mod:`sweeps.cluster`); ConfigError when it has
+    none, before anything is read or written."""
+    if config.cluster is None:
+        raise ConfigError("--executor", "got 'cluster', but the sweep declares no [cluster] table: add one "
+                                        "(kind = \"slurm\", jobs, cores, memory, walltime, ...; docs/sweeps.md, "
+                                        "\"On a cluster\") or give it with --set cluster.kind=slurm "
+                                        "--set cluster.jobs=4 ...")
+    return config.cluster.workers
+
+
 def _one_per_run_loop(specs: list[RunSpec]) -> list[RunSpec]:
     """The first run of each (dynamics, perception kind): simcore compiles a run loop for each."""
     first = {}
@@ -371,7 +383,8 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
         raise ValueError(f"pool: a {started.description} pool, for a sweep on executor {executor!r} with "
                          f"{workers} worker(s)")
     with (_borrowed(started) if started is not None   # the caller's, already importing
-          else Executor(executor, workers, scheduler, preload=(f"{worker.__name__}:prepare",))) as pool:   # workers start importing
+          else Executor(executor, workers, scheduler, preload=(f"{worker.__name__}:prepare",),   # workers start importing
+                        cluster=config.cluster if executor == "cluster" else None)) as pool:
         warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
         return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
 

@@ -25,8 +25,10 @@ def arguments(p) -> None:
                         "--axis perception.field_deg=30,90,180 --axis init.n=20,50")
     p.add_argument("--name", help="with --model: the sweep's name (default <model>_<axis keys>)")
     p.add_argument("--workers", type=int, help="worker processes (default: all cores)")
-    p.add_argument("--executor", choices=("serial", "local", "dask"), default="local",
-                   help="local process pool (default), serial in this process, or dask")
+    p.add_argument("--executor", choices=("serial", "local", "dask", "cluster"), default="local",
+                   help="local process pool (default), serial in this process, dask, or cluster: batch jobs "
+                        "on a SLURM/PBS/SGE/LSF cluster as the sweep's [cluster] table (or --set "
+                        "cluster.KEY=VALUE) declares them (docs/sweeps.md, On a cluster)")
     p.add_argument("--scheduler", metavar="ADDR", help="dask scheduler address; without it a LocalCluster starts")
     p.add_argument("--replicates", type=int, help="override the sweep's replicates")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -120,6 +122,8 @@ def _run(args, pool) -> int:
         print(f"{config.name}: {len(plan.specs)} runs; {len(plan.done)} done, {len(plan.failed)} failed "
               f"(kept; --retry-failed reruns them), {len(plan.todo)} to run")
         workers = 1 if args.executor == "serial" else (args.workers or os.cpu_count())
+        if args.executor == "cluster":
+            workers = config.cluster.workers
         if est.get("command"):
             print(f"  estimated wall time: unknown: the runs are an external command's, and a dry run executes "
                   f"nothing (each run may take up to model.timeout_s = {config.command.timeout_s:g} s; on "
@@ -129,6 +133,8 @@ def _run(args, pool) -> int:
         print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
               f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.1f} ms x {len(plan.todo)} runs, "
               f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")
+        if args.executor == "cluster":
+            _print_job_script(config.cluster)
         if est["compile_s"]:
             print(f"  first compile: {est['compile_s']:.0f} s, done now by this dry run (numba's cache had no run loop "
                   "for these models); the run will load them")
@@ -143,6 +149,15 @@ def _run(args, pool) -> int:
     if failed:
         print(f"  failures: flocksweep status {out}")
     return report_lost(args, result)
+
+def _print_job_script(settings) -> None:
+    """A dry run on a cluster: the batch script each job would run (nothing is submitted)."""
+    from flocksweep.sweeps.cluster import job_script
+
+    print(f"  {settings.describe()}; each job runs (nothing submitted by a dry run):")
+    for line in job_script(settings).strip().splitlines():
+        print(f"    {line}")
+
 
 def report_lost(args, result) -> int:
     """Say which runs were left missing because their workers died; exit status 5 if any."""
