@@ -54,7 +54,6 @@ removed afterwards.
 """
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 import errno
 import hashlib
@@ -68,7 +67,6 @@ import shutil
 import signal
 import string
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -83,6 +81,8 @@ from flocksweep.observables.summary import MetricSettings, summary_columns
 from flocksweep.observables.tracks import TrackSource, load_tracks
 from flocksweep.simcore.schema import ConfigError, suggest
 
+from .sandbox import dies_with_parent
+
 PLACEHOLDERS = ("seed", "out", "scratch", "params", "params_json", "params_toml")
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 OUTPUT_SUFFIXES = (".csv", ".csv.gz", ".parquet")
@@ -91,7 +91,6 @@ STDERR_CHARS = 2000
 TAIL_BYTES = 64 * 1024     # of stdout and of stderr, the most kept in memory while a command runs
 READ_BYTES = 64 * 1024     # one read from a pipe
 POLL_S = 0.1               # where the kernel gives no pidfd: how often to look whether the command exited
-PR_SET_PDEATHSIG = 1       # linux/prctl.h
 
 
 class CommandFailed(RuntimeError):
@@ -450,21 +449,6 @@ def _write_params(model: CommandModel, values: dict, scratch: Path) -> None:
         (scratch / "params.toml").write_text(tomli_w.dumps(values))
 
 
-def _dies_with_parent():
-    """A ``preexec_fn`` that has the kernel kill the command when the worker that started it dies (Linux's
-    PR_SET_PDEATHSIG; a worker killed outright, e.g. by the pool on Ctrl-C, cannot kill it itself); None
-    elsewhere. Resolved before the fork, so the child only makes the one system call."""
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-    args = (ctypes.c_int(PR_SET_PDEATHSIG), ctypes.c_ulong(signal.SIGKILL), ctypes.c_ulong(0), ctypes.c_ulong(0),
-            ctypes.c_ulong(0))
-    return lambda: prctl(*args)
-
-
 def _end_group(process: subprocess.Popen) -> None:
     """Kill the command's whole process group (it and everything it started, also after it exited), then
     reap the command. Its process is not reaped before the group is killed, so the group's id is still
@@ -554,7 +538,7 @@ def run_command(model: CommandModel, values: dict, seed: int, scratch: Path, tim
     if timeout_s is not None and timeout_s < limit:
         limit, which = timeout_s, "run.timeout_s"
     process = subprocess.Popen(argv, cwd=model.workdir, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, start_new_session=True, preexec_fn=_dies_with_parent())
+                               stderr=subprocess.PIPE, start_new_session=True, preexec_fn=dies_with_parent())
     stdout, stderr = Tail(), Tail()
     outputs = {process.stdout: stdout, process.stderr: stderr}
     try:
