@@ -368,8 +368,9 @@ def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
 # user runs them), with the exit status and the words each must give; ``between`` damages the folder after
 # the first command (as a user's edit would). A case is contained when every command gives its status and
 # words, none prints a traceback, and no process the commands started is left running (20 s after each
-# ends). :func:`contained_trial` also measures each command's seconds and its own peak memory (the
-# runner's: ``ru_maxrss`` of the process, from ``wait4``): the figures bench/fault_battery.py reports.
+# ends). :func:`contained_trial` also measures each command's seconds and its peak memory (that of the
+# largest process it started, the runner itself unless a worker was larger): the figures
+# bench/fault_battery.py reports.
 
 FAULTY_PRESET = """name = "faulty"
 dynamics = "{module}"
@@ -513,36 +514,46 @@ CONTAINED_QUICK = ("plug-in: out-of-bounds write (SIGSEGV), 2 workers", "simulat
 class ContainedResult:
     problems: list = field(default_factory=list)    # '' when contained; else what went wrong, one per line
     seconds: list = field(default_factory=list)     # each command's wall time
-    peak_mb: list = field(default_factory=list)     # each command's own peak resident memory (MB)
+    peak_mb: list = field(default_factory=list)     # each command's peak resident memory (MB, its largest process)
     orphans: list = field(default_factory=list)
 
 
+# runs the command as its child and records the peak memory of the largest process it waited for (a
+# launcher of its own: a child forked from the big test process would carry that process's memory in
+# its ru_maxrss); a command killed by a signal kills the launcher by the same signal
+LAUNCHER = """import os, resource, signal, subprocess, sys
+code = subprocess.run(sys.argv[2:]).returncode
+with open(sys.argv[1], "w") as out:
+    out.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
+if code < 0:
+    signal.signal(-code, signal.SIG_DFL)
+    os.kill(os.getpid(), -code)
+sys.exit(code)
+"""
+
+
 def _watched(argv, cwd: Path, env: dict, timeout: float = 900) -> tuple[int, str, float, float, set]:
-    """Run one command: (exit status, stdout + stderr, seconds, its own peak memory in MB, every
-    descendant seen while it ran)."""
-    out_path = cwd / ".contained.out"
+    """Run one command: (exit status, stdout + stderr, seconds, the peak memory in MB of the largest
+    process it started, every descendant seen while it ran)."""
+    out_path, peak_path = cwd / ".contained.out", cwd / ".contained.peak"
     seen: set[int] = set()
     started = time.monotonic()
     with open(out_path, "w") as out:
-        proc = subprocess.Popen(command(argv), cwd=cwd, stdout=out, stderr=subprocess.STDOUT,
-                                env={**environment(), **env}, start_new_session=True)
+        proc = subprocess.Popen([sys.executable, "-c", LAUNCHER, str(peak_path), *command(argv)], cwd=cwd,
+                                stdout=out, stderr=subprocess.STDOUT, env={**environment(), **env},
+                                start_new_session=True)
         deadline = started + timeout
-        status = usage = None
-        while status is None and time.monotonic() < deadline:
+        while proc.poll() is None and time.monotonic() < deadline:
             seen |= descendants(proc.pid)
-            pid, code, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                status = os.waitstatus_to_exitcode(code)
-            else:
-                time.sleep(0.05)
-        if status is None:
+            time.sleep(0.05)
+        if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-            _, code, usage = os.wait4(proc.pid, 0)
-            status = os.waitstatus_to_exitcode(code)
-        proc.returncode = status
+            proc.wait()
     text = out_path.read_text()
     out_path.unlink()
-    return status, text, time.monotonic() - started, usage.ru_maxrss / 1024, seen
+    peak = float(peak_path.read_text()) / 1024 if peak_path.exists() else float("nan")
+    peak_path.unlink(missing_ok=True)
+    return proc.returncode, text, time.monotonic() - started, peak, seen
 
 
 def contained_trial(case: Contained, folder: Path) -> ContainedResult:
