@@ -242,6 +242,8 @@ def _contained(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
         box.call(prepare_contained, spec)
         start = time.perf_counter()
         return box.call(execute_here, spec, out_dir, timeout=spec.timeout_s)
+    except WriteFailed:
+        raise   # the disk's fault, not the run's
     except TaskTimedOut:
         error = TaskTimedOut(f"the run was still going after {spec.timeout_s:g} s (run.timeout_s): stopped, its "
                              "process killed; raise run.timeout_s and rerun with --retry-failed to give it longer")
@@ -249,6 +251,8 @@ def _contained(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
         where = ("in compiled code: for a plug-in, an index outside an array in its steer (docs/plugins.md)"
                  if is_plugin(spec) else "in compiled code, or out of memory")
         error = TaskCrashed(f"the run crashed: {err} {where}")
+    except Exception as err:  # noqa: BLE001 - its kernels would not compile or load: the run's failure
+        error = err
     row = base_row(spec)
     row.update(status="failed", error=traceback.format_exception_only(type(error), error)[-1].strip(),
                wall_s=time.perf_counter() - start)
