@@ -67,7 +67,7 @@ from flocksweep.observables.columns import EVERY_METRIC_COLUMN
 
 from .checksums import CHANGED, CHECKSUMS, SELF_CHECKSUM, checksum, content_checksum  # noqa: F401 - also read from here
 from .files import (Unreadable, atomic_path, json_ready, read_json, remove_stale_temporaries, write_csv, write_json,
-                    write_parquet, write_text)
+                    write_text)
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
 from .provenance import stamp
