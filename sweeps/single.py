@@ -37,8 +37,8 @@ from flocksweep.simcore.params import DYNAMICS
 
 from .failures import SimulationFailed
 from .files import write_csv, write_json, write_parquet
+from .non_finite import check_finite_run
 from .provenance import stamp
-from .sandbox import Sandbox, TaskCrashed
 from .trajectory import write_trajectory
 
 
@@ -63,12 +63,11 @@ def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, descript
 def _simulate(preset: Preset, seed, record_every: int | None) -> Observations:
     """The run's observations; a plug-in's in a sandbox (module docstring); SimulationFailed when it
     crashed or ended in a non-finite state."""
-    from .worker import check_finite_run
-
     if preset.model.dynamics in DYNAMICS:
         obs = simulate_preset(preset, seed, record_every)
-    else:
+    else:   # imported here: the sandbox loads multiprocessing's connections, a built-in model needs none
         from .plugin_check import check_plugin
+        from .sandbox import Sandbox, TaskCrashed
 
         check_plugin(preset.model)
         run = preset.run

@@ -6,7 +6,7 @@ write (:class:`~sweeps.files.WriteFailed`: the trajectory file on a full or read
 run's failure: it is raised, and the runner stops. A failed row keeps its accounting: ``wall_s`` is the
 time the run took until it failed, and ``sim_s`` the simulation's (or the command's) seconds when the
 failure came after it (measuring, say), else NaN. A non-finite state names the step and the boid where
-it began (:func:`where_non_finite`: the run is simulated again to the first record that shows it, at every
+it began (:func:`sweeps.non_finite.where_non_finite`: the run is simulated again to the first record that shows it, at every
 step, when it recorded more sparsely).
 
 Contained runs (:func:`contained`): a run of a plug-in dynamics (a user's compiled code, which can write
@@ -46,13 +46,14 @@ import pandas as pd
 import numpy as np
 
 from flocksweep.observables.observed import ObservedFlock
-from flocksweep.observables.summary import NonFiniteState, every_nth, measure_run
+from flocksweep.observables.summary import every_nth, measure_run
 from flocksweep.simcore import placeholder_observations, simulate
 from flocksweep.simcore.params import DYNAMICS
 
 from .design import RunSpec
 from .external import run_external
 from .files import WriteFailed
+from .non_finite import check_finite_run
 from .sandbox import Sandbox, TaskCrashed, TaskTimedOut
 from .trajectory import write_trajectory
 
@@ -109,45 +110,6 @@ def is_plugin(spec: RunSpec) -> bool:
 def contained(spec: RunSpec) -> bool:
     """Whether the run runs in a child process (module docstring): a plug-in's, or one with a time limit."""
     return spec.preset is not None and (spec.timeout_s is not None or is_plugin(spec))
-
-
-def where_non_finite(preset, seed, obs) -> str:
-    """The reason of a run whose records hold a non-finite position or velocity: the first step and boid
-    (lowest index) where it began. Records every ``k`` > 1 steps only bracket the step: the run (``preset``,
-    ``seed``) is simulated again, recording every step, up to that record (deterministic: the same run)."""
-    def first_bad(o):
-        bad = ~(np.isfinite(o.pos).all(axis=2) & np.isfinite(o.vel).all(axis=2))   # (records, boids)
-        rows = np.flatnonzero(bad.any(axis=1))
-        return (int(rows[0]), np.flatnonzero(bad[rows[0]])) if len(rows) else (None, None)
-
-    record, boids = first_bad(obs)
-    step = None if record is None else record * obs.record_every
-    dt = preset.run.dt
-    if step and obs.record_every > 1:
-        fine = simulate(preset.model, preset.init, seed, step * dt, dt, 1)
-        record, boids = first_bad(fine)
-        step, obs = record, fine
-    if step is None:
-        return "non-finite position or velocity"
-    boid = int(boids[0])
-    what = "velocity" if not np.isfinite(obs.vel[step, boid]).all() else "position"
-    value = obs.vel[step, boid] if what == "velocity" else obs.pos[step, boid]
-    kind = "NaN" if np.isnan(value).any() else "infinite"
-    others = f" (and {len(boids) - 1} more boids)" if len(boids) > 1 else ""
-    if step == 0:
-        return f"non-finite state: boid {boid}'s initial {what} is {kind}{others}"
-    cause = ("a steering force that is not finite: the plug-in's steer returned NaN or inf, or a force so "
-             "large that the motion overflowed" if preset.model.dynamics not in DYNAMICS else
-             "forces so large that the motion overflowed")
-    return (f"non-finite state: boid {boid}'s {what} became {kind} in step {step - 1} (t = {(step - 1) * dt:g} "
-            f"to {step * dt:g} s){others}; {cause}")
-
-
-def check_finite_run(preset, seed, obs) -> None:
-    """:class:`NonFiniteState` naming the step and boid (:func:`where_non_finite`) when ``obs`` holds a
-    non-finite position or velocity."""
-    if not (np.isfinite(obs.pos).all() and np.isfinite(obs.vel).all()):
-        raise NonFiniteState(where_non_finite(preset, seed, obs))
 
 
 def _simulated(spec: RunSpec, out_dir, start: float, row: dict) -> tuple:
