@@ -100,6 +100,7 @@ def test_an_edited_part_is_never_vouched_for_by_a_new_manifest(how, reference, t
     forged value is gone, and status --verify is clean afterwards."""
     damage, words = HOW[how]
     out = copy_of(reference, tmp_path)
+    assert main(["status", str(out)]) == 0 and capsys.readouterr().err == ""   # clean: its counts remembered
     forge_a_value(out)
     damage(out)
     assert main(["status", str(out)]) == 0
