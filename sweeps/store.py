@@ -175,11 +175,17 @@ class ResultsStore(OutputFolder):
         why = self.trust()
         if why:
             return f"cannot be verified ({why})"
-        recorded = self.checksums().get(self._relative(path))
+        name, actual = self._relative(path), checksum(path)
+        recorded = self.checksums().get(name)
+        if recorded != actual and self._latest_manifest is None:   # written since this reader read the
+            data, problem = self._read_manifest()                   # manifest (a runner at work): read it again
+            if problem is None and isinstance(data.get(CHECKSUMS), dict):
+                self._sums = {str(k): str(v) for k, v in data[CHECKSUMS].items()}
+                recorded = self._sums.get(name)
         if recorded is None:
             return ("cannot be verified (manifest.json records no checksum of it: flocksweep did not write it "
                     "here)")
-        return CHANGED if recorded != checksum(path) else None
+        return CHANGED if recorded != actual else None
 
     def changed(self, path: Path) -> bool:
         """Whether ``path``'s bytes differ from the checksum recorded when it was written (False when

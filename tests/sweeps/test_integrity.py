@@ -182,3 +182,22 @@ def test_a_part_is_recorded_in_the_manifest_before_it_has_its_name(tmp_path, mon
     fresh = ResultsStore(tmp_path)
     assert fresh.unverified(tmp_path / "runs" / "part-000001.parquet") is None
     assert fresh.unverified(tmp_path / "timeseries" / "part-000001.parquet") is None
+
+
+def test_a_reader_meets_a_part_written_after_it_read_the_manifest(tmp_path, caplog):
+    """status while a runner works: a part that got its name after the reader loaded the manifest is
+    recorded in the manifest now (before its rename), so the reader reads it again and finds it; likewise
+    a runs.parquet rewritten meanwhile. No warning, nothing skipped."""
+    def part(run_id):
+        return ([{"run_id": run_id, "status": "ok", "error": "", "cohesion_mean": 0.5}],
+                pd.DataFrame({"run_id": [run_id], "t": [0.0], "cohesion": [0.5]}))
+
+    ResultsStore(tmp_path).write_part(1, *part("a"))
+    reader = ResultsStore(tmp_path)
+    assert list(reader.latest()["run_id"]) == ["a"]          # it has read the manifest
+    runner = ResultsStore(tmp_path)
+    runner.write_part(2, *part("b"))
+    runner.consolidate(pd.DataFrame({"run_id": ["a", "b"], "index": [0, 1]}))
+    assert list(reader.latest()["run_id"]) == ["a", "b"]
+    assert list(reader.runs()["run_id"]) == ["a", "b"]
+    assert "cannot be verified" not in caplog.text and "changed since" not in caplog.text
