@@ -11,6 +11,13 @@
    is run again with no cleanup; a trial is a lossless resume when the stop gave its documented exit
    status without a traceback, left no process behind, and the rerun's results equal an uninterrupted run's bit for bit.
 
+3. Contained faults (issue 42: runs, stores and commands; ``tests/faults.py`` ``CONTAINED``): plug-ins whose
+   steer returns NaN, writes out of bounds (SIGSEGV) or never returns, under serial, ``--workers 1`` and 2
+   workers and through ``simulate``; one that does not compile; a built-in run over ``run.timeout_s``; a
+   command that writes 200 MiB to stderr or leaves a background child; a value edited and ``manifest.json``
+   deleted. A case is contained when every command gives its exit status and words, no traceback, and
+   nothing is left running; the figures are each command's seconds and peak memory (its largest process).
+
 Prints one line per failure and the totals; exit status 1 when anything failed.
 """
 from __future__ import annotations
@@ -41,6 +48,22 @@ def malformed_inputs(base: Path) -> dict:
             failures.append(f"{case.name}: status {result.code}, wrote {sorted(result.written)[:3]}: "
                             f"{(result.crash or result.stderr).strip()[-200:]}")
     return {"tried": len(CASES), "refused_cleanly": refused, "failures": failures}
+
+
+def contained_faults(base: Path) -> dict:
+    rows = []
+    for number, case in enumerate(faults.CONTAINED):
+        folder = base / f"contained{number}"
+        folder.mkdir()
+        result = faults.contained_trial(case, folder)
+        rows.append({"case": case.name, "problems": result.problems, "seconds": [round(x, 1) for x in result.seconds],
+                     "peak_mb": [round(x) for x in result.peak_mb]})
+        print(f"  {case.name}: {'contained' if not result.problems else 'NOT CONTAINED'}; seconds "
+              f"{', '.join(f'{x:.1f}' for x in result.seconds)}; peak memory "
+              f"{', '.join(f'{x:.0f}' for x in result.peak_mb)} MB", flush=True)
+        for line in result.problems:
+            print(f"    {line}")
+    return {"tried": len(rows), "contained": sum(not r["problems"] for r in rows), "cases": rows}
 
 
 def lossless(trial, rerun, difference) -> str:
@@ -83,7 +106,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sweep-seeds", type=int, default=4, help="seeds per kind of kill for the sweep")
     parser.add_argument("--calibration-seeds", type=int, default=2, help="seeds per kind of kill for the calibration")
-    parser.add_argument("--no-kills", action="store_true", help="only the malformed inputs")
+    parser.add_argument("--no-malformed", action="store_true", help="no malformed inputs")
+    parser.add_argument("--no-kills", action="store_true", help="no kill trials")
+    parser.add_argument("--no-contained", action="store_true", help="no contained-fault cases")
     parser.add_argument("--json", type=Path, help="also write the counts and every trial here")
     args = parser.parse_args(argv)
     started = time.time()
@@ -91,12 +116,16 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="fault-battery-") as tmp:
         base = Path(tmp)
         (base / "inputs").mkdir()
-        report["malformed"] = malformed_inputs(base / "inputs")
-        m = report["malformed"]
+        m = report["malformed"] = ({"tried": 0, "refused_cleanly": 0, "failures": []} if args.no_malformed
+                                   else malformed_inputs(base / "inputs"))
         print(f"malformed inputs: {m['tried']} tried, {m['refused_cleanly']} refused cleanly before any write",
               flush=True)
         for line in m["failures"]:
             print(f"  NOT CLEAN {line}")
+        if not args.no_contained:
+            report["contained"] = contained_faults(base)
+            c = report["contained"]
+            print(f"contained faults: {c['tried']} tried, {c['contained']} contained", flush=True)
         trials = []
         if not args.no_kills:
             for kind, seeds in (("sweep", args.sweep_seeds), ("calibration", args.calibration_seeds)):
@@ -111,7 +140,8 @@ def main(argv=None) -> int:
     print(f"{report['wall_s']:.0f} s")
     if args.json:
         args.json.write_text(json.dumps(report, indent=2))
-    return 0 if not m["failures"] and good == len(trials) else 1
+    contained_ok = args.no_contained or report["contained"]["contained"] == report["contained"]["tried"]
+    return 0 if not m["failures"] and good == len(trials) and contained_ok else 1
 
 
 if __name__ == "__main__":

@@ -37,6 +37,8 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     leadership_metrics = "auto"     # trigger rate, follow response...: "auto" = when leadership.x is swept or > 0
     dcd_metrics = false             # directional correlation delays (Nagy et al. 2010): dcd_* columns
     dcd_max_delay = 2.0             # seconds: their largest delay (with dcd_metrics = true)
+    timeout_s = 600                 # a run still going after this many seconds is stopped and recorded as
+                                    # failed (default: no limit; not part of run ids; sweeps.worker)
 
     [[axes]]                        # one factor: a key and its values (cartesian product of all axes)
     name = "mode"                   # column name (default: the key)
@@ -114,8 +116,8 @@ from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
 from flocksweep.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
 from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
 from flocksweep.simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
-from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, read_config, resolve_path,
-                            set_dotted, suggest)
+from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, check_positive,
+                            read_config, resolve_path, set_dotted, suggest)
 
 from .claims import ClaimTable, load_claims, sweep_columns
 from .cluster import ClusterSettings, cluster_settings
@@ -186,10 +188,14 @@ class SweepRunTable(RunTable):
     trajectory_every: int = 6
     leadership_metrics: Any = "auto"
     dcd_metrics: bool = False
+    timeout_s: float | None = field(default=None, metadata={"expected": "seconds > 0: a run still going after "
+                                                                        "this long is stopped and recorded as failed"})
 
     def __post_init__(self):
         super().__post_init__()
         check_at_least("trajectory_every", self.trajectory_every, 1)
+        if self.timeout_s is not None:
+            check_positive("timeout_s", self.timeout_s)
         if self.leadership_metrics not in ("auto", True, False):
             raise ConfigError("leadership_metrics", f'got {self.leadership_metrics!r}; allowed: "auto", true, false')
         if not self.dcd_metrics and self.dcd_max_delay != DCD_MAX_DELAY:
@@ -412,6 +418,7 @@ class SweepConfig(FileConfig, loader="load_sweep"):
     command: CommandModel | None = None   # an external simulator ([model] command, sweeps.external) instead of a preset
     # where the runs may execute (--executor cluster): never part of a run's identity (sweeps.cluster)
     cluster: ClusterSettings | None = field(default=None, repr=False, compare=False, hash=False)
+    timeout_s: float | None = None   # run.timeout_s: each run's wall-time limit (not part of any run id)
 
     @classmethod
     def from_dict(cls, data: dict, base: str | Path | None = None) -> SweepConfig:
@@ -600,7 +607,8 @@ def sweep_from_dict(data: dict, base: Path) -> SweepConfig:
                        storage=Storage(table.run.keep, table.run.trajectory_every), axes=axes, sample=sample,
                        report=table.report, source=data, design=design,
                        points=parse_points(table.points, axes, keys), claims=claims, command=command,
-                       cluster=cluster_settings(table.cluster))
+                       cluster=cluster_settings(table.cluster),
+                       timeout_s=None if table.run.timeout_s is None else float(table.run.timeout_s))
 
 
 def check_parameters(command: CommandModel, axes: tuple[Axis, ...], block) -> None:

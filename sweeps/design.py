@@ -54,6 +54,7 @@ class RunSpec:
     metrics: MetricSettings  # resolved for this run's model
     storage: Storage
     command: ExternalRun | None = None   # a command model's run: the command and the run's parameter values
+    timeout_s: float | None = None   # its wall-time limit (run.timeout_s; not part of its id: sweeps.worker)
 
     @property
     def cost(self) -> float:
@@ -230,5 +231,6 @@ def expand(config: SweepConfig) -> list[RunSpec]:
             rid = run_id(resolved, metrics, config.storage, seed)
             specs.append(RunSpec(run_id=rid, index=point_index * config.replicates + replicate,
                                  point_index=point_index, replicate=replicate, seed=seed, columns=columns,
-                                 preset=preset, metrics=metrics, storage=config.storage, command=command))
+                                 preset=preset, metrics=metrics, storage=config.storage, command=command,
+                                 timeout_s=config.timeout_s))
     return specs

@@ -39,8 +39,14 @@ it is read) with the run's parameter values, metric settings and seed; the absol
 so a moved repository keeps its run ids and a changed script or program file changes them.
 
 **A run** (:func:`run_external`): a fresh scratch folder, the parameter files, the command with stdin
-closed, stdout and stderr to files there, in its own process group, killed with the group after
-``timeout_s`` or when the run is interrupted (and on Linux by the kernel when its worker dies). A timeout, a non-zero exit status (with the last lines of stderr), a missing output or an
+closed, in its own process group. Its stdout and stderr are pipes read as it writes them, each through a
+:class:`Tail` that keeps only the last :data:`TAIL_BYTES` (a command that writes gigabytes costs no
+memory and no disk). When the run ends, whatever the command's exit status, its whole process group is
+killed (a background child the command left behind goes with it): at once when the command exits, after
+``timeout_s`` (or the run's ``run.timeout_s``, whichever is shorter) when it does not, and when the run is
+interrupted; on Linux the kernel kills the command too when its worker dies. The group is killed before
+the command is reaped, so its id cannot have been reused. A timeout, a non-zero exit status (with the
+last lines of stderr, or of stdout when stderr is empty), a missing output or an
 output that is not long-format tracks of one flock (:class:`CommandFailed`, :class:`MalformedOutput`) is
 the run's failure: the worker records it as failed with that reason (the scratch folder's path written
 ``{scratch}``, so a reason does not depend on where it ran) and the sweep goes on. The scratch folder is
@@ -48,19 +54,19 @@ removed afterwards.
 """
 from __future__ import annotations
 
-import ctypes
 import dataclasses
+import errno
 import hashlib
 import json
 import math
 import os
 import re
+import selectors
 import shlex
 import shutil
 import signal
 import string
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -75,12 +81,16 @@ from flocksweep.observables.summary import MetricSettings, summary_columns
 from flocksweep.observables.tracks import TrackSource, load_tracks
 from flocksweep.simcore.schema import ConfigError, suggest
 
+from .sandbox import dies_with_parent
+
 PLACEHOLDERS = ("seed", "out", "scratch", "params", "params_json", "params_toml")
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 OUTPUT_SUFFIXES = (".csv", ".csv.gz", ".parquet")
 STDERR_LINES = 12          # the last lines of stderr kept in a failed run's reason
 STDERR_CHARS = 2000
-PR_SET_PDEATHSIG = 1       # linux/prctl.h
+TAIL_BYTES = 64 * 1024     # of stdout and of stderr, the most kept in memory while a command runs
+READ_BYTES = 64 * 1024     # one read from a pipe
+POLL_S = 0.1               # where the kernel gives no pidfd: how often to look whether the command exited
 
 
 class CommandFailed(RuntimeError):
@@ -398,14 +408,37 @@ class ExternalRun:
     values: tuple[tuple[str, Any], ...]
 
 
-def _tail(path: Path) -> str:
-    try:
-        text = path.read_text(errors="replace")
-    except OSError:
-        return ""
-    lines = [line for line in text.strip().splitlines() if line.strip()][-STDERR_LINES:]
-    tail = "\n".join(lines)
-    return tail[-STDERR_CHARS:]
+class Tail:
+    """The last ``limit`` bytes written to a stream, however much is written: memory stays below twice
+    ``limit`` plus one read. ``total`` counts every byte seen."""
+
+    def __init__(self, limit: int = TAIL_BYTES):
+        self.limit = limit
+        self.data = bytearray()
+        self.total = 0
+
+    def add(self, data: bytes) -> None:
+        self.total += len(data)
+        self.data += data
+        if len(self.data) > 2 * self.limit:
+            del self.data[:-self.limit]
+
+    def lines(self) -> str:
+        """Its last :data:`STDERR_LINES` non-empty lines, at most :data:`STDERR_CHARS` characters."""
+        kept = bytes(self.data[-self.limit:])
+        if self.total > len(kept) and b"\n" in kept:   # cut: its first line is a piece of one
+            kept = kept[kept.index(b"\n") + 1:]
+        text = kept.decode(errors="replace")
+        lines = [line for line in text.strip().splitlines() if line.strip()][-STDERR_LINES:]
+        return "\n".join(lines)[-STDERR_CHARS:]
+
+    def said(self, name: str) -> str:
+        """'; NAME ends:\n...' (with how much was written when that was more than was kept), or ''."""
+        tail = self.lines()
+        if not tail:
+            return ""
+        size = f" (of {self.total:,} bytes)" if self.total > self.limit else ""
+        return f"; {name} ends{size}:\n{tail}"
 
 
 def _write_params(model: CommandModel, values: dict, scratch: Path) -> None:
@@ -416,23 +449,10 @@ def _write_params(model: CommandModel, values: dict, scratch: Path) -> None:
         (scratch / "params.toml").write_text(tomli_w.dumps(values))
 
 
-def _dies_with_parent():
-    """A ``preexec_fn`` that has the kernel kill the command when the worker that started it dies (Linux's
-    PR_SET_PDEATHSIG; a worker killed outright, e.g. by the pool on Ctrl-C, cannot kill it itself); None
-    elsewhere. Resolved before the fork, so the child only makes the one system call."""
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-    args = (ctypes.c_int(PR_SET_PDEATHSIG), ctypes.c_ulong(signal.SIGKILL), ctypes.c_ulong(0), ctypes.c_ulong(0),
-            ctypes.c_ulong(0))
-    return lambda: prctl(*args)
-
-
-def _kill(process: subprocess.Popen) -> None:
-    """Kill the command and everything it started (its own process group)."""
+def _end_group(process: subprocess.Popen) -> None:
+    """Kill the command's whole process group (it and everything it started, also after it exited), then
+    reap the command. Its process is not reaped before the group is killed, so the group's id is still
+    its own."""
     try:
         os.killpg(process.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
@@ -440,29 +460,101 @@ def _kill(process: subprocess.Popen) -> None:
     process.wait()
 
 
-def run_command(model: CommandModel, values: dict, seed: int, scratch: Path) -> Path:
-    """Run the command for one run in ``scratch``; the output's path, or :class:`CommandFailed`."""
+def _exited(pid: int) -> bool:
+    """Whether the child ``pid`` has exited, without reaping it (its group id stays reserved)."""
+    try:
+        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:
+        return True
+
+
+def _pidfd(pid: int):
+    """A file descriptor that becomes readable when ``pid`` exits (Linux 5.3 and later), or None."""
+    try:
+        return os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        return None
+
+
+def _read(selector, key, tail: Tail) -> None:
+    try:
+        data = os.read(key.fd, READ_BYTES)
+    except BlockingIOError:
+        return
+    if data:
+        tail.add(data)
+    else:
+        selector.unregister(key.fileobj)
+
+
+def _follow(process: subprocess.Popen, outputs: dict, timeout_s: float) -> bool:
+    """Read the command's pipes (``outputs``: pipe -> :class:`Tail`) until it exits (True) or ``timeout_s``
+    passes (False). The command is not reaped."""
+    deadline = time.monotonic() + timeout_s
+    pidfd = _pidfd(process.pid)
+    with selectors.DefaultSelector() as selector:
+        for pipe, tail in outputs.items():
+            os.set_blocking(pipe.fileno(), False)
+            selector.register(pipe, selectors.EVENT_READ, tail)
+        if pidfd is not None:
+            selector.register(pidfd, selectors.EVENT_READ, None)
+        try:
+            while not _exited(process.pid):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                for key, _ in selector.select(remaining if pidfd is not None else min(remaining, POLL_S)):
+                    if key.data is not None:
+                        _read(selector, key, key.data)
+            return True
+        finally:
+            if pidfd is not None:
+                os.close(pidfd)
+
+
+def _drain(outputs: dict) -> None:
+    """What the (now killed) command group wrote before it died, without waiting for an end of file that
+    a process outside the group holding the pipe would keep back."""
+    for pipe, tail in outputs.items():
+        while True:
+            try:
+                data = os.read(pipe.fileno(), READ_BYTES)
+            except (BlockingIOError, OSError) as err:
+                if isinstance(err, BlockingIOError) or err.errno == errno.EAGAIN:
+                    break
+                raise
+            if not data:
+                break
+            tail.add(data)
+
+
+def run_command(model: CommandModel, values: dict, seed: int, scratch: Path, timeout_s: float | None = None) -> Path:
+    """Run the command for one run in ``scratch``; the output's path, or :class:`CommandFailed`. The limit
+    is ``model.timeout_s``, or ``timeout_s`` (the run's ``run.timeout_s``) when that is shorter."""
     out = scratch / model.output
     _write_params(model, values, scratch)
     argv = model.arguments(values, seed, out, scratch)
-    with open(scratch / "stdout.txt", "wb") as stdout, open(scratch / "stderr.txt", "wb") as stderr:
-        process = subprocess.Popen(argv, cwd=model.workdir, stdin=subprocess.DEVNULL, stdout=stdout, stderr=stderr,
-                                   start_new_session=True, preexec_fn=_dies_with_parent())
-        try:
-            status = process.wait(timeout=model.timeout_s)
-        except subprocess.TimeoutExpired:
-            _kill(process)
-            tail = _tail(scratch / "stderr.txt")
-            raise CommandFailed(f"timed out after {model.timeout_s:g} s (model.timeout_s); killed"
-                                + (f"; stderr ends:\n{tail}" if tail else "")) from None
-        finally:
-            if process.poll() is None:   # interrupted while waiting: the command goes with the run
-                _kill(process)
+    limit, which = model.timeout_s, "model.timeout_s"
+    if timeout_s is not None and timeout_s < limit:
+        limit, which = timeout_s, "run.timeout_s"
+    process = subprocess.Popen(argv, cwd=model.workdir, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, start_new_session=True, preexec_fn=dies_with_parent())
+    stdout, stderr = Tail(), Tail()
+    outputs = {process.stdout: stdout, process.stderr: stderr}
+    try:
+        finished = _follow(process, outputs, limit)
+    finally:   # finished, timed out or interrupted: the command's whole group goes with the run
+        _end_group(process)
+        _drain(outputs)
+        process.stdout.close()
+        process.stderr.close()
+    if not finished:
+        raise CommandFailed(f"timed out after {limit:g} s ({which}); killed" + stderr.said("stderr"))
+    status = process.returncode
     if status != 0:
-        tail = _tail(scratch / "stderr.txt")
         how = f"killed by signal {-status}" if status < 0 else f"exit status {status}"
-        raise CommandFailed(f"{model.label} failed: {how}" + (f"; stderr ends:\n{tail}" if tail else
-                                                                      "; nothing on stderr"))
+        said = stderr.said("stderr") or "; nothing on stderr" + stdout.said("stdout")
+        raise CommandFailed(f"{model.label} failed: {how}{said}")
     if not out.is_file():
         raise CommandFailed(f"{model.label} exited 0 but wrote no output: {model.output} ({{out}}) is missing")
     return out
@@ -492,14 +584,16 @@ def measure_output(path: Path, model: CommandModel, settings: MetricSettings) ->
     return times, {name: series[name].to_numpy() for name in series.columns}, summary
 
 
-def run_external(run: ExternalRun, seed: int, settings: MetricSettings, label: str = "") -> tuple:
+def run_external(run: ExternalRun, seed: int, settings: MetricSettings, label: str = "",
+                 timeout_s: float | None = None) -> tuple:
     """One run of a command model: (record times, series, summary row, seconds the command took); raises
-    :class:`CommandFailed` or :class:`MalformedOutput` with the reason."""
+    :class:`CommandFailed` or :class:`MalformedOutput` with the reason. ``timeout_s``: the run's
+    ``run.timeout_s`` (the command's limit when shorter than ``model.timeout_s``)."""
     with tempfile.TemporaryDirectory(prefix=f"flocksweep-{label[:12]}-" if label else "flocksweep-") as folder:
         scratch = Path(folder)
         start = time.perf_counter()
         try:
-            out = run_command(run.model, dict(run.values), seed, scratch)
+            out = run_command(run.model, dict(run.values), seed, scratch, timeout_s)
             seconds = time.perf_counter() - start
             times, series, summary = measure_output(out, run.model, settings)
         except (CommandFailed, MalformedOutput) as err:   # the same reason wherever the scratch folder was

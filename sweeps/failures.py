@@ -12,6 +12,8 @@ status with :func:`explain`; the statuses (docs/errors.md):
       and the errno; everything saved before it is kept, and the same command resumes
 5     incomplete: runs whose worker processes died (after retries) were left missing; the same
       command computes them
+6     the simulation failed: ``flocksweep simulate``'s one run ended in a non-finite state (the step
+      and boid named) or its plug-in's code crashed (:class:`SimulationFailed`); nothing was written
 130   interrupted by SIGINT (Ctrl-C); 143: stopped by SIGTERM. Finished work is saved; the message
       says how to resume
 ====  ===========================================================================================
@@ -40,8 +42,13 @@ from .files import Unreadable, WriteFailed
 from .interrupts import exit_status
 from .lock import StoreLocked
 
-OK, BAD_INPUT, LOCKED, WRITE_FAILED, INCOMPLETE = 0, 2, 3, 4, 5
+OK, BAD_INPUT, LOCKED, WRITE_FAILED, INCOMPLETE, RUN_FAILED = 0, 2, 3, 4, 5, 6
 WORKERS_PER_CORE = 8
+
+
+class SimulationFailed(RuntimeError):
+    """The one simulation of ``flocksweep simulate`` failed (the reason: non-finite state at a step and
+    boid, a crash of a plug-in's compiled code)."""
 
 
 def _executor_error(err: BaseException, name: str) -> bool:
@@ -63,6 +70,8 @@ def explain(err: BaseException) -> tuple[int, str] | None:
         return BAD_INPUT, str(err)
     if isinstance(err, StoreLocked):
         return LOCKED, str(err)
+    if isinstance(err, SimulationFailed):
+        return RUN_FAILED, f"the simulation failed: {err}; nothing was written"
     if _executor_error(err, "WorkerLost"):
         return INCOMPLETE, f"a worker process died: {err}"
     if isinstance(err, WriteFailed):

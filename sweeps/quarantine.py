@@ -21,8 +21,9 @@ FOLDER = "quarantine"
 log = logging.getLogger("flocksweep")
 
 
-def quarantine(root, path, reason: str) -> Path:
-    """Move ``path`` into ``<root>/quarantine/`` and log a warning (see the module docstring)."""
+def quarantine(root, path, reason: str, quiet: bool = False) -> Path:
+    """Move ``path`` into ``<root>/quarantine/`` and log a warning (see the module docstring); ``quiet``:
+    no warning (the caller says in one warning why several files went)."""
     root, path = Path(root), Path(path)
     relative = path.relative_to(root)
     target = root / FOLDER / relative.parent / f"{relative.name}.{time.strftime('%Y%m%dT%H%M%S')}"
@@ -35,7 +36,8 @@ def quarantine(root, path, reason: str) -> Path:
         os.replace(path, target)
     except OSError as err:
         raise write_failed(target, err) from None
-    log.warning("%s %s; moved to %s", relative, reason, target.relative_to(root))
+    if not quiet:
+        log.warning("%s %s; moved to %s", relative, reason, target.relative_to(root))
     return target
 
 

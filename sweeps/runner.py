@@ -55,7 +55,9 @@ from .executors import Executor, WorkerLost, check_scheduler
 from .files import WriteFailed
 from . import main_guard
 from .identity import canonical
+from .plugin_check import check_specs
 from .provenance import stamp
+from .sandbox import TaskCrashed, TaskTimedOut
 from .status import resume_hint, status  # noqa: F401 - their home; imported from here too
 from .store import ResultsStore
 from .sweep_toml import portable, relocated, relocated_workdir
@@ -153,13 +155,17 @@ def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool
     ordered = sorted(todo, key=lambda s: s.cost)
     pilots = {id(s): s for s in (ordered[0], ordered[len(ordered) // 2], ordered[-1])}.values()
     rate = []  # seconds per unit of cost
-    for spec in pilots:
-        run = spec.preset.run
-        steps, elapsed = 1, _pilot(spec, 1)
-        if elapsed < pilot_seconds / 4:
-            steps = max(1, min(run.n_steps, int(round(pilot_seconds / run.dt))))
-            elapsed = _pilot(spec, steps)
-        rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
+    try:
+        for spec in pilots:
+            run = spec.preset.run
+            steps, elapsed = 1, _pilot(spec, 1)
+            if elapsed < pilot_seconds / 4:
+                steps = max(1, min(run.n_steps, int(round(pilot_seconds / run.dt))))
+                elapsed = _pilot(spec, steps)
+            rate.append(elapsed / (steps * float(spec.preset.init.n) ** 2))
+    except (TaskCrashed, TaskTimedOut) as err:   # a contained run's pilot (a plug-in's, or one with a limit)
+        return {"boid_steps": boid_steps, "seconds": math.nan, "compile_s": compile_s, "startup_s": startup,
+                "per_run_s": math.nan, "total_s": math.nan, "pilot_failed": f"{type(err).__name__}: {err}"}
     per_cost = sorted(rate)[len(rate) // 2]
     seconds = sum(s.cost for s in todo) * per_cost / max(workers, 1)
     per_run = _per_run_overhead(ordered[0], per_cost, pilot_seconds)
@@ -208,10 +214,11 @@ def _process_age() -> float:
 
 
 def _pilot(spec: RunSpec, steps: int) -> float:
-    run = spec.preset.run
-    start = time.perf_counter()
-    simulate(spec.preset.model, spec.preset.init, spec.seed, steps * run.dt, run.dt, steps)
-    return time.perf_counter() - start
+    """Seconds of ``steps`` steps of the run (a contained run's in its sandbox, within its limit:
+    TaskCrashed or TaskTimedOut)."""
+    if worker.contained(spec):
+        return worker.time_contained(spec, steps)
+    return worker.time_steps(spec, steps)
 
 
 def _progress(total: int, name: str, enabled: bool):
@@ -326,6 +333,7 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
         base_preset(config)   # the base model must be valid: ConfigError naming the key
         check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
         specs = expand(config)  # validates every run before anything is written
+    check_specs(specs)   # a plug-in's steer compiled alone: one message naming its line (sweeps.plugin_check)
     store = ResultsStore(out_dir)
     if executor == "dask" and scheduler and not dry_run:
         check_scheduler(scheduler)   # before anything is written
@@ -386,7 +394,11 @@ def _compute(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str
           else Executor(executor, workers, scheduler, preload=(f"{worker.__name__}:prepare",),   # workers start importing
                         cluster=config.cluster if executor == "cluster" else None)) as pool:
         warm_up_all(_one_per_run_loop(plan.todo))   # sweeps/warmup.py: metric kernels alongside a first compile
-        return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
+        try:
+            return _run_batches(config, store, make_batches(plan.todo, workers, batch_size), pool, progress)
+        finally:
+            if pool.in_process:   # the contained runs' child process (sweeps.worker), if any ran here
+                worker.close_sandbox()
 
 
 @contextlib.contextmanager

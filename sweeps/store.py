@@ -36,21 +36,27 @@ to rewrite it. Part numbers are never reused, quarantined ones included.
 
 Content checksums: every file the store writes (runs and time series parts, ``runs.parquet``,
 ``design.parquet``) has the SHA-256 of its bytes recorded in ``manifest.json`` (``checksums``, by path
-relative to the folder) as it is written (a part's together with the part, not cut by signals), and
-the manifest carries the checksum of its own content (``manifest_checksum``). Every reader verifies
-them: a part whose bytes changed since they were written (a renamed column, values overwritten with
-valid numbers or NaN) is damaged like an unreadable one (skipped by readers, quarantined and recomputed
-by ``repair``); a changed ``runs.parquet`` is rebuilt from the parts, a changed ``design.parquet`` is
-:class:`Unreadable`, a changed or non-object manifest is moved aside and written anew. A part written
-after the last manifest update (the runner was killed in between) has no checksum yet and is checked
-for its schema only; ``repair`` records it. Folders written before checksums existed are checked for
-their schema alone. A runs part's schema: at least one row, the columns ``RUNS_COLUMNS``, its own
-part number, text run ids, statuses ``ok``/``failed``, numbers (or nothing) in every metric column,
-and no column that flocksweep never writes (neither a design column, nor a run's identity, status or
-timing, nor a summary metric).
+relative to the folder) *before* it appears under its name: it is written to a temporary file, its
+checksum goes into the manifest, then it is renamed into place (a part's two files together, not cut by
+signals), and the manifest carries the checksum of its own content (``manifest_checksum``). So a file
+whose checksum the manifest does not record was not written by flocksweep, and nothing can switch the
+check off. Every reader verifies them: a part is *verified* when the manifest is intact and records the
+checksum its bytes have. Any other part is damaged like an unreadable one (skipped by readers with a
+warning, quarantined and recomputed by ``repair``): one whose bytes changed since they were written (a
+renamed column, values overwritten with valid numbers or NaN), one the manifest does not record, and
+every part when ``manifest.json`` is missing, is not a JSON object, changed since it was written or
+records no checksums (then one warning says so for all of them: :meth:`ResultsStore.trust`). Nothing
+is ever vouched for afresh: ``repair`` records no checksum of a file it did not write, so results can
+only be recomputed, never blessed. A changed or unverified ``runs.parquet`` is rebuilt from the parts;
+a changed ``design.parquet`` is :class:`Unreadable` (an unverified one is read, as the runner rewrites
+it from the sweep file); a damaged manifest is moved aside and written anew. A runs part's schema: at
+least one row, the columns ``RUNS_COLUMNS``, its own part number, text run ids, statuses
+``ok``/``failed``, numbers (or nothing) in every metric column, and no column that flocksweep never
+writes (neither a design column, nor a run's identity, status or timing, nor a summary metric).
 """
 from __future__ import annotations
 
+import contextlib
 import re
 from contextlib import contextmanager
 from pathlib import Path
@@ -60,7 +66,8 @@ import pandas as pd
 from flocksweep.observables.columns import EVERY_METRIC_COLUMN
 
 from .checksums import CHANGED, CHECKSUMS, SELF_CHECKSUM, checksum, content_checksum  # noqa: F401 - also read from here
-from .files import Unreadable, json_ready, read_json, remove_stale_temporaries, write_csv, write_json, write_parquet, write_text
+from .files import (Unreadable, atomic_path, json_ready, read_json, remove_stale_temporaries, write_csv, write_json,
+                    write_text)
 from .interrupts import deferred
 from .lock import StoreLocked, hold, holder
 from .provenance import stamp
@@ -126,6 +133,7 @@ class ResultsStore(OutputFolder):
         self._reported: set[str] = set()   # damaged files a reader has warned about already
         self._sums: dict[str, str] | None = None   # checksums recorded in the manifest (loaded once)
         self._latest_manifest: dict | None = None   # what write_manifest wrote last (rewritten with new sums)
+        self._distrust: str | None = None   # why the manifest vouches for nothing ('' once known to vouch)
 
     @property
     def damage_reported(self) -> bool:
@@ -144,6 +152,41 @@ class ResultsStore(OutputFolder):
             self._sums = {str(k): str(v) for k, v in sums.items()} if isinstance(sums, dict) else {}
         return self._sums
 
+    def trust(self) -> str:
+        """'' when ``manifest.json`` can vouch for the files (it is intact and records checksums), else why
+        not ('manifest.json is missing', 'manifest.json is not valid JSON', ...): then no stored file can
+        be verified. Decided once, from the manifest found (before this store writes one)."""
+        if self._distrust is None:
+            if not (self.root / "manifest.json").exists():
+                self._distrust = "manifest.json is missing"
+            else:
+                data, problem = self._read_manifest()
+                if problem:
+                    self._distrust = f"manifest.json {problem}"
+                elif not isinstance(data.get(CHECKSUMS), dict) or SELF_CHECKSUM not in data:
+                    self._distrust = "manifest.json records no checksums"
+                else:
+                    self._distrust = ""
+        return self._distrust
+
+    def unverified(self, path: Path) -> str | None:
+        """Why ``path``'s bytes are not vouched for by the manifest (None when they are): the manifest
+        cannot vouch (:meth:`trust`), it records no checksum of the file, or the file changed since."""
+        why = self.trust()
+        if why:
+            return f"cannot be verified ({why})"
+        name, actual = self._relative(path), checksum(path)
+        recorded = self.checksums().get(name)
+        if recorded != actual and self._latest_manifest is None:   # written since this reader read the
+            data, problem = self._read_manifest()                   # manifest (a runner at work): read it again
+            if problem is None and isinstance(data.get(CHECKSUMS), dict):
+                self._sums = {str(k): str(v) for k, v in data[CHECKSUMS].items()}
+                recorded = self._sums.get(name)
+        if recorded is None:
+            return ("cannot be verified (manifest.json records no checksum of it: flocksweep did not write it "
+                    "here)")
+        return CHANGED if recorded != actual else None
+
     def changed(self, path: Path) -> bool:
         """Whether ``path``'s bytes differ from the checksum recorded when it was written (False when
         none is recorded)."""
@@ -155,6 +198,10 @@ class ResultsStore(OutputFolder):
         for path in paths:
             sums[self._relative(path)] = checksum(path)
 
+    def _record_as(self, path: Path, written: Path) -> None:
+        """Record, under ``path``'s name, the checksum of ``written`` (its temporary file, not yet renamed)."""
+        self.checksums()[self._relative(path)] = checksum(written)
+
     def _forget(self, path: Path) -> None:
         self.checksums().pop(self._relative(path), None)
 
@@ -163,13 +210,19 @@ class ResultsStore(OutputFolder):
         data = self._latest_manifest if self._latest_manifest is not None else self.manifest()
         self.write_manifest(data)
 
+    def _write_vouched(self, path: Path, frame: pd.DataFrame) -> None:
+        """``frame`` as the Parquet file ``path``, its checksum in the manifest before it has its name."""
+        with deferred(), atomic_path(path) as tmp:
+            frame.to_parquet(tmp, index=False)
+            self._record_as(path, tmp)
+            self._save_checksums()
+
     # -- inputs ----------------------------------------------------------------------------------
     def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
         write_text(self.root / "sweep.toml", sweep_text)
         write_json(self.root / "sweep.effective.json", effective)
         write_json(self.root / "model.json", model)
-        write_parquet(self.root / "design.parquet", design)
-        self._record(self.root / "design.parquet")
+        self._write_vouched(self.root / "design.parquet", design)
 
     def model(self) -> dict:
         """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
@@ -215,13 +268,16 @@ class ResultsStore(OutputFolder):
         name = f"part-{number:06d}.parquet"
         table = pd.DataFrame(rows)
         table["part"] = number
-        with deferred():
-            if timeseries is not None and len(timeseries):
-                write_parquet(self.root / "timeseries" / name, timeseries)
-                self._record(self.root / "timeseries" / name)
-            write_parquet(self.root / "runs" / name, table)
-            self._record(self.root / "runs" / name)
-            self._save_checksums()
+        runs, series = self.root / "runs" / name, self.root / "timeseries" / name
+        has_series = timeseries is not None and len(timeseries)
+        with deferred(), atomic_path(runs) as runs_tmp, \
+                (atomic_path(series) if has_series else contextlib.nullcontext()) as series_tmp:
+            if has_series:
+                timeseries.to_parquet(series_tmp, index=False)
+                self._record_as(series, series_tmp)
+            table.to_parquet(runs_tmp, index=False)
+            self._record_as(runs, runs_tmp)
+            self._save_checksums()   # the manifest vouches for both; then the series, then the runs, get their names
 
     def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
         """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
@@ -230,8 +286,9 @@ class ResultsStore(OutputFolder):
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"cannot be read ({_why(err)})") from None
-        if self.changed(path):
-            raise Unreadable(CHANGED)
+        problem = self.unverified(path)
+        if problem:
+            raise Unreadable(problem)
         missing = [c for c in RUNS_COLUMNS if c not in frame.columns]
         if missing:
             raise Unreadable(f"is not a part of a sweep (no column {', '.join(map(repr, missing))})")
@@ -269,11 +326,16 @@ class ResultsStore(OutputFolder):
                  path.relative_to(self.root), reason)
 
     def all_rows(self, repair: bool = False) -> pd.DataFrame:
-        """Every stored row of every readable part (latest part last); damaged parts are skipped with a
-        warning, or quarantined with ``repair``."""
+        """Every stored row of every readable, verified part (latest part last); damaged parts are skipped
+        with a warning, or quarantined with ``repair``. When the manifest vouches for nothing
+        (:meth:`trust`) every part is damaged, and one warning says so for all of them."""
         frames = []
-        design_columns = self._design_columns()
-        for path in self._parts("runs"):
+        parts = self._parts("runs")
+        if parts and self.trust():
+            self._unvouched(parts, repair)
+            parts = []
+        design_columns = self._design_columns() if parts else None
+        for path in parts:
             try:
                 frame = self._runs_part(path, design_columns)
             except Unreadable as err:
@@ -283,6 +345,25 @@ class ResultsStore(OutputFolder):
         if not frames:
             return pd.DataFrame(columns=list(RUNS_COLUMNS))
         return pd.concat(frames, ignore_index=True).sort_values("part", kind="stable")
+
+    def _unvouched(self, parts: list[Path], repair: bool) -> None:
+        """Every runs part (with its time series part) when the manifest vouches for nothing: quarantined
+        with one warning, or skipped with one warning."""
+        why = self.trust()
+        if repair:
+            for path in parts:
+                for kind in ("runs", "timeseries"):
+                    file = self.root / kind / path.name
+                    if file.exists():
+                        quarantine(self.root, file, "", quiet=True)
+                        self._forget(file)
+            warn("%s, so %s cannot be verified: moved to quarantine/ with the time series; their runs are "
+                 "computed again (results are recomputed, never vouched for afresh)", why, _stored_parts(parts))
+            return
+        if "unvouched" not in self._reported:
+            self._reported.add("unvouched")
+            warn("%s, so %s cannot be verified: skipped as damaged (their runs count as missing; the next "
+                 "'flocksweep run' moves them aside and computes the runs again)", why, _stored_parts(parts))
 
     def latest(self) -> pd.DataFrame:
         """The latest row per run id (indexed by run_id)."""
@@ -297,8 +378,9 @@ class ResultsStore(OutputFolder):
             frame = pd.read_parquet(path)
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             return f"has an unreadable time series part timeseries/{path.name} ({_why(err)})"
-        if self.changed(path):
-            return f"has a time series part timeseries/{path.name} that {CHANGED}"
+        problem = self.unverified(path)
+        if problem:
+            return f"has a time series part timeseries/{path.name} that {problem}"
         if any(c not in frame.columns for c in SERIES_COLUMNS):
             return f"has a time series part timeseries/{path.name} without run_id and t columns"
         lacking = ok_ids - set(frame["run_id"])
@@ -313,6 +395,7 @@ class ResultsStore(OutputFolder):
         for folder in (self.root, self.root / "runs", self.root / "timeseries", self.root / "trajectories"):
             remove_stale_temporaries(folder)
         before = set(self._quarantined())
+        self.trust()   # decided on the manifest as found, before it is moved aside
         self.manifest(repair=True)
         self.all_rows(repair=True)
         design_columns = self._design_columns()
@@ -323,8 +406,9 @@ class ResultsStore(OutputFolder):
             problem = self._series_problem(series, ok_ids) if ok_ids else None
             if problem:
                 self._damaged(path, problem, True, series)
-                continue
-            self._record(path, *([series] if series.exists() else []))   # adopts a part written after the last record
+        kept = {self._relative(p) for kind in ("runs", "timeseries") for p in self._parts(kind)}
+        for name in [n for n in self.checksums() if n.startswith(("runs/", "timeseries/")) and n not in kept]:
+            self.checksums().pop(name)   # recorded, then the runner was killed before the rename (or moved aside)
         return sorted(set(self._quarantined()) - before)
 
     def _quarantined(self) -> list[Path]:
@@ -344,8 +428,7 @@ class ResultsStore(OutputFolder):
                 table[column] = present[column].to_numpy()
         if "index" in table:
             table = table.sort_values("index", kind="stable").reset_index(drop=True)
-        write_parquet(self.root / "runs.parquet", table)
-        self._record(self.root / "runs.parquet")
+        self._write_vouched(self.root / "runs.parquet", table)
         return table
 
     def runs(self) -> pd.DataFrame:
@@ -355,21 +438,25 @@ class ResultsStore(OutputFolder):
         if path.exists():
             try:
                 table = pd.read_parquet(path)
-                if self.changed(path):
-                    raise Unreadable(CHANGED)
+                problem = self.unverified(path)
+                if problem:
+                    raise Unreadable(problem)
                 return table
             except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
                 problem = str(err) if isinstance(err, Unreadable) else f"cannot be read ({_why(err)})"
-                warn("runs.parquet %s; using the rows of runs/ instead (the next 'flocksweep run' writes it anew)",
-                     problem)
+                if not (self.trust() and self._parts("runs")):   # else one warning about the parts says it all
+                    warn("runs.parquet %s; using the rows of runs/ instead (the next 'flocksweep run' writes it "
+                         "anew)", problem)
         return self.latest().reset_index(drop=True)
 
     def series_intact(self, path: Path) -> bool:
-        """Whether the time series part ``path`` may be read (its checksum matches or none is recorded);
-        a changed one is reported once."""
-        if not self.changed(path):
+        """Whether the time series part ``path`` may be read (the manifest records its checksum and its
+        bytes have it); any other is reported once."""
+        problem = self.unverified(path)
+        if problem is None:
             return True
-        self._damaged(path, f"{CHANGED}: the series of its runs are left out", repair=False)
+        if not self.trust():   # else the one warning about the manifest said it
+            self._damaged(path, f"{problem}: the series of its runs are left out", repair=False)
         return False
 
     def timeseries(self, run_ids=None) -> pd.DataFrame:
@@ -393,25 +480,29 @@ class ResultsStore(OutputFolder):
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
     # -- manifest --------------------------------------------------------------------------------
+    def _read_manifest(self) -> tuple[dict, str | None]:
+        """(``manifest.json``, None), or ({}, what is wrong with it); ({}, None) when there is none."""
+        try:
+            data = self.read_json("manifest.json", {})
+        except Unreadable:
+            return {}, "is not valid JSON"
+        if not isinstance(data, dict):
+            return {}, f"is not a JSON object (it holds a {type(data).__name__})"
+        if SELF_CHECKSUM in data and data[SELF_CHECKSUM] != content_checksum(data):
+            return {}, CHANGED.replace("one recorded in manifest.json", "one it records")
+        return data, None
+
     def manifest(self, repair: bool = False) -> dict:
         """``manifest.json`` ({} when missing); one that is not a JSON object or whose content changed
         since it was written is skipped with a warning, or quarantined."""
-        try:
-            data = self.read_json("manifest.json", {})
-            problem = None
-        except Unreadable:
-            data, problem = {}, "is not valid JSON"
-        if problem is None and not isinstance(data, dict):
-            data, problem = {}, f"is not a JSON object (it holds a {type(data).__name__})"
-        if problem is None and SELF_CHECKSUM in data and data[SELF_CHECKSUM] != content_checksum(data):
-            data, problem = {}, CHANGED.replace("one recorded in manifest.json", "one it records")
+        data, problem = self._read_manifest()
         if problem is None:
             return data
         path = self.root / "manifest.json"
         if repair:
             quarantine(self.root, path, f"{problem}; a new manifest is written (the provenance of earlier "
                                         "invocations is in the file moved aside)")
-            self._sums = {}   # its checksums cannot vouch for anything: parts are checked for their schema
+            self._sums = {}   # its checksums vouch for nothing: every part is unverified (trust())
         elif str(path) not in self._reported:
             self._reported.add(str(path))
             warn("manifest.json %s; its provenance and checksums are ignored (the next 'flocksweep run' "
@@ -422,8 +513,13 @@ class ResultsStore(OutputFolder):
         """Write ``manifest.json``: ``data`` with the checksums recorded so far and its own checksum."""
         data = {k: v for k, v in data.items() if k not in (CHECKSUMS, SELF_CHECKSUM)}
         self._latest_manifest = data
+        self._distrust = ""   # from now on it records every file this store writes
         record = json_ready({**data, CHECKSUMS: dict(sorted(self.checksums().items()))})
         write_json(self.root / "manifest.json", {**record, SELF_CHECKSUM: content_checksum(record)})
+
+
+def _stored_parts(parts: list) -> str:
+    return f"the {len(parts)} stored part{'s' if len(parts) != 1 else ''} of runs/"
 
 
 def _why(err: BaseException) -> str:

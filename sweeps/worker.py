@@ -3,7 +3,21 @@
 ``execute_run(spec, out_dir)`` never raises for a failing run: an exception or a non-finite state
 becomes a row with ``status = "failed"`` and the reason in ``error``, and the sweep goes on. A failed
 write (:class:`~sweeps.files.WriteFailed`: the trajectory file on a full or read-only disk) is not the
-run's failure: it is raised, and the runner stops.
+run's failure: it is raised, and the runner stops. A failed row keeps its accounting: ``wall_s`` is the
+time the run took until it failed, and ``sim_s`` the simulation's (or the command's) seconds when the
+failure came after it (measuring, say), else NaN. A non-finite state names the step and the boid where
+it began (:func:`sweeps.non_finite.where_non_finite`: the run is simulated again to the first record that shows it, at every
+step, when it recorded more sparsely).
+
+Contained runs (:func:`contained`): a run of a plug-in dynamics (a user's compiled code, which can write
+outside an array or loop for ever) and every run with a wall-time limit (``spec.timeout_s``, the sweep's
+``run.timeout_s``) run in a child process, this thread's :class:`~sweeps.sandbox.Sandbox` (one per worker
+thread, reused from run to run; :func:`close_sandbox`), whatever the executor (serial, a local pool of any
+size, dask): a crash of that process (SIGSEGV) is the run's failure ``TaskCrashed``, a run still going after
+its limit is killed and failed ``TaskTimedOut``, and the worker goes on with a fresh child. The child first
+loads the run's kernels with no step simulated and no limit (:func:`prepare_contained`), so the limit
+counts the run itself. A command model's run gets ``run.timeout_s`` as its command's limit when it is the
+shorter (:mod:`sweeps.external`). A built-in run without a limit runs in the worker itself, as before.
 ``execute_batch(specs, out_dir)`` runs several in a row (a worker's unit of work) and returns
 ``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric).
 
@@ -22,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -31,12 +46,15 @@ import pandas as pd
 import numpy as np
 
 from flocksweep.observables.observed import ObservedFlock
-from flocksweep.observables.summary import check_finite, every_nth, measure_run
+from flocksweep.observables.summary import every_nth, measure_run
 from flocksweep.simcore import placeholder_observations, simulate
+from flocksweep.simcore.params import DYNAMICS
 
 from .design import RunSpec
 from .external import run_external
 from .files import WriteFailed
+from .non_finite import check_finite_run
+from .sandbox import Sandbox, TaskCrashed, TaskTimedOut
 from .trajectory import write_trajectory
 
 
@@ -84,16 +102,26 @@ def failed_rows(specs, reason: str) -> list[dict]:
     return rows
 
 
-def _simulated(spec: RunSpec, out_dir, start: float) -> tuple:
-    """(record times, series, summary row, simulation seconds) of a run of a preset."""
+def is_plugin(spec: RunSpec) -> bool:
+    """Whether the run's dynamics is a plug-in (a user's module, :mod:`simcore.plugin`)."""
+    return spec.preset is not None and spec.preset.model.dynamics not in DYNAMICS
+
+
+def contained(spec: RunSpec) -> bool:
+    """Whether the run runs in a child process (module docstring): a plug-in's, or one with a time limit."""
+    return spec.preset is not None and (spec.timeout_s is not None or is_plugin(spec))
+
+
+def _simulated(spec: RunSpec, out_dir, start: float, row: dict) -> tuple:
+    """(record times, series, summary row) of a run of a preset; its simulation seconds go in ``row``."""
     obs = _simulate(spec)
-    sim_s = time.perf_counter() - start
-    check_finite(obs)
+    row["sim_s"] = time.perf_counter() - start
+    check_finite_run(spec.preset, spec.seed, obs)
     if spec.storage.keep == "trajectories" and out_dir is not None:
         _save_trajectory(spec, obs, out_dir)
     records = every_nth(obs, spec.preset.run.record_every // obs.record_every)
     series, summary = measure_run(records, spec.metrics)
-    return records.times, series, summary, sim_s
+    return records.times, series, summary
 
 
 def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]:
@@ -102,23 +130,95 @@ def execute_run(spec: RunSpec, out_dir=None) -> tuple[dict, pd.DataFrame | None]
 
 
 def _execute(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
-    """The run's row and its series as columns (run_id, t, one per metric), None when it failed."""
+    """The run's row and its series as columns (run_id, t, one per metric), None when it failed; a
+    contained run in this thread's sandbox."""
+    return _contained(spec, out_dir) if contained(spec) else execute_here(spec, out_dir)
+
+
+def execute_here(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
+    """:func:`_execute` in this process."""
     row = base_row(spec)
     start = time.perf_counter()
     try:
         if spec.command is None:
-            times, series, summary, sim_s = _simulated(spec, out_dir, start)
+            times, series, summary = _simulated(spec, out_dir, start, row)
         else:   # an external command: its output measured as tracks (sim_s: the command's seconds)
-            times, series, summary, sim_s = run_external(spec.command, spec.seed, spec.metrics, spec.run_id)
+            times, series, summary, row["sim_s"] = run_external(spec.command, spec.seed, spec.metrics, spec.run_id,
+                                                                spec.timeout_s)
         row.update(summary)
-        row.update(status="ok", error="", sim_s=sim_s, wall_s=time.perf_counter() - start)
+        row.update(status="ok", error="", wall_s=time.perf_counter() - start)
         return row, {"run_id": np.full(len(times), spec.run_id, dtype=object), "t": times, **series}
     except WriteFailed:
         raise   # the disk's fault, not the run's
     except Exception as err:  # a failing run is recorded, never fatal to the sweep
         detail = traceback.format_exception_only(type(err), err)[-1].strip()
-        row.update(status="failed", error=detail, sim_s=float("nan"), wall_s=time.perf_counter() - start)
+        row.update(status="failed", error=detail, wall_s=time.perf_counter() - start)
         return row, None
+
+
+_SANDBOXES = threading.local()
+
+
+def _sandbox() -> Sandbox:
+    box = getattr(_SANDBOXES, "box", None)
+    if box is None:
+        box = _SANDBOXES.box = Sandbox()
+    return box
+
+
+def close_sandbox() -> None:
+    """End this thread's sandbox process, if it has one (the runner, after an in-process sweep)."""
+    box = getattr(_SANDBOXES, "box", None)
+    _SANDBOXES.box = None
+    if box is not None:
+        box.close()
+
+
+def prepare_contained(spec: RunSpec) -> None:
+    """In the sandbox, before a contained run: its run loop and metric kernels loaded (or compiled), with
+    no step of a plug-in's simulated, so nothing of its code runs untimed."""
+    warm_up_metrics(spec, warm_up_run(spec))
+
+
+def time_steps(spec: RunSpec, steps: int) -> float:
+    """Seconds of ``steps`` steps of the run, simulated here."""
+    run = spec.preset.run
+    start = time.perf_counter()
+    simulate(spec.preset.model, spec.preset.init, spec.seed, steps * run.dt, run.dt, steps)
+    return time.perf_counter() - start
+
+
+def time_contained(spec: RunSpec, steps: int) -> float:
+    """Seconds of ``steps`` steps of a contained run, timed in its sandbox within its limit (a dry run's
+    pilot); TaskCrashed or TaskTimedOut as :meth:`Sandbox.call` raises them."""
+    box = _sandbox()
+    box.call(prepare_contained, spec)
+    return box.call(time_steps, spec, steps, timeout=spec.timeout_s)
+
+
+def _contained(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
+    """The run in this thread's sandbox, within ``spec.timeout_s``; a crash or an overrun is its failure."""
+    start = time.perf_counter()
+    box = _sandbox()
+    try:
+        box.call(prepare_contained, spec)
+        start = time.perf_counter()
+        return box.call(execute_here, spec, out_dir, timeout=spec.timeout_s)
+    except WriteFailed:
+        raise   # the disk's fault, not the run's
+    except TaskTimedOut:
+        error = TaskTimedOut(f"the run was still going after {spec.timeout_s:g} s (run.timeout_s): stopped, its "
+                             "process killed; raise run.timeout_s and rerun with --retry-failed to give it longer")
+    except TaskCrashed as err:
+        where = ("in compiled code: for a plug-in, an index outside an array in its steer (docs/plugins.md)"
+                 if is_plugin(spec) else "in compiled code, or out of memory")
+        error = TaskCrashed(f"the run crashed: {err} {where}")
+    except Exception as err:  # noqa: BLE001 - its kernels would not compile or load: the run's failure
+        error = err
+    row = base_row(spec)
+    row.update(status="failed", error=traceback.format_exception_only(type(error), error)[-1].strip(),
+               wall_s=time.perf_counter() - start)
+    return row, None
 
 
 def warm_up(spec: RunSpec) -> None:
@@ -131,10 +231,14 @@ def warm_up(spec: RunSpec) -> None:
 
 def warm_up_run(spec: RunSpec):
     """The run loop of ``spec``'s runs, compiled or loaded, on a 3-boid, 2-step run; returns its
-    observations (None for a command model: it has no run loop)."""
+    observations (None for a command model: it has no run loop; None for a plug-in, whose loop is
+    compiled with no step simulated)."""
     if spec.command is not None:
         return None
     run = spec.preset.run
+    if is_plugin(spec):   # compiled, with no step simulated: a plug-in's code runs only in a sandbox
+        simulate(spec.preset.model, _warm_up_init(spec), 0, 0.25 * run.dt, run.dt, 1)
+        return None
     return simulate(spec.preset.model, _warm_up_init(spec), 0, 2 * run.dt, run.dt, 1)
 
 

@@ -21,6 +21,10 @@ again (no cleanup in between) and compares the results with an uninterrupted run
 ``same_chain`` say how they differ ('' when bit for bit the same). ``sweep_trial`` and
 ``calibration_trial`` do all of it for the small sweep and the short calibration below; a trial whose
 command had already finished when the signal was due is run again with the window halved.
+
+The section "contained faults" holds the cases of issue 42 (:data:`CONTAINED`, run by
+:func:`contained_trial`): plug-ins that crash, loop or return NaN, commands that flood stderr or leave
+children behind, a results folder whose manifest was deleted after an edit.
 """
 from __future__ import annotations
 
@@ -356,3 +360,229 @@ def calibration_trial(folder: Path, reference: Path, how: str, seed: int,
                       window=(0.0, 8.0)) -> tuple[Trial, object, str]:
     """As :func:`sweep_trial` for the short calibration (rerun with the same command: no --resume needed)."""
     return _until_hit("calibration", folder, reference, how, seed, window)
+
+
+# ------------------------------------------------- contained faults: plug-ins, commands, results (issue 42)
+#
+# Each case is a folder of files and the commands run in it, in order (``python -m flocksweep.cli``, as a
+# user runs them), with the exit status and the words each must give; ``between`` damages the folder after
+# the first command (as a user's edit would). A case is contained when every command gives its status and
+# words, none prints a traceback, and no process the commands started is left running (20 s after each
+# ends). :func:`contained_trial` also measures each command's seconds and its peak memory (that of the
+# largest process it started, the runner itself unless a worker was larger): the figures
+# bench/fault_battery.py reports.
+
+FAULTY_PRESET = """name = "faulty"
+dynamics = "{module}"
+[perception]
+kind = "sphere"
+radius = 9.0
+[init]
+n = 6
+[run]
+dt = 0.05
+duration = 1.0
+record_interval = 0.5
+"""
+FAULTY_SWEEP = """name = "faulty"
+seed = 2
+[model]
+preset = "faulty.toml"
+[run]
+warmup = 0.5
+{run}
+[[axes]]
+key = "{key}"
+values = {values}
+"""
+LONG_RUN_SWEEP = f"""name = "long"
+seed = 3
+[model]
+preset = "{ROOT / 'configs' / 'models' / 'holland.toml'}"
+[run]
+record_interval = 0.5
+warmup = 0.5
+timeout_s = 2
+[[axes]]
+keys = ["init.n", "run.duration"]
+values = [[6, 2.0], [400, 600.0]]
+"""
+COMMAND_SWEEP = """name = "command"
+seed = 5
+[model]
+command = ["{python}", "{faulty_sim}", "--seed", "{{seed}}", "--out", "{{out}}", "{{params}}"]
+timeout_s = 60
+[model.parameters]
+n_agents = {{ default = 8, bounds = [2, 100], integer = true }}
+noise = {{ default = 0.3, bounds = [0.0, 3.0] }}
+duration = {{ default = 3.0, bounds = [1.0, 60.0] }}
+fault = {{ default = "none", choices = ["none", "flood", "daemon"] }}
+[model.tracks]
+units = {{ length = "bl" }}
+[run]
+group_radius = 5.0
+warmup = 1.0
+[[axes]]
+key = "fault"
+values = ["{fault}"]
+"""
+SMALL_SWEEP = f"""name = "small"
+seed = 6
+[model]
+preset = "{ROOT / 'configs' / 'models' / 'holland.toml'}"
+[run]
+n = 6
+duration = 1.0
+record_interval = 0.5
+warmup = 0.5
+[[axes]]
+key = "perception.field_deg"
+values = [90, 270]
+"""
+
+
+@dataclass(frozen=True)
+class Contained:
+    name: str
+    files: dict                # written into the case's folder
+    steps: tuple               # ((argv, exit status, words in stdout + stderr), ...), run in order
+    between: object = None     # called with the folder after the first step
+    env: dict = field(default_factory=dict)
+
+
+def _plugin_files(values: str, run: str = "", module: str = "faulty_plugin", key: str = "plugin.fault") -> dict:
+    return {"faulty.toml": FAULTY_PRESET.format(module=module),
+            "s.toml": FAULTY_SWEEP.format(values=values, run=run, key=key)}
+
+
+def _command_files(fault: str) -> dict:
+    return {"s.toml": COMMAND_SWEEP.format(python=sys.executable, faulty_sim=ROOT / "tests" / "sweeps" / "faulty_sim.py",
+                                           fault=fault)}
+
+
+def _forge_and_delete_manifest(folder: Path) -> None:
+    """A user's edit: a stored value overwritten, then manifest.json deleted so that nothing would check it."""
+    path = sorted((folder / "out" / "runs").glob("part-*.parquet"))[0]
+    pd.read_parquet(path).assign(cohesion_mean=0.123456789).to_parquet(path, index=False)
+    (folder / "out" / "manifest.json").unlink()
+
+
+RUN = ("run", "s.toml", "--out", "out", "--no-progress")
+STATUS = ("status", "out")
+CONTAINED = (
+    Contained("plug-in: NaN force, --workers 1", _plugin_files("[1]"),
+              ((RUN + ("--workers", "1"), 0, "1 runs, 0 ok, 1 failed"),
+               (STATUS, 0, "boid 2's velocity became NaN in step 3 (t = 0.15 to 0.2 s)"))),
+    Contained("plug-in: out-of-bounds write (SIGSEGV), --workers 1", _plugin_files("[0, 2]"),
+              ((RUN + ("--workers", "1"), 0, "2 runs, 1 ok, 1 failed"),
+               (STATUS, 0, "TaskCrashed: the run crashed: its process died (killed by SIGSEGV)"))),
+    Contained("plug-in: out-of-bounds write (SIGSEGV), serial", _plugin_files("[2]"),
+              ((RUN + ("--executor", "serial"), 0, "1 runs, 0 ok, 1 failed"), (STATUS, 0, "killed by SIGSEGV"))),
+    Contained("plug-in: out-of-bounds write (SIGSEGV), 2 workers", _plugin_files("[0, 2]"),
+              ((RUN + ("--workers", "2"), 0, "2 runs, 1 ok, 1 failed"), (STATUS, 0, "killed by SIGSEGV"))),
+    Contained("plug-in: endless loop, run.timeout_s = 3, --workers 1", _plugin_files("[3]", "timeout_s = 3"),
+              ((RUN + ("--workers", "1"), 0, "1 runs, 0 ok, 1 failed"),
+               (STATUS, 0, "TaskTimedOut: the run was still going after 3 s (run.timeout_s)"))),
+    Contained("plug-in: steer does not compile", _plugin_files("[5.0]", module="broken_plugin", key="init.radius"),
+              ((RUN, 2, "broken_plugin.py, line 15 (return (nbrs.nonexistent[0], 0.0, 0.0))"),)),
+    Contained("simulate: plug-in NaN force", _plugin_files("[1]"),
+              ((("simulate", "faulty.toml", "--set", "plugin.fault=1"), 6,
+                "the simulation failed: non-finite state: boid 2's velocity became NaN in step 3"),)),
+    Contained("simulate: plug-in out-of-bounds write", _plugin_files("[2]"),
+              ((("simulate", "faulty.toml", "--set", "plugin.fault=2"), 6, "killed by SIGSEGV"),)),
+    Contained("built-in run over run.timeout_s = 2", {"s.toml": LONG_RUN_SWEEP},
+              ((RUN + ("--executor", "serial"), 0, "2 runs, 1 ok, 1 failed"),
+               (STATUS, 0, "still going after 2 s (run.timeout_s)"))),
+    Contained("command: 200 MiB on stderr", _command_files("flood"),
+              ((RUN + ("--executor", "serial"), 0, "1 runs, 0 ok, 1 failed"),
+               (STATUS, 0, "stderr ends (of 209,715,239 bytes):")), env={"FLOOD_MIB": "200"}),
+    Contained("command: a background child of a command that exits 0", _command_files("daemon"),
+              ((RUN + ("--executor", "serial"), 0, "1 runs, 1 ok, 0 failed"),)),
+    Contained("results: a value edited, then manifest.json deleted", {"s.toml": SMALL_SWEEP},
+              ((RUN + ("--executor", "serial"), 0, "2 runs, 2 ok"),
+               (STATUS, 0, "manifest.json is missing, so the 1 stored part of runs/ cannot be verified"),
+               (RUN + ("--executor", "serial"), 0, "computed 2 now"),
+               (("status", "--verify", "out"), 0, "2 runs: 2 done, 0 failed, 0 missing")),
+              between=_forge_and_delete_manifest),
+)
+CONTAINED_QUICK = ("plug-in: out-of-bounds write (SIGSEGV), 2 workers", "simulate: plug-in NaN force",
+                   "command: 200 MiB on stderr", "command: a background child of a command that exits 0",
+                   "results: a value edited, then manifest.json deleted")
+
+
+@dataclass
+class ContainedResult:
+    problems: list = field(default_factory=list)    # '' when contained; else what went wrong, one per line
+    seconds: list = field(default_factory=list)     # each command's wall time
+    peak_mb: list = field(default_factory=list)     # each command's peak resident memory (MB, its largest process)
+    orphans: list = field(default_factory=list)
+
+
+# runs the command as its child and records the peak memory of the largest process it waited for (a
+# launcher of its own: a child forked from the big test process would carry that process's memory in
+# its ru_maxrss); a command killed by a signal kills the launcher by the same signal
+LAUNCHER = """import os, resource, signal, subprocess, sys
+code = subprocess.run(sys.argv[2:]).returncode
+with open(sys.argv[1], "w") as out:
+    out.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
+if code < 0:
+    signal.signal(-code, signal.SIG_DFL)
+    os.kill(os.getpid(), -code)
+sys.exit(code)
+"""
+
+
+def _watched(argv, cwd: Path, env: dict, timeout: float = 900) -> tuple[int, str, float, float, set]:
+    """Run one command: (exit status, stdout + stderr, seconds, the peak memory in MB of the largest
+    process it started, every descendant seen while it ran)."""
+    out_path, peak_path = cwd / ".contained.out", cwd / ".contained.peak"
+    seen: set[int] = set()
+    started = time.monotonic()
+    with open(out_path, "w") as out:
+        proc = subprocess.Popen([sys.executable, "-c", LAUNCHER, str(peak_path), *command(argv)], cwd=cwd,
+                                stdout=out, stderr=subprocess.STDOUT, env={**environment(), **env},
+                                start_new_session=True)
+        deadline = started + timeout
+        while proc.poll() is None and time.monotonic() < deadline:
+            seen |= descendants(proc.pid)
+            time.sleep(0.05)
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    text = out_path.read_text()
+    out_path.unlink()
+    peak = float(peak_path.read_text()) / 1024 if peak_path.exists() else float("nan")
+    peak_path.unlink(missing_ok=True)
+    return proc.returncode, text, time.monotonic() - started, peak, seen
+
+
+def contained_trial(case: Contained, folder: Path) -> ContainedResult:
+    """Run ``case`` in the empty ``folder`` (see the section's comment)."""
+    for name, text in case.files.items():
+        (folder / name).write_text(text)
+    result = ContainedResult()
+    for number, (argv, code, words) in enumerate(case.steps):
+        status, text, seconds, peak, seen = _watched(argv, folder, case.env)
+        result.seconds.append(seconds)
+        result.peak_mb.append(peak)
+        grace = time.monotonic() + 20
+        while any(alive(p) for p in seen) and time.monotonic() < grace:
+            time.sleep(0.2)
+        result.orphans += sorted(p for p in seen if alive(p))
+        said = " ".join(argv[:1])
+        if status != code:
+            result.problems.append(f"{said}: exit status {status}, expected {code}: {text.strip()[-300:]}")
+        if words not in text:
+            result.problems.append(f"{said}: {words!r} not said: {text.strip()[-300:]}")
+        if "Traceback" in text:
+            result.problems.append(f"{said}: a traceback: {text.strip()[-300:]}")
+        if number == 0 and case.between is not None:
+            case.between(folder)
+    if result.orphans:
+        result.problems.append(f"processes left behind: {result.orphans}")
+        for pid in result.orphans:   # ours: the case started them
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+    return result

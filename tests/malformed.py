@@ -588,6 +588,46 @@ QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e
          "measure: a sidecar key typo")
 
 
+# -- runs and plug-ins (issue 42): a plug-in that does not compile, a bad run.timeout_s ------------------
+# (tests/broken_plugin.py: its steer names an attribute that does not exist, on line 15; tests/ is on the path)
+PLUGIN_PRESET = """name = "p"
+dynamics = "{module}"
+[perception]
+kind = "sphere"
+radius = 9.0
+[init]
+n = 6
+[run]
+dt = 0.05
+duration = 1.0
+record_interval = 0.5
+"""
+PLUGIN_SWEEP = """name = "p"
+[model]
+preset = "{d}/p.toml"
+[run]
+warmup = 0.5
+[[axes]]
+key = "init.radius"
+values = [5.0, 6.0]
+"""
+BROKEN = {"p.toml": PLUGIN_PRESET.format(module="broken_plugin"), "s.toml": PLUGIN_SWEEP}
+RUNS_AND_PLUGINS = [
+    Case("run: a plug-in whose steer does not compile", RUN, BROKEN, 2,
+         "broken_plugin.py, line 15 (return (nbrs.nonexistent[0], 0.0, 0.0)): Unknown attribute 'nonexistent'"),
+    Case("run --workers 1: a plug-in whose steer does not compile",
+         ("run", "{d}/s.toml", "--out", "{d}/out", "--workers", "1", "--no-progress"), BROKEN, 2,
+         "plug-in 'broken_plugin' does not compile"),
+    Case("simulate: a plug-in whose steer does not compile", ("simulate", "{d}/p.toml", "--out", "{d}/out"), BROKEN,
+         2, "broken_plugin.py, line 15"),
+    run_case("run.timeout_s = 0", "run.timeout_s: got 0", run="timeout_s = 0"),
+    run_case("run.timeout_s negative", "run.timeout_s: got -5", run="timeout_s = -5"),
+    run_case("run.timeout_s infinite", "run.timeout_s: got inf", run="timeout_s = inf"),
+    run_case("run.timeout_s a string", "run.timeout_s", run='timeout_s = "an hour"'),
+    run_case("--set run.timeout_s=nan", "run.timeout_s: got nan", args=("--set", "run.timeout_s=nan")),
+]
+CASES += RUNS_AND_PLUGINS
+
 def materialise(case: Case, folder) -> list[str]:
     """Write the case's files into ``folder``; its argv with ``{d}`` and ``{holland}`` filled in."""
     for name, content in case.files.items():

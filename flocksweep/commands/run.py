@@ -130,6 +130,11 @@ def _run(args, pool) -> int:
                   f"{workers} worker(s))")
             print(f"  results directory: {out}")
             return 0
+        if est.get("pilot_failed"):
+            print(f"  estimated wall time: unknown: a pilot run failed ({est['pilot_failed']}); the runs will "
+                  "be recorded as failed the same way")
+            print(f"  results directory: {out}")
+            return 0
         print(f"  estimated wall time: about {est['total_s']:.0f} s = start-up {est['startup_s']:.1f} s + simulation "
               f"{est['seconds']:.1f} s + per-run overhead {est['per_run_s'] * 1000:.1f} ms x {len(plan.todo)} runs, "
               f"on {workers} worker(s) ({est['boid_steps']:,} boid-steps; measured here: short pilot runs)")
@@ -162,7 +167,7 @@ def _print_job_script(settings) -> None:
 def report_lost(args, result) -> int:
     """Say which runs were left missing because their workers died; exit status 5 if any."""
     for path in result.quarantined:
-        print(f"  moved aside (unreadable): {path}")
+        print(f"  moved aside (damaged or unverified): {path}")
     if not result.lost:
         return 0
     causes = "; ".join(result.lost_reasons) or "killed, out of memory or crashed"

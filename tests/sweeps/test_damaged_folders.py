@@ -12,6 +12,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import stat
@@ -98,20 +99,20 @@ def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(t
     parts[1].write_bytes(b"not a parquet file at all")                        # garbage
     (out / "timeseries" / parts[2].name).write_bytes(b"PAR1 broken")          # its time series broken
     pd.DataFrame({"foreign": [1, 2], "run_id": ["x", "y"]}).to_parquet(out / "runs" / "part-000099.parquet")
-    (out / "manifest.json").write_text("{ not json")
     before = sorted(p.relative_to(out) for p in out.rglob("*"))
 
     assert main(["status", str(out)]) == 0
     captured = capsys.readouterr()
     assert "6 runs: 4 done, 0 failed, 2 missing" in captured.out
-    for name in ("part-000001", "part-000002", "part-000099", "manifest.json"):
+    for name in ("part-000001", "part-000002", "part-000099"):
         assert name in captured.err
+    assert "records no checksum of it" in captured.err   # part 99, which flocksweep never wrote
     assert "Traceback" not in captured.err
     assert sorted(p.relative_to(out) for p in out.rglob("*")) == before   # status moves nothing
     runs = pd.read_parquet(out / "runs.parquet")
     series_now = ResultsStore(out).timeseries()                 # as the report reads them: part 3 skipped
     assert set(series_now["run_id"]) == set(runs.loc[runs["part"] != 3, "run_id"])
-    assert "timeseries/part-000003.parquet cannot be read" in capsys.readouterr().err
+    assert "timeseries/part-000003.parquet changed since it was written" in capsys.readouterr().err
 
     assert main(["run", str(sweep), "--out", str(out), "--executor", "serial", "--no-progress"]) == 0
     captured = capsys.readouterr()
@@ -120,7 +121,6 @@ def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(t
     assert moved == ["part-000001", "part-000001", "part-000002", "part-000002", "part-000003", "part-000003",
                      "part-000099"]
     assert "moved to quarantine/" in captured.err and "runs/part-000002.parquet cannot be read" in captured.err
-    assert any(p.name.startswith("manifest.json.") for p in (out / "quarantine").iterdir())
     assert min(int(p.stem[5:]) for p in (out / "runs").glob("part-*.parquet")) >= 4
     assert_frame_equal(results(out), results(reference), check_exact=True)   # no foreign column either
     assert_frame_equal(series(out), series(reference), check_exact=True)
@@ -161,10 +161,6 @@ DAMAGES = {
                                              "timeseries/part-000002", "timeseries/part-000002"),
     "runs.parquet overwritten with NaN": (lambda out: _nan(pd.read_parquet(out / "runs.parquet")).to_parquet(
         out / "runs.parquet", index=False), "runs.parquet", None),
-    "a manifest holding a list": (lambda out: (out / "manifest.json").write_text("[1, 2]"), "manifest.json",
-                                  "manifest.json"),
-    "a manifest edited by hand": (lambda out: (out / "manifest.json").write_text(
-        (out / "manifest.json").read_text().replace('"ok": 6', '"ok": 7')), "manifest.json", "manifest.json"),
 }
 
 
@@ -275,14 +271,15 @@ def test_stale_temporary_files_of_a_killed_writer_are_removed(tmp_path):
 # -- full and read-only disks ------------------------------------------------------------------------
 
 def failing_on(name_part: str, code: int = errno.ENOSPC):
-    """A write_parquet that fails (as a full disk would) for paths containing ``name_part``."""
-    real = files.write_parquet
+    """The store's atomic_path, failing (as a full disk would) for paths containing ``name_part``."""
+    real = files.atomic_path
 
-    def patched(path, frame):
-        if name_part in str(path):
-            with files.atomic_path(path):
+    @contextlib.contextmanager
+    def patched(path):
+        with real(path) as tmp:
+            if name_part in str(path):
                 raise OSError(code, os.strerror(code))
-        return real(path, frame)
+            yield tmp
     return patched
 
 
@@ -294,7 +291,7 @@ def test_a_full_disk_stops_the_sweep_with_one_message_and_the_same_command_resum
     real_batch = worker.execute_batch
     monkeypatch.setattr(worker, "execute_batch", lambda specs, out_dir=None: computed.append(1) or
                         real_batch(specs, out_dir))
-    monkeypatch.setattr(store_module, "write_parquet", failing_on("runs/part-000003"))
+    monkeypatch.setattr(store_module, "atomic_path", failing_on("runs/part-000003"))
     argv = ["run", str(sweep), "--out", str(out), "--executor", "serial", "--no-progress", "--batch-size", "1"]
     assert main(argv) == 4
     err = capsys.readouterr().err
@@ -303,7 +300,7 @@ def test_a_full_disk_stops_the_sweep_with_one_message_and_the_same_command_resum
     assert len(computed) == 3                               # stopped at the first failed write
     assert sorted(p.name for p in (out / "runs").glob("part-*")) == ["part-000001.parquet", "part-000002.parquet"]
     assert not list(out.rglob("*.tmp*"))
-    monkeypatch.setattr(store_module, "write_parquet", files.write_parquet)   # space freed
+    monkeypatch.setattr(store_module, "atomic_path", files.atomic_path)   # space freed
     assert main(argv) == 0
     assert "computed 4 now, 2 already done" in capsys.readouterr().out
     assert_frame_equal(results(out), results(reference), check_exact=True)

@@ -25,11 +25,12 @@ from flocksweep.observables.tracks import TrackSource, load_tracks
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.config import load_sweep
 from flocksweep.sweeps.design import expand
-from flocksweep.sweeps.external import CommandFailed, run_command
+from flocksweep.sweeps.external import TAIL_BYTES, CommandFailed, Tail, run_command
 from flocksweep.sweeps.runner import run_sweep
 from paths import ROOT, TESTS
 
 FAULTY = TESTS / "sweeps" / "faulty_sim.py"
+DAEMON = "faulty-sim-daemon"   # faulty_sim.py's background child
 EXAMPLE = ROOT / "configs" / "external" / "vicsek_sim.py"
 TIMING = ["wall_s", "sim_s", "part"]
 
@@ -193,6 +194,52 @@ def test_a_crash_keeps_the_end_of_stderr(tmp_path):
     with pytest.raises(CommandFailed, match=r"faulty_sim.py failed: exit status 3; stderr ends:\n"
                                             r"faulty_sim: injected crash\nTraceback: none, on purpose"):
         run_command(config.command, values, 1, tmp_path / "s")
+
+
+def test_a_flood_on_stderr_is_read_through_a_bounded_tail(tmp_path):
+    """64 MiB on stderr: the reason keeps its last lines, and reading it costs no more than a bounded
+    buffer (the whole stream was read into memory before: 200 MiB took a run to 798 MB)."""
+    import tracemalloc
+
+    config = load_sweep(write_sweep(tmp_path, ""))
+    values = dict(expand(config)[0].command.values) | {"fault": "flood"}
+    (tmp_path / "s").mkdir()
+    tracemalloc.start()
+    try:
+        with pytest.raises(CommandFailed) as err:
+            run_command(config.command, values, 1, tmp_path / "s")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 2 * TAIL_BYTES + (2 << 20), f"{peak:,} bytes held while reading the flood"
+    assert str(err.value).startswith("faulty_sim.py failed: exit status 1; stderr ends (of 67,108,903 bytes):\n")
+    assert str(err.value).endswith("\nfaulty_sim: the last line of the flood")
+    assert len(str(err.value)) < 2200
+    assert os.listdir(tmp_path / "s") == []   # nor written to disk
+
+
+def test_a_command_that_exits_0_takes_its_background_children_with_it(tmp_path):
+    """The whole process group ends with the run, whatever the command's exit status."""
+    config = load_sweep(write_sweep(tmp_path, ""))
+    values = dict(expand(config)[0].command.values) | {"fault": "daemon"}
+    (tmp_path / "s").mkdir()
+    assert run_command(config.command, values, 1, tmp_path / "s").is_file()
+    deadline = time.monotonic() + 10   # SIGKILL has been sent: wait only for the kernel to finish the job
+    while processes_with(DAEMON) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes_with(DAEMON), "the command's background child outlived the run"
+
+
+def test_the_tail_keeps_the_last_bytes_of_any_stream():
+    tail = Tail(limit=12)
+    for k in range(1000):
+        tail.add(f"line {k}\n".encode())
+        assert len(tail.data) <= 2 * 12 + 9
+    assert tail.total == sum(len(f"line {k}\n") for k in range(1000))
+    assert tail.lines() == "line 999" and "stderr ends (of 8,890 bytes):\nline 999" in tail.said("stderr")
+    tail.add(b"no newline")    # kept: "9\\nno newline", which starts inside a line: that piece is left out
+    assert tail.lines() == "no newline"
+    assert Tail().said("stderr") == ""
 
 
 # ------------------------------------------------------------------------------------ whole sweeps

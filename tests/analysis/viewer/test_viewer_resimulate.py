@@ -20,6 +20,7 @@ from flocksweep.analysis.viewer.resimulate import (NotReproduced, RunNotFound, p
 from flocksweep.cli import main
 from flocksweep.sweeps.config import sweep_from_dict
 from flocksweep.sweeps.runner import run_sweep
+from flocksweep.sweeps.store import ResultsStore
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs/models/holland.toml")
@@ -122,11 +123,10 @@ def test_a_run_that_does_not_reproduce_is_refused(sweep, tmp_path):
     row = runs.iloc[3].to_dict()
     runs.loc[3, "cohesion_mean"] = np.nextafter(runs.loc[3, "cohesion_mean"], 2.0)  # one ulp off
     runs.to_parquet(copy / "runs.parquet", index=False)
-    # as a folder written before checksums were recorded: the changed value is read, not quarantined
-    manifest = json.loads((copy / "manifest.json").read_text())
-    for key in ("checksums", "manifest_checksum"):
-        manifest.pop(key, None)
-    (copy / "manifest.json").write_text(json.dumps(manifest))
+    # a forger who records the changed file's checksum in the manifest: the value is read, not quarantined
+    store = ResultsStore(copy)
+    store._record(copy / "runs.parquet")
+    store._save_checksums()
     tampered = select_run(copy, run_id=row["run_id"])
     with pytest.raises(NotReproduced, match="cohesion_mean: stored"):
         reproduce(copy, tampered)
