@@ -41,10 +41,12 @@ from tqdm import tqdm
 from .directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
+from .clock import sampling_clock
 from .resample import MAX_GAP_INTERVALS, RECORDED, check_size, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
-from .validation import Issue, TrackError, check_flock, infer_interval
+from .trimming import drop_padding, parse_trim, trim_flock
+from .validation import BurstRule, Issue, TrackError, check_flock
 
 def track_settings(group_radius: float, warmup: float = 0.0,
                    fragmentation_cohesion: float = FRAGMENTATION_COHESION,
@@ -71,7 +73,7 @@ class Measurement:
 
 def _row(name: str, status: str, error: str, table: TrackTable, interval: float, velocity_interval) -> dict:
     return {"run_id": name, "flock": name, "status": status, "error": error, "individuals": 0, "records": 0,
-            "dims": table.dims, "t_start": math.nan, "duration": math.nan, "interval": interval,
+            "dims": table.dims, "t_start": math.nan, "duration": math.nan, "interval": interval, "clock": "",
             "velocity_interval": str(velocity_interval), "length_unit": table.unit_label}
 
 
@@ -118,18 +120,56 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
         return _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
 
 
-def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
+def flock_clock(raw, source, interval: float | None = None):
+    """(the sampling clock of a flock's samples, how its record interval was found): frame numbers give
+    1/fps exactly, time stamps their own interval (:func:`~observables.clock.sampling_clock`); an explicit
+    ``interval`` is the record interval."""
+    frame_seconds = source.seconds_per_time_unit if source.time_unit == "frame" else None
+    clock = sampling_clock(raw.t, raw.ind, frame_seconds, fallback=interval)
+    if interval is not None:
+        return clock, f"given ({interval!r} s; the samples: {clock.how})"
+    if frame_seconds is not None:
+        return clock, f"{clock.how} (fps: {source.origin('fps')})"
+    return clock, clock.how
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A flock ready to be resampled: its samples (padding and trim applied, checked), record interval,
+    gap limit, sampling clock and how the interval was found."""
+
+    raw: object
+    interval: float
+    max_gap: float
+    clock: object
+    how: str
+
+
+def prepare_flocks(table: TrackTable, interval: float | None = None, max_gap: float | None = None):
+    """(the flocks ready to resample, the issues found): each flock's clock, padding, trim and checks; a
+    TrackError lists every flock's errors together."""
     raws, issues = raw_flocks(table)
     issues = list(table.issues) + issues
-    checked, errors = [], []
+    source = table.source
+    trim = parse_trim(source.trim) if source.trim else None
+    burst = BurstRule(source.burst_share, source.burst_frames, source.burst_jump)
+    prepared, errors = [], []
     for raw in raws:
         try:
-            step = interval if interval is not None else infer_interval(raw)
+            clock, how = flock_clock(raw, source, interval)
         except ValueError as err:
-            errors.append(Issue("error", "interval", str(err), flock=raw.name))
+            errors.append(Issue("error", "interval", f"flock {raw.name!r}: {err}", flock=raw.name))
             continue
+        raw, found = drop_padding(raw, source.keep_padding)
+        issues += found
+        raw, found = trim_flock(raw, trim, clock)
+        if any(i.level == "error" for i in found):
+            errors += found
+            continue
+        issues += found
+        step = interval if interval is not None else clock.interval
         try:
-            check_size(raw.t, len(raw.ids), step)
+            check_size(raw.t, len(raw.ids), step, clock)
         except ValueError as err:
             errors.append(Issue("error", "interval", str(err), flock=raw.name))
             continue
@@ -138,19 +178,25 @@ def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progr
             errors.append(Issue("error", "max_gap", f"max_gap {gap:g} s is below the sampling interval {step:g} s: "
                                 "consecutive samples would not be joined", flock=raw.name))
             continue
-        raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds, table.unit_label)
+        raw, found = check_flock(raw, step, gap, source.max_speed, source.bad_speeds, table.unit_label, burst)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]
-        checked.append((raw, step, gap))
+        prepared.append(Prepared(raw, step, gap, clock, how))
     if errors:
         raise TrackError(errors, table.path, table.line_offset)
+    return prepared, issues
+
+
+def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
+    checked, issues = prepare_flocks(table, interval, max_gap)
     rows, frames, flocks = [], [], []
-    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr,
-                               mininterval=0.5):
+    for ready in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr, mininterval=0.5):
+        raw, step, gap = ready.raw, ready.interval, ready.max_gap
         velocity = step if velocity_interval is None else velocity_interval
         row = _row(raw.name, "ok", "", table, step, velocity)
+        row["clock"] = ready.how
         try:
-            flock = resample(raw, step, gap, velocity)
+            flock = resample(raw, step, gap, velocity, ready.clock)
         except ValueError as err:
             row.update(status="failed", error=str(err))
             rows.append(row)
