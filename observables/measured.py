@@ -187,6 +187,24 @@ def prepare_flocks(table: TrackTable, interval: float | None = None, max_gap: fl
     return prepared, issues
 
 
+def observe_tracks(table: TrackTable, interval: float | None = None, max_gap: float | None = None,
+                   velocity_interval="auto") -> tuple[list, list]:
+    """(the flocks of ``table`` on their record grids, the issues found), as :func:`measure_tracks` makes
+    them but without measuring (the viewer's input); ``velocity_interval`` "auto": the tracks' velocities
+    when they have them, else one interval. A flock that cannot be resampled is an error issue."""
+    if velocity_interval == "auto":
+        velocity_interval = RECORDED if table.has_velocity else None
+    prepared, issues = prepare_flocks(table, interval, max_gap)
+    flocks = []
+    for ready in prepared:
+        velocity = ready.interval if velocity_interval is None else velocity_interval
+        try:
+            flocks.append(resample(ready.raw, ready.interval, ready.max_gap, velocity, ready.clock))
+        except ValueError as err:
+            issues.append(Issue("error", "not resampled", str(err), flock=ready.raw.name))
+    return flocks, issues
+
+
 def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
     checked, issues = prepare_flocks(table, interval, max_gap)
     rows, frames, flocks = [], [], []

@@ -135,8 +135,8 @@ def _npy_infos(path: Path) -> dict:
             headers = {"": npy_header(path)}
     except (NotData, ValueError) as err:
         raise ConfigError(str(path), f"cannot read it as numpy arrays: {err}") from None
-    return {name: ArrayInfo(name or path.name, shape, "numeric" if dtype.kind in "fiub" else
-                            ("object" if dtype.hasobject else f"{dtype}"), nbytes)
+    return {name or path.name: ArrayInfo(name or path.name, shape, "numeric" if dtype.kind in "fiub" else
+                                         ("object" if dtype.hasobject else f"{dtype}"), nbytes)
             for name, (shape, dtype, nbytes) in headers.items()}
 
 
@@ -156,7 +156,7 @@ def _read(path: Path, fmt: str, names: list) -> dict:
             from .npy_file import read_npy, read_npz
             if path.suffix.lower() == ".npz":
                 return read_npz(path, names)
-            return {"": read_npy(path)}
+            return {names[0]: read_npy(path)}
         if h5py.is_hdf5(path):
             with h5py.File(path, "r") as handle:
                 return {name: np.asarray(handle[name]).T for name in names}

@@ -569,15 +569,18 @@ def raw_flocks(table: TrackTable) -> tuple[list[RawFlock], list[Issue]]:
 def tracks_frame(obs, flock: str) -> pd.DataFrame:
     """A simulator run's records as a long track table (flock, id, t, x, y, z, vx, vy, vz, pattern), in
     body lengths and seconds, one row per boid and record, record-major. Values are the simulator's own
-    float64 numbers, so reading the table back gives them exactly."""
+    float64 numbers, so reading the table back gives them exactly. A run in the plane z = 0 (a 2-D model's:
+    every z and vz exactly 0) has no z and vz columns, so it reads back as 2-D tracks."""
     import pandas as pd
     n_records, n = obs.pos.shape[:2]
+    planar = not (np.any(obs.pos[:, :, 2]) or np.any(obs.vel[:, :, 2]))
+    axes = "xy" if planar else "xyz"
     return pd.DataFrame({
         "flock": flock,
         "id": np.tile(np.arange(n), n_records),
         "t": np.repeat(obs.times, n),
-        **{axis: obs.pos[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
-        **{f"v{axis}": obs.vel[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
+        **{axis: obs.pos[:, :, k].reshape(-1) for k, axis in enumerate(axes)},
+        **{f"v{axis}": obs.vel[:, :, k].reshape(-1) for k, axis in enumerate(axes)},
         "pattern": np.tile(np.asarray(obs.pattern, dtype=np.int64), n_records),
     })
 
