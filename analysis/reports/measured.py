@@ -207,10 +207,15 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
     started = time.perf_counter()
     folder = OutputFolder(out_dir)
     phases = Phases("measure", 2 + bool(figures), progress)
+    phases.start(f"reading, checking and measuring {Path(path).name} (a bar of flocks)")
+    try:    # read before the folder is made: a file that cannot be read leaves nothing behind
+        table = load_tracks(path, source)
+    except TrackError as err:
+        with folder.lock():
+            folder.write_csv("validation.csv", issues_table(err.issues, err.line_offset), index=False)
+        raise
     with folder.lock():
         try:
-            phases.start(f"reading, checking and measuring {Path(path).name} (a bar of flocks)")
-            table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
             measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
