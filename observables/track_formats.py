@@ -73,7 +73,7 @@ NOTES = "flocksweep_notes"      # DataFrame.attrs key: what reading did (decimal
 def regular_file(path, what: str = "track file") -> Path:
     """``path`` when it is a regular file (a link to one is followed); a ConfigError naming it otherwise
     (missing, a folder, a FIFO, a device, a socket, a link to one of these or to nothing)."""
-    input_file(path, str(path), what, TRACK_FILE_LIMIT)
+    input_file(path, "", what, TRACK_FILE_LIMIT)
     return Path(path)
 
 
@@ -203,7 +203,7 @@ def folder_files(path: Path, suffixes=(".npz", ".csv")) -> list[Path]:
                                      "whole, from one kind: move the other kind out")
     files = [p for suffix in suffixes for p in found.get(suffix, [])]
     for file in files:
-        regular_file(file, "track file in the folder:")
+        regular_file(file, "the folder's file")
     return files
 
 
