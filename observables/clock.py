@@ -2,27 +2,32 @@
 
 Trackers sample at a fixed rate and write each sample's time as a frame number or as a time stamp, in
 double or in single precision (MATLAB files often hold single-precision seconds). ``sampling_clock(t, ind,
-interval=None, frame_seconds=None, given="") -> Clock`` recovers the grid those samples lie on:
+frame_seconds=None, fallback=None) -> Clock`` recovers the grid those samples lie on:
 
 * **interval** h: ``frame_seconds`` for frame clocks (seconds per frame, 1/fps: the frame numbers are
-  the grid, so h is exact); else ``interval`` when one is given (it is the grid and the record spacing);
-  else from the time stamps, without rounding: the median spacing h0 between consecutive samples of an
-  individual gives every step its whole number of intervals, h1 = (sum of those steps' spans) / (their
-  interval count), every sample its grid index k = round((t - t_min) / h1), and the least-squares line
-  t = c + k h through all samples gives h (exact to the stamps' own precision);
+  the grid, so h is exact); else from the time stamps, without rounding: the median spacing h0 between
+  consecutive samples of an individual gives every step its whole number of intervals, h1 = (sum of
+  those steps' spans) / (their interval count), every sample its grid index k = round((t - t_min) / h1),
+  and the least-squares line t = c + k h through all samples gives h, exact to the stamps' precision.
+  Of the intervals near it, the simplest that fits the stamps as well is kept (:func:`_candidates`: the
+  rate to 1, 2, ... significant digits, then the interval so; 60 fps gives 1/60 s, not 0.0166666667);
 * **precision**, from the samples' residuals r = t - (c + k h) from that grid: ``"exact"`` when every
   |r| <= :data:`SNAP` h (double-precision stamps of a regular sampling), ``"single"`` when every |r| is
-  within :data:`SINGLE_UNITS` single-precision rounding units of the stamp (2^-22 |t|: stamps written as
-  float32, or printed from float32), otherwise ``"irregular"`` (jittered stamps: samples off the grid are
-  interpolated by :mod:`.resample`); a frame clock is exact;
+  within :data:`SINGLE_UNITS` of the stamp (2^-22 |t|, four single-precision rounding units: stamps
+  written as float32, or printed from float32), otherwise ``"irregular"`` (jittered stamps, a glitch in
+  the clock, several phases: samples off the grid are interpolated by :mod:`.resample`, and h is the
+  median spacing, cleared of its float noise); a frame clock is exact;
 * **tolerance** of a sample (:meth:`Clock.tolerance`): a record's grid time and a sample's time are the
   same time within SNAP x the record interval, widened for single-precision stamps by their rounding
   (2^-22 |t|), so a float32 stamp 4e-6 s off its frame at t = 100 s is that frame's sample, not a reason
   to interpolate;
-* **irregular stamps** keep the median spacing's least-squares refinement h, rounded to the shortest
-  decimal within one standard error of that fit (0.2 s for samples jittered about a 5 Hz grid), and the
-  grid's phase is the circular mean of the sample times (:func:`grid_phase`).
+* **grid start** (:func:`grid_start`): on a regular clock the grid time of the first sample; for
+  irregular stamps the first sample time plus the sampling phase (:func:`grid_phase`, the circular mean
+  of the sample times modulo the record interval).
 
+Without ``ind`` (sample times of unknown individuals) and with ``fallback`` the samples are taken to be
+``fallback`` apart (:func:`_on_grid`: their phase and precision on that grid); ``fallback`` is also the
+interval when the stamps cannot tell one (no individual with two samples), else that is a ValueError.
 ``Clock.how`` says in words how the interval was found (``measure.json``, the runs table, the report).
 """
 from __future__ import annotations

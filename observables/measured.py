@@ -4,11 +4,14 @@
 -> Measurement``
 takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by flock:
 
+0. finds its sampling clock (:func:`flock_clock`: frame numbers give 1/fps, time stamps their own exact
+   interval and precision, :mod:`~observables.clock`), drops its zero padding and applies the trim
+   (:mod:`~observables.trimming`);
 1. checks it (:func:`~observables.validation.check_flock`: duplicates, impossible speeds,
    recorded velocities, gaps); errors of every flock are collected and raised together as one
    :class:`~observables.validation.TrackError`;
 2. resamples it onto its record grid (:func:`~observables.resample.resample`; ``interval``
-   None: each flock's own sampling interval, :func:`~observables.validation.infer_interval`;
+   None: each flock's own sampling interval, from its clock;
    ``velocity_interval`` None: differences over one interval);
 3. measures it with :func:`~observables.summary.measure_run`, the step every sweep and
    calibration uses (``settings``: :func:`track_settings`).
@@ -16,7 +19,7 @@ takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by 
 ``Measurement.runs`` has one row per flock: ``run_id`` (the flock's name), ``flock``, ``status`` ("ok",
 or "failed" with the reason in ``error``: a flock too short for the velocity interval), ``individuals``,
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
-``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
+``interval``, ``clock`` (how the interval was found), ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
 ``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
@@ -27,6 +30,9 @@ flock that could not be measured: too short for the velocity interval, no record
 warm-up, or measured values that came out infinite, as coordinates near 1e305 make them). When no flock
 could be measured, a
 :class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
+
+Steps 0-1 are :func:`prepare_flocks` (-> :class:`Prepared` flocks and the issues), steps 0-2
+:func:`observe_tracks` (the resampled flocks without metrics: what the viewer shows).
 """
 from __future__ import annotations
 

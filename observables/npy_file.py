@@ -10,6 +10,12 @@ an ``.npy`` file at all (a raw pickle renamed ``.npy`` included) is refused too:
 to ``pickle.load`` is never reached.
 
 Plain Python values (dicts, lists, strings, numbers, None) need no class and are read as they are.
+
+``npy_header(path)`` and ``npz_headers(path)`` give the declared shape, dtype and size of a file's arrays
+from their headers alone, each checked against the bytes the file (or archive member) holds and, for a
+compressed member, against what zlib can expand to (:data:`DEFLATE_RATIO`), before anything is allocated;
+``read_npz(path, keys)`` reads an archive's arrays after that check, with pickling off (an object array
+is :class:`NotData`).
 """
 from __future__ import annotations
 

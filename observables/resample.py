@@ -8,12 +8,16 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
 * **size**: records x individuals is counted before anything is allocated and refused beyond
   :data:`MAX_RECORD_VALUES` (``check_size``: the figure and the smallest interval that fits);
 * **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
-  flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
-  the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
+  flock's last sample time and t_0 its first sample's time on the samples' sampling clock (``clock``, a
+  :class:`~observables.clock.Clock`; default :func:`~observables.clock.sampling_clock` of the samples):
+  on a regular clock the first sample's grid time, else the first sample time plus the sampling phase
+  (:func:`grid_phase`: the circular mean of the sample times modulo h when they cluster; 0 for samples
   denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A
-  grid time within 1e-6 h of a sample time is that sample's time exactly (so regular data keep their own
-  times and values, bit for bit).
-* **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
+  grid time within the clock's tolerance of a sample time (1e-6 h; plus their rounding for
+  single-precision stamps) is that sample's time: for double-precision and jittered stamps the grid time
+  becomes the sample's time exactly (regular data keep their own times and values, bit for bit); for
+  single-precision stamps the grid keeps its own times, the better clock.
+* **positions** at t_k, per individual: the sample at t_k (within the tolerance); else the linear
   interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
   (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up
   to a quarter interval; two missed samples are not; ``max_gap`` < h is an error, since then even

@@ -25,14 +25,23 @@ length is 1). ``units.length = "bl"`` means the file is already in body lengths 
 
 A sidecar JSON file with the same stem (``tracks.csv.gz`` -> ``tracks.json``) may give defaults for
 ``columns``, ``units`` and ``body_length`` (any :class:`TrackSource` setting; and a ``description`` shown in
-reports); what a command line or calibration file gives explicitly wins. Other keys are information
+reports); what a command line or calibration file gives explicitly wins (tables such as ``units`` key by
+key). A format's own settings (idtracker.ai's pixels, frames, frame rate and body length; TRex's
+centimetres) fill what neither gave, and only then are the settings checked against each other
+(:meth:`TrackSource.check_units`: frame numbers need a frame rate, pixels a body length in pixels), so a
+unit is merged before it is checked; an option the format does not use (a layout for a CSV, a column map
+for arrays, a frame rate for times in seconds) is refused by name. ``TrackSource.origins`` records where
+each setting came from ("file", "sidecar"; absent: given or default) and ``TrackSource.scales()`` every
+unit and scale used with its source. ``keep_padding`` and ``trim`` (:mod:`.trimming`) and the speed
+check's burst rule (``burst_share``, ``burst_frames``, ``burst_jump``: :mod:`.validation`) are settings
+too. Other keys are information
 (``SIDECAR_INFORMATION``: ``description``, ``notes``, ``truth``, ...; any other name too), but an unlisted
 one close to a setting's name (``colums``) is refused as a typo with a did-you-mean.
 
 ``load_tracks(path, source) -> TrackTable`` reads and converts (the table holds the source row of every
-sample); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
+sample, and notes on what reading did: decimal commas read, channels skipped, stamps converted to UTC); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
 ``tracks_frame(obs, flock)`` is the inverse for a simulator run: its records as a long table in body
-lengths (``flocksweep simulate --tracks``).
+lengths (``flocksweep simulate --tracks``; a run in the plane z = 0 without z and vz, so it reads back 2-D).
 """
 from __future__ import annotations
 

@@ -10,22 +10,29 @@ The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
 
 * **duplicates**: two samples of one individual at the same time: an error (which one is right?);
 * **impossible speeds**: a sample reached from the individual's previous good sample faster than
-  ``max_speed`` (default: 10 x the flock's median step speed) is flagged; a glitch then shows as one
-  flagged sample and the track continues from the last good one. ``bad_speeds`` says what happens:
-  "error" (the default: stop and list them), "keep" (a warning, the samples are used) or "drop" (a
-  warning listing the samples left out);
+  ``max_speed`` (default: 10 x the flock's median step speed) is judged against the group
+  (:class:`BurstRule`): it is a **burst** when at least ``share`` (0.5) of the other individuals present
+  within ``frames`` (5) sampling intervals of it each make a jump there (a step faster than ``jump`` (3)
+  times that individual's own recent speed, the median of its previous 10 steps), and kept as motion
+  with a note (``rule = "burst"``); otherwise it is a **glitch** (``rule = "glitch"``), which then shows
+  as one flagged sample while the track continues from the last good one. ``bad_speeds`` says what
+  happens to glitches: "error" (the default: stop and list them, rows in file order), "keep" (a warning,
+  the samples are used) or "drop" (a warning listing the samples left out);
 * **recorded velocities** (tracks with velocity columns): each sample's recorded velocity is compared with
   its velocity from position differences (centred over its neighbours, one-sided at an individual's
   first and last sample, :func:`difference_velocities`); a sample where they differ by more than
   ``VELOCITY_TOLERANCE`` (0.5) x the larger of the difference speed and the flock's median difference
   speed gets a warning, one per individual, naming the flock, the individual, the samples' times and
-  rows (zero padding, velocities in other units or of other individuals show up this way);
+  rows, the size of the vector difference it fired on and both speeds (zero padding of one individual,
+  velocities in other units or of other individuals show up this way; padding of every individual is
+  dropped before, :mod:`.trimming`);
 * **gaps**: consecutive samples of an individual more than 1.5 sampling intervals apart. Gaps up to
   ``max_gap`` are bridged by linear interpolation when resampling (a note), longer ones stay missing (a
   warning); one issue of each kind per flock, counting them and naming the longest gap, its individual
   and rows.
 
-``infer_interval(flock)`` is the sampling interval of tracks that do not state it, from their time stamps
+An issue's ``rule`` says which rule of its check fired; ``issues_table`` lists issues with empty text where
+an issue names no flock, individual or column. ``infer_interval(flock)`` is the sampling interval of tracks that do not state it, from their time stamps
 without rounding (:mod:`.clock`). ``issues_table`` lists issues as
 a DataFrame (level, check, flock, id, column, rows, detail).
 """

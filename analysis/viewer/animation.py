@@ -3,8 +3,8 @@
 ``write_animation(track, path, color_by="auto", fps=20, speed=1, rotate=False, trail_s=1, size=(640, 480),
 dpi=100, title=None, progress=False) -> Animation`` draws the run with matplotlib's 3-D axes (the world's
 y axis up), or, for a run in the plane z = 0 (a 2-D model's, measured 2-D tracks: :func:`is_flat`), from
-above on plain axes (x right, y up, equal scales; ``rotate`` does nothing there), as the viewer page does: boids as arrows along their heading, extra agents (prey, predators) as large markers of
-their colour with a legend, trails of the last ``trail_s`` seconds (agents' thicker), a time stamp
+above on plain axes (x right, y up, equal scales; ``rotate`` does nothing there), as the viewer page
+does: boids as arrows along their heading, extra agents (prey, predators) as large markers of their colour with a legend, trails of the last ``trail_s`` seconds (agents' thicker), a time stamp
 with the frame's polarization and number of groups, and optionally a camera turning slowly about the
 vertical (``rotate``: 6 degrees per second of video).
 
