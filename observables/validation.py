@@ -13,7 +13,8 @@ The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
   ``max_speed`` (default: 10 x the flock's median step speed) is judged against the group
   (:class:`BurstRule`): it is a **burst** when at least ``share`` (0.5) of the other individuals present
   within ``frames`` (5) sampling intervals of it each make a jump there (a step faster than ``jump`` (3)
-  times that individual's own recent speed, the median of its previous 10 steps), and kept as motion
+  times that individual's own recent speed, the median of its previous 10 steps, the flock's median
+  step speed standing in for steps before its first), and kept as motion
   with a note (``rule = "burst"``); otherwise it is a **glitch** (``rule = "glitch"``), which then shows
   as one flagged sample while the track continues from the last good one. ``bad_speeds`` says what
   happens to glitches: "error" (the default: stop and list them, rows in file order), "keep" (a warning,
@@ -157,20 +158,15 @@ class BurstRule:
 
 
 def _recent_speeds(raw, later: np.ndarray, speed: np.ndarray, fallback: float) -> np.ndarray:
-    """Each step's individual's median speed over its previous RECENT_STEPS steps (``fallback`` before it
-    has one)."""
+    """Each step's individual's median speed over its previous RECENT_STEPS steps (``fallback``, the
+    flock's median step speed, standing in for the steps before its first)."""
     from numpy.lib.stride_tricks import sliding_window_view
-    out = np.full(len(later), fallback)
+    out = np.empty(len(later))
     ind = raw.ind[later]
     starts = np.flatnonzero(np.r_[True, np.diff(ind) != 0])
     for lo, hi in zip(starts, np.r_[starts[1:], len(ind)]):
-        padded = np.concatenate([np.full(RECENT_STEPS, np.nan), speed[lo:hi]])
-        window = sliding_window_view(padded[:-1], RECENT_STEPS)
-        seen = np.isfinite(window).any(axis=1)
-        recent = np.full(hi - lo, fallback)
-        if seen.any():
-            recent[seen] = np.nanmedian(window[seen], axis=1)
-        out[lo:hi] = recent
+        padded = np.concatenate([np.full(RECENT_STEPS, fallback), speed[lo:hi - 1]])
+        out[lo:hi] = np.median(sliding_window_view(padded, RECENT_STEPS), axis=1)
     return out
 
 
@@ -203,9 +199,10 @@ class _Group:
         return count > 0 and share >= self.rule.share
 
 
-def _too_fast(raw, limit: float, group: _Group | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _too_fast(raw, limit: float, group=None) -> tuple[np.ndarray, np.ndarray]:
     """(glitches, bursts): samples reached from the individual's last good sample faster than ``limit``
-    (greedy, in time order); those the group moves with (``group.burst``) are bursts, kept as motion."""
+    (greedy, in time order); those the group moves with are bursts, kept as motion. ``group``: a function
+    returning the flock's :class:`_Group` (built only when some sample is too fast)."""
     flagged = np.zeros(len(raw.t), dtype=bool)
     bursts = np.zeros(len(raw.t), dtype=bool)
     later, dt = _steps(raw)
@@ -216,7 +213,7 @@ def _too_fast(raw, limit: float, group: _Group | None = None) -> tuple[np.ndarra
         good = bounds[i]
         for k in range(bounds[i] + 1, bounds[i + 1]):
             if np.linalg.norm(raw.pos[k] - raw.pos[good]) / (raw.t[k] - raw.t[good]) > limit:
-                if group is not None and group.burst(i, raw.t[k]):
+                if group is not None and group().burst(i, raw.t[k]):
                     bursts[k] = True
                     good = k
                 else:
@@ -242,7 +239,13 @@ def _speeds(raw, max_speed: float | None, policy: str, unit: str, interval: floa
     if not limit > 0:
         return raw, [Issue("note", "speed", "the median step speed is 0: no speed check", flock=raw.name)]
     rule = BurstRule() if rule is None else rule
-    group = _Group(raw, later, speed, median, interval or float(np.median(dt)), rule)
+    built = []
+
+    def group() -> _Group:
+        if not built:
+            built.append(_Group(raw, later, speed, median, interval or float(np.median(dt)), rule))
+        return built[0]
+
     flagged, bursts = _too_fast(raw, limit, group)
     how = "max_speed" if max_speed is not None else f"{SPEED_FACTOR:g} x the median step speed"
     issues = []
