@@ -80,6 +80,8 @@ def drop_padding(raw, keep: bool = False) -> tuple:
     if raw.vel is None or len(raw.t) == 0:
         return raw, []
     zero = (raw.vel == 0).all(axis=1)
+    if not zero.any():
+        return raw, []
     times, inverse = np.unique(raw.t, return_inverse=True)
     all_zero = np.ones(len(times), dtype=bool)
     np.logical_and.at(all_zero, inverse, zero)
