@@ -4,11 +4,14 @@
 -> Measurement``
 takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by flock:
 
+0. finds its sampling clock (:func:`flock_clock`: frame numbers give 1/fps, time stamps their own exact
+   interval and precision, :mod:`~observables.clock`), drops its zero padding and applies the trim
+   (:mod:`~observables.trimming`);
 1. checks it (:func:`~observables.validation.check_flock`: duplicates, impossible speeds,
    recorded velocities, gaps); errors of every flock are collected and raised together as one
    :class:`~observables.validation.TrackError`;
 2. resamples it onto its record grid (:func:`~observables.resample.resample`; ``interval``
-   None: each flock's own sampling interval, :func:`~observables.validation.infer_interval`;
+   None: each flock's own sampling interval, from its clock;
    ``velocity_interval`` None: differences over one interval);
 3. measures it with :func:`~observables.summary.measure_run`, the step every sweep and
    calibration uses (``settings``: :func:`track_settings`).
@@ -16,7 +19,7 @@ takes a read track file (:func:`~observables.tracks.load_tracks`) and, flock by 
 ``Measurement.runs`` has one row per flock: ``run_id`` (the flock's name), ``flock``, ``status`` ("ok",
 or "failed" with the reason in ``error``: a flock too short for the velocity interval), ``individuals``,
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
-``interval``, ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
+``interval``, ``clock`` (how the interval was found), ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
 ``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
 ``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
@@ -27,6 +30,9 @@ flock that could not be measured: too short for the velocity interval, no record
 warm-up, or measured values that came out infinite, as coordinates near 1e305 make them). When no flock
 could be measured, a
 :class:`~observables.validation.TrackError` lists why for each (``flocksweep measure`` exits with status 2).
+
+Steps 0-1 are :func:`prepare_flocks` (-> :class:`Prepared` flocks and the issues), steps 0-2
+:func:`observe_tracks` (the resampled flocks without metrics: what the viewer shows).
 """
 from __future__ import annotations
 
@@ -41,10 +47,12 @@ from tqdm import tqdm
 from .directional_correlation import DCD_MAX_DELAY, DCD_METRIC_NAMES
 from .metrics import FRAGMENTATION_COHESION
 from .observed import ObservedFlock
+from .clock import sampling_clock
 from .resample import MAX_GAP_INTERVALS, RECORDED, check_size, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
-from .validation import Issue, TrackError, check_flock, infer_interval
+from .trimming import drop_padding, parse_trim, trim_flock
+from .validation import BurstRule, Issue, TrackError, check_flock
 
 def track_settings(group_radius: float, warmup: float = 0.0,
                    fragmentation_cohesion: float = FRAGMENTATION_COHESION,
@@ -71,7 +79,7 @@ class Measurement:
 
 def _row(name: str, status: str, error: str, table: TrackTable, interval: float, velocity_interval) -> dict:
     return {"run_id": name, "flock": name, "status": status, "error": error, "individuals": 0, "records": 0,
-            "dims": table.dims, "t_start": math.nan, "duration": math.nan, "interval": interval,
+            "dims": table.dims, "t_start": math.nan, "duration": math.nan, "interval": interval, "clock": "",
             "velocity_interval": str(velocity_interval), "length_unit": table.unit_label}
 
 
@@ -118,18 +126,56 @@ def measure_tracks(table: TrackTable, settings: MetricSettings, interval: float 
         return _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
 
 
-def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
+def flock_clock(raw, source, interval: float | None = None):
+    """(the sampling clock of a flock's samples, how its record interval was found): frame numbers give
+    1/fps exactly, time stamps their own interval (:func:`~observables.clock.sampling_clock`); an explicit
+    ``interval`` is the record interval."""
+    frame_seconds = source.seconds_per_time_unit if source.time_unit == "frame" else None
+    clock = sampling_clock(raw.t, raw.ind, frame_seconds, fallback=interval)
+    if interval is not None:
+        return clock, f"given ({interval!r} s; the samples: {clock.how})"
+    if frame_seconds is not None:
+        return clock, f"{clock.how} (fps: {source.origin('fps')})"
+    return clock, clock.how
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A flock ready to be resampled: its samples (padding and trim applied, checked), record interval,
+    gap limit, sampling clock and how the interval was found."""
+
+    raw: object
+    interval: float
+    max_gap: float
+    clock: object
+    how: str
+
+
+def prepare_flocks(table: TrackTable, interval: float | None = None, max_gap: float | None = None):
+    """(the flocks ready to resample, the issues found): each flock's clock, padding, trim and checks; a
+    TrackError lists every flock's errors together."""
     raws, issues = raw_flocks(table)
     issues = list(table.issues) + issues
-    checked, errors = [], []
+    source = table.source
+    trim = parse_trim(source.trim) if source.trim else None
+    burst = BurstRule(source.burst_share, source.burst_frames, source.burst_jump)
+    prepared, errors = [], []
     for raw in raws:
         try:
-            step = interval if interval is not None else infer_interval(raw)
+            clock, how = flock_clock(raw, source, interval)
         except ValueError as err:
-            errors.append(Issue("error", "interval", str(err), flock=raw.name))
+            errors.append(Issue("error", "interval", f"flock {raw.name!r}: {err}", flock=raw.name))
             continue
+        raw, found = drop_padding(raw, source.keep_padding)
+        issues += found
+        raw, found = trim_flock(raw, trim, clock)
+        if any(i.level == "error" for i in found):
+            errors += found
+            continue
+        issues += found
+        step = interval if interval is not None else clock.interval
         try:
-            check_size(raw.t, len(raw.ids), step)
+            check_size(raw.t, len(raw.ids), step, clock)
         except ValueError as err:
             errors.append(Issue("error", "interval", str(err), flock=raw.name))
             continue
@@ -138,19 +184,43 @@ def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progr
             errors.append(Issue("error", "max_gap", f"max_gap {gap:g} s is below the sampling interval {step:g} s: "
                                 "consecutive samples would not be joined", flock=raw.name))
             continue
-        raw, found = check_flock(raw, step, gap, table.source.max_speed, table.source.bad_speeds, table.unit_label)
+        raw, found = check_flock(raw, step, gap, source.max_speed, source.bad_speeds, table.unit_label, burst)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]
-        checked.append((raw, step, gap))
+        prepared.append(Prepared(raw, step, gap, clock, how))
     if errors:
         raise TrackError(errors, table.path, table.line_offset)
+    return prepared, issues
+
+
+def observe_tracks(table: TrackTable, interval: float | None = None, max_gap: float | None = None,
+                   velocity_interval="auto") -> tuple[list, list]:
+    """(the flocks of ``table`` on their record grids, the issues found), as :func:`measure_tracks` makes
+    them but without measuring (the viewer's input); ``velocity_interval`` "auto": the tracks' velocities
+    when they have them, else one interval. A flock that cannot be resampled is an error issue."""
+    if velocity_interval == "auto":
+        velocity_interval = RECORDED if table.has_velocity else None
+    prepared, issues = prepare_flocks(table, interval, max_gap)
+    flocks = []
+    for ready in prepared:
+        velocity = ready.interval if velocity_interval is None else velocity_interval
+        try:
+            flocks.append(resample(ready.raw, ready.interval, ready.max_gap, velocity, ready.clock))
+        except ValueError as err:
+            issues.append(Issue("error", "not resampled", str(err), flock=ready.raw.name))
+    return flocks, issues
+
+
+def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
+    checked, issues = prepare_flocks(table, interval, max_gap)
     rows, frames, flocks = [], [], []
-    for raw, step, gap in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr,
-                               mininterval=0.5):
+    for ready in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr, mininterval=0.5):
+        raw, step, gap = ready.raw, ready.interval, ready.max_gap
         velocity = step if velocity_interval is None else velocity_interval
         row = _row(raw.name, "ok", "", table, step, velocity)
+        row["clock"] = ready.how
         try:
-            flock = resample(raw, step, gap, velocity)
+            flock = resample(raw, step, gap, velocity, ready.clock)
         except ValueError as err:
             row.update(status="failed", error=str(err))
             rows.append(row)

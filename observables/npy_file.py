@@ -10,6 +10,12 @@ an ``.npy`` file at all (a raw pickle renamed ``.npy`` included) is refused too:
 to ``pickle.load`` is never reached.
 
 Plain Python values (dicts, lists, strings, numbers, None) need no class and are read as they are.
+
+``npy_header(path)`` and ``npz_headers(path)`` give the declared shape, dtype and size of a file's arrays
+from their headers alone, each checked against the bytes the file (or archive member) holds and, for a
+compressed member, against what zlib can expand to (:data:`DEFLATE_RATIO`), before anything is allocated;
+``read_npz(path, keys)`` reads an archive's arrays after that check, with pickling off (an object array
+is :class:`NotData`).
 """
 from __future__ import annotations
 
@@ -89,6 +95,68 @@ def _header(handle) -> tuple[tuple, bool, np.dtype]:
         raise ValueError(f".npy format version {version[0]}.{version[1]} is not read; save it with numpy's "
                          "defaults (np.save)")
     return readers[version](handle)
+
+
+def _declared(shape, dtype) -> int:
+    return int(np.prod(shape, dtype=object)) * dtype.itemsize
+
+
+def npy_header(path) -> tuple[tuple, np.dtype, int]:
+    """(shape, dtype, declared bytes) of an ``.npy`` file, its data not read; ValueError when the file holds
+    fewer bytes than its header declares (a truncated or crafted file)."""
+    with open(path, "rb") as handle:
+        shape, _, dtype = _header(handle)
+        start = handle.tell()
+        size = handle.seek(0, io.SEEK_END) - start
+    need = _declared(shape, dtype)
+    if not dtype.hasobject and need > size:
+        raise ValueError(f"its header declares {shape} of {dtype} ({need:,} bytes) but the file holds {size:,} "
+                         "bytes after it: a truncated or damaged file")
+    return shape, dtype, need
+
+
+DEFLATE_RATIO = 1100    # zlib cannot expand data more than about 1032 times
+
+
+def npz_headers(path) -> dict:
+    """{key: (shape, dtype, declared bytes)} of every array in an ``.npz`` archive, read from the members'
+    headers only: a member whose header declares more data than the member holds, or a member that
+    claims to expand more than zlib can, is a ValueError before anything is allocated."""
+    import zipfile
+    out = {}
+    try:
+        archive = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError) as err:
+        raise ValueError(f"not an .npz archive ({err})") from None
+    with archive:
+        for info in archive.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            key = info.filename[:-4]
+            if info.file_size > DEFLATE_RATIO * max(info.compress_size, 1) + 4096:
+                raise ValueError(f"{key}: its member claims {info.file_size:,} bytes from {info.compress_size:,} "
+                                 "compressed: a damaged or crafted archive")
+            with archive.open(info) as member:
+                shape, _, dtype = _header(member)
+                start = member.tell()
+            need = _declared(shape, dtype)
+            if not dtype.hasobject and need > info.file_size - start:
+                raise ValueError(f"{key}: its header declares {shape} of {dtype} ({need:,} bytes) but the member "
+                                 f"holds {info.file_size - start:,}: a truncated or damaged archive")
+            out[key] = (tuple(shape), dtype, need)
+    return out
+
+
+def read_npz(path, keys=None) -> dict:
+    """The arrays of an ``.npz`` archive (all, or ``keys``), headers checked first (:func:`npz_headers`);
+    pickling off: an object array is :class:`NotData`."""
+    headers = npz_headers(path)
+    keys = list(headers) if keys is None else list(keys)
+    objects = [k for k in keys if k in headers and headers[k][1].hasobject]
+    if objects:
+        raise NotData(f"{objects[0]} is an array of Python objects, which is never unpickled")
+    with np.load(path, allow_pickle=False) as archive:
+        return {key: archive[key] for key in keys}
 
 
 def read_npy(path) -> object:

@@ -11,7 +11,10 @@ An :class:`Observation` (the ``[observation]`` table of a calibration file; the 
 * ``detection_probability`` (default 1): the chance that an individual is detected at a sample;
 * ``position_sd`` (length units, default 0): sd of independent Gaussian noise on each coordinate;
 * ``projection`` ("none", or the plane kept: "xz", "xy", "yz"): a 3-D run seen in 2-D. The simulator's
-  vertical axis is y, so "xz" is its horizontal plane, a view from above.
+  vertical axis is y, so "xz" is the horizontal plane of a 3-D run, a view from above. A 2-D model's
+  world moves in the x-y plane: a projection that drops x or y would measure one axis, so it is refused
+  (:func:`check_projection` at configuration time; :func:`detect` refuses any projection dropping an
+  axis a planar run moves along, naming its plane). A planar run's observed flock is 2-D.
 
 Measured tracks already carry their detection losses and noise: for them only ``interval``,
 ``velocity_interval`` and ``max_gap`` act, through :func:`~observables.resample.resample`.
@@ -42,6 +45,37 @@ from .tracks import RawFlock
 
 PROJECTIONS = {"none": None, "xy": 2, "xz": 1, "yz": 0}   # the plane kept -> the axis set to 0
 OBSERVATION_CHILD = 2      # spawn key of a run seed's observation stream
+AXIS_NAMES = "xyz"
+
+
+def check_projection(observation: "Observation", dimensions: int, key: str = "observation.projection") -> None:
+    """ConfigError when the projection drops an axis a world of ``dimensions`` moves along: a 2-D world
+    moves in the x-y plane, so only "none" and "xy" keep it."""
+    axis = PROJECTIONS[observation.projection]
+    if dimensions == 2 and axis is not None and axis != 2:
+        raise ConfigError(key, f"got {observation.projection!r}, which drops {AXIS_NAMES[axis]}; the model's 2-D "
+                               "world moves in the x-y plane, so its runs would be measured along one axis: use "
+                               'projection = "xy" (or "none": 2-D runs are already planar)')
+
+
+def moving_plane(pos: np.ndarray) -> int | None:
+    """The axis along which every position is one constant (the run moves in the plane of the other two),
+    or None when it moves along all three."""
+    for axis in (2, 1, 0):
+        values = pos[..., axis]
+        if values.size and np.all(values == values.flat[0]):
+            return axis
+    return None
+
+
+def _check_run_plane(pos: np.ndarray, projection: str) -> None:
+    """ValueError when ``projection`` drops an axis a planar run moves along (naming the run's plane)."""
+    dropped, still = PROJECTIONS[projection], moving_plane(pos)
+    if dropped is not None and still is not None and dropped != still:
+        plane = "-".join(AXIS_NAMES[a] for a in range(3) if a != still)
+        raise ValueError(f"projection {projection!r} drops {AXIS_NAMES[dropped]}, along which the run moves: it "
+                         f"moves in the {plane} plane ({AXIS_NAMES[still]} is constant); use projection = "
+                         f"\"{plane.replace('-', '')}\" or \"none\"")
 
 
 @dataclass(frozen=True)
@@ -124,6 +158,8 @@ def detect(obs, observation: Observation, seed) -> RawFlock:
     times = obs.times[::k]
     pos = np.array(obs.pos[::k], dtype=np.float64)
     vel = np.array(obs.vel[::k], dtype=np.float64)
+    _check_run_plane(pos, observation.projection)
+    planar = observation.dims == 2 or moving_plane(pos) == 2      # a 2-D model's run is 2-D tracks
     axis = PROJECTIONS[observation.projection]
     kept = [a for a in range(3) if a != axis]
     if axis is not None:
@@ -138,7 +174,7 @@ def detect(obs, observation: Observation, seed) -> RawFlock:
         pos[:, :, kept] += noise_rng.normal(0.0, observation.position_sd, (n_records, n, len(kept)))
     ind, rec = np.nonzero(detected.T)          # individual-major, times in order
     return RawFlock(name="simulated", ids=np.arange(n), t=times[rec], ind=ind.astype(np.int64), pos=pos[rec, ind],
-                    vel=vel[rec, ind], pattern=np.asarray(obs.pattern, dtype=np.int64), dims=observation.dims)
+                    vel=vel[rec, ind], pattern=np.asarray(obs.pattern, dtype=np.int64), dims=2 if planar else 3)
 
 
 def observe_run(obs, observation: Observation, seed) -> ObservedFlock:

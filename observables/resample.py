@@ -8,12 +8,16 @@ Measured tracks (:mod:`.tracks`) and simulated runs seen through an observation 
 * **size**: records x individuals is counted before anything is allocated and refused beyond
   :data:`MAX_RECORD_VALUES` (``check_size``: the figure and the smallest interval that fits);
 * **grid**: t_k = t_0 + k h, k = 0 .. floor((t_last - t_0)/h), with h = ``interval``, t_last the
-  flock's last sample time and t_0 its first sample time plus the sampling phase (:func:`grid_phase`:
-  the circular mean of the sample times modulo h when they cluster; 0 for regular data and for samples
+  flock's last sample time and t_0 its first sample's time on the samples' sampling clock (``clock``, a
+  :class:`~observables.clock.Clock`; default :func:`~observables.clock.sampling_clock` of the samples):
+  on a regular clock the first sample's grid time, else the first sample time plus the sampling phase
+  (:func:`grid_phase`: the circular mean of the sample times modulo h when they cluster; 0 for samples
   denser than h), so a regular sampling with jittered time stamps gets records at its nominal times. A
-  grid time within 1e-6 h of a sample time is that sample's time exactly (so regular data keep their own
-  times and values, bit for bit).
-* **positions** at t_k, per individual: the sample at t_k (within 1e-6 h); else the linear
+  grid time within the clock's tolerance of a sample time (1e-6 h; plus their rounding for
+  single-precision stamps) is that sample's time: for double-precision and jittered stamps the grid time
+  becomes the sample's time exactly (regular data keep their own times and values, bit for bit); for
+  single-precision stamps the grid keeps its own times, the better clock.
+* **positions** at t_k, per individual: the sample at t_k (within the tolerance); else the linear
   interpolation between the samples just before and after t_k when they are at most ``max_gap`` apart
   (default 2.5 h: one missed sample of a regular track is bridged, also when the time stamps jitter by up
   to a quarter interval; two missed samples are not; ``max_gap`` < h is an error, since then even
@@ -34,10 +38,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .clock import SNAP, Clock, grid_phase, grid_start, sampling_clock  # noqa: F401 - grid_phase: part of this face
 from .observed import ObservedFlock
 from .track_names import RECORDED  # noqa: F401 - declared there (read without numpy), part of this module's face
 
-SNAP = 1e-6          # grid and sample times closer than SNAP x interval are the same time
 MAX_RECORD_VALUES = 20_000_000   # records x individuals of one flock (positions and velocities: ~0.9 GiB)
 MAX_GAP_INTERVALS = 2.5  # default max_gap, in sampling intervals
 
@@ -64,24 +68,17 @@ def velocity_steps(velocity_interval, interval: float) -> int | None:
     return m
 
 
-def grid_phase(t: np.ndarray, interval: float) -> float:
-    """Offset in [0, h) of the sampling phase from the first sample time: the circular mean of the sample
-    times modulo h when they cluster (mean resultant length >= 0.5: a regular sampling, also with jittered
-    stamps), else 0 (samples denser than h, or without a common phase)."""
-    angle = 2.0 * np.pi * ((t - t.min()) / interval)
-    x, y = np.cos(angle).mean(), np.sin(angle).mean()
-    if np.hypot(x, y) < 0.5:
-        return 0.0
-    offset = (np.arctan2(y, x) / (2.0 * np.pi)) % 1.0 * interval
-    return 0.0 if offset <= SNAP * interval or offset >= (1 - SNAP) * interval else float(offset)
+def _grid_start_count(times: np.ndarray, interval: float, clock: Clock) -> tuple[float, int]:
+    start = grid_start(clock, times, interval)
+    slack = float(clock.tolerance(times[-1:], interval)[0]) / interval
+    return start, max(int(np.floor((times[-1] - start) / interval + slack)) + 1, 1)
 
 
-def _grid_start_count(times: np.ndarray, interval: float) -> tuple[float, int]:
-    start = times[0] + grid_phase(times, interval)
-    return start, max(int(np.floor((times[-1] - start) / interval + SNAP)) + 1, 1)
+def _clock(t: np.ndarray, interval: float, clock: Clock | None) -> Clock:
+    return clock if clock is not None else sampling_clock(t, fallback=interval)
 
 
-def check_size(t: np.ndarray, individuals: int, interval: float) -> int:
+def check_size(t: np.ndarray, individuals: int, interval: float, clock: Clock | None = None) -> int:
     """The number of grid times over the sample times ``t``, counted before anything is allocated;
     ValueError when records x individuals exceeds :data:`MAX_RECORD_VALUES` (the figure and what to
     change in the message)."""
@@ -94,14 +91,18 @@ def check_size(t: np.ndarray, individuals: int, interval: float) -> int:
                          f"of {MAX_RECORD_VALUES:,} (about {MAX_RECORD_VALUES * 48 / 2**30:.1f} GiB); choose a "
                          f"larger --interval (at least {span * max(individuals, 1) / MAX_RECORD_VALUES:.3g} s) or "
                          "measure a shorter stretch")
-    return _grid_start_count(times, interval)[1] if len(times) else 0
+    return _grid_start_count(times, interval, _clock(times, interval, clock))[1] if len(times) else 0
 
 
-def record_grid(t: np.ndarray, interval: float) -> np.ndarray:
-    """The grid over the sample times ``t``, in phase with them and snapped to them (module docstring)."""
+def record_grid(t: np.ndarray, interval: float, clock: Clock | None = None) -> np.ndarray:
+    """The grid over the sample times ``t``, in phase with them and snapped to them (module docstring);
+    ``clock`` the samples' :class:`~observables.clock.Clock` (default: inferred from ``t``)."""
     times = np.unique(t)
-    start, count = _grid_start_count(times, interval)
+    clock = _clock(times, interval, clock)
+    start, count = _grid_start_count(times, interval, clock)
     grid = start + np.arange(max(count, 1)) * interval
+    if clock.precision == "single":   # the stamps are rounded: the grid's own times are the better clock
+        return grid
     j = np.clip(np.searchsorted(times, grid), 1, len(times) - 1) if len(times) > 1 else np.zeros(len(grid), int)
     for candidate in (times[j - 1] if len(times) > 1 else times[j], times[j]):
         close = np.abs(candidate - grid) <= SNAP * interval
@@ -109,18 +110,20 @@ def record_grid(t: np.ndarray, interval: float) -> np.ndarray:
     return grid
 
 
-def at_times(t: np.ndarray, values: np.ndarray, grid: np.ndarray, max_gap: float, interval: float) -> np.ndarray:
-    """(R, 3) values of one individual at the grid times: exact samples, bridged gaps, else nan."""
+def at_times(t: np.ndarray, values: np.ndarray, grid: np.ndarray, max_gap: float, interval: float,
+             tol: np.ndarray | None = None) -> np.ndarray:
+    """(R, 3) values of one individual at the grid times: exact samples (within ``tol``, per sample; default
+    SNAP x interval), bridged gaps, else nan."""
     out = np.full((len(grid), values.shape[1]), np.nan)
     if len(t) == 0:
         return out
-    tol = SNAP * interval
+    tol = np.full(len(t), SNAP * interval) if tol is None else np.asarray(tol)
     j = np.searchsorted(t, grid)                               # first sample at or after the grid time
     after = j < len(t)
     before = j > 0
     j_after, j_before = np.minimum(j, len(t) - 1), np.maximum(j - 1, 0)
-    exact_after = after & (np.abs(t[j_after] - grid) <= tol)
-    exact_before = before & ~exact_after & (np.abs(grid - t[j_before]) <= tol)
+    exact_after = after & (np.abs(t[j_after] - grid) <= tol[j_after])
+    exact_before = before & ~exact_after & (np.abs(grid - t[j_before]) <= tol[j_before])
     span = t[j_after] - t[j_before]
     between = before & after & ~exact_after & ~exact_before & (span <= max_gap * (1 + 1e-9))
     out[exact_after] = values[j_after[exact_after]]
@@ -132,8 +135,10 @@ def at_times(t: np.ndarray, values: np.ndarray, grid: np.ndarray, max_gap: float
     return out
 
 
-def resample(raw, interval: float, max_gap: float | None = None, velocity_interval=None) -> ObservedFlock:
-    """The flock on its record grid (see the module docstring)."""
+def resample(raw, interval: float, max_gap: float | None = None, velocity_interval=None,
+             clock: Clock | None = None) -> ObservedFlock:
+    """The flock on its record grid (see the module docstring); ``clock`` the samples' sampling clock
+    (:func:`~observables.clock.sampling_clock`; default: inferred from the sample times)."""
     interval = check_interval(interval)
     max_gap = MAX_GAP_INTERVALS * interval if max_gap is None else float(max_gap)
     if not max_gap >= interval:
@@ -142,17 +147,19 @@ def resample(raw, interval: float, max_gap: float | None = None, velocity_interv
     m = velocity_steps(velocity_interval, interval)
     if m is None and raw.vel is None:
         raise ValueError(f'flock {raw.name!r}: velocity_interval = "recorded" but the tracks have no velocities')
-    check_size(raw.t, len(raw.ids), interval)
-    grid = record_grid(raw.t, interval)
+    clock = sampling_clock(raw.t, raw.ind, fallback=interval) if clock is None else clock
+    check_size(raw.t, len(raw.ids), interval, clock)
+    grid = record_grid(raw.t, interval, clock)
+    tol = clock.tolerance(raw.t, interval)
     n = len(raw.ids)
     pos = np.full((len(grid), n, 3), np.nan)
     vel = np.full((len(grid), n, 3), np.nan)
     bounds = raw.bounds()
     for i in range(n):
         mine = slice(bounds[i], bounds[i + 1])
-        pos[:, i] = at_times(raw.t[mine], raw.pos[mine], grid, max_gap, interval)
+        pos[:, i] = at_times(raw.t[mine], raw.pos[mine], grid, max_gap, interval, tol[mine])
         if m is None:
-            vel[:, i] = at_times(raw.t[mine], raw.vel[mine], grid, max_gap, interval)
+            vel[:, i] = at_times(raw.t[mine], raw.vel[mine], grid, max_gap, interval, tol[mine])
     keep = slice(None)
     if m is not None:
         ahead, behind = (m + 1) // 2, m // 2

@@ -25,14 +25,23 @@ length is 1). ``units.length = "bl"`` means the file is already in body lengths 
 
 A sidecar JSON file with the same stem (``tracks.csv.gz`` -> ``tracks.json``) may give defaults for
 ``columns``, ``units`` and ``body_length`` (any :class:`TrackSource` setting; and a ``description`` shown in
-reports); what a command line or calibration file gives explicitly wins. Other keys are information
+reports); what a command line or calibration file gives explicitly wins (tables such as ``units`` key by
+key). A format's own settings (idtracker.ai's pixels, frames, frame rate and body length; TRex's
+centimetres) fill what neither gave, and only then are the settings checked against each other
+(:meth:`TrackSource.check_units`: frame numbers need a frame rate, pixels a body length in pixels), so a
+unit is merged before it is checked; an option the format does not use (a layout for a CSV, a column map
+for arrays, a frame rate for times in seconds) is refused by name. ``TrackSource.origins`` records where
+each setting came from ("file", "sidecar"; absent: given or default) and ``TrackSource.scales()`` every
+unit and scale used with its source. ``keep_padding`` and ``trim`` (:mod:`.trimming`) and the speed
+check's burst rule (``burst_share``, ``burst_frames``, ``burst_jump``: :mod:`.validation`) are settings
+too. Other keys are information
 (``SIDECAR_INFORMATION``: ``description``, ``notes``, ``truth``, ...; any other name too), but an unlisted
 one close to a setting's name (``colums``) is refused as a typo with a did-you-mean.
 
 ``load_tracks(path, source) -> TrackTable`` reads and converts (the table holds the source row of every
-sample); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
+sample, and notes on what reading did: decimal commas read, channels skipped, stamps converted to UTC); ``raw_flocks(table)`` splits it into :class:`RawFlock` s, samples sorted by individual and time.
 ``tracks_frame(obs, flock)`` is the inverse for a simulator run: its records as a long table in body
-lengths (``flocksweep simulate --tracks``).
+lengths (``flocksweep simulate --tracks``; a run in the plane z = 0 without z and vz, so it reads back 2-D).
 """
 from __future__ import annotations
 
@@ -46,11 +55,14 @@ from typing import Literal, TYPE_CHECKING
 
 import numpy as np
 
-from flocksweep.simcore.schema import ConfigError, build, suggest
+from flocksweep.simcore.schema import ConfigError, build, check_positive, check_within, suggest
 
-from .track_formats import detect_format, read_table, read_wide
-from .track_names import LENGTH_UNITS, RECORDED, ROLES, WIDE_FORMATS  # noqa: F401 - declared there, part of this face
-from .validation import Issue, TrackError
+from .track_arrays import check_layout
+from .track_formats import NOTES, detect_format, read_table, read_wide
+from .track_names import (ARRAY_FORMATS, COLUMN_FORMATS, LENGTH_UNITS, RECORDED, ROLES,  # noqa: F401 - part of this face
+                          WIDE_FORMATS)
+from .trimming import parse_trim
+from .validation import BURST_FRAMES, BURST_JUMP, BURST_SHARE, Issue, TrackError
 
 if TYPE_CHECKING:  # pandas is imported where it is used: importing this module stays light
     import pandas as pd
@@ -59,19 +71,33 @@ REQUIRED = ("id", "t", "x", "y")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "datetime": None, "frame": None}
 
 
+SETTING_FLAGS = {"fps": "--fps", "body_length": "--body-length", "body_length_px": "--body-length-px",
+                 "units.length": "--units length=", "units.time": "--units time=", "layout": "--layout",
+                 "columns": "--columns", "trim": "--trim", "keep_padding": "--keep-padding"}
+ORIGINS = ("file", "sidecar", "given", "default")
+
+
 @dataclass(frozen=True)
 class TrackSource:
-    """How to read a track file: column map, units, body length, the speed check (see the module docstring)."""
+    """How to read a track file: column map, units, body length, padding and trim, the speed check (see the
+    module docstring). ``origins`` says where settings came from (setting -> "sidecar" or "file"; a setting
+    absent from it was given, or is the default): filled by :func:`track_source` and :func:`load_tracks`."""
 
     columns: dict = field(default_factory=dict)   # role -> column name in the file
     units: dict = field(default_factory=dict)     # {"length": "m", "time": "s"} (these are the defaults)
     body_length: float | None = None              # metres; lengths then in body lengths
     max_speed: float | None = None                # analysis units per s; None: 10 x the flock's median step speed
     bad_speeds: Literal["error", "keep", "drop"] = "error"
-    format: Literal["auto", "csv", "parquet", "mat", "idtracker", "trex", "trajr", "movebank"] = "auto"
+    format: Literal["auto", "csv", "parquet", "mat", "npy", "idtracker", "trex", "trajr", "movebank"] = "auto"
     fps: float | None = None                      # frames per second: times in frames (units.time = "frame")
     body_length_px: float | None = None           # pixels: tracks in pixels (units.length = "px") -> body lengths
-    layout: dict | None = None                    # a .mat file's array layout (observables.track_formats)
+    layout: dict | None = None                    # an array file's layout (observables.track_arrays)
+    keep_padding: bool = False                    # keep trailing/leading all-zero-velocity samples (trimming)
+    trim: str | None = None                       # "START:END" of each flock's samples (observables.trimming)
+    burst_share: float = BURST_SHARE              # the speed check: share of the group that makes a burst
+    burst_frames: float = BURST_FRAMES            # ... within this many sampling intervals
+    burst_jump: float = BURST_JUMP                # ... each faster than this many times its own recent speed
+    origins: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
         for role, name in self.columns.items():
@@ -91,27 +117,64 @@ class TrackSource:
             if value not in allowed:
                 raise ConfigError(f"units.{key}", f"got {value!r}; allowed: {', '.join(allowed)}"
                                                   f"{suggest(str(value), allowed)}")
-        if self.body_length is not None:
-            if isinstance(self.body_length, bool) or not (math.isfinite(self.body_length) and self.body_length > 0):
-                raise ConfigError("body_length", f"got {self.body_length!r}; expected metres > 0")
-            if self.length_unit in ("bl", "px"):
-                raise ConfigError("body_length", f"not with units.length = {self.length_unit!r}: the tracks are "
-                                                 + ("already in body lengths" if self.length_unit == "bl" else
-                                                    "in pixels (give body_length_px)"))
+        if self.body_length is not None and (isinstance(self.body_length, bool) or
+                                             not (math.isfinite(self.body_length) and self.body_length > 0)):
+            raise ConfigError("body_length", f"got {self.body_length!r}; expected metres > 0")
         for key in ("fps", "body_length_px"):
             value = getattr(self, key)
             if value is not None and (isinstance(value, bool) or not (math.isfinite(value) and value > 0)):
                 raise ConfigError(key, f"got {value!r}; expected a number > 0")
-        if self.time_unit == "frame" and self.fps is None:
-            raise ConfigError("fps", "the times are frame numbers (units.time = \"frame\"): give the frame rate, "
-                                     "e.g. --fps 30")
-        if self.length_unit == "px" and self.body_length_px is None:
-            raise ConfigError("body_length_px", "the positions are in pixels (units.length = \"px\"): give the body "
-                                                "length in pixels (--body-length-px), or the file's length unit")
-        if self.body_length_px is not None and self.length_unit != "px":
-            raise ConfigError("body_length_px", f"only for tracks in pixels; the length unit is {self.length_unit!r}")
         if self.max_speed is not None and not (math.isfinite(self.max_speed) and self.max_speed > 0):
             raise ConfigError("max_speed", f"got {self.max_speed!r}; expected a number > 0 (length units per s)")
+        if self.layout is not None:
+            check_layout(self.layout)
+        if self.trim is not None:
+            try:
+                parse_trim(self.trim)
+            except ValueError as err:
+                raise ConfigError("trim", str(err)) from None
+        check_within("burst_share", self.burst_share, 0.0, 1.0, lo_open=True)
+        check_positive("burst_frames", self.burst_frames)
+        check_within("burst_jump", self.burst_jump, 1.0, math.inf, lo_open=True)
+        for key, origin in self.origins.items():
+            if origin not in ORIGINS:
+                raise ConfigError("origins", f"{key}: got {origin!r}; allowed: {', '.join(ORIGINS)}")
+        self.check_units(given_only=True)
+
+    def check_units(self, given_only: bool = False) -> None:
+        """The settings that depend on each other: a body length with tracks in metres, frame numbers with a
+        frame rate, pixels with a body length in pixels. With ``given_only`` only what was stated outright
+        (a format may still imply units: they are merged before the full check, :func:`load_tracks`)."""
+        length = self.units.get("length") if given_only else self.length_unit
+        time = self.units.get("time") if given_only else self.time_unit
+        if self.body_length is not None and length in ("bl", "px"):
+            raise ConfigError("body_length", f"not with units.length = {length!r}: the tracks are "
+                                             + ("already in body lengths" if length == "bl" else
+                                                "in pixels (give body_length_px)"))
+        if self.body_length_px is not None and length is not None and length != "px":
+            raise ConfigError("body_length_px", f"only for tracks in pixels; the length unit is {length!r}"
+                                                f"{self._from('units.length')}")
+        if given_only:
+            return
+        if time == "frame" and self.fps is None:
+            raise ConfigError("fps", "the times are frame numbers (units.time = \"frame\""
+                                     f"{self._from('units.time')}): give the frame rate, e.g. --fps 30")
+        if length == "px" and self.body_length_px is None:
+            raise ConfigError("body_length_px", "the positions are in pixels (units.length = \"px\""
+                                                f"{self._from('units.length')}): give the body length in pixels "
+                                                "(--body-length-px), or the file's length unit")
+
+    def _from(self, key: str) -> str:
+        origin = self.origin(key)
+        return {"file": ", from the file", "sidecar": ", from the sidecar"}.get(origin, "")
+
+    def origin(self, key: str) -> str:
+        """Where a setting came from: "file", "sidecar", "given" or "default"."""
+        if key in self.origins:
+            return self.origins[key]
+        if key.startswith("units."):
+            return "given" if key.split(".", 1)[1] in self.units else "default"
+        return "given" if getattr(self, key, None) not in (None, {}, False) else "default"
 
     @property
     def length_unit(self) -> str:
@@ -134,10 +197,24 @@ class TrackSource:
     def column(self, role: str) -> str:
         return self.columns.get(role, role)
 
+    def scales(self) -> dict:
+        """Every unit and scale used, each with where it came from: {name: {"value": ..., "from": ...}}."""
+        out = {"length unit": {"value": self.length_unit, "from": self.origin("units.length")},
+               "time unit": {"value": self.time_unit, "from": self.origin("units.time")}}
+        if self.time_unit == "frame":
+            out["fps"] = {"value": self.fps, "from": self.origin("fps")}
+        if self.body_length is not None:
+            out["body length (m)"] = {"value": self.body_length, "from": self.origin("body_length")}
+        if self.body_length_px is not None:
+            out["body length (px)"] = {"value": self.body_length_px, "from": self.origin("body_length_px")}
+        out["analysis length unit"] = {"value": self.unit_label, "from": "derived"}
+        return out
+
 
 # sidecar keys that are information for people, never settings (never taken for a misspelt setting)
 SIDECAR_INFORMATION = ("description", "notes", "note", "comment", "source", "citation", "license", "synthetic",
                        "truth", "species", "author", "date")
+MERGED = ("units", "columns", "layout")   # tables merged key by key (what is given wins, key by key)
 
 
 def sidecar_path(path) -> Path:
@@ -153,7 +230,7 @@ def read_sidecar(path) -> dict:
         return {}
     try:
         data = json.loads(side.read_text())
-    except json.JSONDecodeError as err:
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
         raise ConfigError(str(side), f"not valid JSON: {err}") from None
     if not isinstance(data, dict):
         raise ConfigError(str(side), "expected a JSON object")
@@ -162,18 +239,38 @@ def read_sidecar(path) -> dict:
 
 def track_source(path, given: dict, where: str = "", cls=None) -> TrackSource:
     """The :class:`TrackSource` (or subclass ``cls``) of ``path``: the sidecar's settings, overridden by
-    ``given``."""
+    ``given`` (tables such as ``units`` key by key); ``origins`` records what came from the sidecar."""
     cls = TrackSource if cls is None else cls
-    known = [f.name for f in fields(TrackSource)]
+    known = [f.name for f in fields(cls) if f.name != "origins"]
     sidecar = read_sidecar(path)
     for key in sidecar:
         hint = "" if key in known or key in SIDECAR_INFORMATION else suggest(key, known)
-        if hint:
+        if hint or key == "origins":
             raise ConfigError(f"{sidecar_path(path)}: {key}", f"unknown setting{hint}; settings: {', '.join(known)} "
                                                               "(other keys are information, e.g. description)")
+    if "origins" in given:
+        raise ConfigError(f"{where}.origins" if where else "origins", f"unknown key; allowed keys: {', '.join(known)}")
     settings = {k: v for k, v in sidecar.items() if k in known}
-    settings.update({k: v for k, v in given.items() if v is not None})
-    return build(cls, settings, where)
+    origins = {}
+    for key, value in settings.items():
+        if key in MERGED and isinstance(value, dict):
+            origins.update({f"{key}.{k}": "sidecar" for k in value})
+        else:
+            origins[key] = "sidecar"
+    for key, value in given.items():
+        if value is None:
+            continue
+        if key in MERGED and isinstance(value, dict) and isinstance(settings.get(key), dict):
+            settings[key] = {**settings[key], **value}
+            for k in value:
+                origins.pop(f"{key}.{k}", None)
+        else:
+            settings[key] = value
+            origins.pop(key, None)
+            if key in MERGED and isinstance(value, dict):
+                for k in [o for o in origins if o.startswith(f"{key}.")]:
+                    origins.pop(k)
+    return build(cls, {**settings, "origins": origins}, where)
 
 
 # ------------------------------------------------------------------------------------------- reading
@@ -229,11 +326,23 @@ def _too_large(values: np.ndarray, role: str, name: str, errors: list) -> None:
                             "units and the column)", rows=tuple(rows), column=name))
 
 
-def _times(frame: pd.DataFrame, name: str, unit: str, seconds: float | None, errors: list) -> tuple[np.ndarray, str]:
+def _timestamps(column: pd.Series) -> tuple[pd.Series, list]:
+    """Timestamps parsed; stamps with different UTC offsets converted to UTC (a note says so)."""
     import pandas as pd
+    try:
+        return pd.to_datetime(column, errors="coerce"), []
+    except (ValueError, TypeError):    # mixed UTC offsets (or offsets beside stamps without one)
+        stamps = pd.to_datetime(column, errors="coerce", utc=True, format="mixed")
+        return stamps, ["time stamps with different UTC offsets converted to UTC (stamps without an offset taken "
+                        "as UTC)"]
+
+
+def _times(frame: pd.DataFrame, name: str, unit: str, seconds: float | None, errors: list,
+           notes: list) -> tuple[np.ndarray, str]:
     if unit != "datetime":
         return _numeric(frame, "t", name, errors, allow_missing=False) * seconds, ""
-    stamps = pd.to_datetime(frame[name], errors="coerce")
+    stamps, said = _timestamps(frame[name])
+    notes += said
     bad = stamps.isna().to_numpy()
     if bad.any():
         rows = np.flatnonzero(bad) + 1
@@ -279,30 +388,67 @@ def _unmapped(frame: pd.DataFrame, roles: dict) -> list[Issue]:
                   f"(roles: {', '.join(ROLES)})")]
 
 
-def _read_any(path: Path, source: TrackSource) -> tuple[pd.DataFrame, TrackSource]:
-    """The file's long table and the source it is read with: the format resolved, a tracker's file turned
-    into the long table (its column map used up) with the settings it implies as defaults."""
-    fmt = detect_format(path) if source.format == "auto" else source.format
+def _refuse_unused(source: TrackSource, fmt: str) -> None:
+    """A ConfigError naming each setting the format does not use (before the file is read)."""
+    def said(key):
+        return source.origin(key) in ("given", "sidecar")
+    if said("layout") and source.layout and fmt not in ARRAY_FORMATS:
+        raise ConfigError("layout", f"the {fmt} format has no array layout (--layout is for the array formats: "
+                                    f"{', '.join(ARRAY_FORMATS)})")
+    if source.columns and fmt not in COLUMN_FORMATS:
+        raise ConfigError("columns", f"the {fmt} format names its own columns (a column map is for "
+                                     f"{', '.join(COLUMN_FORMATS)} files; arrays take --layout)")
+    if fmt == "movebank":
+        other = sorted(set(source.columns) - {"id", "t", "flock", "z"})
+        if other:
+            raise ConfigError(f"columns.{other[0]}", "Movebank positions come from location-long and location-lat; "
+                                                     "map only id, t, flock and z")
+        for kind, fixed in (("length", "m"), ("time", "datetime")):
+            if kind in source.units and source.units[kind] != fixed:
+                raise ConfigError(f"units.{kind}", f"got {source.units[kind]!r}; Movebank tracks are projected to "
+                                                   f"metres with UTC time stamps (units.{kind} = {fixed!r}); give "
+                                                   "body_length for body lengths")
+
+
+def _refuse_unused_after(source: TrackSource, fmt: str) -> None:
+    """Settings that the file, once read, turns out not to use."""
+    if source.fps is not None and source.time_unit != "frame" and source.origin("fps") in ("given", "sidecar"):
+        raise ConfigError("fps", f"the {fmt} file's times are in {source.time_unit!r}, not frame numbers, so a frame "
+                                 "rate is not used; give units time=frame if the times are frame numbers")
+
+
+def _read_any(path: Path, source: TrackSource) -> tuple[pd.DataFrame, TrackSource, list]:
+    """The file's long table, the source it is read with (the format resolved, a tracker's file turned into
+    the long table, its column map used up, with the settings it implies as defaults, marked "file" in
+    ``origins``; every setting checked against the others) and notes on what reading did."""
+    fmt = detect_format(path, source.layout) if source.format == "auto" else source.format
+    _refuse_unused(source, fmt)
     if fmt not in WIDE_FORMATS:
-        if not path.is_file():
-            raise ConfigError(str(path), "no such track file" + (" (a folder: give --format trex or trajr)"
-                                                                 if path.is_dir() else ""))
-        return read_table(path, fmt), dataclasses.replace(source, format=fmt)
-    frame, implied = read_wide(path, fmt, source)
-    settings = {"format": fmt, "units": {**implied.get("units", {}), **source.units},
-                "columns": source.columns if fmt == "trajr" else {}}
-    for key in ("fps", "body_length_px"):
-        if getattr(source, key) is None and key in implied and not (key == "body_length_px" and
-                                                                     settings["units"].get("length") != "px"):
-            settings[key] = implied[key]
-    return frame, dataclasses.replace(source, **settings)
+        frame = read_table(path, fmt)
+        resolved, notes = dataclasses.replace(source, format=fmt), list(frame.attrs.get(NOTES, []))
+    else:
+        frame, implied = read_wide(path, fmt, source)
+        origins = dict(source.origins)
+        units = {**implied.get("units", {}), **source.units}
+        origins.update({f"units.{kind}": "file" for kind in implied.get("units", {}) if kind not in source.units})
+        settings = {"format": fmt, "units": units, "columns": source.columns if fmt == "trajr" else {}}
+        for key in ("fps", "body_length_px"):
+            if getattr(source, key) is None and key in implied and not (key == "body_length_px" and
+                                                                         units.get("length") != "px"):
+                settings[key] = implied[key]
+                origins[key] = "file"
+        resolved = dataclasses.replace(source, **settings, origins=origins)
+        notes = list(implied.get("notes", [])) + ([implied["skipped"]] if "skipped" in implied else [])
+    resolved.check_units()
+    _refuse_unused_after(resolved, fmt)
+    return frame, resolved, notes
 
 
 def load_tracks(path, source: TrackSource) -> TrackTable:
     """Read ``path`` and convert it (see the module docstring); TrackError lists every bad cell."""
     import pandas as pd
     path = Path(path)
-    frame, source = _read_any(path, source)
+    frame, source, notes = _read_any(path, source)
     roles = _present_roles(frame, source, path)
     errors: list[Issue] = []
     out = {"row": np.arange(1, len(frame) + 1)}
@@ -314,7 +460,7 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
                                 rows=tuple(np.flatnonzero(frame[roles[role]].isna()) + 1), column=roles[role]))
     ids = frame[roles["id"]]
     out["id"] = ids.to_numpy()
-    out["t"], origin = _times(frame, roles["t"], source.time_unit, source.seconds_per_time_unit, errors)
+    out["t"], origin = _times(frame, roles["t"], source.time_unit, source.seconds_per_time_unit, errors, notes)
     scale = LENGTH_UNITS[source.length_unit] or 1.0
     if source.body_length is not None:
         scale = scale / source.body_length
@@ -344,7 +490,8 @@ def load_tracks(path, source: TrackSource) -> TrackTable:
     return _drop_undetected(TrackTable(frame=table, path=path, source=source, dims=3 if "z" in roles else 2,
                                        has_velocity="vx" in roles, has_pattern="pattern" in roles,
                                        line_offset=line_offset, t_origin=origin,
-                                       issues=tuple(_unmapped(frame, roles))))
+                                       issues=tuple(_unmapped(frame, roles)) + tuple(
+                                           Issue("note", "reading", note) for note in notes)))
 
 
 def _drop_undetected(table: TrackTable) -> TrackTable:
@@ -431,15 +578,18 @@ def raw_flocks(table: TrackTable) -> tuple[list[RawFlock], list[Issue]]:
 def tracks_frame(obs, flock: str) -> pd.DataFrame:
     """A simulator run's records as a long track table (flock, id, t, x, y, z, vx, vy, vz, pattern), in
     body lengths and seconds, one row per boid and record, record-major. Values are the simulator's own
-    float64 numbers, so reading the table back gives them exactly."""
+    float64 numbers, so reading the table back gives them exactly. A run in the plane z = 0 (a 2-D model's:
+    every z and vz exactly 0) has no z and vz columns, so it reads back as 2-D tracks."""
     import pandas as pd
     n_records, n = obs.pos.shape[:2]
+    planar = not (np.any(obs.pos[:, :, 2]) or np.any(obs.vel[:, :, 2]))
+    axes = "xy" if planar else "xyz"
     return pd.DataFrame({
         "flock": flock,
         "id": np.tile(np.arange(n), n_records),
         "t": np.repeat(obs.times, n),
-        **{axis: obs.pos[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
-        **{f"v{axis}": obs.vel[:, :, k].reshape(-1) for k, axis in enumerate("xyz")},
+        **{axis: obs.pos[:, :, k].reshape(-1) for k, axis in enumerate(axes)},
+        **{f"v{axis}": obs.vel[:, :, k].reshape(-1) for k, axis in enumerate(axes)},
         "pattern": np.tile(np.asarray(obs.pattern, dtype=np.int64), n_records),
     })
 

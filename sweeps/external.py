@@ -230,7 +230,7 @@ class CommandModel:
     def identity(self) -> dict:
         """What a run's id hashes of the command (see the module docstring)."""
         return {"command": list(self.template), "files": {str(i): digest for i, digest in self.files},
-                "output": self.output, "tracks": _record(self.tracks)}
+                "output": self.output, "tracks": _tracks_record(self.tracks)}
 
     def record(self, workdir: str | None = None) -> dict:
         """The model as stored in ``model.json`` (``workdir``: as the results folder should name it)."""
@@ -289,6 +289,18 @@ def value_text(value) -> str:
 def _record(table) -> dict:
     return {f.name: (list(v) if isinstance(v := getattr(table, f.name), tuple) else v)
             for f in dataclasses.fields(table)}
+
+
+# reading settings added to TrackSource after run ids were first stored: in a run's identity only when
+# set (so earlier run ids stay as they were); ``origins`` says where settings came from and never is
+LATER_TRACK_SETTINGS = {"keep_padding": False, "trim": None, "burst_share": 0.5, "burst_frames": 5.0,
+                        "burst_jump": 3.0}
+
+
+def _tracks_record(tracks) -> dict:
+    out = _record(tracks)
+    out.pop("origins", None)
+    return {k: v for k, v in out.items() if not (k in LATER_TRACK_SETTINGS and v == LATER_TRACK_SETTINGS[k])}
 
 
 def _fields(arg: str) -> list[str]:

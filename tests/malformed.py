@@ -25,6 +25,7 @@ class Case:
     expect: str = ""
     may_write: str = ""   # a folder the refusal may write its report into (measure's validation.csv)
     links: dict = field(default_factory=dict)   # symbolic links made in the folder: name -> target
+    specials: dict = field(default_factory=dict)  # special files made in the folder: name -> "fifo" or "socket"
 
 
 SWEEP = """name = "tiny"
@@ -577,8 +578,113 @@ TRACK_FILES = [
          "over the limit of 20,000,000", may_write="out"),
 ]
 
+# --- track readers that agree or refuse (issue 42 points 2, 3 and 5): each file a reader cannot read the same
+# way as its neighbours, a special file, an oversized declaration or a malformed value is one message, exit 2,
+# before the output folder is made
+
+def _trex_npz(**keys) -> bytes:
+    import numpy as np
+    arrays = {"X": np.arange(5.0), "Y": np.zeros(5), "time": np.arange(5) * 0.1, **keys}
+    return _npz(**{k: v for k, v in arrays.items() if v is not None})
+
+
+def _huge_mat() -> bytes:
+    """A 392-byte MATLAB v5 file whose one array declares 200,000 x 4 x 300,000 doubles (1.9 TB)."""
+    import io
+    import struct
+
+    import numpy as np
+    import scipy.io
+    buffer = io.BytesIO()
+    scipy.io.savemat(buffer, {"tracks": np.zeros((2, 4, 3))}, do_compression=False)
+    data = bytearray(buffer.getvalue())
+    struct.pack_into("<iii", data, 128 + 8 + 16 + 8, 200_000, 4, 300_000)   # the dimensions sub-element
+    return bytes(data)
+
+
+def _npy(value, pickle: bool = False) -> bytes:
+    import io
+
+    import numpy as np
+    buffer = io.BytesIO()
+    np.save(buffer, value, allow_pickle=pickle)
+    return buffer.getvalue()
+
+
+def _trajr(z: bool = False, clock: str = "t", velocity: bool = False) -> str:
+    head = ["t" if clock == "t" else clock, "x", "y"] + (["z"] if z else []) + (["vx", "vy"] if velocity else [])
+    rows = [[f"{k * 0.1!r}" if clock == "t" else f"2010-01-01 00:00:0{k}", f"{k * 0.1!r}", "0"] + (["0"] if z else [])
+            + (["1", "0"] if velocity else []) for k in range(5)]
+    return ",".join(head) + "\n" + "".join(",".join(r) + "\n" for r in rows)
+
+
+TRACKS_DIR = ("measure", "{d}/data", "--group-radius", "5", "--no-figures", "--no-progress", "--out", "{d}/out")
+TRACKS_MAT = ("measure", "{d}/t.mat", "--group-radius", "5", "--no-figures", "--no-progress", "--out", "{d}/out")
+TRACKS_NPY = ("measure", "{d}/t.npy", "--group-radius", "5", "--no-figures", "--no-progress", "--out", "{d}/out")
+MOVEBANK_CSV = ("event-id,timestamp,location-long,location-lat,individual-local-identifier\n")
+
+TRACK_READERS = [
+    Case("measure: a trajr folder in which one file has a z column", TRACKS_DIR,
+         {"data/a.csv": _trajr(), "data/b.csv": _trajr(z=True), "data/c.csv": _trajr()}, 2,
+         "b.csv: its columns (t, vx, vy, x, y, z) differ".replace("vx, vy, ", "")),
+    Case("measure: a trajr folder with velocities in one file only", TRACKS_DIR,
+         {"data/a.csv": _trajr(velocity=True), "data/b.csv": _trajr()}, 2, "b.csv: its columns (t, x, y) differ from "
+                                                                           "a.csv's (t, vx, vy, x, y)"),
+    Case("measure: a TRex folder with velocities in one file only", TRACKS_DIR,
+         {"data/v_fish0.npz": _trex_npz(), "data/v_fish1.npz": _trex_npz(VX=[1.0] * 5, VY=[0.0] * 5)}, 2,
+         "v_fish1.npz: its columns (X, Y, VX, VY, time) differ from v_fish0.npz's (X, Y, time)"),
+    Case("measure: a TRex folder with time in one file and frames in another", TRACKS_DIR + ("--fps", "10"),
+         {"data/v_fish0.npz": _trex_npz(), "data/v_fish1.npz": _trex_npz(time=None, frame=list(range(5)))}, 2,
+         "v_fish1.npz: its columns (X, Y, frame) differ from v_fish0.npz's (X, Y, time)"),
+    Case("measure: a folder of both .npz and .csv exports", TRACKS_DIR,
+         {"data/v_fish0.npz": _trex_npz(), "data/v_fish1.csv": "X,Y,time\n0,0,0\n1,0,0.1\n"}, 2,
+         "holds both .npz (1: v_fish0.npz, ...) and .csv (1: v_fish1.csv, ...) exports"),
+    Case("measure: an empty folder as TRex", TRACKS_DIR + ("--format", "trex"), {"data/readme.txt": "x"}, 2,
+         "no TRex exports"),
+    Case("measure: an empty folder as trajr", TRACKS_DIR + ("--format", "trajr"), {"data/readme.txt": "x"}, 2,
+         "no CSV files in this folder"),
+    Case("measure: ragged TRex arrays", TRACKS_DIR, {"data/v_fish0.npz": _trex_npz(Y=[0.0] * 4)}, 2,
+         "v_fish0.npz: its arrays differ in length"),
+    Case("measure: a FIFO inside a TRex folder", TRACKS_DIR, {"data/v_fish0.npz": _trex_npz()}, 2,
+         "v_fish1.npz is not a regular file (a FIFO, device or socket)", specials={"data/v_fish1.npz": "fifo"}),
+    Case("measure: a socket inside a trajr folder", TRACKS_DIR, {"data/a.csv": _trajr()}, 2,
+         "b.csv is not a regular file", specials={"data/b.csv": "socket"}),
+    Case("measure: a link to /dev/zero inside a trajr folder", TRACKS_DIR, {"data/a.csv": _trajr()}, 2,
+         "b.csv is not a regular file", links={"data/b.csv": "/dev/zero"}),
+    Case("measure: a FIFO as the track file", ("measure", "{d}/t.csv", "--group-radius", "5", "--no-figures",
+                                               "--no-progress", "--out", "{d}/out"), {}, 2, "t.csv is not a regular file",
+         specials={"t.csv": "fifo"}),
+    Case("measure: a 392-byte .mat declaring 1.9 TB", TRACKS_MAT + ("--layout", "channels=x,y,vx,vy", "--fps", "10"),
+         {"t.mat": _huge_mat()}, 2, "declares (200000, 4, 300000) (1,920,000,000,000 bytes), more than a file of 392"),
+    Case("measure: a misspelt --layout key", TRACKS_MAT + ("--layout", "chanels=x,y,vx,vy", "--fps", "10"),
+         {"t.mat": _huge_mat()}, 2, "layout.chanels: unknown layout key (did you mean 'channels'?)"),
+    Case("measure: --layout for a CSV", MEASURE + ("--layout", "channels=x,y"), {"t.csv": TRACK}, 2,
+         "layout: the csv format has no array layout"),
+    Case("measure: --fps for times in seconds", MEASURE + ("--fps", "30"), {"t.csv": TRACK}, 2,
+         "fps: the csv file's times are in 's', not frame numbers"),
+    Case("measure: --columns for an idtracker.ai file", TRACKS_NPY + ("--columns", "id=fish"),
+         {"t.npy": _npy(__import__("numpy").zeros((4, 2, 2)))}, 2, "columns: the idtracker format names its own"),
+    Case("measure: text in an idtracker.ai array", TRACKS_NPY, {"t.npy": _npy(__import__("numpy").full((4, 2, 2), "1"))},
+         2, "trajectories holds text"),
+    Case("measure: text as an idtracker.ai frame rate", TRACKS_NPY,
+         {"t.npy": _npy({"trajectories": __import__("numpy").zeros((4, 2, 2)), "frames_per_second": "fast"},
+                        pickle=True)}, 2, "frames_per_second: got 'fast'; expected one number > 0"),
+    Case("measure: decimal commas in a comma-separated file", MEASURE,
+         {"t.csv": "id,t,x,y,z\n1,0,0,0,0\n1,1,1,5,0\n1,2,2,0\n2,0,0,1,0\n2,1,1,1,0\n2,2,2,1,0\n"}, 2,
+         "line 4 (4); a decimal comma in a comma-separated file"),
+    Case("measure: one field too many on every row", MEASURE,
+         {"t.csv": "id,t,x,y\n1,0,0,0,0\n1,1,1,0,5\n2,0,0,1,0\n2,1,1,1,0\n"}, 2,
+         "its rows have more fields than its header (4): a decimal comma"),
+    Case("measure: a Movebank file with --units length=cm", ("measure", "{d}/gps.csv", "--group-radius", "5",
+                                                             "--units", "cm", "--no-figures", "--no-progress",
+                                                             "--out", "{d}/out"),
+         {"gps.csv": MOVEBANK_CSV + "1,2010-01-01 00:00:00,19.0,47.5,a\n"}, 2,
+         "units.length: got 'cm'; Movebank tracks are projected to metres"),
+]
+
 CASES = (SWEEP_FILES + SWEEP_VALUES + RUN_FLAGS + SIMULATE_FLAGS + CALIBRATE + TARGETS_FLAGS + SBC_FLAGS + READERS
-         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_CONTENT + TRACK_FILES)
+         + SIZES + SPECIAL_FILES + NUMBERS + TABLES + EXPRESSIONS + OUT_PATHS + MEASURE_FLAGS + TRAJECTORY_FILES + TRACK_CONTENT + TRACK_FILES
+         + TRACK_READERS)
 QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e18", "run: warmup beyond duration",
          "run: --batch-size -1", "run: design of 1e9 runs", "run: --until-ci misspelt metric",
          "calibrate: prior beyond the range", "targets: --sd not numbers", "targets: --truth not a number",
@@ -639,7 +745,21 @@ def materialise(case: Case, folder) -> list[str]:
             path.write_text(content.replace("{d}", str(folder)).replace("{holland}", HOLLAND))
     for name, target in case.links.items():
         (folder / name).symlink_to(target)
+    for name, kind in case.specials.items():
+        _special(folder / name, kind)
     return [str(a).replace("{d}", str(folder)).replace("{holland}", HOLLAND) for a in case.argv]
+
+
+def _special(path, kind: str) -> None:
+    """A FIFO, or a UNIX socket's file (the socket closed, its file left), at ``path``."""
+    import os
+    import socket
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "fifo":
+        os.mkfifo(path)
+    else:
+        with socket.socket(socket.AF_UNIX) as sock:
+            sock.bind(str(path))
 
 
 def snapshot(folder) -> set[str]:

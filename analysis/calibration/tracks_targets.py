@@ -52,7 +52,7 @@ import numpy as np
 from flocksweep.observables.columns import PERCEPTION_SERIES
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.measured import Measurement, measure_tracks, track_settings
-from flocksweep.observables.observation import Observation
+from flocksweep.observables.observation import Observation, check_projection
 from flocksweep.observables.summary import MetricSettings, default_group_radius
 from flocksweep.observables.tracks import TrackSource, load_tracks, track_source
 from flocksweep.observables.validation import TrackError
@@ -83,6 +83,7 @@ class TrackTargets(NamedTuple):
 
 def check_observation(observation: Observation, preset, run_table, stats, method_kind: str) -> None:
     """ConfigError when the block does not fit the model or the file (see the module docstring)."""
+    check_projection(observation, preset.model.world.dimensions)
     boundary = preset.model.world.boundary
     if boundary != "open":
         raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are differenced "

@@ -1,13 +1,16 @@
 """``flocksweep measure``: the command line of :func:`analysis.reports.measured.measure_folder`.
 
-    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet|mat|idtracker|trex|trajr|movebank]
+    flocksweep measure TRACKS --group-radius R [--format auto|csv|parquet|mat|npy|idtracker|trex|trajr|movebank]
                        [--fps HZ] [--body-length-px PX] [--layout KEY=VALUE ...] [--columns ROLE=NAME ...]
                        [--units length=m|cm|mm|km|bl|px time=s|ms|min|h|datetime|frame] [--body-length METRES]
+                       [--keep-padding] [--trim START:END] [--max-speed V] [--bad-speeds error|keep|drop]
+                       [--burst-share F] [--burst-frames K] [--burst-jump X]
                        [--interval S] [--max-gap S] [--velocity-interval S|recorded] [--warmup S]
-                       [--fragmentation-cohesion C] [--max-speed V] [--bad-speeds error|keep|drop] [--out DIR]
-                       [--no-figures] [--no-progress]
+                       [--fragmentation-cohesion C] [--dcd-max-delay S] [--out DIR] [--no-figures] [--no-progress]
 
-Lengths given here (group radius, max speed) are in the analysis units: body lengths with
+The reading options are parsed by the command (``flocksweep.commands.measure.reading_given``) into
+``args.reading``, the :class:`~observables.tracks.TrackSource` settings given. Lengths given here (group
+radius, max speed) are in the analysis units: body lengths with
 ``--body-length`` (or tracks already in body lengths), metres otherwise. Velocities: the tracks' own
 when they have velocity columns and no ``--velocity-interval`` is given, else positions differenced over
 ``--velocity-interval`` (default one sampling interval). Output: ``results/measured/<file stem>/`` unless
@@ -20,24 +23,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from flocksweep.observables.track_names import LENGTH_UNITS, RECORDED
+from flocksweep.observables.track_names import RECORDED
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_out
 
 # the reading and measuring (observables: numpy and the numba kernels; .measured: pandas, matplotlib) are
 # imported by run(), so that `flocksweep measure --help` starts in a fraction of a second
-
-
-def _pairs(items, flag: str, bare: str | None = None) -> dict:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep:
-            if bare is None:
-                raise ConfigError(flag, f"got {item!r}; expected KEY=VALUE")
-            key, value = bare, item
-        out[key.strip()] = value.strip()
-    return out
 
 
 def _velocity_interval(text: str | None):
@@ -81,14 +72,7 @@ def run(args) -> int:
         args.fragmentation_cohesion = FRAGMENTATION_COHESION
     if args.dcd_max_delay is None:
         args.dcd_max_delay = DCD_MAX_DELAY
-    units = _pairs(args.units, "--units", bare="length")
-    if "length" in units and units["length"] not in LENGTH_UNITS:
-        units["length"] = units["length"].lower()
-    given = {"columns": _pairs(args.columns, "--columns"), "units": units, "body_length": args.body_length,
-             "max_speed": args.max_speed, "bad_speeds": args.bad_speeds, "format": args.format, "fps": args.fps,
-             "body_length_px": args.body_length_px, "layout": _pairs(args.layout, "--layout")}
-    given = {k: v for k, v in given.items() if v not in (None, {})}
-    source = track_source(args.tracks, given, "")
+    source = track_source(args.tracks, args.reading, "")
     if not args.dcd_max_delay >= 0:
         raise ConfigError("--dcd-max-delay", f"got {args.dcd_max_delay}; expected seconds >= 0")
     for flag, value in (("--interval", args.interval), ("--max-gap", args.max_gap)):
@@ -114,6 +98,11 @@ def run(args) -> int:
     table = result["measurement"].table
     print(f"{table.path.name}: {len(runs)} flock(s), {int((runs['status'] == 'ok').sum())} measured, "
           f"{table.dims}-D, lengths in {table.unit_label}; {len(result['issues'])} validation issue(s)")
+    scales = ", ".join(f"{name} {entry['value']} ({entry['from']})" for name, entry in table.source.scales().items()
+                       if name != "analysis length unit")
+    clocks = sorted(set(runs.loc[runs["status"] == "ok", "clock"]))
+    print(f"  units: {scales}" + (f"; records every {float(runs['interval'].iloc[0])!r} s: {clocks[0]}" if len(clocks) == 1
+                                  else ""))
     shown = runs[["flock", "individuals", "records", "tracked_mean", "polarization_mean", "nn_distance_mean",
                   "speed_mean_mean", "cohesion_mean"]]
     print(shown.head(20).round(4).to_string(index=False))

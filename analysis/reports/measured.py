@@ -129,6 +129,16 @@ def _figures(measurement: Measurement, folder: OutputFolder, unit: str, settings
     return blocks + _hierarchy_figures(measurement, folder, settings, progress)
 
 
+def _scales_table(scales: dict, info: dict) -> pd.DataFrame:
+    rows = [{"quantity": name, "value": entry["value"], "from": entry["from"]} for name, entry in scales.items()]
+    found = info["interval_found"]
+    interval = info["interval"]
+    rows.append({"quantity": "record interval (s)",
+                 "value": interval if not isinstance(interval, dict) else "per flock (runs.interval)",
+                 "from": found if not isinstance(found, dict) else "per flock (runs.clock)"})
+    return pd.DataFrame(rows).astype(str)
+
+
 def _report(measurement: Measurement, settings: MetricSettings, info: dict, issues: pd.DataFrame,
             figure_blocks: list) -> list:
     table, runs = measurement.table, measurement.runs
@@ -144,6 +154,10 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
              + (f" (body length {table.source.body_length:g} m)" if table.source.body_length else "")
              + f"; {info['velocities']}; group radius {settings.group_radius:g} {table.unit_label}; "
                f"window means over t >= {settings.warmup:g} s."),
+        Heading("Units and clock"),
+        Table(_scales_table(table.source.scales(), info), "Every unit and scale used, and where it came from "
+                                                          "(file: the track file; sidecar: its JSON; given: a flag or "
+                                                          "[targets.tracks]; default)"),
         Heading("Validation"),
         Para(f"{counts.get('error', 0)} errors, {counts.get('warning', 0)} warnings, {counts.get('note', 0)} notes "
              "(all in `validation.csv`)." + (" No issue found." if issues.empty else ""))]
@@ -151,10 +165,38 @@ def _report(measurement: Measurement, settings: MetricSettings, info: dict, issu
         blocks.append(Table(issues, "What the checks found", max_rows=40))
     blocks += [Heading("Flocks"),
                Table(runs[[c for c in TABLE_COLUMNS if c in runs.columns]], "One row per flock (runs.parquet)")]
+    missed = runs[(runs["status"] == "ok") & runs["overtake_rate_mean"].isna()] if "overtake_rate_mean" in runs else []
+    if len(missed):
+        blocks.append(Para("`overtake_rate` compares who is where at consecutive records, so it is defined only when "
+                           "every individual is present at every record; flock(s) "
+                           f"{', '.join(map(str, missed['flock'][:10]))}{' ...' if len(missed) > 10 else ''} have "
+                           "missed detections (`tracked_mean` below the individuals), so their `overtake_rate_*` is "
+                           "NaN."))
     failed = runs[runs["status"] == "failed"]
     if len(failed):
         blocks.append(Table(failed[["flock", "error"]], "Flocks that could not be measured"))
     return blocks + figure_blocks
+
+
+def _clocks(runs: pd.DataFrame, interval: float | None) -> dict:
+    """The record interval and how it was found: one value when every flock shares it, else per flock."""
+    measured = runs[runs["status"] == "ok"]
+    intervals = sorted(set(measured["interval"]))
+    clocks = sorted(set(measured["clock"]))
+    return {"interval": intervals[0] if len(intervals) == 1 else {str(f): float(i) for f, i in
+                                                                   zip(measured["flock"], measured["interval"])},
+            "interval_found": "given (--interval)" if interval is not None else (
+                clocks[0] if len(clocks) == 1 else {str(f): c for f, c in zip(measured["flock"], measured["clock"])})}
+
+
+def reading_settings(source: TrackSource) -> dict:
+    """Every setting a track file was read with (enough to read it again the same way: flocksweep view of a
+    measure folder), JSON-ready."""
+    return {"format": source.format, "columns": dict(source.columns), "units": dict(source.units),
+            "body_length": source.body_length, "fps": source.fps, "body_length_px": source.body_length_px,
+            "layout": dict(source.layout) if source.layout else None, "keep_padding": source.keep_padding,
+            "trim": source.trim, "max_speed": source.max_speed, "bad_speeds": source.bad_speeds,
+            "burst_share": source.burst_share, "burst_frames": source.burst_frames, "burst_jump": source.burst_jump}
 
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,
@@ -165,10 +207,15 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
     started = time.perf_counter()
     folder = OutputFolder(out_dir)
     phases = Phases("measure", 2 + bool(figures), progress)
+    phases.start(f"reading, checking and measuring {Path(path).name} (a bar of flocks)")
+    try:    # read before the folder is made: a file that cannot be read leaves nothing behind
+        table = load_tracks(path, source)
+    except TrackError as err:
+        with folder.lock():
+            folder.write_csv("validation.csv", issues_table(err.issues, err.line_offset), index=False)
+        raise
     with folder.lock():
         try:
-            phases.start(f"reading, checking and measuring {Path(path).name} (a bar of flocks)")
-            table = load_tracks(path, source)
             if velocity_interval == "auto":
                 velocity_interval = RECORDED if table.has_velocity else None
             measurement = measure_tracks(table, settings, interval, max_gap, velocity_interval, progress)
@@ -184,11 +231,14 @@ def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir,
         info = {"tracks": str(Path(path).resolve()), "description": read_sidecar(path).get("description", ""),
                 "dims": table.dims, "length_unit": table.unit_label, "units": dict(table.source.units),
                 "columns": dict(table.source.columns), "body_length_m": table.source.body_length,
-                "format": table.source.format,
-                "interval": interval if interval is not None else "inferred per flock (runs.interval)",
+                "format": table.source.format, "scales": table.source.scales(),
+                **_clocks(measurement.runs, interval),
                 "max_gap": max_gap if max_gap is not None else "2.5 x interval", "velocities": velocities,
+                "velocity_interval": velocity_interval, "reading": reading_settings(table.source),
+                "interval_given": interval, "max_gap_given": max_gap,
                 "warmup": settings.warmup, "group_radius": settings.group_radius,
-                "fragmentation_cohesion": settings.fragmentation_cohesion, "flocks": int(len(measurement.runs)),
+                "fragmentation_cohesion": settings.fragmentation_cohesion, "dcd_max_delay": settings.dcd_max_delay,
+                "flocks": int(len(measurement.runs)),
                 "issues": issues["level"].value_counts().to_dict(), "t_origin": table.t_origin}
         folder.write_json("measure.json", {**info, **folder.provenance()})
         for stale in folder.path("figures").glob("*.png") if folder.path("figures").is_dir() else []:

@@ -2,8 +2,9 @@
 
 ``write_animation(track, path, color_by="auto", fps=20, speed=1, rotate=False, trail_s=1, size=(640, 480),
 dpi=100, title=None, progress=False) -> Animation`` draws the run with matplotlib's 3-D axes (the world's
-y axis up): boids as arrows along their heading, extra agents (prey, predators) as large markers of
-their colour with a legend, trails of the last ``trail_s`` seconds (agents' thicker), a time stamp
+y axis up), or, for a run in the plane z = 0 (a 2-D model's, measured 2-D tracks: :func:`is_flat`), from
+above on plain axes (x right, y up, equal scales; ``rotate`` does nothing there), as the viewer page
+does: boids as arrows along their heading, extra agents (prey, predators) as large markers of their colour with a legend, trails of the last ``trail_s`` seconds (agents' thicker), a time stamp
 with the frame's polarization and number of groups, and optionally a camera turning slowly about the
 vertical (``rotate``: 6 degrees per second of video).
 
@@ -132,6 +133,12 @@ def _colours(track: Track, mode: str, obs: dict, frames: np.ndarray) -> np.ndarr
     return colours
 
 
+def is_flat(track: Track) -> bool:
+    """A run in the plane z = 0 (a 2-D model's, or tracks whose every z is 0): drawn from above, as the
+    viewer page shows it."""
+    return track.world.get("dimensions") == 2 or not (np.any(track.pos[..., 2]) or np.any(track.vel[..., 2]))
+
+
 def _view_box(track: Track, labels: np.ndarray) -> tuple[np.ndarray, float]:
     """Per shown frame the centre of the view, and one half-width for all frames."""
     if track.wrap_jump is not None:
@@ -167,6 +174,7 @@ class _Drawing:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.collections import LineCollection
         from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
         self.track, self.rotate, self.fps, self.plt = track, rotate, fps, plt
@@ -177,24 +185,35 @@ class _Drawing:
         self.trail = int(round(trail_s / track.frame_interval)) if track.frames > 1 else 0
         self.arrow = max(self.half / 12, 1.5)
         self.fig = plt.figure(figsize=(int(size[0]) / dpi, int(size[1]) / dpi), dpi=dpi)
+        self.flat = is_flat(track)
         # the caption gets its own strip below the axes (it never sits on tick labels); text >= 9 px
-        self.ax = self.fig.add_axes((0, 0.08, 1, 0.84), projection="3d")
+        if self.flat:   # a run in the plane z = 0, seen from above as the page shows it: x right, y up
+            self.ax = self.fig.add_axes((0.1, 0.13, 0.86, 0.77))
+            self.ax.set_aspect("equal", adjustable="box")
+            labels = ((self.ax.set_xlabel, "x"), (self.ax.set_ylabel, "y"))
+            axes = (self.ax.xaxis, self.ax.yaxis)
+            collection = LineCollection
+        else:
+            self.ax = self.fig.add_axes((0, 0.08, 1, 0.84), projection="3d")
+            labels = ((self.ax.set_xlabel, "x"), (self.ax.set_ylabel, "z"), (self.ax.set_zlabel, "y (up)"))
+            axes = (self.ax.xaxis, self.ax.yaxis, self.ax.zaxis)
+            collection = Line3DCollection
         self.fig.suptitle(title or track.title, fontsize=max(9, 7.5 * 100 / dpi), y=0.985)
         self.stamp = self.fig.text(0.02, 0.015, "", fontsize=max(8, 7 * 100 / dpi), family="monospace")
-        for axis_label, text in ((self.ax.set_xlabel, "x"), (self.ax.set_ylabel, "z"), (self.ax.set_zlabel, "y (up)")):
+        for axis_label, text in labels:
             axis_label(text, fontsize=max(8, 7 * 100 / dpi))
         self.ax.tick_params(labelsize=max(7, 6.5 * 100 / dpi))
-        for axis in (self.ax.xaxis, self.ax.yaxis, self.ax.zaxis):
+        for axis in axes:
             axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
-        self.trails = Line3DCollection([], linewidths=0.6, alpha=0.45)
-        self.ax.add_collection3d(self.trails, autolim=False)
+        self.trails = collection([], linewidths=0.6, alpha=0.45)
+        self._add(self.trails)
         self.quiver = None
         self.agents = check_agents(track.agents, track.frames)
         self.agent_trails, self.agent_marks = [], []
         for agent in self.agents:
-            trail = Line3DCollection([], linewidths=1.8, colors=agent["color"])
+            trail = collection([], linewidths=1.8, colors=agent["color"])
             trail.set_gid(f"agent-trail:{agent['kind']}")
-            self.ax.add_collection3d(trail, autolim=False)
+            self._add(trail)
             self.agent_trails.append(trail)
             self.agent_marks.append(None)
         if self.agents:
@@ -204,7 +223,48 @@ class _Drawing:
                                            linewidth=1.8, label=a["label"]) for a in self.agents],
                            loc="upper right", fontsize=max(8, 7 * 100 / dpi))
 
+    def _add(self, collection) -> None:
+        if self.flat:
+            self.ax.add_collection(collection, autolim=False)
+        else:
+            self.ax.add_collection3d(collection, autolim=False)
+
     def draw(self, k: int, f: int) -> None:
+        if self.flat:
+            self._draw_flat(k, f)
+        else:
+            self._draw_3d(k, f)
+        metrics = self.obs["metrics"]
+        self.stamp.set_text(f"t = {self.track.times[f]:6.2f} s   polarization {metrics['polarization'][f]:.2f}"
+                            f"   groups {metrics['n_groups'][f]:.0f}   (colour: {self.mode})")
+
+    def _draw_flat(self, k: int, f: int) -> None:
+        """Frame ``f`` in the plane, from above: arrows along the headings, trails and agents in (x, y)."""
+        track, ax = self.track, self.ax
+        c, half = self.centre[f], self.half
+        ax.set_xlim(c[0] - half, c[0] + half)
+        ax.set_ylim(c[1] - half, c[1] + half)
+        p, v = track.pos[f][:, :2], track.vel[f][:, :2]
+        norm = np.linalg.norm(v, axis=1, keepdims=True)
+        h = np.divide(v, norm, out=np.zeros_like(v), where=norm > 0) * self.arrow
+        if self.quiver is not None:
+            self.quiver.remove()
+        colours = self.colours[k]
+        self.quiver = ax.quiver(p[:, 0], p[:, 1], h[:, 0], h[:, 1], color=colours, angles="xy", scale_units="xy",
+                                scale=1.0, width=0.004, headwidth=4, headlength=5, pivot="tail")
+        segments, boid = _trail_segments(track.pos, f, self.trail, track.wrap_jump)
+        self.trails.set_segments(segments[:, :, :2])
+        self.trails.set_color(colours[boid])
+        for a, (agent, trail) in enumerate(zip(self.agents, self.agent_trails)):
+            trail.set_segments(_trail_segments(agent["pos"], f, self.trail, track.wrap_jump)[0][:, :, :2])
+            if self.agent_marks[a] is not None:
+                self.agent_marks[a].remove()
+            q = agent["pos"][f][:, :2]
+            self.agent_marks[a] = ax.scatter(q[:, 0], q[:, 1], s=60 * agent["size"], color=agent["color"],
+                                             edgecolors="black", linewidths=0.5, zorder=3)
+            self.agent_marks[a].set_gid(f"agent:{agent['kind']}")
+
+    def _draw_3d(self, k: int, f: int) -> None:
         track, ax = self.track, self.ax
         swap = [0, 2, 1]  # world (x, y, z) -> plot (x, z, y): y up
         c, half = self.centre[f][swap], self.half
@@ -233,9 +293,6 @@ class _Drawing:
             self.agent_marks[a] = ax.scatter(q[:, 0], q[:, 1], q[:, 2], s=60 * agent["size"], color=agent["color"],
                                              edgecolors="black", linewidths=0.5, depthshade=False)
             self.agent_marks[a].set_gid(f"agent:{agent['kind']}")
-        metrics = self.obs["metrics"]
-        self.stamp.set_text(f"t = {track.times[f]:6.2f} s   polarization {metrics['polarization'][f]:.2f}"
-                            f"   groups {metrics['n_groups'][f]:.0f}   (colour: {self.mode})")
 
     def close(self) -> None:
         self.plt.close(self.fig)

@@ -3,13 +3,21 @@
     flocksweep view MODEL.toml [--set KEY=VALUE ...] [--seed S] [--n N] [--duration T] [--dt DT]
     flocksweep view RESULTS_DIR (--run RUN_ID [RUN_ID ...] | --where "KEY=VALUE, ..." [--replicate K] | --showcase NAME)
     flocksweep view TRAJECTORY.npz
+    flocksweep view TRACKS [--format ...] [--layout ...] [--columns ...] [--units ...] [--tracks-fps HZ] [...]
+                           [--interval S] [--velocity-interval S|recorded] [--flock NAME] [--group-radius R]
+    flocksweep view MEASURE_FOLDER [--flock NAME] [--group-radius R]
       common: [--out PAGE.html] [--animate OUT.gif|OUT.mp4] [--no-page] [--color-by MODE] [--trail SECONDS]
               [--max-mb MB] [--stride K] [--fps F] [--speed X] [--rotate] [--size WxH] [--dpi D]
 
 A model preset is simulated (seed 0 unless ``--seed``); a sweep run is re-simulated from its stored spec
 and seed and must reproduce its stored results bit for bit (:mod:`analysis.viewer.resimulate`), or
 nothing is written; a trajectory is shown as saved (with its ``params.json`` or its sweep's spec when
-found). Several ``--run`` ids make one page of several runs with a run menu (each re-simulated and
+found). A track file (any file or folder ``flocksweep measure`` reads, with its reading options; ``--fps``
+of measure is ``--tracks-fps`` here) and a measure folder (its ``measure.json`` says which file and how it
+was read) are read, checked and resampled as ``measure`` does (:func:`observables.measured.observe_tracks`),
+each flock shown with its gaps interpolated (:func:`analysis.viewer.track.from_observed`); several flocks
+make one page with a menu (``#run=NAME``), ``--flock`` picks one (an animation needs one). 2-D tracks are
+seen from above, in the page and in the animation. Several ``--run`` ids make one page of several runs with a run menu (each re-simulated and
 checked; the URL fragment ``#run=ID`` picks the run shown; the size cap holds for the whole page).
 Default page path: ``results/view/<model>-seed<S>.html``, ``RESULTS_DIR/viewer/<run or
 showcase>.html`` (``runs-<first id>-and-<K>-more.html`` for several runs), or the trajectory's path with
@@ -26,14 +34,25 @@ from flocksweep.sweeps.progress import Phases
 
 
 
-def _kind(source: Path) -> str:
+TRACK_SUFFIXES = (".csv", ".gz", ".tsv", ".txt", ".parquet", ".pq", ".mat", ".npy", ".h5")
 
+
+def _kind(source: Path, reading: dict | None = None) -> str:
     if source.is_dir():
+        if (source / "measure.json").is_file():
+            return "measured"
+        if reading or not ((source / "design.parquet").exists() or (source / "manifest.json").exists()) and any(
+                p.suffix.lower() in (".npz", ".csv") for p in source.iterdir()):
+            return "tracks"
         return "sweep"
     if not source.exists():
         raise ConfigError("source", f"{source}: no such file or directory")
+    if reading and reading.get("format"):
+        return "tracks"
     if source.suffix == ".npz":
-        return "trajectory"
+        return "trajectory" if _is_trajectory(source) else "tracks"
+    if source.suffix.lower() in TRACK_SUFFIXES:
+        return "tracks"
     if source.suffix == ".toml":
         from flocksweep.simcore.params import read_toml
 
@@ -43,7 +62,19 @@ def _kind(source: Path) -> str:
             raise ConfigError("source", f"{source} is a sweep file; view one of its runs from its results "
                                         f"directory, e.g. flocksweep view results/{name} --run RUN_ID")
         return "model"
-    raise ConfigError("source", f"{source}: expected a model preset .toml, a sweep results directory or a .npz")
+    raise ConfigError("source", f"{source}: expected a model preset .toml, a sweep results directory, a trajectory "
+                                "or tracks .npz, a track file (csv, parquet, mat, npy; --format names another) or a "
+                                "flocksweep measure folder")
+
+
+def _is_trajectory(path: Path) -> bool:
+    """A flocksweep trajectory .npz (times, pos and vel), not a tracker's arrays (idtracker.ai, TRex)."""
+    from flocksweep.observables.npy_file import npz_headers
+    try:
+        keys = npz_headers(path)
+    except ValueError:
+        return True          # not an archive at all: the trajectory reader names what is wrong
+    return {"times", "pos", "vel"} <= set(keys) or not ({"trajectories", "X", "Y"} & set(keys))
 
 
 def _check_flags(args, kind: str) -> None:
@@ -52,11 +83,19 @@ def _check_flags(args, kind: str) -> None:
                    "--replicate": args.replicate or None}
     model_flags = {"--set": args.overrides or None, "--seed": args.seed, "--n": args.n,
                    "--duration": args.duration, "--dt": args.dt}
-    for flags, only in ((sweep_flags, "sweep"), (model_flags, "model")):
+    reading = {"--" + key.replace("_", "-"): value for key, value in (getattr(args, "reading", None) or {}).items()}
+    track_flags = {"--flock": args.flock, "--group-radius": args.group_radius}
+    file_flags = {**reading, "--interval": args.interval, "--max-gap": args.max_gap,
+                  "--velocity-interval": args.velocity_interval}
+    wheres = {"sweep": "a sweep results directory", "model": "a model preset TOML",
+              "tracks": "a track file or folder", "tracks or measured": "a track file or a measure folder"}
+    for flags, only in ((sweep_flags, "sweep"), (model_flags, "model"), (file_flags, "tracks"),
+                        (track_flags, "tracks or measured")):
         for flag, value in flags.items():
-            if value is not None and kind != only:
-                where = "a sweep results directory" if only == "sweep" else "a model preset TOML"
-                raise ConfigError(flag, f"only applies when SOURCE is {where} (got a {kind} source)")
+            if value is not None and kind not in only.split(" or "):
+                raise ConfigError(flag, f"only applies when SOURCE is {wheres[only]} (got a {kind} source"
+                                        + (": a measure folder reads its tracks as it measured them)"
+                                           if kind == "measured" and only == "tracks" else ")"))
     if not 0 <= args.trail < float("inf"):
         raise ConfigError("--trail", f"got {args.trail}; expected a number of seconds >= 0")
     if args.start_time is not None and not 0 <= args.start_time < float("inf"):
@@ -126,6 +165,21 @@ def _sweep_track(args, run_id=None):
     return track, args.source / "viewer" / f"{slug(name)}.html"
 
 
+def _flocks_page(args, tracks, names, default, phases) -> int:
+    """One page of several measured flocks with a menu (the URL fragment #run=NAME picks one)."""
+    from .page import MB, build_runs_page
+
+    if args.no_page:
+        raise ConfigError("--no-page", "an animation shows one flock: name it with --flock")
+    phases.start(f"building the page of {len(tracks)} flocks")
+    page = build_runs_page(tracks, names, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
+                           trail_s=args.trail, start_time=args.start_time)
+    path = page.save(args.out or default)
+    print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {len(tracks)} flocks, a menu switches between them; "
+          f"PAGE#run=NAME opens one); open it in a browser, it works offline")
+    return 0
+
+
 def _runs_page(args, phases) -> int:
     """One page of the several ``--run`` runs of a sweep (each re-simulated and checked)."""
     from .hooks import slug
@@ -145,6 +199,74 @@ def _runs_page(args, phases) -> int:
     return 0
 
 
+def _track_settings(args, kind: str):
+    """(the track file, how to read it, interval, max_gap, velocity interval, group radius, default page
+    folder) of a track source: the command line's, or for a measure folder what its measure.json recorded."""
+    import json
+
+    from flocksweep.observables.tracks import TrackSource, track_source
+
+    source = Path(args.source)
+    if kind == "tracks":
+        velocity = args.velocity_interval
+        if velocity is not None and velocity != "recorded":
+            try:
+                velocity = float(velocity)
+            except ValueError:
+                raise ConfigError("--velocity-interval", f"got {velocity!r}; expected seconds or 'recorded'") from None
+        return (source, track_source(source, args.reading, ""), args.interval, args.max_gap,
+                "auto" if velocity is None else velocity, args.group_radius,
+                Path("results") / "view" / source.name.split(".")[0])
+    try:
+        info = json.loads((source / "measure.json").read_text())
+        reading = info["reading"]
+        path = Path(info["tracks"])
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ConfigError("source", f"{source / 'measure.json'} cannot be read as a measure folder's record ({err}); "
+                                    "measure the tracks again with flocksweep measure") from None
+    if not path.exists():
+        raise ConfigError("source", f"{source}: its tracks {path} are gone; view the file where it is now "
+                                    "(flocksweep view TRACKS with the reading options of measure.json)")
+    radius = args.group_radius if args.group_radius is not None else info.get("group_radius")
+    return (path, TrackSource(**{k: v for k, v in reading.items() if v is not None}), info.get("interval_given"),
+            info.get("max_gap_given"), info.get("velocity_interval", "auto"), radius, source / "viewer")
+
+
+def _track_pages(args, kind: str, phases) -> tuple[list, list, Path]:
+    """(the Tracks of the measured flocks, their names, the default page path)."""
+    from flocksweep.observables.measured import observe_tracks
+    from flocksweep.observables.tracks import load_tracks
+    from flocksweep.observables.validation import TrackError, describe
+
+    from .hooks import slug
+    from .track import from_observed
+
+    path, source, interval, max_gap, velocity, radius, folder = _track_settings(args, kind)
+    try:
+        table = load_tracks(path, source)
+        flocks, issues = observe_tracks(table, interval, max_gap, velocity)
+    except TrackError as err:
+        raise ValueError(f"{err}\n  (flocksweep measure {path} lists every problem in validation.csv)") from None
+    for issue in [i for i in issues if i.level == "error"][:5]:
+        print(f"flocksweep: {describe(issue, table.line_offset)}", file=sys.stderr)
+    names = [str(f.name) for f in flocks]
+    if args.flock is not None:
+        if args.flock not in names:
+            raise ConfigError("--flock", f"got {args.flock!r}; {path.name} holds the flocks {', '.join(names)}")
+        flocks = [f for f in flocks if str(f.name) == args.flock]
+    if not flocks:
+        raise ValueError(f"{path}: no flock could be resampled (flocksweep measure {path} says why)")
+    if args.animate and len(flocks) > 1:
+        raise ConfigError("--animate", f"animates one flock; {path.name} holds {len(flocks)} ({', '.join(names[:6])}"
+                                       f"{' ...' if len(names) > 6 else ''}): name one with --flock")
+    info = {"source": path.name, "format": table.source.format, "lengths in": table.unit_label}
+    tracks = [from_observed(f, title=f"{path.name}: flock {f.name}", info={**info, "flock": str(f.name)},
+                            group_radius=radius) for f in flocks]
+    name = slug(flocks[0].name) if len(flocks) == 1 else "flocks"
+    default = folder / f"{name}.html" if kind == "measured" else folder.parent / f"{folder.name}-{name}.html"
+    return tracks, [str(f.name) for f in flocks], default
+
+
 def run(args) -> int:
 
     from .animation import AnimationUnavailable, check_options, ffmpeg_exe, write_animation
@@ -154,7 +276,7 @@ def run(args) -> int:
 
     source = Path(args.source)
     args.source = source
-    kind = _kind(source)
+    kind = _kind(source, getattr(args, "reading", None))
     _check_flags(args, kind)
     size = _size(args.size)
     phases = Phases("view", 1 + (not args.no_page) + bool(args.animate), not args.no_progress)
@@ -162,8 +284,14 @@ def run(args) -> int:
         if args.animate and check_options(args.animate, args.fps, args.speed, size, args.dpi, args.color_by) == "mp4":
             ffmpeg_exe()  # before simulating: say now if MP4 cannot be written
         phases.start({"model": "simulating the run", "sweep": "re-simulating the run and checking it bit for bit",
-                      "trajectory": "reading the trajectory"}[kind])
-        if kind == "model":
+                      "trajectory": "reading the trajectory", "tracks": "reading and resampling the tracks",
+                      "measured": "reading and resampling the measured tracks"}[kind])
+        if kind in ("tracks", "measured"):
+            tracks, names, default = _track_pages(args, kind, phases)
+            if len(tracks) > 1:
+                return _flocks_page(args, tracks, names, default, phases)
+            track = tracks[0]
+        elif kind == "model":
             track, default = _model_track(args)
         elif kind == "sweep":
             if not (args.run or args.where or args.showcase):

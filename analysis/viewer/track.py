@@ -254,8 +254,8 @@ def from_observed(flock, title: str | None = None, info: dict | None = None,
     seen through an observation model). The viewer draws a fixed flock, so every individual present at some
     record is drawn at every record: where it was not present, its position and velocity are interpolated
     linearly in time between its known records (held before its first and after its last); ``info`` says
-    how many individuals are drawn and what share of their positions was filled in. ValueError when nobody
-    is ever present."""
+    how many individuals are drawn and what share of their positions was filled in; 2-D tracks are marked
+    as a run in the plane (drawn from above). ValueError when nobody is ever present."""
     seen = flock.present.any(axis=0)
     if not seen.any():
         raise ValueError(f"flock {flock.name!r}: no individual is present at any record")
@@ -266,10 +266,11 @@ def from_observed(flock, title: str | None = None, info: dict | None = None,
     said = {"individuals shown": shown,
             "filled in": f"{filled} of {present.size} positions ({filled / present.size:.1%}), interpolated "
                          "between detections"}
+    world = {"boundary": "open", **({"dimensions": 2} if getattr(flock, "dims", 3) == 2 else {})}
     return Track(times=flock.times, pos=pos, vel=vel,
                  pattern=None if flock.pattern is None else np.asarray(flock.pattern)[seen],
                  title=title or f"flock {flock.name}", info={**(info or {}), **said},
-                 group_radius=None if group_radius is None else float(group_radius))
+                 group_radius=None if group_radius is None else float(group_radius), world=world)
 
 
 def _filled(times: np.ndarray, values: np.ndarray, present: np.ndarray) -> np.ndarray:

@@ -7,16 +7,21 @@ from pathlib import Path
 
 from flocksweep.command import Command
 
-HELP = "interactive 3-D viewer page (and GIF/MP4) of a run"
+HELP = "interactive 3-D viewer page (and GIF/MP4) of a run or of measured tracks"
 DESCRIPTION = ("Write a self-contained 3-D viewer page (HTML, works offline) of a run: a model preset "
-               "(simulated), a sweep run (re-simulated and checked bit for bit) or a saved trajectory; "
-               "--animate also exports a GIF or MP4.")
+               "(simulated), a sweep run (re-simulated and checked bit for bit), a saved trajectory, a track "
+               "file (any format flocksweep measure reads) or a flocksweep measure folder (a menu of its "
+               "flocks); --animate also exports a GIF or MP4.")
 
 
 def arguments(p) -> None:
     from flocksweep.analysis.viewer.palette import COLOR_MODES   # only when its options are declared
+    from flocksweep.observables.track_names import FORMATS, ROLES
 
-    p.add_argument("source", help="model preset TOML, sweep results directory, or trajectory .npz")
+    from .measure import add_reading_options
+
+    p.add_argument("source", help="model preset TOML, sweep results directory, trajectory .npz, a track file or "
+                                  "folder (as flocksweep measure reads), or a flocksweep measure folder")
     sweep = p.add_argument_group("sweep runs (SOURCE is a results directory)")
     sweep.add_argument("--run", metavar="RUN_ID", nargs="+",
                        help="run id (or a unique prefix of >= 6 characters); several ids: one page with a run "
@@ -32,6 +37,20 @@ def arguments(p) -> None:
     model.add_argument("--n", type=int, help="number of boids (init.n)")
     model.add_argument("--duration", type=float, help="simulated seconds (run.duration)")
     model.add_argument("--dt", type=float, help="time step in seconds (run.dt)")
+    tracks = p.add_argument_group("measured tracks (SOURCE is a track file or folder, or a measure folder)")
+    tracks.add_argument("--flock", metavar="NAME", help="show this flock only (default: every flock, a menu "
+                                                        "switches between them; --animate needs one)")
+    tracks.add_argument("--group-radius", type=float, metavar="R",
+                        help="links individuals into groups (analysis length units; default: the measure "
+                             "folder's, else 20, said so in the page)")
+    add_reading_options(tracks, FORMATS, ROLES, fps_flag="--tracks-fps")
+    tracks.add_argument("--interval", type=float, metavar="S",
+                        help="resample onto this interval (default: each flock's own sampling interval)")
+    tracks.add_argument("--max-gap", type=float, metavar="S", help="bridge gaps up to S seconds (default 2.5 "
+                                                                   "intervals)")
+    tracks.add_argument("--velocity-interval", metavar="S|recorded",
+                        help="difference positions over S seconds, or 'recorded' (default: recorded when the "
+                             "file has velocities, else one interval)")
     page = p.add_argument_group("page and animation")
     page.add_argument("--out", type=Path, metavar="PAGE.html",
                       help="page path (default: results/view/<model>-seed<S>.html for a model, "
@@ -61,6 +80,9 @@ def arguments(p) -> None:
 def handler(args) -> int:
     from flocksweep.analysis.viewer.command import run
 
+    from .measure import reading_given
+
+    args.reading = reading_given(args)
     return run(args)
 
 

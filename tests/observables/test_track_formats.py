@@ -195,7 +195,8 @@ def test_bad_files_of_each_format_are_one_clear_config_error(run, tmp_path):
     scipy.io.savemat(path, {"tracks": np.zeros((3, 4, 5))})
     with pytest.raises(ConfigError, match="layout.channels: missing"):
         load_tracks(path, TrackSource(fps=8.0))
-    with pytest.raises(ConfigError, match=r"layout: 'tracks' has shape \(3, 4, 5\).*channel axis must have the 2"):
+    with pytest.raises(ConfigError, match=r"layout.channels: names 2 channels, the array has 4 \(name the others - to "
+                                          r"skip them: x,y,-,-\)"):
         load_tracks(path, TrackSource(fps=8.0, layout={"channels": "x,y"}))
     with pytest.raises(ConfigError, match="fps: the times are frame numbers"):
         load_tracks(path, TrackSource(layout={"channels": "x,y,vx,vy"}))

@@ -378,3 +378,13 @@ def test_a_value_is_one_of_the_declared_choices():
     for bad in (1.5, "A", False, None):
         with pytest.raises(ConfigError, match=r"k: got .*; allowed: 1, 2, 'a', True"):
             choice.check(bad, "k")
+
+
+def test_reading_settings_added_later_leave_earlier_run_ids_as_they_were():
+    """[model.tracks] hashes into a run's id; the track settings added with exact clocks, padding, trims
+    and the burst rule enter it only when set, and where settings came from (origins) never does."""
+    from flocksweep.sweeps.external import OutputTracks, _tracks_record
+    record = _tracks_record(OutputTracks())
+    assert sorted(record) == sorted(["columns", "units", "body_length", "max_speed", "bad_speeds", "format", "fps",
+                                     "body_length_px", "layout", "interval", "velocity_interval", "max_gap"])
+    assert _tracks_record(OutputTracks(trim="1:"))["trim"] == "1:"

@@ -63,6 +63,7 @@ def test_a_predictive_run_that_does_not_reproduce_gets_no_page_and_a_warning(tra
     targets, flock = predictive_runs(config, draws)
     page, warnings = predictive_page(config, summary, draws, targets, flock, tmp_path)
     assert page == tmp_path / PREDICTIVE_PAGE and warnings == []
+    assert str(tracks.resolve().parent) not in page.read_text()   # no path of the machine it was made on
     page.unlink()
     flock[0, 0] += 1.0                                         # not what run 0 measured
     page, warnings = predictive_page(config, summary, draws, targets, flock, tmp_path)

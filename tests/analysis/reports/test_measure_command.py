@@ -162,3 +162,37 @@ def test_the_report_draws_each_flocks_leader_follower_hierarchy(tmp_path, capsys
     assert main(["measure", str(tmp_path / "planted.parquet"), "--group-radius", "50", "--out", str(tmp_path / "b"),
                  "--no-figures", "--no-progress"]) == 0
     assert not (tmp_path / "b/figures").exists()
+
+
+def test_measure_json_and_the_report_state_the_units_and_the_clock_with_where_each_came_from(tmp_path, capsys):
+    traj = np.zeros((30, 3, 2))
+    traj[:, :, 0] = np.arange(30)[:, None] * 2.0                   # 2 px per frame
+    traj[:, :, 1] = np.arange(3)[None, :] * 40.0
+    traj[10:15, 1] = np.nan                                        # missed detections: overtake_rate undefined
+    path = tmp_path / "fish.npy"
+    np.save(path, {"trajectories": traj, "frames_per_second": 25.0, "body_length": 20.0}, allow_pickle=True)
+    out = tmp_path / "out"
+    assert main(["measure", str(path), "--group-radius", "3", "--body-length-px", "40", "--out", str(out),
+                 "--no-figures", "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "units: length unit px (file), time unit frame (file), fps 25.0 (file), body length (px) 40.0 (given)" \
+           in printed and "records every 0.04 s: frame numbers at 25 frames per second (fps: file)" in printed
+    info = json.loads((out / "measure.json").read_text())
+    assert info["scales"]["body length (px)"] == {"value": 40.0, "from": "given"}
+    assert info["scales"]["fps"] == {"value": 25.0, "from": "file"}
+    assert info["interval"] == 0.04 and info["interval_found"].startswith("frame numbers at 25 frames per second")
+    runs = pd.read_parquet(out / "runs.parquet")
+    assert runs.loc[0, "speed_mean_mean"] == pytest.approx(2.0 * 25 / 40)      # BL/s with the given body length
+    report = (out / "report.md").read_text()
+    assert "| fps | 25.0 | file |" in report and "| body length (px) | 40.0 | given |" in report
+    assert "`overtake_rate` compares who is where at consecutive records" in report and "flock(s) fish have missed" in report
+    assert "None" not in report.split("## Validation")[1].split("## Flocks")[0]
+
+
+def test_a_file_that_cannot_be_read_leaves_no_output_folder(tmp_path, capsys):
+    path = tmp_path / "t.csv"
+    path.write_text("id,t,x,y\n1,0,0,0\n")
+    assert main(["measure", str(path), "--group-radius", "3", "--layout", "channels=x,y", "--out",
+                 str(tmp_path / "out"), "--no-progress"]) == 2
+    assert "layout: the csv format has no array layout" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -292,3 +292,30 @@ def test_a_flat_run_is_seen_from_above_with_its_grid_in_its_plane(browser, tmp_p
     spatial = browser.open(view(from_arrays(**arrays, title="3-D"), tmp_path / "spatial.html").path)
     assert spatial.page.evaluate("window.flockViewer.cameraDirection()")[2] > -0.99
     spatial.page.close()
+
+
+@pytest.mark.slow
+def test_measured_tracks_open_from_the_command_line_seen_from_above_with_a_menu_of_flocks(browser, tmp_path):
+    """flocksweep view of a measure folder: the page of its flocks opens offline without errors, looks
+    down at the plane of the 2-D tracks, and its menu switches between the flocks."""
+    import pandas as pd
+
+    from flocksweep.cli import main
+    rows = [(flock, i, s * 0.1, (6 + 4 * k) * np.cos(0.05 * s + i), (6 + 4 * k) * np.sin(0.05 * s + i))
+            for k, flock in enumerate(("F1", "F2")) for i in range(8) for s in range(40)]
+    pd.DataFrame(rows, columns=["flock", "id", "t", "x", "y"]).to_csv(tmp_path / "mill.csv", index=False)
+    folder = tmp_path / "measured"
+    assert main(["measure", str(tmp_path / "mill.csv"), "--group-radius", "4", "--out", str(folder),
+                 "--no-figures", "--no-progress"]) == 0
+    assert main(["view", str(folder), "--no-progress"]) == 0
+    page = browser.open(folder / "viewer" / "flocks.html")
+    assert page.errors == [] and page.blocked == []
+    assert page.state("run") == "F1" and page.state("n") == 8 and page.state("frames") == 39
+    assert np.allclose(page.page.evaluate("window.flockViewer.cameraDirection()"), [0.0, 0.0, -1.0], atol=1e-9)
+    ARTIFACTS.mkdir(exist_ok=True)
+    assert page.screenshot(ARTIFACTS / "viewer_measured_flocks.png").reshape(-1, 3).std(axis=0).mean() > 10
+    page.page.select_option("#run", "F2")
+    page.page.wait_for_function("window.flockViewer && window.flockViewer.run === 'F2'", timeout=60_000)
+    np.testing.assert_allclose(np.array(page.state("boidMatrix(0)"))[12:14], [10.0, 0.0], atol=0.05)
+    assert page.errors == []
+    page.page.close()
