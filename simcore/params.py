@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, fields, make_dataclass
 from typing import Any
 
 from . import registry
+from .arena import Arena
 from .obstacle_spec import Obstacle, canonical_obstacles
 from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
 from .units import Units, to_body_lengths
@@ -249,6 +250,8 @@ class _Model:
         else:
             _check_plugin(self)
         _check_capabilities(self, dynamics)
+        if self.arena.enabled:
+            _check_arena(self)
         if self.leadership.enabled and not math.isfinite(self.perception_range):
             raise ConfigError("perception.max_distance", "the change of leadership measures eccentricity against "
                                                          "the perception range: set perception.max_distance")
@@ -283,6 +286,7 @@ SHARED_FIELDS = (
     ("patterns", Patterns, field(default_factory=Patterns)),
     ("leadership", Leadership, field(default_factory=Leadership)),
     ("noise", Noise, field(default_factory=Noise)), ("cruise", Cruise, field(default_factory=Cruise)),
+    ("arena", Arena, field(default_factory=Arena)),
 )
 PLUGIN_FIELDS = (
     ("plugin", Any, None),                  # a plug-in dynamics' parameters (simcore.plugin): its Params
@@ -343,6 +347,16 @@ def _check_capabilities(model, dynamics: registry.Dynamics) -> None:
         raise ConfigError("perception.kind", f"got {model.perception.kind!r}; dynamics {name!r} uses the "
                                              f"perception {dynamics.perception}: set perception.kind = "
                                              f"'{dynamics.perception}'")
+
+
+def _check_arena(model) -> None:
+    """A tank (``[arena]``, docs/model.md section 16) needs an open world, and in 2-D lies in the plane."""
+    if model.world.boundary != "open":
+        raise ConfigError("world.boundary", f"got {model.world.boundary!r}; an arena (arena.kind = "
+                                            f"{model.arena.kind!r}) needs an open world: set world.boundary = 'open'")
+    if model.world.dimensions == 2 and model.arena.centre[2] != 0.0:
+        raise ConfigError("arena.centre", f"got {list(model.arena.centre)!r}; with world.dimensions = 2 the arena "
+                                          "lies in the plane: its z must be 0")
 
 
 def _check_planar(model, dynamics: registry.Dynamics) -> None:
@@ -472,6 +486,9 @@ class Preset:
     run: RunSettings
     units: Units = field(default_factory=Units)  # what the file was written in (section 12); not part of identity
 
+    def __post_init__(self):
+        _check_start_region(self.model, self.init)
+
     def full_dict(self) -> dict:
         """Every key with its resolved value (nothing left out), for reading swept values back."""
         out = {**to_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
@@ -507,6 +524,22 @@ class Preset:
         _check_kind_keys(model.perception.kind, _perception_keys(sections["model"]))
         return Preset(model=model, init=replace_fields(init, [c for c in sections["init"] if c[0]], "init"),
                       run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"), units=self.units)
+
+
+def _check_start_region(model, init) -> None:
+    """With an arena, the drawn start region (a ball or cube about the origin) lies inside it."""
+    arena = model.arena
+    if not arena.enabled or init.from_file is not None:
+        return
+    dimensions = model.world.dimensions
+    reach = init.region_radius(dimensions) * (math.sqrt(dimensions) if init.region == "cube" else 1.0)
+    offset = math.sqrt(sum(c * c for c in arena.centre[:dimensions]))
+    if offset + reach > arena.inner_extent(dimensions):
+        raise ConfigError("init.radius", f"the start region (reach {reach:g} from the origin) does not fit in the "
+                                         f"arena (its largest inner {'disc' if dimensions == 2 else 'ball'} about "
+                                         f"{list(arena.centre[:dimensions])} has radius "
+                                         f"{arena.inner_extent(dimensions):g}): make init.radius smaller or the "
+                                         "arena larger")
 
 
 def _new_dynamics(changes) -> list:
@@ -554,6 +587,10 @@ def model_dict(model: ModelParams) -> dict:
         out["world"]["obstacles"] = canonical_obstacles(model.world.obstacles)
     else:
         del out["world"]["obstacles"]
+    if model.arena.enabled:   # added later: absent while off, so run ids without an arena stay valid
+        out["arena"] = model.arena.canonical()
+    else:
+        del out["arena"]
     return out
 
 

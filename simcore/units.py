@@ -78,10 +78,12 @@ def declared_powers(table: str, cls) -> dict | None:
 
 
 def _tables() -> tuple[dict, tuple[str, ...]]:
-    """(every converted key's power, the tables refused in metres), from the shared keys and the registry."""
+    """(every converted key's power, the tables refused in metres), from the shared keys, the arena's and
+    the registry's."""
+    from .arena import Arena
     from .registry import builtin_tables
 
-    powers, refused = dict(SHARED_LENGTH_POWER), []
+    powers, refused = {**SHARED_LENGTH_POWER, **declared_powers("arena", Arena)}, []
     for table, cls in builtin_tables().items():
         declared = declared_powers(table, cls)
         if declared is None:
@@ -100,15 +102,15 @@ NO_LENGTH = SHARED_NO_LENGTH | {key for key, power in _POWERS.items() if power =
 REFUSED = (*_REFUSED_TABLES, "world.obstacles", "plugin")
 
 
-def _number(value) -> float:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else 2.0
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _own_table(dynamics: str) -> str | None:
     """The table of a built-in dynamics (None for any other name: plug-ins are refused by their table)."""
     from .registry import BUILTINS, describe
 
-    return describe(dynamics).table if dynamics in BUILTINS else None
+    return describe(dynamics).table if BUILTINS.get(dynamics) else None
 
 
 def to_body_lengths(data: dict, units: Units) -> dict:
@@ -137,7 +139,9 @@ def to_body_lengths(data: dict, units: Units) -> dict:
         if not isinstance(section, dict) or key not in section:
             continue
         value = section[key]
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            exponent = power(data) if callable(power) else power
+        exponent = power(data) if callable(power) else power
+        if _is_number(value):
             section[key] = value / scale ** exponent
+        elif isinstance(value, list) and value and all(_is_number(v) for v in value):   # a point: [x, y, z]
+            section[key] = [v / scale ** exponent for v in value]
     return out

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from flocksweep.simcore import boidspp_params, params, reynolds_params
+from flocksweep.simcore import arena, boidspp_params, params, reynolds_params
 from flocksweep.simcore.params import InitParams, ModelParams, RunSettings
 from flocksweep.simcore.units import Units
 from paths import ROOT
@@ -202,6 +202,7 @@ CHOICES = {
     "world.update_order": params.UPDATE_ORDERS,
     "patterns.separation_weight": params.SEPARATION_WEIGHTS,
     "leadership.front_gate": params.FRONT_GATES,
+    "arena.kind": arena.ARENA_KINDS,
     "reynolds.allocation": reynolds_params.ALLOCATIONS,
     "reynolds.migration_who": reynolds_params.MIGRATION_WHO,
     "boidspp.separation.form": boidspp_params.SEPARATION_FORMS,
