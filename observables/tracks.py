@@ -72,6 +72,7 @@ class TrackSource:
     fps: float | None = None                      # frames per second: times in frames (units.time = "frame")
     body_length_px: float | None = None           # pixels: tracks in pixels (units.length = "px") -> body lengths
     layout: dict | None = None                    # a .mat file's array layout (observables.track_formats)
+    arena: dict | None = None                     # the tank filmed in: kind, centre, radius/size/height (file units)
 
     def __post_init__(self):
         for role, name in self.columns.items():
@@ -112,6 +113,41 @@ class TrackSource:
             raise ConfigError("body_length_px", f"only for tracks in pixels; the length unit is {self.length_unit!r}")
         if self.max_speed is not None and not (math.isfinite(self.max_speed) and self.max_speed > 0):
             raise ConfigError("max_speed", f"got {self.max_speed!r}; expected a number > 0 (length units per s)")
+        if self.arena is not None:
+            self.tank()   # checked here: ConfigError naming arena.<key>
+
+    @property
+    def length_scale(self) -> float:
+        """Analysis length units per unit of the file's positions (the factor :func:`load_tracks` applies)."""
+        scale = LENGTH_UNITS[self.length_unit] or 1.0
+        if self.body_length is not None:
+            scale = scale / self.body_length
+        if self.body_length_px is not None:
+            scale = 1.0 / self.body_length_px
+        return scale
+
+    def tank(self):
+        """The arena the tracks declare (``arena``: ``kind`` cylinder or box, ``centre``, ``radius`` or
+        ``size``, ``height``; in the file's length unit) in the analysis unit, as a
+        :class:`flocksweep.simcore.arena.Arena` (the same table a preset's ``[arena]`` is, its wall term at
+        the defaults), or None; ConfigError naming ``arena.<key>``."""
+        if self.arena is None:
+            return None
+        from flocksweep.simcore.arena import GEOMETRY, Arena
+
+        if not isinstance(self.arena, dict):
+            raise ConfigError("arena", f"expected a table (kind, centre, radius or size), got {self.arena!r}")
+        for key in self.arena:
+            if key not in GEOMETRY:
+                raise ConfigError(f"arena.{key}", f"unknown key{suggest(key, GEOMETRY)}; a track file's arena "
+                                                  f"declares its geometry: {', '.join(GEOMETRY)}")
+        if self.arena.get("kind", "none") == "none":
+            raise ConfigError("arena.kind", "required: 'cylinder' (a circle in 2-D) or 'box' (a rectangle)")
+        raw = build(Arena, self.arena, "arena")
+        k = self.length_scale
+        return dataclasses.replace(raw, centre=tuple(c * k for c in raw.centre), radius=raw.radius * k,
+                                   size=tuple(c * k for c in raw.size),
+                                   height=None if raw.height is None else raw.height * k)
 
     @property
     def length_unit(self) -> str:

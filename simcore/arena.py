@@ -27,6 +27,7 @@ from .plugin import PluginParams, parameter
 from .schema import ConfigError, check_choice
 
 ARENA_KINDS = ("none", "cylinder", "box")
+GEOMETRY = ("kind", "centre", "radius", "height", "size")   # where the walls are (what track files declare)
 
 
 @dataclass(frozen=True)
