@@ -83,8 +83,7 @@ def test_capabilities_come_from_the_descriptor():
     with pytest.raises(ConfigError, match="cruise.speed"):
         ModelParams(dynamics="couzin2002", perception=sphere, cruise=Cruise(speed=2.0))
     with pytest.raises(ConfigError, match="world.obstacles"):
-        load_preset(ROOT / "configs/models/reynolds87_obstacles.toml", ["dynamics='opensteer'",
-                                                                        "perception.kind='opensteer'"])
+        load_preset(ROOT / "configs/models/reynolds87_obstacles.toml", ["dynamics='hartman_benes'"])
     planar = ModelParams(dynamics="vicsek", perception=sphere, world=World(dimensions=2))
     assert model_dict(planar)["perception"] == {"kind": "sphere"}   # the sphere is vicsek.radius
     assert planar.sphere_radius == planar.vicsek.radius
@@ -197,7 +196,7 @@ def test_a_throwaway_built_in_from_a_temporary_package(tmp_path):
     assert out["number"] == len(DYNAMICS)
     assert "toy" in out["tables"] and not {"steering", "vehicle", "vicsek", "plugin"} & set(out["tables"])
     assert out["speeds"] == pytest.approx([3.0] * 5, rel=1e-12)
-    assert out["travelled"] == pytest.approx([3.0 * 0.5] * 5, rel=1e-9)   # straight on between two records
+    assert out["travelled"] == pytest.approx([3.0 * 1.0] * 5, rel=1e-9)   # straight on, first to last record
     assert "toy.speed" in out["refused"]
 
 
