@@ -3,7 +3,11 @@
 A preset's ``dynamics`` is either a built-in dynamics (:data:`simcore.params.DYNAMICS`) or a plug-in:
 the name of an entry point in the group ``flocksweep.dynamics`` (its value a module path), or an
 importable module path (``dynamics = "examples.couzin_like"``). :func:`load` imports that one module,
-and only it, checks its interface and registers it. The module defines:
+and only it, checks its interface and registers it; :mod:`simcore.registry` then describes it as it does a
+built-in (the module's capability flags, with :data:`DEFAULTS` for those it leaves out). The module
+defines ``Params`` and either the full hook set of a dynamics (``scratch``, ``sense``, ``move`` and the
+optional ones, :mod:`simcore.hooks`; run through the adapters of :mod:`simcore.plugin_hooks`) or the
+convenience ``steer``:
 
 * ``Params``: a frozen dataclass subclassing :class:`PluginParams`, one field per parameter (``float``,
   ``int`` or ``bool``), each declared with :func:`parameter` (default, unit, bounds). The preset's
@@ -144,9 +148,12 @@ def load(name: str, builtins: tuple[str, ...] = ()) -> Plugin:
     path = module_path(name)
     module = _import(name, path, builtins)
     missing = [attr for attr in REQUIRED if not hasattr(module, attr)]
+    if not hasattr(module, "steer") and not any(hasattr(module, hook) for hook in HOOK_SET):
+        missing.append("steer")
     if missing:
         raise ConfigError("dynamics", f"got {name!r}: module {path!r} is not a plug-in dynamics: it defines no "
-                                      f"{', '.join(missing)} (docs/plugins.md)")
+                                      f"{', '.join(missing)} (a plug-in defines Params and steer, or Params and the "
+                                      f"full hook set {', '.join(HOOK_SET)}; docs/plugins.md)")
     params = _check_params(path, module.Params)
     _check_hooks(name, path, module)
     sha = source_sha256(module)
@@ -165,11 +172,7 @@ def _check_hooks(name: str, path: str, module: ModuleType) -> None:
         raise ConfigError("dynamics", f"got {name!r}: module {path!r} defines {', '.join(defined)} but not "
                                       f"{', '.join(missing)}: a plug-in defines the full hook set "
                                       f"({', '.join(HOOK_SET)}) or only steer (docs/plugins.md)")
-    hooks = HOOK_SET if defined else ("steer",)
-    if not defined and not hasattr(module, "steer"):
-        raise ConfigError("dynamics", f"got {name!r}: module {path!r} is not a plug-in dynamics: it defines no "
-                                      f"steer (nor the full hook set {', '.join(HOOK_SET)}; docs/plugins.md)")
-    for hook in hooks:
+    for hook in HOOK_SET if defined else ("steer",):
         if not callable(getattr(module, hook)):
             raise ConfigError("dynamics", f"got {name!r}: {path}.{hook} is not a function (docs/plugins.md)")
 
