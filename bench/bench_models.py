@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 from flocksweep.simcore import load_preset, simulate_preset  # noqa: E402
-from flocksweep.simcore.params import OBSTACLE_DYNAMICS  # noqa: E402
+from flocksweep.simcore.registry import describe  # noqa: E402
 
 COURSE = ROOT / "configs/models/reynolds87_obstacles.toml"
 
@@ -32,7 +32,7 @@ COURSE = ROOT / "configs/models/reynolds87_obstacles.toml"
 def variant(model: str, n: int, duration: float, obstacles: int | None, overrides=()):
     preset = load_preset(ROOT / f"configs/models/{model}.toml", [f"init.n={n}", f"run.duration={duration}",
                                                                  "run.record_interval=1.0", *overrides])
-    if obstacles is None or preset.model.dynamics not in OBSTACLE_DYNAMICS:
+    if obstacles is None or not describe(preset.model.dynamics).obstacles:
         return preset
     course = load_preset(COURSE).model.world.obstacles[:obstacles]
     world = preset.model.world
@@ -63,7 +63,7 @@ def main() -> None:
     print("|---:|---:|---:|---:|")
     for n in args.sizes:
         variants = {k: variant(args.model, n, args.duration, k, args.set) for k in (0, args.obstacles)}
-        if variants[0].model.dynamics not in OBSTACLE_DYNAMICS:
+        if not describe(variants[0].model.dynamics).obstacles:
             variants = {0: variants[0]}
         for preset in variants.values():
             simulate_preset(preset.replace({"run.duration": preset.run.dt * 10}), seed=999)  # compile or load

@@ -22,8 +22,8 @@ Per-run scalars of :func:`leadership_metrics` (LEADERSHIP_METRIC_NAMES):
   the recorded span of the run (s). 0 when E = 0; nan when E > 0 and T = 0.
 * ``leader_time_fraction`` = mean over records of [at least one leader], in [0, 1].
 * ``leaders_mean`` = mean over records of the number of leaders, in [0, N].
-* Follow response, after Nagy et al. 2010 (Nature 464: 890, hierarchical group dynamics in pigeon
-  flocks), who correlate one bird's heading with another's at a time lag. At lag tau = j dr,
+* Follow response, after Nagy et al. 2010 (Nature 464: 890, "Hierarchical group dynamics
+  in pigeon flocks"), who correlate one bird's heading with another's at a time lag. At lag tau = j dr,
   j = 0, 1, ..., J = floor(max_lag / dr):
 
       c_ef(tau) = mean over s = 0 .. L - j (records r0 + s + j past the last record are skipped)

@@ -44,6 +44,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from flocksweep.simcore.registry import describe
 from flocksweep.simcore.schema import ConfigError, check_finite as _finite, check_non_negative, check_positive, check_within
 
 from .columns import RUN_COLUMNS, summary_columns  # noqa: F401 - declared there, part of this module's face
@@ -118,20 +119,17 @@ def encounter_settings(settings: MetricSettings) -> dict:
 
 
 def model_body_radius(model) -> float:
-    """The body radius obstacle collisions are measured with: ``reynolds.body_radius`` for reynolds87,
-    else ``perception.body_radius``."""
-    if model.dynamics == "reynolds87":
-        return float(model.reynolds.body_radius)
-    return float(model.perception.body_radius)
+    """The body radius obstacle collisions are measured with: the dynamics' own (its descriptor's
+    ``body_radius``, :mod:`simcore.registry`: reynolds87's ``reynolds.body_radius``), else
+    ``perception.body_radius``."""
+    return float(describe(model.dynamics).body_radius(model))
 
 
 def migration_direction(model) -> tuple[float, float, float] | None:
-    """The migratory urge's unit direction when the model has one (reynolds87 with migration_weight > 0)
-    in an open world, else None (then no migration metrics)."""
-    rey = getattr(model, "reynolds", None)
-    if model.dynamics != "reynolds87" or rey is None or not rey.migrates or model.world.boundary != "open":
-        return None
-    return tuple(float(x) for x in rey.migration_direction)
+    """The migratory urge's unit direction when the model has one (its dynamics' descriptor's
+    ``migration``: reynolds87 with migration_weight > 0 in an open world), else None (then no migration
+    metrics)."""
+    return describe(model.dynamics).migration(model)
 
 
 class RunMetrics(NamedTuple):

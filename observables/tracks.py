@@ -98,6 +98,7 @@ class TrackSource:
     burst_frames: float = BURST_FRAMES            # ... within this many sampling intervals
     burst_jump: float = BURST_JUMP                # ... each faster than this many times its own recent speed
     origins: dict = field(default_factory=dict, compare=False)
+    arena: dict | None = None                     # the tank filmed in: kind, centre, radius/size/height (file units)
 
     def __post_init__(self):
         for role, name in self.columns.items():
@@ -139,6 +140,8 @@ class TrackSource:
         for key, origin in self.origins.items():
             if origin not in ORIGINS:
                 raise ConfigError("origins", f"{key}: got {origin!r}; allowed: {', '.join(ORIGINS)}")
+        if self.arena is not None:
+            self.tank()   # checked here: ConfigError naming arena.<key>
         self.check_units(given_only=True)
 
     def check_units(self, given_only: bool = False) -> None:
@@ -175,6 +178,39 @@ class TrackSource:
         if key.startswith("units."):
             return "given" if key.split(".", 1)[1] in self.units else "default"
         return "given" if getattr(self, key, None) not in (None, {}, False) else "default"
+
+    @property
+    def length_scale(self) -> float:
+        """Analysis length units per unit of the file's positions (the factor :func:`load_tracks` applies)."""
+        scale = LENGTH_UNITS[self.length_unit] or 1.0
+        if self.body_length is not None:
+            scale = scale / self.body_length
+        if self.body_length_px is not None:
+            scale = 1.0 / self.body_length_px
+        return scale
+
+    def tank(self):
+        """The arena the tracks declare (``arena``: ``kind`` cylinder or box, ``centre``, ``radius`` or
+        ``size``, ``height``; in the file's length unit) in the analysis unit, as a
+        :class:`flocksweep.simcore.arena.Arena` (the same table a preset's ``[arena]`` is, its wall term at
+        the defaults), or None; ConfigError naming ``arena.<key>``."""
+        if self.arena is None:
+            return None
+        from flocksweep.simcore.arena import GEOMETRY, Arena
+
+        if not isinstance(self.arena, dict):
+            raise ConfigError("arena", f"expected a table (kind, centre, radius or size), got {self.arena!r}")
+        for key in self.arena:
+            if key not in GEOMETRY:
+                raise ConfigError(f"arena.{key}", f"unknown key{suggest(key, GEOMETRY)}; a track file's arena "
+                                                  f"declares its geometry: {', '.join(GEOMETRY)}")
+        if self.arena.get("kind", "none") == "none":
+            raise ConfigError("arena.kind", "required: 'cylinder' (a circle in 2-D) or 'box' (a rectangle)")
+        raw = build(Arena, self.arena, "arena")
+        k = self.length_scale
+        return dataclasses.replace(raw, centre=tuple(c * k for c in raw.centre), radius=raw.radius * k,
+                                   size=tuple(c * k for c in raw.size),
+                                   height=None if raw.height is None else raw.height * k)
 
     @property
     def length_unit(self) -> str:

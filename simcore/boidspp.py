@@ -34,9 +34,9 @@ refused (:func:`simcore.params.ModelParams`).
 
 Synchronous order computes every velocity from the state at time t, then moves all; sequential order
 moves boid i before boid i + 1 perceives (re-binned at once). In-loop draws are counter-based
-(:mod:`simcore.rng`): the random kick of boid i at step s uses stream ``STREAM_RANDOM_FORCE`` at
+(:mod:`simcore.rng`): the random kick of boid i at step s uses stream ``STREAMS["random_force"]`` at
 (s, 2 i) and (s, 2 i + 1); the prey's k-th point and the predator's start direction use
-``STREAM_TARGETS`` at (k, 0..2) and (0, 3..4). Batches run B runs in parallel threads, each by the same
+``STREAMS["targets"]`` at (k, 0..2) and (0, 3..4). Batches run B runs in parallel threads, each by the same
 code as alone (:func:`simcore.simulate.simulate_batch`); one run is one thread (``THREADS``).
 """
 from __future__ import annotations
@@ -54,7 +54,10 @@ from .layout import BOUNDARY_PERIODIC, F, I
 from .neighbours import RULE_ALIGNMENT, RULE_COHESION, RULE_SEPARATION, offset_to
 from .obstacle_avoidance import FAN_CLEAR, fan_avoid_direction
 from .noise import drive
-from .rng import STREAM_HEADING_NOISE, STREAM_RANDOM_FORCE, STREAM_SPEED_NOISE, STREAM_TARGETS, normal, uniform01
+from .boidspp_params import STREAMS
+from .rng import STREAM_HEADING_NOISE, STREAM_SPEED_NOISE, normal, uniform01
+
+STREAM_RANDOM_FORCE, STREAM_TARGETS = STREAMS["random_force"], STREAMS["targets"]
 
 
 @inline
@@ -391,7 +394,6 @@ def mark_captures(step, pos, agents, fp, ip, bp, bi, capture_step):
 
 # run-loop hooks (simcore.hooks). Shared scratch rows: the flock sums (rows 0, 1; :func:`flock_sums`), then
 # the new predator (row 2) and prey (row 3) velocities of this step, from the state of time t.
-THREADS = False
 SUMS_POS, SUMS_VEL, PRED_NEW_VEL, PREY_NEW_VEL, SHARED_ROWS = range(5)
 assert (SUMS_POS, SUMS_VEL) == (0, 1)  # the rows flock_sums and flock_targets use
 

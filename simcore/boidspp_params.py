@@ -1,4 +1,6 @@
-"""Validated, frozen parameters of the Boids++ dynamics: the ``[boidspp]`` table of a model preset.
+"""The ``boidspp`` dynamics' descriptor (:mod:`simcore.registry`): its ``[boidspp]`` table, capabilities
+(obstacles, agents: a predator and a prey; 2-D motion; no change of leadership or pattern mode; one
+thread per run) and random streams; its hooks are :mod:`simcore.boidspp`.
 
 Sub-tables (docs/model.md section 6 and the keys table of section 9): ``alignment``, ``cohesion`` and
 ``separation`` (each a blend ``S`` in [0, 1]; separation also its radius and ``form``), ``random_force``
@@ -6,7 +8,8 @@ Sub-tables (docs/model.md section 6 and the keys table of section 9): ``alignmen
 ``lookahead``, ``weight``, ``body_radius``), ``prey`` and ``predator``. ``min_speed`` is the lower speed
 clamp; the upper one is ``vehicle.max_speed``. Every check raises
 :class:`~simcore.schema.ConfigError` naming the dotted key; the table only enters a run's identity when
-``dynamics = "boidspp"`` (:func:`simcore.params.model_dict`).
+``dynamics = "boidspp"`` (:func:`simcore.params.model_dict`). Its keys are not converted from metres
+(they declare no power of length), so a preset in metres with this dynamics is refused.
 """
 from __future__ import annotations
 
@@ -19,6 +22,16 @@ from .schema import (ConfigError, check_at_least, check_choice, check_non_negati
 SEPARATION_FORMS = ("inverse_square", "velocity_over_distance")
 SCOPES = ("neighbours", "flock")
 PREDATOR_TARGETS = ("centre", "nearest")
+
+TABLE = "boidspp"
+HOOKS = ".boidspp"
+PLANAR = True
+OBSTACLES = True
+AGENTS = True
+PATTERNS = False
+THREADS = False
+USES = ("vehicle", "patterns")
+STREAMS = {"random_force": 2, "targets": 3}   # the random kicks; the prey's targets and the predator's start
 
 
 @dataclass(frozen=True)
@@ -149,16 +162,15 @@ class BoidsPP:
         check_non_negative("min_speed", self.min_speed)
 
 
-def check_boidspp(model) -> None:
+def check(model) -> None:
     """Cross-table checks of a model with ``dynamics = "boidspp"`` (ConfigError naming the key)."""
-    if model.leadership.enabled:
-        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; the change of leadership is not part "
-                                          "of dynamics 'boidspp': set leadership.x = 0")
-    if model.patterns.enabled:
-        raise ConfigError("patterns.enabled", "pattern recognition is not part of dynamics 'boidspp'")
     if model.boidspp.min_speed > model.vehicle.max_speed:
         raise ConfigError("boidspp.min_speed", f"got {model.boidspp.min_speed!r}; must be <= vehicle.max_speed "
                                                f"= {model.vehicle.max_speed!r}")
+    if model.world.dimensions == 2 and model.boidspp.prey.enabled and model.boidspp.prey.target_centre[2] != 0.0:
+        raise ConfigError("boidspp.prey.target_centre", f"got {list(model.boidspp.prey.target_centre)!r}; with "
+                                                        "world.dimensions = 2 the prey's targets lie in the plane: "
+                                                        "its z must be 0")
 
 
 def boidspp_dict(table: BoidsPP, to_dict) -> dict:
@@ -172,3 +184,27 @@ def boidspp_dict(table: BoidsPP, to_dict) -> dict:
     if table.random_force.magnitude == 0.0:
         out["random_force"] = {"magnitude": 0.0}
     return out
+
+
+Params = BoidsPP
+
+
+def canonical(table: BoidsPP) -> dict:
+    from .schema import to_dict
+
+    return boidspp_dict(table, to_dict)
+
+
+def agent_observations(model, agents, capture_step) -> dict:
+    """The agents' part of a run's observations: the predator's and the prey's recorded rows (None when
+    off) and the captures [(step, boid)] in step then boid order (None without a capture radius)."""
+    import numpy as np
+
+    table = model.boidspp
+    captures = None
+    if table.predator.enabled and table.predator.capture_radius is not None:
+        boids = np.flatnonzero(capture_step >= 0)
+        order = np.lexsort((boids, capture_step[boids]))
+        captures = np.stack([capture_step[boids][order], boids[order]], axis=1).astype(np.int64)
+    return {"predator": agents[:, 0].copy() if table.predator.enabled else None,
+            "prey": agents[:, 1].copy() if table.prey.enabled else None, "captures": captures}

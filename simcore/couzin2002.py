@@ -14,7 +14,7 @@ leaving out a neighbour at distance 0 and, with ``blind_deg`` = b > 0, those in 
    neighbour, or when d is zero, d = f_i. Then d is made unit.
 2. angular noise: d turned by a wrapped Gaussian angle of sd sigma: in 2-D by sigma g about +z, in 3-D by
    the angle sigma |g| towards (g1 e1 + g2 e2)/|g| (:func:`simcore.headings.tilt`), g the counter-based
-   standard normals of stream ``STREAM_COUZIN_NOISE`` at (step, i) in 2-D, (step, 2i) and (step, 2i + 1)
+   standard normals of stream ``STREAMS["noise"]`` (:mod:`simcore.couzin_params`) at (step, i) in 2-D, (step, 2i) and (step, 2i + 1)
    in 3-D.
 3. turning: the new heading is d when within theta dt of f_i, else f_i turned by theta dt towards d
    (:func:`simcore.headings.turn_toward`), then made unit.
@@ -34,7 +34,10 @@ from .dynamics import apply_boundary
 from .jit import inline, llvm_inline
 from .headings import float_dyn, heading_scratch, rotate_planar, set_heading, tilt, turn_toward, unit_heading
 from .layout import F, I, cos_deg
-from .rng import STREAM_COUZIN_NOISE, normal
+from .couzin_params import STREAMS
+from .rng import normal
+
+STREAM_NOISE = STREAMS["noise"]
 
 C_SLOTS = {
     "R_R": lambda c: c.repulsion_radius,
@@ -107,10 +110,10 @@ def noisy(dx, dy, dz, sd, key, step, i, planar):
     if sd == 0.0:
         return dx, dy, dz
     if planar:
-        x, y = rotate_planar(dx, dy, sd * normal(key, STREAM_COUZIN_NOISE, step, i))
+        x, y = rotate_planar(dx, dy, sd * normal(key, STREAM_NOISE, step, i))
         return x, y, 0.0
-    g1 = normal(key, STREAM_COUZIN_NOISE, step, 2 * i)
-    g2 = normal(key, STREAM_COUZIN_NOISE, step, 2 * i + 1)
+    g1 = normal(key, STREAM_NOISE, step, 2 * i)
+    g2 = normal(key, STREAM_NOISE, step, 2 * i + 1)
     g = math.sqrt(g1 * g1 + g2 * g2)
     if g == 0.0:
         return dx, dy, dz
@@ -128,7 +131,6 @@ def new_heading(i, step, m, nbrs, fwd, side, cp, dt, key, planar):
 
 
 # run-loop hooks (simcore.hooks)
-THREADS = True
 scratch = heading_scratch   # per boid: its new heading
 
 

@@ -19,7 +19,6 @@ from .noise import DRAWS, store_draws
 from .opensteer import empty_dyn
 from .rules import hartman_benes_forces
 
-THREADS = True
 DRAWS_AT = len(HB)  # the first column of the noise draws
 WIDTH = DRAWS_AT + DRAWS  # per-boid scratch columns: the steers, then the noise draws (simcore.noise)
 

@@ -1,12 +1,13 @@
 """The hooks of a dynamics, chosen at compile time: the one place the run loops learn what a dynamics does.
 
-A dynamics is one module (``simcore/opensteer.py``, ``hartman_benes.py``, ``reynolds87.py``,
-``boidspp.py``, ``couzin2002.py``, ``vicsek.py``), registered in ``MODULES`` below under its ``DYNAMICS_*``
-number (its position in :data:`simcore.params.DYNAMICS`). The run loops of :mod:`simcore.kernel` and :mod:`simcore.threaded` take
-the dynamics as a compile-time literal (``numba.literally``, as the perception kind, :mod:`simcore.jit`)
-and call the stubs below with it as first argument; numba's typing of a stub gives that dynamics' own
-function, so a run compiles only its dynamics. The groups the hooks receive (plain tuples of arrays,
-fixed compositions, so that the parallel loops can take them apart and rebuild them):
+A dynamics' hooks are one module (``simcore/opensteer.py``, ``vicsek.py``, ...; a plug-in's own module),
+named by its descriptor in the registry (:mod:`simcore.registry`), which also gives its number: a
+built-in's position there, a plug-in's from ``PLUGIN_BASE`` on. The run loops of :mod:`simcore.kernel` and
+:mod:`simcore.threaded` take the dynamics as a compile-time literal (``numba.literally``, as the perception
+kind, :mod:`simcore.jit`) and call the stubs below with it as first argument; numba's typing of a stub
+gives that dynamics' own function, so a run compiles (and imports) only its dynamics. The groups the hooks
+receive (plain tuples of arrays, fixed compositions, so that the parallel loops can take them apart and
+rebuild them):
 
 * ``state``   = (pos, vel, fwd, up, side, acc, pattern, clock, escape, agents) (:mod:`simcore.state`)
 * ``params``  = (fp, ip, dyn): the shared slots (:mod:`simcore.layout`) and the dynamics' own 5 arrays
@@ -28,12 +29,10 @@ except ``scratch``, which allocates):
   step, before its record), ``record_extra(dynamics, r, state, records)`` (with the state record r),
   ``before_boids(dynamics, step, state, params, key, scratch, records)`` (after the record, before any
   boid perceives) and ``after_boids(dynamics, step, state, params, key, scratch)`` (after every boid moved);
-* ``THREADS`` (Python): whether a synchronous run of this dynamics is split over threads
-  (:mod:`simcore.threaded`); without it, one thread per run.
-
-A plug-in dynamics (:mod:`simcore.plugin`: a user's module named in a preset) is not in ``MODULES``: its
-number (from ``PLUGIN_BASE`` on) chooses the hooks of :mod:`simcore.plugin_hooks`, which call its own
-function.
+Whether a synchronous run of a dynamics may split over threads is its descriptor's ``THREADS``
+(:mod:`simcore.simulate`). A plug-in that defines only ``steer`` runs through the hooks of
+:mod:`simcore.plugin_hooks`; one with the full hook set is reached through the same module's adapters,
+which compile its functions without a cache of their own (they live on in the run loop's cached code).
 """
 from __future__ import annotations
 
@@ -42,28 +41,19 @@ import inspect
 from numba import types
 from numba.extending import overload
 
-from . import boidspp, couzin2002, hartman_benes, opensteer, reynolds87, vicsek
-from . import plugin_hooks
+from . import registry
 from .jit import COMPILED_ONLY, KERNEL_OPTIONS, LEAF_OPTIONS
-from .layout import (DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002, DYNAMICS_HARTMAN_BENES, DYNAMICS_OPENSTEER,
-                     DYNAMICS_REYNOLDS87, DYNAMICS_VICSEK)
-from .params import DYNAMICS
-from .plugin import BY_NUMBER
-
-MODULES = {DYNAMICS_OPENSTEER: opensteer, DYNAMICS_HARTMAN_BENES: hartman_benes,
-           DYNAMICS_REYNOLDS87: reynolds87, DYNAMICS_BOIDSPP: boidspp, DYNAMICS_COUZIN2002: couzin2002,
-           DYNAMICS_VICSEK: vicsek}
-assert sorted(MODULES) == list(range(len(DYNAMICS)))
 
 
 def module_of(dynamics: str):
-    """The module of a dynamics named as in presets (``model.dynamics``; a plug-in's: plugin_hooks)."""
-    return MODULES[DYNAMICS.index(dynamics)] if dynamics in DYNAMICS else plugin_hooks
+    """The hooks module the run loops use for a dynamics named as in presets (``model.dynamics``; every
+    plug-in's: :mod:`simcore.plugin_hooks`)."""
+    return _hooks_of(registry.describe(dynamics))
 
 
 def name_of(number: int) -> str:
     """The name presets give the dynamics of run-loop literal ``number``."""
-    return DYNAMICS[number] if number in MODULES else BY_NUMBER[number].name
+    return registry.by_number(number).name
 
 
 def pack(model, dt):
@@ -128,13 +118,25 @@ OPTIONAL = {"begin_step": no_begin_step, "record_extra": no_record_extra, "befor
 
 
 def _choose(name, dynamics):
-    """numba's typing of hook ``name``: with a literal dynamics, its module's function (or the optional
-    hook's default); otherwise none (numba's typing error names the hook and the argument types)."""
-    if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in MODULES:
-        return getattr(MODULES[dynamics.literal_value], name, OPTIONAL.get(name))
-    if isinstance(dynamics, types.IntegerLiteral) and dynamics.literal_value in BY_NUMBER:
-        return getattr(plugin_hooks, name, OPTIONAL.get(name))
-    return None
+    """numba's typing of hook ``name``: with a literal dynamics, its hooks module's function (or the
+    optional hook's default); otherwise none (numba's typing error names the hook and the argument types)."""
+    if not isinstance(dynamics, types.IntegerLiteral):
+        return None
+    try:
+        described = registry.by_number(dynamics.literal_value)
+    except (KeyError, IndexError):
+        return None
+    return getattr(_hooks_of(described), name, OPTIONAL.get(name))
+
+
+def _hooks_of(described):
+    """A built-in's hooks module; for every plug-in, :mod:`simcore.plugin_hooks` (whose adapters reach the
+    plug-in's own functions, compiled without a cache)."""
+    if described.builtin:
+        return described.hooks()
+    from . import plugin_hooks
+
+    return plugin_hooks
 
 
 def _register(stub, jit_options):

@@ -59,6 +59,7 @@ from .leadership import is_leader
 from .neighbours import EYE_BOTH, new_neighbours
 from .perception import perceive, query_radius
 from .topological import cell_side
+from .walls import contain
 
 AUTO_MIN_SAVING = 250  # search = "auto": the grid when it spares this many candidates per boid
 
@@ -134,6 +135,8 @@ def move_range(lo, hi, state, params, scratch, dynamics):
     """Synchronous order, boids lo..hi-1: move with what they decided."""
     for i in range(lo, hi):
         hooks.move(dynamics, i, state, params, scratch)
+        if params[1][I.ARENA] != 0:
+            contain(i, state, params)
 
 
 @inline
@@ -159,6 +162,8 @@ def step_sequential(step, state, params, key, work, nbrs, grid, use_grid, record
         if hooks.sense(dynamics, i, step, m, nbrs, state, params, key, scratch):
             record_trigger(step, i, records)
         hooks.move(dynamics, i, state, params, scratch)
+        if ip[I.ARENA] != 0:
+            contain(i, state, params)
         if not use_grid:
             cells.mirror_one(grid, i, pos)
         elif not cells.rebin(grid, i, pos):

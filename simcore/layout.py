@@ -11,7 +11,9 @@ move, and its meaning depends on the dynamics: columns ``OS.*`` (opensteer: the 
 ``HB.*`` (hartman_benes: the separation, cohesion and alignment steers). Each is one declaration.
 
 Enumerations (``PERCEPTION_*``, ``BOUNDARY_*``, ...) are the positions of the choices in the tuples of
-:mod:`simcore.params`. Angles become cosines/sines here, once, with exact values at multiples of 90
+:mod:`simcore.params`; a dynamics' number (``I.DYNAMICS``, the run loop's literal) is the registry's
+(:mod:`simcore.registry`). The ``[steering]`` weights and ``[gains]`` live in the shared slots because
+plug-ins' hooks read them there (docs/plugins.md). Angles become cosines/sines here, once, with exact values at multiples of 90
 degrees so that geometric boundary cases (a field of exactly 180 degrees sees exactly sideways) hold bit
 for bit.
 """
@@ -22,8 +24,10 @@ from enum import IntEnum
 
 import numpy as np
 
-from .params import (BOUNDARIES, DYNAMICS, FRONT_GATES, PERCEPTION_KINDS, SEARCHES, SEPARATION_WEIGHTS,
-                     UPDATE_ORDERS, ModelParams)
+from .params import (BOUNDARIES, FRONT_GATES, PERCEPTION_KINDS, SEARCHES, SEPARATION_WEIGHTS, UPDATE_ORDERS,
+                     ModelParams)
+from .arena import ARENA_KINDS
+from .registry import describe
 
 
 def cos_deg(angle_deg: float) -> float:
@@ -109,6 +113,15 @@ FLOAT_SLOTS = {
     "SPEED_KICK": lambda m, dt: speed_kick(m, dt),
     "CRUISE_SPEED": lambda m, dt: m.cruise.speed if m.cruise.enabled else 0.0,
     "CRUISE_DECAY": lambda m, dt: math.exp(-dt / m.cruise.tau) if m.cruise.enabled else 1.0,
+    "ARENA_CX": lambda m, dt: m.arena.centre[0],
+    "ARENA_CY": lambda m, dt: m.arena.centre[1],
+    "ARENA_CZ": lambda m, dt: m.arena.centre[2],
+    "ARENA_RADIUS": lambda m, dt: m.arena.radius,
+    "ARENA_HALF_X": lambda m, dt: m.arena.size[0] / 2.0,
+    "ARENA_HALF_Y": lambda m, dt: m.arena.size[1] / 2.0,
+    "ARENA_HALF_Z": lambda m, dt: arena_half_z(m.arena),
+    "WALL_WEIGHT": lambda m, dt: m.arena.wall_weight,
+    "WALL_RANGE": lambda m, dt: m.arena.wall_range,
 }
 
 # integer parameters (choices as their position in the params tuples, flags as 0/1)
@@ -129,6 +142,9 @@ INT_SLOTS = {
     "FRONT_GATE": lambda m, dt: FRONT_GATES.index(m.leadership.front_gate),
     "DRIVE": lambda m, dt: int(m.noise.enabled or m.cruise.enabled),
     "DIMENSIONS": lambda m, dt: m.world.dimensions,
+    "ARENA": lambda m, dt: ARENA_KINDS.index(m.arena.kind),
+    "REFLECT": lambda m, dt: int(m.arena.reflect),
+    "CONSTANT_SPEED": lambda m, dt: int(describe(m.dynamics).heading),
 }
 
 F = IntEnum("F", list(FLOAT_SLOTS), start=0)
@@ -145,27 +161,29 @@ SEARCH_AUTO, SEARCH_GRID, SEARCH_ALL_PAIRS = range(3)
 BOUNDARY_OPEN, BOUNDARY_SPHERE_WRAP, BOUNDARY_PERIODIC = range(3)
 ORDER_SYNCHRONOUS, ORDER_SEQUENTIAL = range(2)
 SEPW_SIMILARITY, SEPW_DISSIMILARITY, SEPW_UNIFORM = range(3)
-(DYNAMICS_OPENSTEER, DYNAMICS_HARTMAN_BENES, DYNAMICS_REYNOLDS87, DYNAMICS_BOIDSPP, DYNAMICS_COUZIN2002,
- DYNAMICS_VICSEK) = range(6)
 GATE_POSITIVE, GATE_WEIGHTED, GATE_NONE = range(3)
+ARENA_NONE, ARENA_CYLINDER, ARENA_BOX = range(3)
 
 assert PERCEPTION_KINDS == ("sphere", "opensteer", "binocular", "topological")
 assert SEARCHES == ("auto", "grid", "all_pairs")
 assert BOUNDARIES == ("open", "sphere_wrap", "periodic_box")
 assert UPDATE_ORDERS == ("synchronous", "sequential")
 assert SEPARATION_WEIGHTS == ("similarity", "dissimilarity", "uniform")
-assert DYNAMICS == ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
 assert FRONT_GATES == ("positive", "weighted", "none")
+assert ARENA_KINDS == ("none", "cylinder", "box")
+
+
+def arena_half_z(arena) -> float:
+    """Half the arena's extent along z: a box's half side, a cylinder's half height (infinite without one)."""
+    if arena.kind == "cylinder":
+        return math.inf if arena.height is None else arena.height / 2.0
+    return arena.size[2] / 2.0
 
 
 def dynamics_number(dynamics: str) -> int:
-    """The run loop's literal for a dynamics: its position in DYNAMICS, or a plug-in's number (loaded and
-    registered here when this process has not yet, :mod:`simcore.plugin`)."""
-    if dynamics in DYNAMICS:
-        return DYNAMICS.index(dynamics)
-    from .plugin import load
-
-    return load(dynamics, DYNAMICS).number
+    """The run loop's literal for a dynamics: a built-in's position in the registry, or a plug-in's number
+    (loaded and registered here when this process has not yet, :mod:`simcore.registry`)."""
+    return describe(dynamics).number
 
 
 def pack(model: ModelParams, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -18,7 +18,6 @@ from .leadership import escape_of, sense_trigger
 from .noise import DRAWS, store_draws
 from .rules import cohesion_offset, opensteer_force
 
-THREADS = True
 DRAWS_AT = len(OS)  # the first column of the noise draws
 WIDTH = DRAWS_AT + DRAWS  # per-boid scratch columns: the force, then the noise draws (simcore.noise)
 

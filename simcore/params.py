@@ -17,27 +17,21 @@ may state its lengths in metres with a ``[units]`` table (:mod:`simcore.units`),
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, make_dataclass
 from typing import Any
 
-from .boidspp_params import BoidsPP, boidspp_dict, check_boidspp
-from .couzin_params import Couzin
+from . import registry
+from .arena import Arena
 from .obstacle_spec import Obstacle, canonical_obstacles
 from .pattern_params import HOLLAND_TABLE_1, SEPARATION_WEIGHTS, PatternEntry, Patterns  # noqa: F401
-from .reynolds_params import ALLOCATIONS, MIGRATION_WHO, Reynolds  # noqa: F401
 from .units import Units, to_body_lengths
-from .vicsek_params import Vicsek
 from .schema import (ConfigError, apply_overrides, build, check_choice as _choice, check_non_negative as _non_negative,
                      check_positive as _positive, check_within as _within, read_toml as _read_toml, replace_fields,
                      to_dict, unknown_key)
 
 PERCEPTION_KINDS = ("sphere", "opensteer", "binocular", "topological")
 SEARCHES = ("auto", "grid", "all_pairs")
-DYNAMICS = ("opensteer", "hartman_benes", "reynolds87", "boidspp", "couzin2002", "vicsek")
-HEADING_DYNAMICS = ("couzin2002", "vicsek")  # constant-speed heading models: sphere perception, 2-D or 3-D
-# the dynamics that run with world.dimensions = 2 (docs/model.md section 15; plug-ins are 3-D only)
-PLANAR_DYNAMICS: tuple[str, ...] = ("opensteer", "hartman_benes", "reynolds87", "boidspp") + HEADING_DYNAMICS
-OBSTACLE_DYNAMICS: tuple[str, ...] = ("reynolds87", "boidspp")  # the dynamics whose kernels read world.obstacles
+DYNAMICS = registry.builtin_names()   # the built-in dynamics (simcore.registry: what each one can do)
 FRONT_GATES = ("positive", "weighted", "none")
 BOUNDARIES = ("open", "sphere_wrap", "periodic_box")
 UPDATE_ORDERS = ("synchronous", "sequential")
@@ -132,19 +126,6 @@ class Perception:
 
 
 @dataclass(frozen=True)
-class Steering:
-    """Weights of the combined OpenSteer steering force (docs/model.md, steering)."""
-
-    separation_weight: float = 12.0
-    alignment_weight: float = 8.0
-    cohesion_weight: float = 8.0
-
-    def __post_init__(self):
-        for name in ("separation_weight", "alignment_weight", "cohesion_weight"):
-            _non_negative(f"steering.{name}", getattr(self, name))
-
-
-@dataclass(frozen=True)
 class Vehicle:
     """OpenSteer SimpleVehicle physics constants."""
 
@@ -166,7 +147,7 @@ class World:
     box_size: float = 100.0
     update_order: str = "synchronous"
     obstacles: tuple[Obstacle, ...] = ()
-    dimensions: int = 3  # 2: motion in the plane z = 0 (PLANAR_DYNAMICS)
+    dimensions: int = 3  # 2: motion in the plane z = 0 (a dynamics whose descriptor says PLANAR)
 
     def __post_init__(self):
         _choice("world.boundary", self.boundary, BOUNDARIES)
@@ -174,22 +155,6 @@ class World:
         _positive("world.sphere_radius", self.sphere_radius)
         _positive("world.box_size", self.box_size)
         _choice("world.update_order", self.update_order, UPDATE_ORDERS)
-
-
-@dataclass(frozen=True)
-class Gains:
-    """Hartman-Benes raw velocity update (docs/model.md, Hartman-Benes), gains per frame (= per step):
-    v' = v + (S s + K k) / dt + M m, with s = sum_j (p_i - p_j) / |p_i - p_j|^falloff."""
-
-    separation: float = 0.005
-    cohesion: float = 0.01
-    alignment: float = 0.1
-    separation_falloff_exponent: float = 2.0
-
-    def __post_init__(self):
-        for name in ("separation", "cohesion", "alignment"):
-            _within(f"gains.{name}", getattr(self, name), 0.0, 1.0)
-        _within("gains.separation_falloff_exponent", self.separation_falloff_exponent, 0.0, 4.0)
 
 
 @dataclass(frozen=True)
@@ -273,50 +238,20 @@ class Cruise:
         return self.speed is not None
 
 
-@dataclass(frozen=True)
-class ModelParams:
-    """Everything that defines the model (not the run): perception, rules, physics, world."""
-
-    name: str = "opensteer"
-    dynamics: str = "opensteer"
-    description: str = ""
-    perception: Perception = field(default_factory=Perception)
-    steering: Steering = field(default_factory=Steering)
-    vehicle: Vehicle = field(default_factory=Vehicle)
-    world: World = field(default_factory=World)
-    patterns: Patterns = field(default_factory=Patterns)
-    gains: Gains = field(default_factory=Gains)
-    leadership: Leadership = field(default_factory=Leadership)
-    reynolds: Reynolds = field(default_factory=Reynolds)
-    boidspp: BoidsPP = field(default_factory=BoidsPP)
-    noise: Noise = field(default_factory=Noise)
-    cruise: Cruise = field(default_factory=Cruise)
-    couzin: Couzin = field(default_factory=Couzin)
-    vicsek: Vicsek = field(default_factory=Vicsek)
-    plugin: Any = None                 # a plug-in dynamics' parameters (simcore.plugin): its Params
-    plugin_sha256: str | None = None   # the plug-in module's SHA-256 (filled in; checked when given)
+class _Model:
+    """The methods of :class:`ModelParams` (its fields come from the registry, below)."""
 
     def __post_init__(self):
         if not isinstance(self.dynamics, str):
             raise ConfigError("dynamics", f"expected a string, got {self.dynamics!r}")
-        if self.dynamics in DYNAMICS:
+        dynamics = registry.describe(self.dynamics)
+        if dynamics.builtin:
             _check_builtin(self)
         else:
             _check_plugin(self)
-        if self.world.dimensions == 2:
-            _check_planar(self)
-        if self.dynamics in HEADING_DYNAMICS:
-            _check_heading_model(self)
-        if self.dynamics == "reynolds87":
-            _check_reynolds(self)
-        if self.dynamics == "boidspp":
-            check_boidspp(self)
-        if self.world.obstacles and self.dynamics not in OBSTACLE_DYNAMICS:
-            raise ConfigError("world.obstacles", f"dynamics {self.dynamics!r} does not avoid obstacles; obstacles "
-                                                 f"are read by dynamics {OBSTACLE_DYNAMICS}")
-        if self.dynamics in ("hartman_benes", "reynolds87") + HEADING_DYNAMICS and self.perception.kind != "sphere":
-            raise ConfigError("perception.kind", f"got {self.perception.kind!r}; dynamics {self.dynamics!r} "
-                                                 "uses the perception sphere: set perception.kind = 'sphere'")
+        _check_capabilities(self, dynamics)
+        if self.arena.enabled:
+            _check_arena(self)
         if self.leadership.enabled and not math.isfinite(self.perception_range):
             raise ConfigError("perception.max_distance", "the change of leadership measures eccentricity against "
                                                          "the perception range: set perception.max_distance")
@@ -329,12 +264,9 @@ class ModelParams:
     @property
     def sphere_radius(self) -> float:
         """The radius of the perception sphere: ``perception.radius``, or what the dynamics derives it from
-        (couzin2002: the outer edge of the zone of attraction; vicsek: its alignment radius)."""
-        if self.dynamics == "couzin2002":
-            return self.couzin.outer_radius
-        if self.dynamics == "vicsek":
-            return self.vicsek.radius
-        return self.perception.radius
+        (its descriptor's ``sphere_radius``: couzin2002's zone of attraction, vicsek's alignment radius)."""
+        derived = registry.describe(self.dynamics).sphere_radius
+        return self.perception.radius if derived is None else derived(self)
 
     @property
     def perception_range(self) -> float:
@@ -346,7 +278,32 @@ class ModelParams:
         return {"sphere": self.sphere_radius, "binocular": per.range, "opensteer": per.cohesion_radius}[per.kind]
 
 
-def _check_builtin(model: ModelParams) -> None:
+# the tables every model has; then each built-in dynamics' own table (simcore.registry), then a plug-in's
+SHARED_FIELDS = (
+    ("name", str, DYNAMICS[0]), ("dynamics", str, DYNAMICS[0]), ("description", str, ""),
+    ("perception", Perception, field(default_factory=Perception)),
+    ("vehicle", Vehicle, field(default_factory=Vehicle)), ("world", World, field(default_factory=World)),
+    ("patterns", Patterns, field(default_factory=Patterns)),
+    ("leadership", Leadership, field(default_factory=Leadership)),
+    ("noise", Noise, field(default_factory=Noise)), ("cruise", Cruise, field(default_factory=Cruise)),
+    ("arena", Arena, field(default_factory=Arena)),
+)
+PLUGIN_FIELDS = (
+    ("plugin", Any, None),                  # a plug-in dynamics' parameters (simcore.plugin): its Params
+    ("plugin_sha256", str | None, None),    # the plug-in module's SHA-256 (filled in; checked when given)
+)
+MODEL_TABLES = tuple(registry.builtin_tables())   # the built-ins' own tables, in registry order
+ModelParams = make_dataclass(
+    "ModelParams",
+    [*SHARED_FIELDS, *((name, cls, field(default_factory=cls)) for name, cls in registry.builtin_tables().items()),
+     *PLUGIN_FIELDS],
+    bases=(_Model,), frozen=True,
+    namespace={"__doc__": "Everything that defines the model (not the run): perception, rules, physics, world; "
+                          "one table per built-in dynamics (simcore.registry) and a plug-in's ``plugin``.",
+               "__module__": __name__})
+
+
+def _check_builtin(model) -> None:
     """A built-in dynamics has no [plugin] table."""
     if model.plugin not in (None, {}):
         raise ConfigError("plugin", f"applies only to a plug-in dynamics, not {model.dynamics!r} (docs/plugins.md)")
@@ -355,66 +312,64 @@ def _check_builtin(model: ModelParams) -> None:
     object.__setattr__(model, "plugin", None)
 
 
-def _check_plugin(model: ModelParams) -> None:
-    """A plug-in dynamics (simcore.plugin): its module loaded, its [plugin] table built and its source hash
-    recorded; it has no change of leadership."""
+def _check_plugin(model) -> None:
+    """A plug-in dynamics (simcore.plugin): its [plugin] table built and its source hash recorded."""
     from .plugin import validate
 
     values, sha = validate(model, DYNAMICS)
     object.__setattr__(model, "plugin", values)
     object.__setattr__(model, "plugin_sha256", sha)
-    if model.leadership.enabled:
-        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; a plug-in dynamics has no change of "
+
+
+def _check_capabilities(model, dynamics: registry.Dynamics) -> None:
+    """What the model asks of its dynamics, against what the dynamics can do (its descriptor's flags,
+    then its own ``check``); ConfigError naming the key."""
+    name = model.dynamics
+    if model.world.dimensions == 2:
+        _check_planar(model, dynamics)
+    if model.leadership.enabled and not dynamics.leadership:
+        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; dynamics {name!r} has no change of "
                                           "leadership: set leadership.x = 0")
+    if model.patterns.enabled and not dynamics.patterns:
+        raise ConfigError("patterns.enabled", f"dynamics {name!r} has no pattern mode: set patterns.enabled = false")
+    if not dynamics.shared_noise and model.noise.enabled:
+        raise ConfigError("noise", f"dynamics {name!r} has its own noise and a constant speed ([{dynamics.table}]): "
+                                   "leave [noise] out")
+    if not dynamics.shared_noise and model.cruise.enabled:
+        raise ConfigError("cruise.speed", f"got {model.cruise.speed!r}; dynamics {name!r} flies at a constant "
+                                          f"speed ([{dynamics.table}]): leave [cruise] out")
+    dynamics.check(model)
+    if model.world.obstacles and not dynamics.obstacles:
+        readers = tuple(d.name for d in registry.builtins() if d.obstacles)
+        raise ConfigError("world.obstacles", f"dynamics {name!r} does not avoid obstacles; obstacles "
+                                             f"are read by dynamics {readers}")
+    if dynamics.perception is not None and model.perception.kind != dynamics.perception:
+        raise ConfigError("perception.kind", f"got {model.perception.kind!r}; dynamics {name!r} uses the "
+                                             f"perception {dynamics.perception}: set perception.kind = "
+                                             f"'{dynamics.perception}'")
 
 
-def _check_reynolds(model: ModelParams) -> None:
-    """reynolds87 has no change of leadership and no pattern mode (docs/model.md, Reynolds 1987)."""
-    if model.leadership.enabled:
-        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; dynamics 'reynolds87' has no change of "
-                                          "leadership: set leadership.x = 0")
-    if model.patterns.enabled:
-        raise ConfigError("patterns.enabled", "dynamics 'reynolds87' has no pattern mode: set patterns.enabled = false")
+def _check_arena(model) -> None:
+    """A tank (``[arena]``, docs/model.md section 16) needs an open world, and in 2-D lies in the plane."""
+    if model.world.boundary != "open":
+        raise ConfigError("world.boundary", f"got {model.world.boundary!r}; an arena (arena.kind = "
+                                            f"{model.arena.kind!r}) needs an open world: set world.boundary = 'open'")
+    if model.world.dimensions == 2 and model.arena.centre[2] != 0.0:
+        raise ConfigError("arena.centre", f"got {list(model.arena.centre)!r}; with world.dimensions = 2 the arena "
+                                          "lies in the plane: its z must be 0")
 
 
-def _check_planar(model: ModelParams) -> None:
-    """A 2-D model (``world.dimensions = 2``): a built-in dynamics, and nothing that lives out of the plane
-    z = 0 (ConfigError naming the key; docs/model.md section 15)."""
-    if model.dynamics not in PLANAR_DYNAMICS:
+def _check_planar(model, dynamics: registry.Dynamics) -> None:
+    """A 2-D model (``world.dimensions = 2``): a dynamics that moves in the plane, and nothing that lives
+    out of the plane z = 0 (ConfigError naming the key; docs/model.md section 15)."""
+    if not dynamics.planar:
+        planar = tuple(d.name for d in registry.builtins() if d.planar)
         raise ConfigError("world.dimensions", f"got 2; dynamics {model.dynamics!r} runs in 3-D only: 2-D "
-                                              f"motion is available for dynamics {PLANAR_DYNAMICS}")
+                                              f"motion is available for dynamics {planar}")
     if model.world.obstacles:
         raise ConfigError("world.obstacles", f"{len(model.world.obstacles)} obstacle(s) with world.dimensions = 2: "
                                              "obstacles are 3-D solids and a 2-D run has none; leave them out "
                                              "or set world.dimensions = 3")
-    if model.dynamics == "reynolds87" and model.reynolds.migration_weight > 0.0 \
-            and model.reynolds.migration_direction[2] != 0.0:
-        raise ConfigError("reynolds.migration_direction", f"got {list(model.reynolds.migration_direction)!r}; "
-                                                          "with world.dimensions = 2 the migratory goal lies in "
-                                                          "the plane: its z must be 0")
-    if model.dynamics == "boidspp" and model.boidspp.prey.enabled and model.boidspp.prey.target_centre[2] != 0.0:
-        raise ConfigError("boidspp.prey.target_centre", f"got {list(model.boidspp.prey.target_centre)!r}; with "
-                                                        "world.dimensions = 2 the prey's targets lie in the plane: "
-                                                        "its z must be 0")
-
-
-def _check_heading_model(model: ModelParams) -> None:
-    """couzin2002 and vicsek: no change of leadership, no pattern mode, no [noise] or [cruise] (their own noise
-    and constant speed; docs/model.md)."""
-    if model.leadership.enabled:
-        raise ConfigError("leadership.x", f"got {model.leadership.x!r}; dynamics {model.dynamics!r} has no change "
-                                          "of leadership: set leadership.x = 0")
-    if model.patterns.enabled:
-        raise ConfigError("patterns.enabled", f"dynamics {model.dynamics!r} has no pattern mode: set "
-                                              "patterns.enabled = false")
-    table = "couzin" if model.dynamics == "couzin2002" else "vicsek"
-    own = "couzin.noise_sd" if table == "couzin" else "vicsek.noise"
-    if model.noise.enabled:
-        raise ConfigError("noise", f"dynamics {model.dynamics!r} has its own angular noise ({own}) and a constant "
-                                   "speed: leave [noise] out")
-    if model.cruise.enabled:
-        raise ConfigError("cruise.speed", f"got {model.cruise.speed!r}; dynamics {model.dynamics!r} flies at a "
-                                          f"constant speed ({table}.speed): leave [cruise] out")
 
 
 @dataclass(frozen=True)
@@ -531,6 +486,9 @@ class Preset:
     run: RunSettings
     units: Units = field(default_factory=Units)  # what the file was written in (section 12); not part of identity
 
+    def __post_init__(self):
+        _check_start_region(self.model, self.init)
+
     def full_dict(self) -> dict:
         """Every key with its resolved value (nothing left out), for reading swept values back."""
         out = {**to_dict(self.model), "init": to_dict(self.init), "run": to_dict(self.run)}
@@ -568,6 +526,22 @@ class Preset:
                       run=replace_fields(run, [c for c in sections["run"] if c[0]], "run"), units=self.units)
 
 
+def _check_start_region(model, init) -> None:
+    """With an arena, the drawn start region (a ball or cube about the origin) lies inside it."""
+    arena = model.arena
+    if not arena.enabled or init.from_file is not None:
+        return
+    dimensions = model.world.dimensions
+    reach = init.region_radius(dimensions) * (math.sqrt(dimensions) if init.region == "cube" else 1.0)
+    offset = math.sqrt(sum(c * c for c in arena.centre[:dimensions]))
+    if offset + reach > arena.inner_extent(dimensions):
+        raise ConfigError("init.radius", f"the start region (reach {reach:g} from the origin) does not fit in the "
+                                         f"arena (its largest inner {'disc' if dimensions == 2 else 'ball'} about "
+                                         f"{list(arena.centre[:dimensions])} has radius "
+                                         f"{arena.inner_extent(dimensions):g}): make init.radius smaller or the "
+                                         "arena larger")
+
+
 def _new_dynamics(changes) -> list:
     """Model changes, plus: a change of dynamics drops the plug-in table and hash of the old one (unless the
     changes set them), so the new dynamics' are built and recorded afresh."""
@@ -592,49 +566,31 @@ def _perception_keys(changes) -> list[str]:
 
 def model_dict(model: ModelParams) -> dict:
     """Canonical resolved dict of a model (see :meth:`Preset.to_dict`): tables that cannot affect the
-    run are left out (the other dynamics' constants; leadership while x = 0), so adding a feature
-    never changes the identity of runs that do not use it."""
+    run are left out (the tables of the other dynamics, the shared tables its dynamics does not use, a
+    feature that is off: leadership while x = 0), so adding a feature never changes the identity of runs
+    that do not use it. What a dynamics keeps is its descriptor's (:meth:`simcore.registry.Dynamics.keeps`)."""
+    dynamics = registry.describe(model.dynamics)
     out = to_dict(model)
-    out["perception"] = model.perception.resolved()
+    # a dynamics that derives its sphere from its own table records only the kind
+    out["perception"] = {"kind": model.perception.kind} if dynamics.sphere_radius else model.perception.resolved()
     if model.world.dimensions == 3:
         del out["world"]["dimensions"]
-    for table in ("couzin", "vicsek"):
-        if model.dynamics != {"couzin": "couzin2002", "vicsek": "vicsek"}[table]:
+    features = {"leadership": model.leadership.enabled, "noise": model.noise.enabled, "cruise": model.cruise.enabled}
+    for table in ("vehicle", "patterns", *features, *MODEL_TABLES):
+        if not dynamics.keeps(table, features.get(table, True)):
             del out[table]
-    if model.dynamics in HEADING_DYNAMICS:
-        out["perception"] = {"kind": "sphere"}   # the dynamics' own table sets the sphere
-        del out["steering"], out["gains"], out["vehicle"], out["patterns"], out["reynolds"]
-        out.pop("boidspp")
-        if not model.leadership.enabled:
-            del out["leadership"]
-        del out["world"]["obstacles"]
-        return out
-    if model.dynamics == "reynolds87":
-        del out["steering"], out["gains"], out["vehicle"], out["patterns"]
-        out["reynolds"] = model.reynolds.canonical()
-    else:
-        del out["reynolds"]
-        plugin = model.dynamics not in DYNAMICS   # a plug-in's steer receives every shared slot (fp)
-        if model.dynamics != "opensteer" and not plugin:
-            del out["steering"]
-        if model.dynamics != "hartman_benes" and not plugin:
-            del out["gains"]
-    if model.dynamics == "boidspp":
-        out["boidspp"] = boidspp_dict(model.boidspp, to_dict)
-    else:
-        del out["boidspp"]
-    if model.dynamics in DYNAMICS:   # added later: absent for built-ins, so their run ids stay valid
+        elif table == dynamics.table and dynamics.canonical is not None:
+            out[table] = dynamics.canonical(getattr(model, table))
+    if dynamics.builtin and "plugin" not in dynamics.uses:   # added later: absent, so run ids stay valid
         del out["plugin"], out["plugin_sha256"]
-    if not model.leadership.enabled:
-        del out["leadership"]
-    if not model.noise.enabled:
-        del out["noise"]
-    if not model.cruise.enabled:
-        del out["cruise"]
     if model.world.obstacles:
         out["world"]["obstacles"] = canonical_obstacles(model.world.obstacles)
     else:
         del out["world"]["obstacles"]
+    if model.arena.enabled:   # added later: absent while off, so run ids without an arena stay valid
+        out["arena"] = model.arena.canonical()
+    else:
+        del out["arena"]
     return out
 
 

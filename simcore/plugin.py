@@ -3,7 +3,11 @@
 A preset's ``dynamics`` is either a built-in dynamics (:data:`simcore.params.DYNAMICS`) or a plug-in:
 the name of an entry point in the group ``flocksweep.dynamics`` (its value a module path), or an
 importable module path (``dynamics = "examples.couzin_like"``). :func:`load` imports that one module,
-and only it, checks its interface and registers it. The module defines:
+and only it, checks its interface and registers it; :mod:`simcore.registry` then describes it as it does a
+built-in (the module's capability flags, with :data:`DEFAULTS` for those it leaves out). The module
+defines ``Params`` and either the full hook set of a dynamics (``scratch``, ``sense``, ``move`` and the
+optional ones, :mod:`simcore.hooks`; run through the adapters of :mod:`simcore.plugin_hooks`) or the
+convenience ``steer``:
 
 * ``Params``: a frozen dataclass subclassing :class:`PluginParams`, one field per parameter (``float``,
   ``int`` or ``bool``), each declared with :func:`parameter` (default, unit, bounds). The preset's
@@ -48,40 +52,53 @@ ENTRY_POINT_GROUP = "flocksweep.dynamics"
 PLUGIN_BASE = 1 << 40   # plug-in dynamics numbers start here; built-ins are 0, 1, ...
 TABLE = "plugin"        # the preset table of a plug-in's parameters
 PARAM_TYPES = (float, int, bool)
-REQUIRED = ("Params", "steer")
+REQUIRED = ("Params",)
+HOOK_SET = ("scratch", "sense", "move")   # the full hook set (simcore.hooks), or else ``steer``
+# a plug-in's capabilities when its module declares none (simcore.registry)
+DEFAULTS = {"planar": False, "obstacles": False, "leadership": False, "patterns": True, "shared_noise": True,
+            "uses": ("steering", "gains", "vehicle", "patterns")}   # a plug-in's hooks receive every shared slot
 
 
 def parameter(default, *, unit: str = "", low: float | None = None, high: float | None = None,
-              low_open: bool = False, doc: str = ""):
-    """A plug-in parameter: a dataclass field with its default, unit and bounds ``[low, high]`` (``(low,
-    high]`` with ``low_open``; None: unbounded on that side), checked by :class:`PluginParams`."""
+              low_open: bool = False, high_open: bool = False, length=None, doc: str = ""):
+    """A model parameter (a plug-in's, or a built-in table's): a dataclass field with its default, unit and
+    bounds ``[low, high]`` (``(low`` with ``low_open``, ``high)`` with ``high_open``; None: unbounded on
+    that side), checked by :class:`PluginParams`. ``length``: the power of length the value carries, for a
+    preset written in metres (:mod:`simcore.units`: 0 for none, 1 for a length, a speed or an acceleration,
+    or a function of the preset's data); None: not declared (such a table is not converted from metres)."""
     return field(default=default, metadata={"unit": unit, "low": low, "high": high, "low_open": low_open,
-                                            "doc": doc})
+                                            "high_open": high_open, "length": length, "doc": doc})
 
 
 @dataclass(frozen=True)
 class PluginParams:
-    """Base of a plug-in's ``Params``: checks every field against the bounds :func:`parameter` declared
-    (a float must also be finite), raising ConfigError naming the key, the value, its unit and the range."""
+    """Base of a model's parameter table (a plug-in's ``Params``, a built-in's table): checks every field
+    against the bounds :func:`parameter` declared (a float must also be finite), raising ConfigError
+    naming the key (under the table ``TABLE`` when the class sets one), the value, its unit and the
+    range."""
+
+    TABLE: typing.ClassVar[str] = ""
 
     def __post_init__(self):
         for spec in dataclasses.fields(self):
-            check_bounds(spec, getattr(self, spec.name))
+            check_bounds(spec, getattr(self, spec.name), self.TABLE)
 
 
-def check_bounds(spec: dataclasses.Field, value) -> None:
+def check_bounds(spec: dataclasses.Field, value, table: str = "") -> None:
     meta = spec.metadata
-    low, high, low_open = meta.get("low"), meta.get("high"), meta.get("low_open", False)
+    low, high = meta.get("low"), meta.get("high")
+    low_open, high_open = meta.get("low_open", False), meta.get("high_open", False)
     unit = f" {meta['unit']}" if meta.get("unit") else ""
+    key = f"{table}.{spec.name}" if table else spec.name
     if isinstance(value, float) and not math.isfinite(value):
-        raise ConfigError(spec.name, f"got {value!r}; expected a finite number")
+        raise ConfigError(key, f"got {value!r}; expected a finite number")
     below = low is not None and (value <= low if low_open else value < low)
-    above = high is not None and value > high
+    above = high is not None and (value >= high if high_open else value > high)
     if below or above:
         left = "-inf" if low is None else low
         right = "inf" if high is None else high
-        raise ConfigError(spec.name, f"got {value!r}{unit}; allowed range {'(' if low_open or low is None else '['}"
-                                     f"{left}, {right}{')' if high is None else ']'}{unit}")
+        raise ConfigError(key, f"got {value!r}{unit}; allowed range {'(' if low_open or low is None else '['}"
+                               f"{left}, {right}{')' if high is None or high_open else ']'}{unit}")
 
 
 def slots(params_class) -> IntEnum:
@@ -91,13 +108,19 @@ def slots(params_class) -> IntEnum:
 
 @dataclass(frozen=True)
 class Plugin:
-    """A loaded plug-in: the name the preset gives, its module, parameters class, source hash and number."""
+    """A loaded plug-in: the name the preset gives, its module, parameters class, source hash and number
+    (:mod:`simcore.registry` describes it as it does a built-in)."""
 
     name: str
     module: ModuleType
     params: type
     sha256: str
     number: int
+
+    @property
+    def full_hooks(self) -> bool:
+        """Whether the module defines the full hook set (else its ``steer`` runs through OpenSteer's vehicle)."""
+        return all(callable(getattr(self.module, hook, None)) for hook in HOOK_SET)
 
     def values(self, params) -> list[float]:
         """The parameters as ``p`` holds them (field order, as floats)."""
@@ -125,17 +148,33 @@ def load(name: str, builtins: tuple[str, ...] = ()) -> Plugin:
     path = module_path(name)
     module = _import(name, path, builtins)
     missing = [attr for attr in REQUIRED if not hasattr(module, attr)]
+    if not hasattr(module, "steer") and not any(hasattr(module, hook) for hook in HOOK_SET):
+        missing.append("steer")
     if missing:
         raise ConfigError("dynamics", f"got {name!r}: module {path!r} is not a plug-in dynamics: it defines no "
-                                      f"{', '.join(missing)} (docs/plugins.md)")
+                                      f"{', '.join(missing)} (a plug-in defines Params and steer, or Params and the "
+                                      f"full hook set {', '.join(HOOK_SET)}; docs/plugins.md)")
     params = _check_params(path, module.Params)
-    if not callable(module.steer):
-        raise ConfigError("dynamics", f"got {name!r}: {path}.steer is not a function (docs/plugins.md)")
+    _check_hooks(name, path, module)
     sha = source_sha256(module)
     tag = hashlib.sha256(f"{path}\0{sha}".encode()).hexdigest()
-    plugin = Plugin(name, module, params, sha, PLUGIN_BASE + int(tag[:10], 16))
+    number = PLUGIN_BASE + int(tag[:10], 16)
+    plugin = Plugin(name, module, params, sha, number)
     LOADED[name] = BY_NUMBER[plugin.number] = plugin
     return plugin
+
+
+def _check_hooks(name: str, path: str, module: ModuleType) -> None:
+    """The module defines the full hook set (``scratch``, ``sense``, ``move``) or ``steer``."""
+    defined = [hook for hook in HOOK_SET if hasattr(module, hook)]
+    if defined and len(defined) < len(HOOK_SET):
+        missing = [hook for hook in HOOK_SET if hook not in defined]
+        raise ConfigError("dynamics", f"got {name!r}: module {path!r} defines {', '.join(defined)} but not "
+                                      f"{', '.join(missing)}: a plug-in defines the full hook set "
+                                      f"({', '.join(HOOK_SET)}) or only steer (docs/plugins.md)")
+    for hook in HOOK_SET if defined else ("steer",):
+        if not callable(getattr(module, hook)):
+            raise ConfigError("dynamics", f"got {name!r}: {path}.{hook} is not a function (docs/plugins.md)")
 
 
 def _import(name: str, path: str, builtins) -> ModuleType:

@@ -228,7 +228,6 @@ def move_boid(i, ax, ay, az, pos, vel, fwd, up, side, acc, fp, ip, rp, draws, co
 
 
 # run-loop hooks (simcore.hooks)
-THREADS = False
 
 
 def pack(model, dt):

@@ -1,4 +1,6 @@
-"""The ``[reynolds]`` table of a preset: parameters of the ``reynolds87`` dynamics (docs/model.md, Reynolds 1987).
+"""The ``reynolds87`` dynamics' descriptor (:mod:`simcore.registry`): its ``[reynolds]`` table and capabilities
+(sphere perception, obstacles, 2-D motion; no change of leadership or pattern mode); its hooks are
+:mod:`simcore.reynolds87` (docs/model.md, Reynolds 1987).
 
 :class:`Reynolds` is frozen and validated on construction (ConfigError naming ``reynolds.<key>``, the bad
 value and what is allowed). Lengths in world units, times in seconds; request weights turn each request
@@ -19,47 +21,60 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .schema import (ConfigError, check_choice, check_non_negative, check_positive, check_within, to_dict,
-                     unit_vector3)
+from .plugin import PluginParams, parameter
+from .schema import ConfigError, check_choice, to_dict, unit_vector3
 
 ALLOCATIONS = ("priority", "priority_magnitude", "weighted_sum")
 MIGRATION_WHO = ("all", "front")
 
+
+TABLE = "reynolds"
+HOOKS = ".reynolds87"
+PLANAR = True
+OBSTACLES = True
+PERCEPTION = "sphere"
+PATTERNS = False
+THREADS = False
+
+
+def separation_length_power(data: dict) -> float:
+    """The power of length of the separation weight: 1 + the falloff exponent the preset's data gives."""
+    value = data.get("reynolds", {}).get("falloff_exponent", 2.0)
+    return 1.0 + (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else 2.0)
+
+
 @dataclass(frozen=True)
-class Reynolds:
+class Reynolds(PluginParams):
     """Reynolds (1987) requests, priority allocation, speed limits, steer-to-avoid and migratory urge."""
 
-    falloff_exponent: float = 2.0
-    allocation: str = "priority"
-    max_accel: float = 16.0
-    min_speed: float = 3.0
-    max_speed: float = 6.0
-    obstacle_weight: float = 16.0
-    separation_weight: float = 6.0
-    alignment_weight: float = 3.0
-    cohesion_weight: float = 3.0
-    lookahead: float = 10.0
-    avoid_margin: float = 1.0
-    body_radius: float = 0.5
-    migration_direction: tuple[float, ...] = (1.0, 0.0, 0.0)
-    migration_weight: float = 0.0
-    migration_who: str = "all"
+    TABLE = "reynolds"
+    falloff_exponent: float = parameter(2.0, low=0.0, high=4.0, length=0, doc="k, the distance falloff")
+    allocation: str = parameter("priority", doc=f"one of {ALLOCATIONS}")
+    max_accel: float = parameter(16.0, unit="units/s^2", low=0.0, low_open=True, length=1,
+                                 doc="the acceleration budget")
+    min_speed: float = parameter(3.0, unit="units/s", low=0.0, length=1, doc="the lower speed clamp")
+    max_speed: float = parameter(6.0, unit="units/s", low=0.0, low_open=True, length=1, doc="the upper speed clamp")
+    obstacle_weight: float = parameter(16.0, unit="units/s^2", low=0.0, length=1, doc="w_o")
+    separation_weight: float = parameter(6.0, unit="units^(1+k)/s^2", low=0.0, length=separation_length_power,
+                                         doc="w_s")
+    alignment_weight: float = parameter(3.0, unit="1/s", low=0.0, length=0, doc="w_a")
+    cohesion_weight: float = parameter(3.0, unit="1/s^2", low=0.0, length=0, doc="w_c")
+    lookahead: float = parameter(10.0, unit="world units", low=0.0, low_open=True, length=1,
+                                 doc="how far ahead obstacles are looked for")
+    avoid_margin: float = parameter(1.0, unit="world units", low=0.0, length=1, doc="clearance kept from obstacles")
+    body_radius: float = parameter(0.5, unit="world units", low=0.0, low_open=True, length=1,
+                                   doc="the body radius of steer-to-avoid and of collisions")
+    migration_direction: tuple[float, ...] = parameter((1.0, 0.0, 0.0), length=0,
+                                                       doc="the migratory goal's direction (made unit)")
+    migration_weight: float = parameter(0.0, unit="units/s^2", low=0.0, length=1, doc="w_m; 0: no migration")
+    migration_who: str = parameter("all", doc=f"one of {MIGRATION_WHO}")
 
     def __post_init__(self):
-        check_within("reynolds.falloff_exponent", self.falloff_exponent, 0.0, 4.0)
+        super().__post_init__()
         check_choice("reynolds.allocation", self.allocation, ALLOCATIONS)
-        check_positive("reynolds.max_accel", self.max_accel)
-        check_non_negative("reynolds.min_speed", self.min_speed)
-        check_positive("reynolds.max_speed", self.max_speed)
         if self.min_speed > self.max_speed:
             raise ConfigError("reynolds.min_speed", f"got {self.min_speed!r}; must be <= reynolds.max_speed "
                                                     f"({self.max_speed!r})")
-        for name in ("obstacle_weight", "separation_weight", "alignment_weight", "cohesion_weight",
-                     "migration_weight"):
-            check_non_negative(f"reynolds.{name}", getattr(self, name))
-        check_positive("reynolds.lookahead", self.lookahead)
-        check_non_negative("reynolds.avoid_margin", self.avoid_margin)
-        check_positive("reynolds.body_radius", self.body_radius)
         object.__setattr__(self, "migration_direction",
                            unit_vector3("reynolds.migration_direction", self.migration_direction))
         check_choice("reynolds.migration_who", self.migration_who, MIGRATION_WHO)
@@ -76,3 +91,32 @@ class Reynolds:
         if not self.migrates:
             del out["migration_direction"], out["migration_who"]
         return out
+
+
+Params = Reynolds
+
+
+def check(model) -> None:
+    """No change of leadership; in 2-D the migratory goal lies in the plane (ConfigError naming the key)."""
+    if model.world.dimensions == 2 and model.reynolds.migration_weight > 0.0 \
+            and model.reynolds.migration_direction[2] != 0.0:
+        raise ConfigError("reynolds.migration_direction", f"got {list(model.reynolds.migration_direction)!r}; "
+                                                          "with world.dimensions = 2 the migratory goal lies in "
+                                                          "the plane: its z must be 0")
+
+
+def canonical(table: Reynolds) -> dict:
+    return table.canonical()
+
+
+def body_radius(model) -> float:
+    """Obstacle collisions are measured with ``reynolds.body_radius``."""
+    return float(model.reynolds.body_radius)
+
+
+def migration(model) -> tuple[float, float, float] | None:
+    """The migratory urge's unit direction when it is on in an open world, else None."""
+    rey = model.reynolds
+    if not rey.migrates or model.world.boundary != "open":
+        return None
+    return tuple(float(x) for x in rey.migration_direction)

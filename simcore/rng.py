@@ -11,8 +11,9 @@ thread, batch or evaluation order asked for it. ``uniform01`` has 53 random bits
 ``normal`` uses Box-Muller on two such uniforms (indices 2 index and 2 index + 1), so a stream
 must be used either for uniform or for normal draws, never both.
 
-Streams are small integers naming what the draw is for (``STREAM_*`` below), so adding a new use of
-randomness never shifts an existing one.
+Streams are small integers naming what the draw is for (``STREAM_*`` below, the shared ones; a dynamics
+declares its own in its descriptor's ``STREAMS``, :mod:`simcore.registry`, and a test keeps them all
+distinct), so adding a new use of randomness never shifts an existing one.
 """
 from __future__ import annotations
 
@@ -23,12 +24,8 @@ import numpy as np
 from .jit import inline
 
 STREAM_LEADERSHIP = 1
-STREAM_RANDOM_FORCE = 2
-STREAM_TARGETS = 3
 STREAM_HEADING_NOISE = 4  # simcore.noise: the von Mises-Fisher turn (uniforms at 2 boid, 2 boid + 1)
 STREAM_SPEED_NOISE = 5  # simcore.noise: the speed kick (normal at boid)
-STREAM_COUZIN_NOISE = 8   # couzin2002: the angular noise (normals)
-STREAM_VICSEK_NOISE = 9   # vicsek: the angular noise (uniforms)
 STREAM_PLUGIN = 16   # a plug-in dynamics' own draws (simcore.plugin); far from the built-ins' next numbers
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)

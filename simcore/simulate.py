@@ -26,7 +26,7 @@ Threads. ``threads`` (``simulate``, ``advance``) splits the boids of each step o
 over that many threads (:mod:`simcore.threaded`); by default runs of at least ``THREADED_MIN_N`` boids
 use numba's thread count and smaller ones one thread, and sequential runs are always serial (boid i
 waits for boid i - 1). Every boid is computed by the same code either way: results are bit-identical
-for any thread count. A dynamics whose module says ``THREADS = False`` (``reynolds87``, ``boidspp``) runs
+for any thread count. A dynamics whose descriptor says ``THREADS = False`` (``reynolds87``, ``boidspp``) runs
 one thread per run (``threads`` does not apply); its batches run in parallel as every dynamics'.
 """
 from __future__ import annotations
@@ -43,6 +43,7 @@ from . import hooks, kernel
 from .jit import specialise
 from .layout import I
 from .params import PERCEPTION_KINDS, InitParams, ModelParams, Preset
+from .registry import describe
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
 
@@ -165,8 +166,8 @@ def _n_steps(duration: float, dt: float) -> int:
 def _records(model: ModelParams, n_records: int, n: int, n_events: int, lead: tuple = ()):
     """The ``records`` group of the run loops: (rec_pos, rec_vel, rec_visible, rec_binocular, rec_leader,
     trig_step, trig_boid, n_trig, rec_agents, capture_step); the last two are zero-length unless the
-    dynamics is ``boidspp``."""
-    agents = model.dynamics == "boidspp"
+    dynamics has agents (its descriptor's ``AGENTS``, :mod:`simcore.registry`)."""
+    agents = describe(model.dynamics).agents
     return (np.zeros(lead + (n_records, n, 3)), np.zeros(lead + (n_records, n, 3)),
             np.zeros(lead + (n_records, n), np.int32), np.zeros(lead + (n_records, n), np.int32),
             np.zeros(lead + (n_records, n), np.bool_), np.zeros(lead + (n_events,), np.int64),
@@ -182,15 +183,15 @@ def _n_events(model: ModelParams, n: int, n_steps: int, dt: float) -> int:
 
 
 def _observations(model: ModelParams, times, rec, final: State, dt: float, record_every: int) -> Observations:
-    if model.dynamics == "boidspp":
-        return _boidspp_observations(model, times, rec, final, dt, record_every)
     pos, vel, visible, binocular, leader, trig_step, trig_boid, n_trig = rec[:8]
     count = int(n_trig[0])
     if count > len(trig_step):
         raise RuntimeError(f"{count} leadership triggers exceed the bound of {len(trig_step)} (kernel bug)")
     triggers = np.stack([trig_step[:count], trig_boid[:count]], axis=1)
+    dynamics = describe(model.dynamics)
+    agents = dynamics.agent_observations(model, *rec[8:]) if dynamics.agents else {}
     return Observations(times, pos, vel, visible, binocular, leader, triggers, pattern=final.pattern.copy(),
-                        final=final, dt=dt, record_every=record_every)
+                        final=final, dt=dt, record_every=record_every, **agents)
 
 
 def _check_record_every(record_every) -> int:
@@ -206,23 +207,7 @@ def _thread_count(model: ModelParams, n: int, threads) -> int:
     if isinstance(threads, bool) or int(threads) != threads or threads < 1:
         raise ValueError(f"threads: got {threads!r}; must be an integer >= 1 (or None: automatic)")
     sequential = model.world.update_order == "sequential"
-    return 1 if sequential or not hooks.module_of(model.dynamics).THREADS else int(threads)
-
-
-def _boidspp_observations(model: ModelParams, times, rec, final: State, dt: float,
-                          record_every: int) -> Observations:
-    pos, vel, visible, binocular, agents, capture_step = rec[:4] + rec[8:]
-    table = model.boidspp
-    captures = None
-    if table.predator.enabled and table.predator.capture_radius is not None:
-        boids = np.flatnonzero(capture_step >= 0)
-        order = np.lexsort((boids, capture_step[boids]))
-        captures = np.stack([capture_step[boids][order], boids[order]], axis=1).astype(np.int64)
-    return Observations(times, pos, vel, visible, binocular, np.zeros(visible.shape, np.bool_),
-                        np.zeros((0, 2), np.int64), pattern=final.pattern.copy(), final=final, dt=dt,
-                        record_every=record_every,
-                        predator=agents[:, 0].copy() if table.predator.enabled else None,
-                        prey=agents[:, 1].copy() if table.prey.enabled else None, captures=captures)
+    return 1 if sequential or not describe(model.dynamics).threads else int(threads)
 
 
 def check_planar(model: ModelParams, state: State) -> None:

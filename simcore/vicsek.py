@@ -9,7 +9,7 @@ periodic box):
 1. mean heading m = f_i + sum_j f_j (the boid itself included), made unit (m = f_i when the sum is zero:
    the headings cancel exactly);
 2. noise: in 2-D the new heading is m turned about +z by eta (u - 1/2), u the counter-based uniform of
-   stream ``STREAM_VICSEK_NOISE`` at (step, i): the paper's theta(t + 1) = <theta(t)>_r + dtheta with
+   stream ``STREAMS["noise"]`` (:mod:`simcore.vicsek_params`) at (step, i): the paper's theta(t + 1) = <theta(t)>_r + dtheta with
    dtheta uniform in [-eta/2, eta/2]; in 3-D it is m tilted by the polar angle acos(1 - u0 eta / pi)
    towards azimuth 2 pi u1 (:func:`simcore.headings.tilt`), u0, u1 at (step, 2i) and (step, 2i + 1):
    uniform on the cap about m of solid angle 2 eta.
@@ -29,13 +29,15 @@ from .dynamics import apply_boundary
 from .headings import float_dyn, heading_scratch, rotate_planar, set_heading, tilt, unit_heading
 from .jit import inline
 from .layout import F, I
-from .rng import STREAM_VICSEK_NOISE, uniform01
+from .rng import uniform01
+from .vicsek_params import STREAMS
 
 V_SLOTS = {
     "SPEED": lambda v: v.speed,
     "NOISE": lambda v: v.noise,
 }
 V = IntEnum("V", list(V_SLOTS), start=0)
+STREAM_NOISE = STREAMS["noise"]
 
 
 def pack_vicsek(vicsek) -> np.ndarray:
@@ -65,10 +67,10 @@ def new_heading(i, step, m, nbrs, fwd, eta, key, planar):
     if eta == 0.0:
         return mx, my, mz
     if planar:
-        hx, hy = rotate_planar(mx, my, eta * (uniform01(key, STREAM_VICSEK_NOISE, step, i) - 0.5))
+        hx, hy = rotate_planar(mx, my, eta * (uniform01(key, STREAM_NOISE, step, i) - 0.5))
         return unit_heading(hx, hy, 0.0, planar)
-    u0 = uniform01(key, STREAM_VICSEK_NOISE, step, 2 * i)
-    u1 = uniform01(key, STREAM_VICSEK_NOISE, step, 2 * i + 1)
+    u0 = uniform01(key, STREAM_NOISE, step, 2 * i)
+    u1 = uniform01(key, STREAM_NOISE, step, 2 * i + 1)
     polar = math.acos(max(-1.0, 1.0 - u0 * eta / math.pi))
     azimuth = 2.0 * math.pi * u1
     hx, hy, hz = tilt(mx, my, mz, polar, math.cos(azimuth), math.sin(azimuth))
@@ -76,7 +78,6 @@ def new_heading(i, step, m, nbrs, fwd, eta, key, planar):
 
 
 # run-loop hooks (simcore.hooks)
-THREADS = True
 scratch = heading_scratch   # per boid: its new heading
 
 

@@ -1,5 +1,5 @@
-"""The ``[vicsek]`` table of a preset: parameters of the ``vicsek`` dynamics (docs/model.md, "Vicsek et al.
-1995").
+"""The ``vicsek`` dynamics' descriptor (:mod:`simcore.registry`): its ``[vicsek]`` table, capabilities and
+random stream; its hooks are :mod:`simcore.vicsek` (docs/model.md, "Vicsek et al. 1995").
 
 :class:`Vicsek` is frozen and validated on construction (ConfigError naming ``vicsek.<key>``):
 
@@ -9,24 +9,42 @@
   uniform in [-eta/2, eta/2]; in 3-D the new heading is uniform on the spherical cap about the mean
   heading whose solid angle is 2 eta (the same share eta / 2 pi of all directions; the whole sphere at
   eta = 2 pi)
+
+A constant-speed heading model: it perceives with the sphere of radius r (so a preset's canonical form
+records only ``perception.kind``), runs in 2-D or 3-D, has its own noise and speed (no ``[noise]``,
+``[cruise]``, change of leadership or pattern mode), and draws its noise from stream ``STREAMS["noise"]``.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from .schema import check_positive, check_within
+from .plugin import PluginParams, parameter
+
+TABLE = "vicsek"
+HOOKS = ".vicsek"
+PLANAR = True
+HEADING = True
+PERCEPTION = "sphere"
+PATTERNS = False
+SHARED_NOISE = False
+USES = ("noise", "cruise", "plugin")   # recorded (off, None) in its canonical form since it shipped
+STREAMS = {"noise": 9}       # the angular noise (uniforms)
 
 
 @dataclass(frozen=True)
-class Vicsek:
+class Vicsek(PluginParams):
     """Vicsek et al. (1995) alignment radius, speed and noise amplitude."""
 
-    radius: float = 1.0
-    speed: float = 0.03
-    noise: float = 2.0
+    TABLE = "vicsek"
+    radius: float = parameter(1.0, unit="world units", low=0.0, low_open=True, length=1, doc="r, the alignment radius")
+    speed: float = parameter(0.03, unit="units/s", low=0.0, low_open=True, length=1, doc="v0, the constant speed")
+    noise: float = parameter(2.0, unit="rad", low=0.0, high=2.0 * math.pi, length=0, doc="eta, the noise amplitude")
 
-    def __post_init__(self):
-        check_positive("vicsek.radius", self.radius)
-        check_positive("vicsek.speed", self.speed)
-        check_within("vicsek.noise", self.noise, 0.0, 2.0 * math.pi)
+
+Params = Vicsek
+
+
+def sphere_radius(model) -> float:
+    """The perception sphere: the alignment radius."""
+    return model.vicsek.radius

@@ -36,6 +36,7 @@ from numba.core import event as numba_event
 
 from flocksweep.observables.summary import MetricSettings, measure_run
 from flocksweep.simcore import load_preset, placeholder_observations, simulate, simulate_batch
+from flocksweep.simcore.registry import describe
 
 SHIPPED_MODELS = Path(__file__).resolve().parent.parent / "configs" / "models"
 TINY_N = 5
@@ -142,7 +143,7 @@ def _simulations(path: str) -> list:
     init = dataclasses.replace(preset.init, n=TINY_N)
     runs = [simulate(model, init, 0, 2 * dt, dt, 1, threads=1)]
     runs += simulate_batch(model, init, [0, 1], 2 * dt, dt, 1)
-    if model.world.update_order == "synchronous" and model.dynamics != "boidspp":
+    if model.world.update_order == "synchronous" and describe(model.dynamics).threads:
         runs.append(simulate(model, init, 0, 2 * dt, dt, 1, threads=2))
     return [(model, obs) for obs in runs]
 

@@ -294,7 +294,7 @@ def _record(table) -> dict:
 # reading settings added to TrackSource after run ids were first stored: in a run's identity only when
 # set (so earlier run ids stay as they were); ``origins`` says where settings came from and never is
 LATER_TRACK_SETTINGS = {"keep_padding": False, "trim": None, "burst_share": 0.5, "burst_frames": 5.0,
-                        "burst_jump": 3.0}
+                        "burst_jump": 3.0, "arena": None}
 
 
 def _tracks_record(tracks) -> dict:

@@ -15,7 +15,7 @@ import numpy as np
 
 from flocksweep.observables.summary import NonFiniteState
 from flocksweep.simcore import simulate
-from flocksweep.simcore.params import DYNAMICS
+from flocksweep.simcore.registry import is_builtin
 
 
 def _first_bad(obs):
@@ -49,7 +49,7 @@ def where_non_finite(preset, seed, obs) -> str:
     when = (f"in step {first} (t = {first * dt:g} to {(first + 1) * dt:g} s)" if first == last else
             f"between steps {first} and {last} (t = {first * dt:g} to {(last + 1) * dt:g} s)")
     cause = ("a steering force that is not finite: the plug-in's steer returned NaN or inf, or a force so "
-             "large that the motion overflowed" if preset.model.dynamics not in DYNAMICS else
+             "large that the motion overflowed" if not is_builtin(preset.model.dynamics) else
              "forces so large that the motion overflowed")
     return f"non-finite state: boid {boid}'s {what} became {kind} {when}{others}; {cause}"
 

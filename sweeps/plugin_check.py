@@ -36,11 +36,11 @@ _CHECKED: set[tuple[str, str]] = set()   # (dynamics name, module sha256) checke
 
 def check_specs(specs) -> None:
     """:func:`check_plugin` for every plug-in dynamics the runs of ``specs`` use (once each)."""
-    from flocksweep.simcore.params import DYNAMICS
+    from flocksweep.simcore.registry import is_builtin
 
     models = {}
     for spec in specs:
-        if spec.preset is not None and spec.preset.model.dynamics not in DYNAMICS:
+        if spec.preset is not None and not is_builtin(spec.preset.model.dynamics):
             models.setdefault(spec.preset.model.dynamics, spec.preset.model)
     for model in models.values():
         check_plugin(model)

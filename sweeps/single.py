@@ -33,7 +33,7 @@ from pathlib import Path
 from flocksweep.observables.summary import MetricSettings, NonFiniteState, summarize_run
 from flocksweep.observables.tracks import TRACKS_SIDECAR, tracks_frame
 from flocksweep.simcore import Observations, Preset, simulate, simulate_preset
-from flocksweep.simcore.params import DYNAMICS
+from flocksweep.simcore.registry import is_builtin
 
 from .failures import SimulationFailed
 from .files import write_csv, write_json, write_parquet
@@ -63,7 +63,7 @@ def save_tracks(obs: Observations, out_dir: Path, fmt: str, flock: str, descript
 def _simulate(preset: Preset, seed, record_every: int | None) -> Observations:
     """The run's observations; a plug-in's in a sandbox (module docstring); SimulationFailed when it
     crashed or ended in a non-finite state."""
-    if preset.model.dynamics in DYNAMICS:
+    if is_builtin(preset.model.dynamics):
         obs = simulate_preset(preset, seed, record_every)
     else:   # imported here: the sandbox loads multiprocessing's connections, a built-in model needs none
         from .plugin_check import check_plugin

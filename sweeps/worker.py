@@ -48,7 +48,7 @@ import numpy as np
 from flocksweep.observables.observed import ObservedFlock
 from flocksweep.observables.summary import every_nth, measure_run
 from flocksweep.simcore import placeholder_observations, simulate
-from flocksweep.simcore.params import DYNAMICS
+from flocksweep.simcore.registry import is_builtin
 
 from .design import RunSpec
 from .external import run_external
@@ -104,7 +104,7 @@ def failed_rows(specs, reason: str) -> list[dict]:
 
 def is_plugin(spec: RunSpec) -> bool:
     """Whether the run's dynamics is a plug-in (a user's module, :mod:`simcore.plugin`)."""
-    return spec.preset is not None and spec.preset.model.dynamics not in DYNAMICS
+    return spec.preset is not None and not is_builtin(spec.preset.model.dynamics)
 
 
 def contained(spec: RunSpec) -> bool:

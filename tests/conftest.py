@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from flocksweep.simcore import State
-from flocksweep.simcore.params import HOLLAND_TABLE_1, ModelParams, Patterns, Perception, Steering, Vehicle, World
+from flocksweep.simcore.opensteer_params import Steering
+from flocksweep.simcore.params import HOLLAND_TABLE_1, ModelParams, Patterns, Perception, Vehicle, World
 from flocksweep.simcore.state import frame_from_forward
 
 # test modules import these helpers and tests/reference.py by module name, whatever pytest's import mode

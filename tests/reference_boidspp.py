@@ -42,7 +42,10 @@ import numpy as np
 
 import reference_obstacles as ro
 from reference_hb import boundary, box_of, dot3, frame_after_move, in_plane, norm3, offset
-from flocksweep.simcore.rng import STREAM_RANDOM_FORCE, STREAM_TARGETS, uniform01
+from flocksweep.simcore.boidspp_params import STREAMS
+from flocksweep.simcore.rng import uniform01
+
+STREAM_RANDOM_FORCE, STREAM_TARGETS = STREAMS["random_force"], STREAMS["targets"]
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
 WAITING, HUNTING, LEAVING = 0, 1, 2

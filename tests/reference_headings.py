@@ -14,7 +14,11 @@ import math
 import numpy as np
 
 from reference_hb import banked_frame, boundary, box_of, offset
-from flocksweep.simcore.rng import STREAM_COUZIN_NOISE, STREAM_VICSEK_NOISE, normal, uniform01
+from flocksweep.simcore.couzin_params import STREAMS as COUZIN_STREAMS
+from flocksweep.simcore.rng import normal, uniform01
+from flocksweep.simcore.vicsek_params import STREAMS as VICSEK_STREAMS
+
+STREAM_COUZIN_NOISE, STREAM_VICSEK_NOISE = COUZIN_STREAMS["noise"], VICSEK_STREAMS["noise"]
 
 STATE_KEYS = ("pos", "vel", "fwd", "up", "side", "acc")
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from flocksweep.simcore import boidspp_params, params
+from flocksweep.simcore import arena, boidspp_params, params, reynolds_params
 from flocksweep.simcore.params import InitParams, ModelParams, RunSettings
 from flocksweep.simcore.units import Units
 from paths import ROOT
@@ -202,8 +202,9 @@ CHOICES = {
     "world.update_order": params.UPDATE_ORDERS,
     "patterns.separation_weight": params.SEPARATION_WEIGHTS,
     "leadership.front_gate": params.FRONT_GATES,
-    "reynolds.allocation": params.ALLOCATIONS,
-    "reynolds.migration_who": params.MIGRATION_WHO,
+    "arena.kind": arena.ARENA_KINDS,
+    "reynolds.allocation": reynolds_params.ALLOCATIONS,
+    "reynolds.migration_who": reynolds_params.MIGRATION_WHO,
     "boidspp.separation.form": boidspp_params.SEPARATION_FORMS,
     "boidspp.alignment.scope": boidspp_params.SCOPES,
     "boidspp.cohesion.scope": boidspp_params.SCOPES,

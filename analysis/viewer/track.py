@@ -18,7 +18,7 @@ simulate --out`` with its ``params.json``, or a sweep's ``trajectories/<run_id>.
 store for the parameters), :func:`from_arrays` (plain arrays), :func:`from_observed` (an observed flock: measured tracks, gaps
 interpolated) and :func:`as_track` (any of these). :meth:`Track.every` keeps every k-th frame, :meth:`Track.since` the frames from a time on.
 
-Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles``); extra agents of a run
+Scene objects of a model are read by :func:`scene_of` (its ``world.obstacles`` and its ``[arena]``); extra agents of a run
 by :func:`agents_of` (prey and predators, when the observations record them) or, from a saved
 trajectory's ``predator`` / ``prey`` arrays, by :func:`recorded_agents`.
 """
@@ -174,10 +174,37 @@ def obstacle_scene(obstacle, around=None) -> dict:
     return {"type": "plane", "point": list(point), "normal": list(normal), "size": size, **label}
 
 
+def arena_scene(arena, dimensions: int = 3, around=None) -> dict:
+    """A tank (:class:`simcore.arena.Arena`, a preset's ``[arena]`` or a track file's) as a wireframe scene
+    object: a box, or a cylinder along z. In 2-D (and for a cylinder with no height) its extent along z
+    is a thin slab, or the z range of ``around`` (positions (..., 3)) widened by a tenth."""
+    centre = np.asarray(arena.centre, dtype=np.float64)
+    low, high = centre[2] - 0.05, centre[2] + 0.05
+    if dimensions == 3 and around is not None and np.size(around):
+        z = np.asarray(around, dtype=np.float64).reshape(-1, 3)[:, 2]
+        z = z[np.isfinite(z)]
+        if z.size:
+            pad = 0.1 * max(float(z.max() - z.min()), 1.0)
+            low, high = float(z.min()) - pad, float(z.max()) + pad
+    common = {"label": "arena", "wireframe": True}
+    if arena.kind == "box":
+        size = list(arena.size) if dimensions == 3 else [arena.size[0], arena.size[1], high - low]
+        return {"type": "box", "center": list(centre) if dimensions == 3 else [centre[0], centre[1], 0.0],
+                "size": size, **common}
+    if dimensions == 3 and arena.height is not None:
+        low, high = centre[2] - arena.height / 2.0, centre[2] + arena.height / 2.0
+    return {"type": "cylinder", "a": [centre[0], centre[1], low], "b": [centre[0], centre[1], high],
+            "radius": arena.radius, "caps": "flat", **common}
+
+
 def scene_of(model, around=None) -> tuple:
     """Scene objects of a model: its ``world.obstacles`` (:func:`obstacle_scene`; ``around`` the run's
-    positions, for the size of plane patches)."""
-    return tuple(obstacle_scene(obstacle, around) for obstacle in model.world.obstacles)
+    positions, for the size of plane patches) and its tank when it has one (:func:`arena_scene`)."""
+    scene = tuple(obstacle_scene(obstacle, around) for obstacle in model.world.obstacles)
+    arena = getattr(model, "arena", None)
+    if arena is not None and arena.enabled:
+        scene += (arena_scene(arena, getattr(model.world, "dimensions", 3), around),)
+    return scene
 
 
 def recorded_agents(predator=None, prey=None, times=None) -> tuple:

@@ -11,7 +11,8 @@ import pytest
 
 from conftest import flock_state, make_model, state_from
 from flocksweep.simcore import InitParams, advance, simulate
-from flocksweep.simcore.params import Steering, Vehicle
+from flocksweep.simcore.opensteer_params import Steering
+from flocksweep.simcore.params import Vehicle
 from flocksweep.simcore.probe import perceived, steering
 
 DT = 1 / 60

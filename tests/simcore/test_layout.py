@@ -12,7 +12,9 @@ import numpy as np
 from conftest import make_model
 from flocksweep.simcore.jit import leaf
 from flocksweep.simcore.layout import FLOAT_SLOTS, HB, INT_SLOTS, OS, STEER_WIDTH, F, I, pack
-from flocksweep.simcore.params import Gains, Leadership, ModelParams, Perception, Steering, Vehicle
+from flocksweep.simcore.hartman_benes_params import Gains
+from flocksweep.simcore.opensteer_params import Steering
+from flocksweep.simcore.params import Leadership, ModelParams, Perception, Vehicle
 
 
 def test_enums_follow_the_declarations():

@@ -15,8 +15,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from flocksweep.simcore.rng import (STREAM_LEADERSHIP, STREAM_RANDOM_FORCE, STREAM_TARGETS, normal, run_streams,
+from flocksweep.simcore.boidspp_params import STREAMS
+from flocksweep.simcore.rng import (STREAM_LEADERSHIP, normal, run_streams,
                          seed_sequence, uniform01)
+
+STREAM_RANDOM_FORCE, STREAM_TARGETS = STREAMS["random_force"], STREAMS["targets"]
 
 N = 100_000
 Z = 5.0  # standard errors allowed

@@ -100,7 +100,7 @@ def test_bad_units_name_their_key(units, key, text):
 
 
 def test_tables_not_converted_are_refused_in_metres():
-    with pytest.raises(ConfigError, match="Boids"):
+    with pytest.raises(ConfigError, match=r"\[boidspp\] keys are not converted"):
         load_preset(MODELS / "boidspp.toml", ["units.length='m'", "units.body_length_m=0.3"])
     with pytest.raises(ConfigError, match="obstacles"):
         load_preset(MODELS / "reynolds87_obstacles.toml", ["units.length='m'", "units.body_length_m=0.3"])

@@ -13,7 +13,8 @@ from flocksweep.analysis.viewer import view
 from flocksweep.analysis.viewer.encode import check_scene, page_data
 from flocksweep.analysis.viewer.observables import frame_observables
 from flocksweep.analysis.viewer.palette import AGENT_COLOURS
-from flocksweep.analysis.viewer.track import agents_of, from_npz, from_observations, obstacle_scene, scene_of
+from flocksweep.analysis.viewer.track import (agents_of, arena_scene, from_npz, from_observations, obstacle_scene,
+                                              scene_of)
 from flocksweep.simcore.obstacle_spec import Obstacle
 from flocksweep.simcore.simulate import Observations
 
@@ -51,6 +52,23 @@ def test_obstacles_become_scene_objects_of_the_same_solids():
     np.testing.assert_allclose(plane["point"], [0, -10, 0], atol=1e-12)   # the flock's middle, dropped onto it
     assert plane["size"] == pytest.approx(2.2 * 8.0)                   # 2.2 x the farthest in-plane offset
     assert obstacle_scene(OBSTACLES[1])["size"] == 100.0              # no positions: a default patch
+
+
+def test_a_tank_becomes_a_wireframe_of_its_walls():
+    from flocksweep.simcore.arena import Arena
+
+    pos = circling_run().pos
+    box = Arena(kind="box", centre=(1.0, 2.0, 3.0), size=(30.0, 20.0, 10.0))
+    cylinder = Arena(kind="cylinder", radius=12.0, height=6.0)
+    model = SimpleNamespace(world=SimpleNamespace(obstacles=(), dimensions=3), arena=box)
+    (drawn,) = check_scene(scene_of(model, pos))
+    assert drawn["type"] == "box" and drawn["wireframe"] and drawn["size"] == [30.0, 20.0, 10.0]
+    drawn = arena_scene(cylinder, 3, pos)
+    assert drawn["radius"] == 12.0 and drawn["a"][2] == -3.0 and drawn["b"][2] == 3.0
+    flat = arena_scene(Arena(kind="cylinder", radius=5.0), 2)
+    assert flat["b"][2] - flat["a"][2] == pytest.approx(0.1)            # a circle in 2-D: a thin disc
+    open_world = SimpleNamespace(world=SimpleNamespace(obstacles=()), arena=Arena())
+    assert scene_of(open_world) == ()
 
 
 def test_predator_and_prey_of_the_observations_become_agents():
