@@ -6,7 +6,8 @@ takes about a second (numpy, pandas, numba, pyarrow); Python's default SIGINT ha
 handlers before it imports anything heavy: a signal while starting ends the command with one line
 (``flocksweep: interrupted (SIGINT) while starting; nothing was done``) and the status of docs/errors.md
 (130, 143). Once a command runs, :func:`flocksweep.cli.main` handles signals itself
-(:func:`sweeps.interrupts.signals_as_exceptions`) and restores these handlers when it returns.
+(:func:`sweeps.interrupts.signals_as_exceptions`); when :func:`main` returns, the caller's handlers
+are back.
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM"}
 
 
 class _Stopped(BaseException):
-    """A signal arrived while the command was starting (or after it had returned)."""
+    """A signal arrived while the command was starting."""
 
     def __init__(self, signum: int):
         super().__init__(signum)
@@ -32,6 +33,9 @@ def _stop(signum, frame):
 
 
 def main(argv=None) -> int:
+    """Run the command line with its own signal handlers; the caller's handlers are back when it returns
+    (a program or a test that calls it in-process keeps its own Ctrl-C)."""
+    previous = {sig: signal.getsignal(sig) for sig in NAMES}
     for sig in NAMES:
         signal.signal(sig, _stop)
     try:
@@ -44,6 +48,9 @@ def main(argv=None) -> int:
         print(f"flocksweep: interrupted ({NAMES[stopped.signum]}) while starting; nothing was done",
               file=sys.stderr)
         return 128 + stopped.signum
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def console() -> None:

@@ -50,6 +50,16 @@ def test_the_entry_point_runs_the_command_line(capsys):
     assert "no sweep" in capsys.readouterr().err
 
 
+def test_the_callers_signal_handlers_are_back_when_the_entry_point_returns():
+    import signal
+
+    from flocksweep.entry import main
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    main(["status", "/nonexistent/folder"])
+    assert {sig: signal.getsignal(sig) for sig in before} == before
+
+
 CONSOLE = """
 import atexit, sys
 atexit.register(lambda: print("atexit handler ran", file=sys.stderr))

@@ -108,9 +108,9 @@ def test_a_name_that_is_no_plugin_is_refused(name, words):
 
 
 def test_a_module_that_fails_to_import_is_refused_with_its_error(module_dir):
-    (module_dir / "broken_plugin.py").write_text("raise RuntimeError('no licence file')\n")
+    (module_dir / "unimportable_plugin.py").write_text("raise RuntimeError('no licence file')\n")
     with pytest.raises(ConfigError, match="RuntimeError: no licence file"):
-        couzin(dynamics="broken_plugin")
+        couzin(dynamics="unimportable_plugin")
 
 
 def test_parameter_types_are_checked_by_the_schema(module_dir):
