@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from flocksweep.simcore.schema import ConfigError
-from flocksweep.sweeps.progress import Phases
+from flocksweep.sweeps.progress import Phases, next_steps
 
 
 
@@ -142,7 +142,40 @@ def _runs_page(args, phases) -> int:
     path = page.save(args.out or default)
     print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {len(ids)} runs, a menu switches between them; "
           f"PAGE#run=ID opens one); open it in a browser, it works offline")
+    next_steps(f"open {path} in a browser ({path.name}#run={ids[-1]} opens the last run)")
     return 0
+
+
+def after_view(args, page) -> list[str]:
+    """Open what was written; offer the animation when only a page was."""
+    steps = []
+    if page is not None:
+        steps.append(f"open {page} in a browser (works offline; {Path(page).name}#t=15&color=group opens it at "
+                     "15 s coloured by group)")
+    if args.animate:
+        steps.append(f"open {args.animate}")
+    elif page is not None:
+        steps.append(f"flocksweep view {' '.join(_source_words(args))} --animate {Path(page).stem}.gif --no-page   "
+                     f"(a GIF beside the page)")
+    return steps
+
+
+def _source_words(args) -> list[str]:
+    """The words naming this run on the command line (source and run selection)."""
+    import shlex
+
+    words = [str(args.source)]
+    if args.showcase:
+        words += ["--showcase", args.showcase]
+    elif args.run:
+        words += ["--run", *args.run]
+    elif args.where:
+        words += ["--where", args.where, "--replicate", str(args.replicate)]
+    words += [f"--set={item}" for item in getattr(args, "overrides", []) or []]
+    for flag in ("seed", "n", "duration", "dt"):
+        if getattr(args, flag, None) is not None:
+            words += [f"--{flag}", str(getattr(args, flag))]
+    return [shlex.quote(word) for word in words]
 
 
 def run(args) -> int:
@@ -175,6 +208,8 @@ def run(args) -> int:
             track, default = _sweep_track(args, args.run[0] if args.run else None)
         else:
             track, default = from_npz(source), source.with_suffix(".html")
+        if args.animate and args.animate.parent == Path("."):   # a bare file name: beside the page, not here
+            args.animate = Path(args.out or default).parent / args.animate.name
         if not args.no_page:
             phases.start("building the page")
             page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
@@ -188,6 +223,7 @@ def run(args) -> int:
                                    speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
                                    size=size, dpi=args.dpi, progress=not args.no_progress)
             print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
+        next_steps(*after_view(args, None if args.no_page else path))
     except ConfigError:
         raise
     except (RunNotFound, NotReproduced, AnimationUnavailable, ValueError, FileNotFoundError) as err:

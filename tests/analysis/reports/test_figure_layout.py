@@ -36,7 +36,9 @@ def crowded_figure():
 
 
 def test_the_checks_catch_small_text_overlapping_labels_and_a_legend_over_data():
-    found = layout.problems(crowded_figure(), 100)
+    fig = crowded_figure()
+    found = layout.problems(fig, 100)
+    plotting.pyplot().close(fig)
     assert any("px tall" in p for p in found)
     assert any("overlap" in p for p in found)
     assert any("covers" in p and "data points" in p for p in found)

@@ -43,14 +43,7 @@ def assert_svg(path: Path) -> None:
     assert len(text) > 5 * 1024
 
 
-@pytest.fixture(autouse=True)
-def no_figures_left_open():
-    yield
-    if "matplotlib.pyplot" in sys.modules:
-        plt = sys.modules["matplotlib.pyplot"]
-        left_open = plt.get_fignums()
-        plt.close("all")            # do not let one failure cascade into the next tests
-        assert left_open == [], "a figure was left open"
+# every test here must close its figures: tests/conftest.py's closes_what_it_opens checks it
 
 
 @pytest.fixture
