@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -167,16 +168,17 @@ def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5
             ax.errorbar(xs, mean, yerr=np.clip(yerr, 0, None), fmt="o", color="C0", markersize=5,
                         capsize=4, linewidth=1.4)
             ax.set_xticks(xs)
-            labels = [_fmt_level(v) for v in levels]
-            ax.set_xticklabels(labels, fontsize=7, rotation=30 if max(map(len, labels)) > 6 else 0)
+            labels = [textwrap.fill(_fmt_level(v), 14) for v in levels]   # long level names on a few lines
+            longest = max(len(line) for label in labels for line in label.splitlines())
+            ax.set_xticklabels(labels, fontsize=7, rotation=30 if longest > 6 and len(levels) > 3 else 0)
             ax.set_xlim(-0.5, len(levels) - 0.5)
         ax.set_title(panel_title(factor), fontsize=9)
         ax.tick_params(axis="y", labelsize=7)
         ax.grid(True, alpha=0.3, linewidth=0.5)
-        if sharey and k % ncols == 0:
-            ax.set_ylabel(metric_label(metric), fontsize=9)
+        if sharey and k % ncols == 0:   # wrapped to the panel's height: rows' labels never meet
+            ax.set_ylabel(textwrap.fill(metric_label(metric), 26), fontsize=9)
         elif panel_ylabel is not None:
-            ax.set_ylabel(panel_ylabel(factor), fontsize=8)
+            ax.set_ylabel(textwrap.fill(panel_ylabel(factor), 26), fontsize=8)
         if xlabel:
             ax.set_xlabel(xlabel, fontsize=8)
     for ax in axes.flat[len(factors):]:

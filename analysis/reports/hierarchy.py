@@ -28,7 +28,7 @@ from flocksweep.observables.directional_correlation import MIN_CORR, Directional
 from .plotting import pyplot, save
 
 NETWORK_MAX = 20        # individuals drawn in the network panel
-ARC_RAD = 0.45          # the edges' bow, as a share of the distance between the two individuals
+ARC_RAD = 0.9           # the edges' bow, as a share of the distance between the two individuals
 LABELS_MAX = 40         # individuals labelled on the delay matrix
 
 
@@ -63,10 +63,8 @@ def _network(ax, dc: DirectionalCorrelation, labels: list, order: np.ndarray, no
     ax.axis("off")
     more = f" (top {len(shown)} of {len(order)})" if len(order) > len(shown) else ""
     implied = len(edges) - len(kept)
-    ax.set_title(f"leader -> follower edges{more}, rank 1 on top", fontsize=9)
-    if implied:
-        ax.text(0.5, -0.02, f"{implied} edges implied by the others not drawn (every pair: the matrix)",
-                transform=ax.transAxes, ha="center", va="top", fontsize=7, color="0.35")
+    note = f"\n{implied} edges implied by the others not drawn (every pair: the matrix)" if implied else ""
+    ax.set_title(f"leader -> follower edges{more}, rank 1 on top{note}", fontsize=9)
 
 
 def reduced(edges: list[tuple[int, int]]) -> list[tuple[int, int]]:

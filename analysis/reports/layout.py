@@ -173,13 +173,8 @@ def _is_number_text(text: str) -> bool:
 
 
 def _categorical(axis) -> bool:
-    """An axis whose tick labels were given as words (a factor's levels, metric or factor names)."""
-    from matplotlib.ticker import FixedFormatter
-
-    formatter = axis.get_major_formatter()
-    if not isinstance(formatter, FixedFormatter):
-        return False
-    words = [str(w).strip() for w in formatter.seq if str(w).strip()]
+    """An axis whose tick labels are words (a factor's levels, metric or factor names), not numbers."""
+    words = [label.get_text().strip() for _, label in _labelled_ticks(axis)]
     return bool(words) and not all(_is_number_text(w) for w in words)
 
 
@@ -272,6 +267,12 @@ def problems(fig, dpi: float) -> list[str]:
 
 def raise_fonts(fig, dpi: float) -> None:
     smallest = min_points(fig, dpi)
+    for ax in fig.axes:   # tick labels are made again at each draw, from the axis's label size
+        axes = [ax.xaxis, ax.yaxis] + ([ax.zaxis] if hasattr(ax, "zaxis") else [])
+        for axis in axes:
+            for which, ticks in (("major", axis.get_major_ticks()), ("minor", axis.get_minor_ticks())):
+                if ticks and ticks[0].label1.get_fontsize() < smallest:
+                    axis.set_tick_params(which=which, labelsize=smallest)
     for text in _texts(fig):
         if text.get_fontsize() < smallest:
             text.set_fontsize(smallest)

@@ -155,8 +155,7 @@ def claim_figure(outcome, path, seed: int = 0) -> Path:
         ax.set_title(f"{test.label}: {leaf.verdict}", fontsize=9, color=COLOURS.get(leaf.verdict, "black"))
         ax.set_ylabel(_metric_text(test.metric.text), fontsize=8)
         note = _note(leaf, len(outcome.claim.test.conditions))   # below the plot: never over the runs
-        ax.set_xlabel("\n".join(part for part in (what, note) if part), fontsize=7, loc="left",
-                      horizontalalignment="left")
+        ax.set_xlabel("\n".join(part for part in (what, note) if part), fontsize=7, loc="left")
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(leaves):]:
         ax.set_visible(False)
