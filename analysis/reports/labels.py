@@ -5,7 +5,7 @@
   count or a ratio, or when unknown). A key not listed is spelled out from its last part
   (``vehicle.max_force`` -> ``"max force"``; a ``_deg`` suffix gives the unit ``deg``); a non-key factor
   (``mode``) keeps its name.
-* ``metric_label(column)`` -> ``"cohesion: share in the largest group"`` for ``cohesion_mean``; with a
+* ``metric_label(column)`` -> ``"cohesion (share in the largest group)"`` for ``cohesion_mean``; with a
   unit, ``"mean speed (units/s)"``; ``_final`` columns say so (``"... at the end of the run"``);
   ``metric_words(column)`` and ``metric_unit(column)`` split it. A column not listed keeps its name.
 
@@ -38,12 +38,12 @@ PARAMETERS = {
 
 # metric name (column without its _mean / _final suffix) -> (words, unit)
 METRIC_NAMES = {
-    "cohesion": ("cohesion: share in the largest group", ""),
+    "cohesion": ("cohesion (share in the largest group)", ""),
     "polarization": ("alignment (polarization, 0-1)", ""),
     "polarization_largest": ("alignment of the largest group", ""),
     "milling": ("milling (0-1)", ""),
     "stray_fraction": ("stray fraction", ""),
-    "n_groups": ("number of groups", "groups"),
+    "n_groups": ("number of groups", ""),
     "elongation": ("elongation of the largest group", ""),
     "elongation_heading": ("elongation along the heading", ""),
     "aspect_heading": ("length/width along heading", ""),

@@ -10,8 +10,8 @@ Holm-adjusted over the report's trend tests; blank for ``levels``), ``finding`` 
 ``changes`` (not steadily), ``differs``, ``no clear effect``), ``disagree`` (the trend test and the
 Kruskal-Wallis test reach different verdicts at 0.05) and ``sentence``::
 
-    field of vision phi raises cohesion: share in the largest group: +0.12 from 30 to 180 deg (trend:
-    Spearman rho 0.31, p (Holm) 0.00044; any level differing: Kruskal-Wallis p (Holm) 0.11).
+    field of vision phi raises cohesion (share in the largest group): +0.131 from 30 to 180 deg (trend:
+    Spearman rho 0.15, p (Holm) 0.0011; any level differing: Kruskal-Wallis p (Holm) 0.15).
 
 ``disagreement_note(rows)`` is the paragraph shown wherever a trend test and an omnibus test disagree:
 they answer different questions. The trend test asks "does the metric move one way as the factor
@@ -95,6 +95,9 @@ def _sentence(row: dict) -> str:
     change = f"{row['change']:+.3g}{m_unit}"
     if row["kind"] == "trend":
         trend = f"Spearman rho {row['trend_rho']:.2f}, p (Holm) {_p(row['trend_p_holm'])}"
+        if row["finding"] in ("raises", "lowers") and np.sign(row["change"]) != np.sign(row["trend_rho"]):
+            return (f"{f_words} {row['finding']} {m_words} over its levels as a whole (trend: {trend}; any level "
+                    f"differing: {kw}), but not steadily: the mean at {high}{f_unit} is {change} from that at {low}.")
         if row["finding"] in ("raises", "lowers"):
             return (f"{f_words} {row['finding']} {m_words}: {change} from {low} to {high}{f_unit} (trend: {trend}; "
                     f"any level differing: {kw}).")

@@ -18,6 +18,7 @@ words and units (:mod:`analysis.reports.labels`). The format follows the extensi
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from ..labels import metric_label, parameter_label
 from ..plotting import pyplot, save
 from ..stats import bootstrap_mean_ci, main_effect
 
+NOTE_WIDTH = 64   # characters per line of a panel's note (a panel is about 4.4 inches wide)
 COLOURS = {"supported": "#0a6b2a", "partly supported": "#2f6f9f", "not supported": "#a11111",
            "inconclusive": "#9a6700"}
 
@@ -151,11 +153,13 @@ def claim_figure(outcome, path, seed: int = 0) -> Path:
             what = _one_sample(ax, leaf, rng, seed)
         if leaf.data is not None and leaf.data.n > 20:
             outside = _focus(ax, leaf.data.y)
-            what += f" ({outside} runs outside the axis)" if outside else ""
+            what += f" ({outside} run{'s' if outside > 1 else ''} outside the axis)" if outside else ""
         ax.set_title(f"{test.label}: {leaf.verdict}", fontsize=9, color=COLOURS.get(leaf.verdict, "black"))
         ax.set_ylabel(_metric_text(test.metric.text), fontsize=8)
         note = _note(leaf, len(outcome.claim.test.conditions))   # below the plot: never over the runs
-        ax.set_xlabel("\n".join(part for part in (what, note) if part), fontsize=7, loc="left")
+        lines = [wrapped for part in (what, note) if part for line in part.splitlines()
+                 for wrapped in textwrap.wrap(line, NOTE_WIDTH, subsequent_indent="  ")]
+        ax.set_xlabel("\n".join(lines), fontsize=7, loc="left")
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(leaves):]:
         ax.set_visible(False)
