@@ -145,3 +145,20 @@ def test_every_runnable_config_says_what_it_costs_and_how_to_run_it(path):
     assert re.search(rf"flocksweep (run|calibrate|compare|sbc) {re.escape(relative)}", text), \
         f"{relative}: its header names no command that runs it"
     assert COST.search(text), f"{relative}: its header says nothing of what it costs"
+
+
+@pytest.mark.slow
+def test_the_readmes_python_snippet_runs_as_a_script_and_writes_a_report(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    block = re.search(r"## Python API\n+```python\n(.*?)```", README, re.S).group(1)
+    script = tmp_path / "example.py"
+    script.write_text(block.replace('"configs/', f'"{ROOT}/configs/'))
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "perception.field_deg" in done.stdout and "240" in done.stdout          # the printed table
+    assert (tmp_path / "results" / "fov" / "report" / "report.html").is_file()

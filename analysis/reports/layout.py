@@ -157,11 +157,28 @@ def _polygons_overlap(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-def _collide(a, b, renderer) -> bool:
-    box_a, box_b = _shrunk(a.get_window_extent(renderer)), _shrunk(b.get_window_extent(renderer))
-    if not box_a.overlaps(box_b):
+class _Shapes:
+    """Each text's box and rotated corners, measured once (a text's layout is costly to measure)."""
+
+    def __init__(self, renderer):
+        self.renderer, self.boxes, self.corners = renderer, {}, {}
+
+    def box(self, text):
+        if id(text) not in self.boxes:
+            self.boxes[id(text)] = _shrunk(text.get_window_extent(self.renderer))
+        return self.boxes[id(text)]
+
+    def corner(self, text):
+        if id(text) not in self.corners:
+            self.corners[id(text)] = _corners(text, self.renderer)
+        return self.corners[id(text)]
+
+
+def _collide(a, b, renderer, shapes: _Shapes | None = None) -> bool:
+    shapes = shapes or _Shapes(renderer)
+    if not shapes.box(a).overlaps(shapes.box(b)):
         return False
-    return _polygons_overlap(_corners(a, renderer), _corners(b, renderer))
+    return _polygons_overlap(shapes.corner(a), shapes.corner(b))
 
 
 def _is_number_text(text: str) -> bool:
@@ -222,12 +239,11 @@ def _annotations(ax) -> list:
     return [t for t in ax.texts if t.get_visible() and t.get_text().strip()]
 
 
-def _covered_by_text(text, ax, renderer) -> int:
-    """Plotted points of ``ax`` under ``text`` (its box, or its background patch when it has one)."""
+def _covered_by_text(text, points: np.ndarray, renderer) -> int:
+    """How many of an axes' plotted ``points`` lie under ``text`` (its box, or its background patch)."""
     patch = text.get_bbox_patch()
     box = patch.get_window_extent(renderer) if patch is not None else text.get_window_extent(renderer)
     box = _shrunk(box)
-    points = _data_points(ax)
     return int(((points[:, 0] > box.x0) & (points[:, 0] < box.x1) &
                 (points[:, 1] > box.y0) & (points[:, 1] < box.y1)).sum())
 
@@ -243,13 +259,16 @@ def problems(fig, dpi: float) -> list[str]:
         shown = text.get_fontsize() * dpi / 72.0 * scale
         if shown < MIN_TEXT_PX - 1e-6:
             found.append(f"text {text.get_text()!r} is shown {shown:.1f} px tall (< {MIN_TEXT_PX:g})")
+    shapes = _Shapes(renderer)
     for a, b in itertools.combinations(texts, 2):
-        if _collide(a, b, renderer):
+        if _collide(a, b, renderer, shapes):
             found.append(f"texts {a.get_text()!r} and {b.get_text()!r} overlap")
     for ax in fig.axes:
         found += _axis_problems(ax)
-        for text in _annotations(ax):
-            covered = _covered_by_text(text, ax, renderer)
+        annotations = _annotations(ax)
+        points = _data_points(ax) if annotations else None
+        for text in annotations:
+            covered = _covered_by_text(text, points, renderer)
             if covered:
                 found.append(f"the annotation {text.get_text()[:40]!r} covers {covered} plotted points")
     for legend in _legends(fig):
@@ -288,11 +307,13 @@ def _thin(labels, renderer) -> None:
     labels = [t for t in labels if t.get_visible() and t.get_text().strip()]
     if len(labels) < 3:
         return
+    shapes = _Shapes(renderer)
     for keep in range(1, len(labels)):
         shown = labels[::keep]
         if shown[-1] is not labels[-1]:
-            shown = shown[:-1] + [labels[-1]] if _collide(shown[-1], labels[-1], renderer) else shown + [labels[-1]]
-        if not any(_collide(a, b, renderer) for a, b in zip(shown, shown[1:])):
+            last_meets = _collide(shown[-1], labels[-1], renderer, shapes)
+            shown = shown[:-1] + [labels[-1]] if last_meets else shown + [labels[-1]]
+        if not any(_collide(a, b, renderer, shapes) for a, b in zip(shown, shown[1:])):
             kept = {id(t) for t in shown}
             for text in labels:
                 text.set_visible(id(text) in kept)
