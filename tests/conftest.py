@@ -172,20 +172,40 @@ def compile_ticker(reporter):
 
 # --- hygiene: what a test opens, it closes ---------------------------------------------------------------
 
-def _child_processes() -> dict[int, str]:
-    """This process's live children (pid -> command line), from /proc; zombies (ended, not yet reaped)
-    do not count. Empty where /proc is missing."""
-    children = {}
+def _child_pids() -> list[int]:
+    """The pids of this process's children: each thread's /proc/self/task/T/children (a read of a few
+    files, not a scan of every process); a scan of /proc where the kernel lacks those files."""
     me = os.getpid()
+    try:
+        pids = []
+        for task in os.listdir(f"/proc/{me}/task"):
+            with open(f"/proc/{me}/task/{task}/children") as listed:
+                pids += [int(pid) for pid in listed.read().split()]
+        return pids
+    except (OSError, ValueError):
+        pass
+    pids = []
     for entry in Path("/proc").glob("[0-9]*"):
         try:
-            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            if int(fields[1]) != me or fields[0] in "ZX":
-                continue
-            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+            if int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) == me:
+                pids.append(int(entry.name))
         except (OSError, ValueError, IndexError):
             continue
-        children[int(entry.name)] = command
+    return pids
+
+
+def _child_processes() -> dict[int, str]:
+    """This process's live children (pid -> command line); zombies (ended, not yet reaped) do not
+    count. Empty where /proc is missing."""
+    children = {}
+    for pid in _child_pids():
+        try:
+            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in "ZX":
+                continue
+            command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except (OSError, IndexError):
+            continue
+        children[pid] = command.strip()
     return children
 
 
