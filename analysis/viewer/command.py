@@ -146,12 +146,14 @@ def _runs_page(args, phases) -> int:
     return 0
 
 
-def after_view(args, page) -> list[str]:
-    """Open what was written; offer the animation when only a page was."""
+def after_view(args, page, seconds: float = 0.0) -> list[str]:
+    """Open what was written (``seconds``: the run's length, for an address that opens it half-way);
+    offer the animation when only a page was."""
     steps = []
     if page is not None:
-        steps.append(f"open {page} in a browser (works offline; {Path(page).name}#t=15&color=group opens it at "
-                     "15 s coloured by group)")
+        middle = f"{seconds / 2:.3g}"
+        steps.append(f"open {page} in a browser (works offline; {Path(page).name}#t={middle}&color=group opens it "
+                     f"at {middle} s coloured by group)")
     if args.animate:
         steps.append(f"open {args.animate}")
     elif page is not None:
@@ -223,7 +225,7 @@ def run(args) -> int:
                                    speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
                                    size=size, dpi=args.dpi, progress=not args.no_progress)
             print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
-        next_steps(*after_view(args, None if args.no_page else path))
+        next_steps(*after_view(args, None if args.no_page else path, float(track.times[-1] - track.times[0])))
     except ConfigError:
         raise
     except (RunNotFound, NotReproduced, AnimationUnavailable, ValueError, FileNotFoundError) as err:
