@@ -244,6 +244,7 @@ def test_the_built_wheel_has_exactly_one_top_level_name(tmp_path):
         assert needed in names, needed
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_a_users_own_analysis_package_and_sweeps_module_do_not_shadow_ours(tmp_path):
     """A script next to its own ``analysis/`` package and ``sweeps.py`` still gets flocksweep's report, sweep
     runner and calibration (the layers are not top-level names a user's files could shadow)."""

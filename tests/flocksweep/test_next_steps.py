@@ -108,6 +108,7 @@ def test_targets_name_the_next_step_as_toml_comments(tmp_path, capsys):
     tomllib.loads(out)                                           # still TOML to paste
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_calibrate_names_its_report_and_on_ctrl_c_how_to_stop_with_a_report(tmp_path, capsys):
     """After an interrupt the hint's "stop here" command makes the saved steps the whole chain: no step
     is added and the report is written."""

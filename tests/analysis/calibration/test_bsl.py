@@ -117,6 +117,7 @@ def test_reevaluation_changes_current_log_prob_and_converges():
     np.testing.assert_allclose(post.mean(axis=0), observed_rows().mean(axis=0), atol=0.25)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_points_outside_prior_are_never_simulated():
     calls = []
     prior = JointPrior(["a", "b"], [Uniform(0.5, 1.5), Uniform(-2.5, -1.5)])  # truth near the middle,
@@ -128,6 +129,7 @@ def test_points_outside_prior_are_never_simulated():
     assert np.all((res.chain >= lo) & (res.chain <= hi))
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_nan_rows_dropped_or_minus_inf():
     obs = observed_rows()
 

@@ -233,6 +233,7 @@ def run(problem, **options):
                              **{"walkers": 12, "seed": 5, **options})
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_mcmc_recovers_the_true_theta(linear_problem):
     calls = []
     result = run(linear_problem, walkers=16, steps=300, progress=lambda *a: calls.append(a))
