@@ -46,6 +46,7 @@ from .params import PERCEPTION_KINDS, InitParams, ModelParams, Preset
 from .registry import describe
 from .rng import run_streams
 from .state import FIELDS, State, initial_state
+from flocksweep.ticker import Ticker
 
 MODEL_VERSION = "1"  # bump whenever a change alters any trajectory for an unchanged spec
 THREADED_MIN_N = 2000  # synchronous runs with this many boids use all of numba's threads by default
@@ -79,7 +80,8 @@ class Observations:
 
 _NOTICE_SHOWN = False
 _COMPILE_SECONDS = 0.0
-COMPILE_ESTIMATE = "about 45 s on the 2-core reference machine, longer on a busy one"   # bench/RESULTS.md
+COMPILE_ESTIMATE = "usually about a minute on 2 cores, a few minutes on a busy machine"   # bench/RESULTS.md
+TICKER_ESTIMATE = "usually about 1 min, longer on a busy machine"   # the same, short enough for one line
 
 
 def compile_seconds() -> float:
@@ -91,10 +93,12 @@ class _CompileNotice(numba_event.Listener):
     """Tells the user on stderr when numba starts compiling a run loop rather than loading it from its
     on-disk cache (the first run after installing or editing simcore, or of a perception kind or
     dynamics not run before; numba signals only real compiles): one line per run loop, with an estimate,
-    and one when it is done, with its time (also counted by :func:`compile_seconds`)."""
+    a :class:`flocksweep.ticker.Ticker` with the time so far while it compiles, and one line when it is
+    done, with its time (also counted by :func:`compile_seconds`)."""
 
     def __init__(self, family: str):
         self.family, self.depth, self.started = family, 0, 0.0
+        self.ticker: Ticker | None = None
 
     def on_start(self, event) -> None:
         global _NOTICE_SHOWN
@@ -106,11 +110,16 @@ class _CompileNotice(numba_event.Listener):
         _NOTICE_SHOWN = True
         print(f"simcore: compiling {what} {self.family} (once, after installing or editing simcore; "
               f"{COMPILE_ESTIMATE}) ...", file=sys.stderr, flush=True)
+        self.ticker = Ticker(f"simcore: compiling {self.family.split(' ', 1)[0]}", TICKER_ESTIMATE,
+                             under_bars=True).__enter__()
 
     def on_end(self, event) -> None:
         global _COMPILE_SECONDS
         self.depth -= 1
         if self.depth == 0:
+            if self.ticker is not None:
+                self.ticker.stop()
+                self.ticker = None
             elapsed = time.perf_counter() - self.started
             _COMPILE_SECONDS += elapsed
             print(f"simcore: compiled {self.family} in {elapsed:.0f} s (cached for later runs)",

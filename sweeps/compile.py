@@ -27,6 +27,8 @@ one a run would have compiled itself. The command's arguments and entry are in
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
+import io
 import dataclasses
 import multiprocessing
 import time
@@ -78,24 +80,27 @@ def group_models(paths) -> list[tuple[tuple[str, str], list[str]]]:
     return sorted(groups.items(), key=lambda item: weight(item[0]))
 
 
-def compile_group(key: tuple[str, str], paths: list[str]):
+def compile_group(key: tuple[str, str], paths: list[str], quiet: bool = False):
     """Simulate these models along every compiled path (see the module docstring), in its own process;
-    returns its :class:`GroupResult` and the tiny runs (model, observations), for their metrics."""
+    returns its :class:`GroupResult` and the tiny runs (model, observations), for their metrics.
+    ``quiet``: no compile notice on stderr (the calling process shows its own ticker)."""
     counter = CompileCounter()
     start = time.perf_counter()
     runs = []
-    with numba_event.install_listener("numba:compile", counter):
+    silenced = contextlib.redirect_stderr(io.StringIO()) if quiet else contextlib.nullcontext()
+    with silenced, numba_event.install_listener("numba:compile", counter):
         for path in paths:
             runs += _simulations(path)
     result = GroupResult(key, tuple(Path(p).stem for p in paths), counter.count, time.perf_counter() - start)
     return result, runs
 
 
-def compile_kernels(paths=None, jobs: int = 2, report=print) -> list[GroupResult]:
+def compile_kernels(paths=None, jobs: int = 2, report=print, ticker=None) -> list[GroupResult]:
     """Compile (or find in the cache) every kernel the models need, ``jobs`` groups at a time, and the metric
     kernels in this process as the groups' runs come back; ``report`` is called with one line per finished
-    group and one for the metrics. Returns the groups' results in the order they started, then the
-    metrics' (key ``("metrics", "all")``)."""
+    group and one for the metrics. ``ticker`` (a :class:`flocksweep.ticker.Ticker`, not yet started) shows
+    the time so far meanwhile, with how many groups are done. Returns the groups' results in the order
+    they started, then the metrics' (key ``("metrics", "all")``)."""
     if isinstance(jobs, bool) or int(jobs) != jobs or jobs < 1:
         raise ValueError(f"jobs: got {jobs!r}; must be an integer >= 1")
     groups = group_models(shipped_models() if paths is None else paths)
@@ -103,15 +108,20 @@ def compile_kernels(paths=None, jobs: int = 2, report=print) -> list[GroupResult
         return []
     context = multiprocessing.get_context("spawn")
     compiled_metrics, metric_seconds, results = 0, 0.0, {}
-    with concurrent.futures.ProcessPoolExecutor(max_workers=min(int(jobs), len(groups)),
-                                                mp_context=context) as pool:
-        futures = {pool.submit(compile_group, key, models): key for key, models in groups}
+    ticking = ticker if ticker is not None else contextlib.nullcontext()
+    if ticker is not None:
+        ticker.status = f"0 of {len(groups)} model families done"
+    with ticking, concurrent.futures.ProcessPoolExecutor(max_workers=min(int(jobs), len(groups)),
+                                                         mp_context=context) as pool:
+        futures = {pool.submit(compile_group, key, models, ticker is not None): key for key, models in groups}
         start = time.perf_counter()   # meanwhile, here: the metric kernels, on placeholder records
         compiled_metrics += measure_all(placeholder_runs([path for _, models in groups for path in models]))
         metric_seconds += time.perf_counter() - start
         for done in concurrent.futures.as_completed(futures):
             result, runs = done.result()
             results[result.key] = result
+            if ticker is not None:
+                ticker.status = f"{len(results)} of {len(groups)} model families done"
             report(f"  {result.key[1]} perception, {result.key[0]} dynamics ({', '.join(result.models)}): "
                    f"{result.compiled} kernels compiled in {result.seconds:.1f} s")
             start = time.perf_counter()

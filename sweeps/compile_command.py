@@ -7,6 +7,9 @@ from __future__ import annotations
 import os
 import time
 
+# what every shipped preset's kernels take to compile (bench/RESULTS.md)
+ESTIMATE = "usually 5-10 min for every shipped model on 2 cores, longer on a busy machine"
+
 
 def run(args) -> int:
     """``flocksweep compile``: bad input (a --jobs below 1, a missing or invalid preset) is refused before
@@ -15,6 +18,7 @@ def run(args) -> int:
 
     from .compile import compile_kernels
     from .failures import check_count
+    from .progress import Ticker
 
     check_count("--jobs", args.jobs, 1)
     for model in args.models:
@@ -23,7 +27,8 @@ def run(args) -> int:
     start = time.perf_counter()
     what = f"{len(args.models)} model(s)" if args.models else "the shipped presets"
     print(f"compiling the kernels of {what} in up to {jobs} processes ...", flush=True)
-    results = compile_kernels(args.models or None, jobs, report=lambda line: print(line, flush=True))
+    ticker = Ticker("compile", ESTIMATE)
+    results = compile_kernels(args.models or None, jobs, report=ticker.say, ticker=ticker)
     compiled = sum(r.compiled for r in results)
     print(f"{compiled} kernels compiled ({'now cached' if compiled else 'none: all were cached'}) in "
           f"{time.perf_counter() - start:.1f} s")

@@ -38,10 +38,15 @@ import os
 import sys
 from pathlib import Path
 
+from contextlib import nullcontext
+
 from numba.core import event as numba_event
+
+from flocksweep.ticker import Ticker
 
 from . import main_guard, worker
 
+METRICS_ESTIMATE = "usually under a minute, once"   # the metric kernels' first compile (bench/RESULTS.md)
 HELPER_LIMIT = 300.0   # seconds the warm-up waits for its helper (its whole job is about 20 s on one core)
 FAILED = object()   # a warm-up run that failed (its run fails in its worker)
 RECORD = "flocksweep-warm.txt"   # the warm-ups known to load everything from numba's cache (module docstring)
@@ -115,14 +120,16 @@ def warm_up_all(specs) -> MetricsAlongside:
     try:
         with numba_event.install_listener("numba:compile", helper):
             runs = [(spec, _tiny_run(spec)) for spec in specs]
-        helper.wait()
-        for spec, obs in runs:
-            ok &= obs is not FAILED
-            if obs is not FAILED:
-                try:
-                    worker.warm_up_metrics(spec, obs)
-                except Exception:  # noqa: BLE001 - a run that cannot be measured fails in its worker
-                    ok = False
+        compiling = helper.process is not None or helper.failed   # something compiled: the metrics may too
+        with Ticker("sweep: compiling the metric kernels", METRICS_ESTIMATE) if compiling else nullcontext():
+            helper.wait()
+            for spec, obs in runs:
+                ok &= obs is not FAILED
+                if obs is not FAILED:
+                    try:
+                        worker.warm_up_metrics(spec, obs)
+                    except Exception:  # noqa: BLE001 - a run that cannot be measured fails in its worker
+                        ok = False
     finally:
         helper.stop()
     if ok and keys is not None:

@@ -1,7 +1,9 @@
-"""Shared helpers for the simcore tests: model builders and hand-made states; and, for a run split over
-workers (``pytest -n K``), every kernel compiled once before the workers start.
+"""Shared helpers for the simcore tests: model builders and hand-made states; for a run split over
+workers (``pytest -n K``), every kernel compiled once before the workers start; and the suite's hygiene:
+every test closes the matplotlib figures it opens and ends the processes it starts (checked after each
+test, so the suite passes the same run serially, split over workers or in any order).
 
-Only builders live here; every assertion is in the test modules.
+Only builders and the hygiene checks live here; every other assertion is in the test modules.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from flocksweep.simcore import State
 from flocksweep.simcore.opensteer_params import Steering
@@ -143,9 +146,113 @@ def pytest_sessionstart(session):
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     say = reporter.write_line if reporter is not None else print
     say("compiling the kernels of the shipped presets before the workers start (flocksweep compile) ...")
+    ticker = compile_ticker(reporter)
     try:
-        results = compile_kernels(jobs=2, report=say)
+        results = compile_kernels(jobs=2, report=ticker.say, ticker=ticker)
     except Exception as err:  # noqa: BLE001 - reported; the tests show the real failure
         say(f"  compile failed: {type(err).__name__}: {err}")
         return
     say(f"  {sum(r.compiled for r in results)} kernels compiled")
+
+
+def compile_ticker(reporter):
+    """The compile step's ticker, written through pytest's terminal reporter (stderr is captured while the
+    session starts): on a terminal one line rewritten every second, otherwise a line every 20 s."""
+    from flocksweep.sweeps.compile_command import ESTIMATE
+    from flocksweep.sweeps.progress import Ticker
+
+    if reporter is None:
+        return Ticker("compiling", ESTIMATE, line=print)
+    rewrite = clear = None
+    if reporter.isatty:
+        rewrite = lambda text: reporter.rewrite(text, erase=True)   # noqa: E731
+        clear = lambda: (reporter.rewrite("", erase=True), reporter.write("\r", flush=True))   # noqa: E731
+    return Ticker("compiling", ESTIMATE, line=reporter.write_line, rewrite=rewrite, clear=clear,
+                  output=reporter.write_line)
+
+
+# --- hygiene: what a test opens, it closes ---------------------------------------------------------------
+
+def _child_pids() -> list[int]:
+    """The pids of this process's children: each thread's /proc/self/task/T/children (a read of a few
+    files, not a scan of every process); a scan of /proc where the kernel lacks those files."""
+    me = os.getpid()
+    try:
+        pids = []
+        for task in os.listdir(f"/proc/{me}/task"):
+            with open(f"/proc/{me}/task/{task}/children") as listed:
+                pids += [int(pid) for pid in listed.read().split()]
+        return pids
+    except (OSError, ValueError):
+        pass
+    pids = []
+    for entry in Path("/proc").glob("[0-9]*"):
+        try:
+            if int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) == me:
+                pids.append(int(entry.name))
+        except (OSError, ValueError, IndexError):
+            continue
+    return pids
+
+
+def _child_processes() -> dict[int, str]:
+    """This process's live children (pid -> command line); zombies (ended, not yet reaped) do not
+    count. Empty where /proc is missing."""
+    children = {}
+    for pid in _child_pids():
+        try:
+            if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in "ZX":
+                continue
+            command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except (OSError, IndexError):
+            continue
+        children[pid] = command.strip()
+    return children
+
+
+# children that outlive a test by design: multiprocessing's resource tracker, one per process, started by
+# the first pool and kept for the session
+SESSION_HELPERS = ("multiprocessing.resource_tracker",)
+PROCESS_GRACE_S = 20.0   # a stopped pool's workers are given this long to exit (they are not waited for)
+
+
+def _leftover_children(before: set[int]) -> dict[int, str]:
+    import time
+
+    deadline = time.monotonic() + PROCESS_GRACE_S
+    while True:
+        left = {pid: command for pid, command in _child_processes().items()
+                if pid not in before and not any(helper in command for helper in SESSION_HELPERS)}
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.1)
+
+
+@pytest.fixture(autouse=True)
+def closes_what_it_opens(request):
+    """Fails the test (an error at its teardown) that leaves a matplotlib figure open or a child process
+    running, then closes or kills what it left, so that no other test inherits it (a figure left open by one
+    module used to fail another's teardown when the suite ran in one process)."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    figures_before = set(plt.get_fignums()) if plt is not None else set()
+    children_before = set(_child_processes())
+    yield
+    problems = []
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        left_open = sorted(set(plt.get_fignums()) - figures_before)
+        for number in left_open:
+            plt.close(number)
+        if left_open:
+            problems.append(f"left {len(left_open)} matplotlib figure(s) open (close them: plt.close(fig))")
+    left_running = _leftover_children(children_before)
+    for pid in left_running:
+        try:
+            os.kill(pid, 9)
+        except OSError:
+            pass
+    if left_running:
+        problems.append("left child processes running: " + "; ".join(f"{pid} {command[:120]}"
+                                                                       for pid, command in left_running.items()))
+    if problems:
+        pytest.fail(f"{request.node.nodeid}: " + " and ".join(problems), pytrace=False)

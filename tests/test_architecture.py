@@ -19,9 +19,9 @@ from paths import ROOT
 # bottom to top; docs/architecture.md states the same table. Each layer is a top-level folder of the
 # repository, installed as a subpackage of the one import name (simcore/ is flocksweep.simcore); the
 # command line's folder, flocksweep/, is the top layer, except for the namespace root below every layer:
-# flocksweep/__init__.py and flocksweep/lazy.py, which import only the standard library.
+# flocksweep/__init__.py, flocksweep/lazy.py and flocksweep/ticker.py, which import only the standard library.
 PACKAGES = ("simcore", "observables", "sweeps", "analysis", "flocksweep")
-ROOT_MODULES = ("flocksweep", "flocksweep.lazy")
+ROOT_MODULES = ("flocksweep", "flocksweep.lazy", "flocksweep.ticker")
 # inside analysis/, bottom to top (analysis/__init__.py is a namespace below all three: it imports nothing)
 ANALYSIS = ("viewer", "reports", "calibration")
 SANITY_CAP = 800
@@ -244,6 +244,7 @@ def test_the_built_wheel_has_exactly_one_top_level_name(tmp_path):
         assert needed in names, needed
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_a_users_own_analysis_package_and_sweeps_module_do_not_shadow_ours(tmp_path):
     """A script next to its own ``analysis/`` package and ``sweeps.py`` still gets flocksweep's report, sweep
     runner and calibration (the layers are not top-level names a user's files could shadow)."""

@@ -52,11 +52,11 @@ moves="stretch", meta=None, until_converged=False, check_every=50, count=None) -
   (:class:`~analysis.calibration.accounting.Accounting.add`).
 * ``until_converged`` / ``check_every``: ``steps`` becomes a cap and the chain stops at the first
   multiple of ``check_every`` rows where it is long enough (:func:`~analysis.calibration.mcmc.run_chain`).
-* ``progress(step, acceptance_fraction_mean, tau_estimate)`` is called after every ``progress_every``
-  rows (default ``max(1, steps // 10)``) and after the last one; ``tau_estimate`` is the mean over
-  parameters of emcee's integrated autocorrelation time of the second half of the rows so far (the
-  first half taken as burn-in; no length check), nan
-  when it cannot be computed (fewer than 2 rows).
+* ``progress(step, acceptance_fraction_mean, tau_estimate)`` is called after every row; ``tau_estimate``
+  is the mean over parameters of emcee's integrated autocorrelation time of the second half of the rows
+  so far (the first half taken as burn-in; no length check), estimated again every ``progress_every``
+  rows (default ``max(1, steps // 10)``) and at the last, nan before the first estimate or when it
+  cannot be computed (fewer than 2 rows).
 * The result is a :class:`~analysis.calibration.mcmc.ChainResult`: ``chain`` (steps, walkers, d),
   ``log_prob`` (steps, walkers), ``acceptance_fraction`` (walkers,), ``names`` (the prior's parameter
   names when it has them), ``path`` (or None), ``seed``.

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 
 from flocksweep.sweeps.failures import check_out, check_workers
+from flocksweep.sweeps.progress import next_steps
 
 
 def run(args) -> int:
@@ -20,4 +21,7 @@ def run(args) -> int:
     for line in result["messages"]:
         print(line)
     print(f"wrote {result['folder']} (report: {result['folder'] / 'report.md'})")
+    next_steps(f"open {result['folder'] / 'report.md'}   (which model, how sure, and the confusion matrix)",
+               "flocksweep calibrate CALIBRATION.toml   (the chosen model's own calibration file, named in "
+               f"{args.config})")
     return 0

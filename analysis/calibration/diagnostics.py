@@ -160,8 +160,9 @@ def posterior_summary(chain, names: Sequence[str] | None, acceptance, burn: int 
     return df
 
 
-def convergence(chain, acceptance, burn: int | None = None) -> dict:
-    """Plain convergence verdicts for an ensemble chain (see the module docstring)."""
+def convergence(chain, acceptance, burn: int | None = None, moves: str = "stretch") -> dict:
+    """Plain convergence verdicts for an ensemble chain (see the module docstring); ``moves`` (the
+    chain's proposal, "stretch" or "de") decides the advice on a low acceptance."""
     chain = _chain(chain)
     steps, walkers, _ = chain.shape
     burn = default_burn(chain) if burn is None else int(burn)
@@ -192,8 +193,12 @@ def convergence(chain, acceptance, burn: int | None = None) -> dict:
     if not math.isfinite(acc):
         messages.append("acceptance fraction unknown: cannot judge the step size")
     elif acc < lo:
+        advice = ("try a smaller stretch scale or better starting points" if moves == "stretch" else
+                  "with differential-evolution moves the step follows the walkers' spread: try more "
+                  "replicates per evaluation (n_sim) or reevaluate_every, so a noisy likelihood rejects "
+                  "less, or better starting points")
         messages.append(f"mean acceptance fraction {acc:.2f} is below {lo}: proposals are too bold, "
-                        f"walkers rarely move (try a smaller stretch scale or better starting points)")
+                        f"walkers rarely move ({advice})")
     elif acc > hi:
         messages.append(f"mean acceptance fraction {acc:.2f} is above {hi}: proposals are too timid, "
                         f"walkers move in tiny steps")

@@ -42,9 +42,10 @@ before_step=None, refresh_every=0, refresh=None, until_converged=False, check_ev
   least 50 x the largest integrated autocorrelation time estimated on them, and ArviZ's R-hat <= 1.01 and
   bulk and tail ESS >= 400 with walkers as chains) and the run stops at the first row where they hold. Stopping depends only on the rows, which are
   bit-identical for the same arguments, so a resumed or repeated run stops at the same row.
-* ``progress(step, acceptance_fraction_mean, tau_estimate)`` after every ``progress_every`` rows
-  (default ``max(1, steps // 10)``) and after the last; ``tau_estimate`` is :func:`progress_tau` of the
-  second half of the rows so far.
+* ``progress(step, acceptance_fraction_mean, tau_estimate)`` after every row, so a bar moves with each
+  step; ``tau_estimate`` is :func:`progress_tau` of the second half of the rows so far, computed again
+  every ``progress_every`` rows (default ``max(1, steps // 10)``) and at the last (the latest estimate
+  in between; nan before the first).
 * :class:`ChainResult`: ``chain`` (steps, walkers, d), ``log_prob`` (steps, walkers),
   ``acceptance_fraction`` (walkers,), ``names`` (the prior's), ``path`` (or None), ``seed``.
 
@@ -205,6 +206,7 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
         state = sampler.backend.get_last_sample()   # coords, log_prob, emcee's random state
     t = start
     check_initial = start == 0
+    tau = float("nan")
 
     def converged() -> bool:
         return bool(check_every and t > 0 and t % check_every == 0 and sampled_enough(sampler.backend.get_chain()))
@@ -222,9 +224,10 @@ def _run(log_prob, prior, backend, meta, moves, walkers, ndim, steps, seed, init
             state = next(rows)
             t += 1
             done = converged()
-            if progress is not None and (t % every == 0 or t == steps or done):
-                acceptance = float(np.mean(sampler.backend.accepted / float(t)))
-                progress(t, acceptance, progress_tau(sampler.backend.get_chain()[t // 2:]))
+            if progress is not None:
+                if t % every == 0 or t == steps or done:
+                    tau = progress_tau(sampler.backend.get_chain()[t // 2:])
+                progress(t, float(np.mean(sampler.backend.accepted / float(t))), tau)
             if done:
                 break
         rows.close()

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_count, check_out
+from flocksweep.sweeps.progress import next_steps
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -80,6 +81,9 @@ def run(args) -> int:
     if args.out:
         table.to_csv(args.out, index=False)
         print(f"wrote {args.out}: {len(table)} posteriors in {time.time() - started:.1f} s")
+        next_steps(f'pandas.read_csv("{args.out}")   (one posterior per row: mean, sd, median, 5% and 95% quantiles)')
     else:
         print(table.round(4).to_string())
+        next_steps(f"flocksweep posterior {args.estimator} --targets {args.targets} --out posteriors.csv   "
+                   "(the same as a table)")
     return 0

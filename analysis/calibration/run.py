@@ -543,7 +543,8 @@ def write_posterior(config: CalibrationConfig, result, folder: OutputFolder, poo
     the figures (``phases``: the calibration's progress lines, the predictive check one of them)."""
     summary = posterior_summary(result.chain, config.names, result.acceptance_fraction)
     burn = int(summary.attrs.get("burn", 0))
-    verdict = convergence(result.chain, result.acceptance_fraction, burn=burn)
+    verdict = convergence(result.chain, result.acceptance_fraction, burn=burn,
+                          moves=getattr(config.method, "moves", "stretch"))
     warnings = list(warnings or []) + prior_constraint_warnings(summary, config.prior)
     draws, source = _posterior_draws(result.chain, burn, predictive_draws, generator(config.seed, Tag.PREDICTIVE))
     predictive, flock = _predictive(config, draws, pool, phases or Phases("calibrate", 1, False))

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_count, check_out, check_workers
+from flocksweep.sweeps.progress import next_steps
 
 
 def run(args) -> int:
@@ -30,4 +31,6 @@ def run(args) -> int:
     print(result["table"].round(4).to_string())
     print(f"  {result['verdict']}")
     print(f"  wrote {result['out']}")
+    next_steps(f"open {Path(result['out']) / 'rank_histogram.png'} and {Path(result['out']) / 'ecdf_diff.png'}   "
+               "(flat ranks, a curve inside its band: the posterior is calibrated; docs/calibration/sbc.md)")
     return 0

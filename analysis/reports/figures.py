@@ -43,12 +43,14 @@ from __future__ import annotations
 
 import math
 import numbers
+import textwrap
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .labels import metric_label, parameter_label, parameter_unit, parameter_words
 from .plotting import pyplot, save
 from .traces import boid_colours, draw_traces
 
@@ -91,6 +93,12 @@ def _fmt_value(value: float) -> str:
     return f"{value:.2f}"
 
 
+def _level_words(factor: str, level) -> str:
+    """``field of vision phi = 60 deg``: a factor at one of its levels, in words."""
+    unit = parameter_unit(factor)
+    return f"{parameter_words(factor)} = {_fmt_level(level)}{' ' + unit if unit else ''}"
+
+
 def _text_colour(rgba) -> str:
     r, g, b = rgba[:3]
     return "black" if 0.299 * r + 0.587 * g + 0.114 * b > 0.55 else "white"
@@ -123,10 +131,12 @@ def _cell_colours(n: int):
 # -- 1. main effects ----------------------------------------------------------------------------------
 
 def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5, title: str = "",
-                        sharey: bool = True, xlabel: str = "") -> Path:
+                        sharey: bool = True, xlabel: str = "", panel_title=parameter_label,
+                        panel_ylabel=None) -> Path:
     """One panel per factor: mean of ``metric`` vs level with its CI (band or error bars). With
     ``sharey=False`` each panel keeps its own y scale (e.g. one panel per metric against one factor,
-    the panel titles naming the metrics and ``xlabel`` the factor)."""
+    the panel titles naming the metrics and ``xlabel`` the factor). ``panel_title(name)`` words each
+    panel's title (default: the factor's words and unit); ``panel_ylabel(name)`` its own y label."""
     _require(effects, ["factor", "level", "mean", "ci_low", "ci_high"], "main_effects_figure")
     if effects.empty:
         raise ValueError("main_effects_figure: no effects to draw")
@@ -158,14 +168,17 @@ def main_effects_figure(effects: pd.DataFrame, metric: str, path, ncols: int = 5
             ax.errorbar(xs, mean, yerr=np.clip(yerr, 0, None), fmt="o", color="C0", markersize=5,
                         capsize=4, linewidth=1.4)
             ax.set_xticks(xs)
-            labels = [_fmt_level(v) for v in levels]
-            ax.set_xticklabels(labels, fontsize=7, rotation=30 if max(map(len, labels)) > 6 else 0)
+            labels = [textwrap.fill(_fmt_level(v), 14) for v in levels]   # long level names on a few lines
+            longest = max(len(line) for label in labels for line in label.splitlines())
+            ax.set_xticklabels(labels, fontsize=7, rotation=30 if longest > 6 and len(levels) > 3 else 0)
             ax.set_xlim(-0.5, len(levels) - 0.5)
-        ax.set_title(str(factor), fontsize=9)
+        ax.set_title(panel_title(factor), fontsize=9)
         ax.tick_params(axis="y", labelsize=7)
         ax.grid(True, alpha=0.3, linewidth=0.5)
-        if sharey and k % ncols == 0:
-            ax.set_ylabel(metric, fontsize=9)
+        if sharey and k % ncols == 0:   # wrapped to the panel's height: rows' labels never meet
+            ax.set_ylabel(textwrap.fill(metric_label(metric), 26), fontsize=9)
+        elif panel_ylabel is not None:
+            ax.set_ylabel(textwrap.fill(panel_ylabel(factor), 26), fontsize=8)
         if xlabel:
             ax.set_xlabel(xlabel, fontsize=8)
     for ax in axes.flat[len(factors):]:
@@ -256,21 +269,21 @@ def heatmap_figure(cells: pd.DataFrame, metric: str, x: str, y: str, path, panel
             if r == n_rows - 1:
                 long = max(map(len, x_labels)) > 4 and nx > 3
                 ax.set_xticklabels(x_labels, fontsize=7, rotation=45 if long else 0)
-                ax.set_xlabel(x, fontsize=8)
+                ax.set_xlabel(parameter_label(x), fontsize=8)
             else:
                 ax.set_xticklabels([])
             if c == 0:
                 ax.set_yticklabels(y_labels, fontsize=7)
-                row_name = ", ".join(f"{f}={_fmt_level(v)}" for f, v in zip(rows, row_combo))
-                ax.set_ylabel(f"{row_name}\n{y}" if row_name else y, fontsize=8)
+                row_name = ", ".join(_level_words(f, v) for f, v in zip(rows, row_combo))
+                ax.set_ylabel(f"{row_name}\n{parameter_label(y)}" if row_name else parameter_label(y), fontsize=8)
             else:
                 ax.set_yticklabels([])
             if r == 0 and panel:
-                ax.set_title(f"{panel} = {_fmt_level(panel_level)}", fontsize=9)
+                ax.set_title(_level_words(panel, panel_level), fontsize=9)
             ax.tick_params(length=2)
     bar = fig.colorbar(image, ax=axes.ravel().tolist(), shrink=min(1.0, 0.9 if n_rows > 1 else 1.0),
                        aspect=max(20, 12 * n_rows))
-    bar.set_label(f"{metric} (mean)", fontsize=8)
+    bar.set_label(f"{metric_label(metric)}, mean", fontsize=8)
     bar.ax.tick_params(labelsize=7)
     if title:
         fig.suptitle(title, fontsize=10)
@@ -317,11 +330,11 @@ def timeseries_figure(ts: pd.DataFrame, cells: dict[str, list[str]], metrics: li
         raise ValueError("timeseries_figure: none of the cells has time series in ts")
     for k, metric in enumerate(metrics):
         ax = axes.flat[k]
-        ax.set_title(metric, fontsize=9)
+        ax.set_title(metric_label(metric), fontsize=9)
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3, linewidth=0.5)
         if k >= len(metrics) - ncols:
-            ax.set_xlabel("t", fontsize=8)
+            ax.set_xlabel("time t (s)", fontsize=8)
             ax.xaxis.set_tick_params(labelbottom=True)
     for ax in axes.flat[len(metrics):]:
         ax.set_visible(False)
@@ -404,7 +417,7 @@ def effect_sizes_figure(tests: pd.DataFrame, path, alpha: float = 0.05, cmap: st
     norm = matplotlib.colors.Normalize(vmin, vmax)
 
     nm, nf = len(metrics), len(factors)
-    longest_factor = max(len(str(f)) for f in factors)
+    longest_factor = max(len(parameter_label(f)) for f in factors)
     fig, ax = plt.subplots(figsize=(0.85 * nf + 3.2, 0.32 * nm + 1.4 + 0.05 * longest_factor),
                            layout="constrained")
     image = ax.imshow(np.ma.masked_invalid(values), cmap=colormap, norm=norm, aspect="auto",
@@ -420,10 +433,10 @@ def effect_sizes_figure(tests: pd.DataFrame, path, alpha: float = 0.05, cmap: st
                 ax.add_patch(matplotlib.patches.Rectangle((j - 0.44, i - 0.42), 0.88, 0.84, fill=False,
                                                           edgecolor="#1f77b4", linewidth=1.5))
     ax.set_xticks(range(nf))
-    ax.set_xticklabels([str(f) for f in factors], fontsize=7, rotation=35, ha="right",
+    ax.set_xticklabels([parameter_label(f) for f in factors], fontsize=7, rotation=35, ha="right",
                        rotation_mode="anchor")
     ax.set_yticks(range(nm))
-    ax.set_yticklabels([str(m) for m in metrics], fontsize=7)
+    ax.set_yticklabels([metric_label(m) for m in metrics], fontsize=7)
     ax.tick_params(length=2)
     ax.set_xlabel("factor", fontsize=8)
     ax.set_ylabel("metric", fontsize=8)

@@ -26,6 +26,7 @@ from pathlib import Path
 from flocksweep.observables.track_names import RECORDED
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_out
+from flocksweep.sweeps.progress import next_steps
 
 # the reading and measuring (observables: numpy and the numba kernels; .measured: pandas, matplotlib) are
 # imported by run(), so that `flocksweep measure --help` starts in a fraction of a second
@@ -111,4 +112,16 @@ def run(args) -> int:
         print(f"  wrote {path}")
     print(f"  tables: {result['out'] / 'runs.parquet'}, {result['out'] / 'timeseries.parquet'}, "
           f"{result['out'] / 'validation.csv'}; {result['seconds']:.1f} s")
+    next_steps(*after_measure(args.tracks, result))
     return 0
+
+
+def after_measure(tracks: Path, result: dict) -> list[str]:
+    """Look at the measurement, then fit a model to these tracks (a calibration file taking its targets
+    from them: configs/calibration/tracks_holland.toml is a template)."""
+    page = result["paths"].get("html") or result["paths"].get("md")
+    steps = [f"open {page} in a browser (the flocks' metrics, figures and what the checks found)"] if page else []
+    return steps + [f"flocksweep targets CALIBRATION.toml --from-tracks {tracks}   (these flocks as calibration "
+                    f"targets; a template: configs/calibration/tracks_holland.toml)",
+                    "flocksweep calibrate CALIBRATION.toml   (with [targets] from_tracks = "
+                    f'"{tracks}": a model fitted to these flocks; docs/measured.md)']

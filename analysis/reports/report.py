@@ -51,7 +51,8 @@ from flocksweep.sweeps.store import ResultsStore
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
-from .labels import METRICS
+from .labels import metric_label, metric_unit, metric_words, parameter_label
+from .plain_words import disagreement_note, plain_findings
 from .sensitivity import continuous_design, design_runs
 from .sensitivity_section import sensitivity_section
 from .claims.evaluate import evaluate
@@ -62,7 +63,6 @@ from .viewer_pages import viewer_blocks
 DEFAULT_METRICS = ("cohesion", "polarization", "stray_fraction", "n_groups", "elongation", "speed_mean")
 ALIASES = {"alignment": "polarization", "groups": "n_groups", "stray": "stray_fraction", "speed": "speed_mean",
            "strays": "stray_fraction", "fragmentation": "time_to_fragmentation"}
-LABELS = METRICS
 RANGE = "perception.range"
 FIELD = "perception.field_deg"
 DIRECTION = "perception.direction_deg"
@@ -89,7 +89,7 @@ def resolve_metrics(results: Results, names) -> list[str]:
 
 
 def label(metric: str) -> str:
-    return LABELS.get(metric, metric)
+    return metric_label(metric)
 
 
 @dataclass
@@ -213,7 +213,32 @@ def _two_way_pair(ctx: Context):
     return tuple(ctx.factors[:2]) if len(ctx.factors) >= 2 else None
 
 
+def _plain_words(ctx: Context, st: dict) -> pd.DataFrame:
+    """The section that answers first: what each factor does to each metric, in a sentence each
+    (:mod:`analysis.reports.plain_words`), and a note where a trend and an omnibus test disagree."""
+    findings = _save_table(ctx, "findings", plain_findings(ctx.runs, st["tests"], st["effects"], ctx.factors,
+                                                           ctx.metrics))
+    ctx.blocks.append(Heading("What each factor does, in plain words"))
+    ctx.blocks.append(Para("A sentence per metric and factor: the change of the metric's mean from the lowest to "
+                           "the highest level (a numeric factor, with its trend test) or between the levels with "
+                           "the smallest and largest mean; p-values Holm-adjusted over the report's family. Details "
+                           "and figures follow per metric; every row is in `tables/findings.csv`."))
+    for metric in ctx.metrics:
+        rows = findings[findings["metric"] == metric]
+        clear = [r.sentence for r in rows.itertuples() if r.finding != "no clear effect"]
+        unclear = [parameter_label(r.factor) for r in rows.itertuples() if r.finding == "no clear effect"]
+        text = " ".join(clear) if clear else "No factor has a clear effect."
+        if unclear and clear:
+            text += f" No clear effect: {', '.join(unclear)}."
+        ctx.blocks.append(Para(f"**{label(metric)}**: {text}"))
+    note = disagreement_note(findings)
+    if note:
+        ctx.blocks.append(Para(note))
+    return findings
+
+
 def _metric_sections(ctx: Context, st: dict) -> None:
+    findings = _plain_words(ctx, st)
     ctx.blocks.append(Heading("Which factor matters for which metric"))
     ctx.blocks.append(Para("Kruskal-Wallis test per factor and metric (runs pooled over the other factors), "
                            "effect size epsilon squared, p-values Holm-adjusted over the whole family."))
@@ -222,17 +247,27 @@ def _metric_sections(ctx: Context, st: dict) -> None:
             "after Holm correction.")
     for metric in ctx.metrics:
         ctx.blocks.append(Heading(f"{label(metric)} (`{metric}`)"))
+        said = findings[findings["metric"] == metric]["sentence"]
+        if len(said):
+            ctx.blocks.append(Para(" ".join(said)))
         effects = st["effects"][st["effects"]["metric"] == metric]
         _figure(ctx, f"main_effects_{metric}", lambda p, e=effects: figures.main_effects_figure(e, metric, p),
                 f"Main effects on {label(metric)}: mean and 95% bootstrap CI per level.")
         tests = st["tests"][st["tests"]["metric"] == metric]
-        ctx.blocks.append(Table(tests.drop(columns=["metric"]), f"Kruskal-Wallis per factor: {metric}"))
+        ctx.blocks.append(Table(_worded(tests.drop(columns=["metric"])), f"Kruskal-Wallis per factor: {label(metric)}"))
         if st["pair"] and len(st["two_way"]):
             tw = st["two_way"][st["two_way"]["metric"] == metric].drop(columns=["metric"])
-            ctx.blocks.append(Table(tw, f"Rank-based two-way ANOVA, {st['pair'][0]} x {st['pair'][1]}: {metric}"))
+            tw = tw.assign(source=tw["source"].map(lambda v: " x ".join(parameter_label(f) for f in str(v).split(":"))))
+            ctx.blocks.append(Table(tw, f"Rank-based two-way ANOVA, {parameter_label(st['pair'][0])} x "
+                                        f"{parameter_label(st['pair'][1])}: {label(metric)}"))
         adj = st["adjacent"][st["adjacent"]["metric"] == metric].drop(columns=["metric"])
-        ctx.blocks.append(Table(adj, f"Adjacent levels compared (Mann-Whitney, Cliff's delta, Holm): {metric}",
-                                max_rows=30))
+        ctx.blocks.append(Table(_worded(adj), f"Adjacent levels compared (Mann-Whitney, Cliff's delta, Holm): "
+                                              f"{label(metric)}", max_rows=30))
+
+
+def _worded(table: pd.DataFrame) -> pd.DataFrame:
+    """A table as shown: its factor column in words and units (the CSV keeps the keys)."""
+    return table.assign(factor=table["factor"].map(parameter_label)) if "factor" in table else table
 
 
 def _cells(ctx: Context, metric: str, factors: list[str]) -> pd.DataFrame:
@@ -248,15 +283,15 @@ def _heatmaps(ctx: Context) -> None:
         return
     panel = RANGE if RANGE in ctx.factors and RANGE not in (x, y) else None
     rows = [f for f in ctx.factors if f not in (x, y, panel)][:2] or None
-    ctx.blocks.append(Heading(f"Heatmaps over {x} x {y}"))
-    ctx.blocks.append(Para("Mean over replicates per cell" + (f"; one panel per {panel}" if panel else "") +
-                           (f"; one row per {' and '.join(rows)}" if rows else "") + "."))
+    ctx.blocks.append(Heading(f"Heatmaps over {parameter_label(x)} x {parameter_label(y)}"))
+    ctx.blocks.append(Para("Mean over replicates per cell" + (f"; one panel per {parameter_label(panel)}" if panel else "")
+                           + (f"; one row per {' and '.join(map(parameter_label, rows))}" if rows else "") + "."))
     by = [f for f in (x, y, panel) if f] + (rows or [])
     for metric in ctx.metrics:
         cells = _cells(ctx, metric, by)
         _figure(ctx, f"heatmap_{metric}",
                 lambda p, c=cells, m=metric: figures.heatmap_figure(c, m, x, y, p, panel=panel, rows=rows),
-                f"{label(metric)} over {x} (columns) and {y} (rows).", svg=False)
+                f"{label(metric)} over {parameter_label(x)} (columns) and {parameter_label(y)} (rows).", svg=False)
 
 
 def _showcase_rows(ctx: Context) -> list[tuple[str, pd.DataFrame]]:
@@ -401,7 +436,9 @@ def _leadership(ctx: Context) -> None:
                            "its group after a trigger, at its best lag), the group's turn over an escape, and "
                            "fragmentation."))
     _figure(ctx, "leadership_vs_x",
-            lambda p: figures.main_effects_figure(effects, "", p, ncols=5, sharey=False, xlabel="X"),
+            lambda p: figures.main_effects_figure(effects, "", p, ncols=5, sharey=False,
+                                                  xlabel=parameter_label(LEAD), panel_title=metric_words,
+                                                  panel_ylabel=lambda m: metric_unit(m) or "(no unit)"),
             "Leadership metrics against X (mean and 95% CI). Hartman & Benes' findings are tested as claims "
             "(configs/claims/hartman_benes.toml) when the sweep includes them.")
 

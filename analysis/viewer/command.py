@@ -30,7 +30,7 @@ import sys
 from pathlib import Path
 
 from flocksweep.simcore.schema import ConfigError
-from flocksweep.sweeps.progress import Phases
+from flocksweep.sweeps.progress import Phases, next_steps
 
 
 
@@ -196,6 +196,7 @@ def _runs_page(args, phases) -> int:
     path = page.save(args.out or default)
     print(f"  wrote {path} ({page.size_bytes / MB:.2f} MB; {len(ids)} runs, a menu switches between them; "
           f"PAGE#run=ID opens one); open it in a browser, it works offline")
+    next_steps(f"open {path} in a browser ({path.name}#run={ids[-1]} opens the last run)")
     return 0
 
 
@@ -265,6 +266,38 @@ def _track_pages(args, kind: str, phases) -> tuple[list, list, Path]:
     name = slug(flocks[0].name) if len(flocks) == 1 else "flocks"
     default = folder / f"{name}.html" if kind == "measured" else folder.parent / f"{folder.name}-{name}.html"
     return tracks, [str(f.name) for f in flocks], default
+def after_view(args, page, seconds: float = 0.0) -> list[str]:
+    """Open what was written (``seconds``: the run's length, for an address that opens it half-way);
+    offer the animation when only a page was."""
+    steps = []
+    if page is not None:
+        middle = f"{seconds / 2:.3g}"
+        steps.append(f"open {page} in a browser (works offline; {Path(page).name}#t={middle}&color=group opens it "
+                     f"at {middle} s coloured by group)")
+    if args.animate:
+        steps.append(f"open {args.animate}")
+    elif page is not None:
+        steps.append(f"flocksweep view {' '.join(_source_words(args))} --animate {Path(page).stem}.gif --no-page   "
+                     f"(a GIF beside the page)")
+    return steps
+
+
+def _source_words(args) -> list[str]:
+    """The words naming this run on the command line (source and run selection)."""
+    import shlex
+
+    words = [str(args.source)]
+    if args.showcase:
+        words += ["--showcase", args.showcase]
+    elif args.run:
+        words += ["--run", *args.run]
+    elif args.where:
+        words += ["--where", args.where, "--replicate", str(args.replicate)]
+    words += [f"--set={item}" for item in getattr(args, "overrides", []) or []]
+    for flag in ("seed", "n", "duration", "dt"):
+        if getattr(args, flag, None) is not None:
+            words += [f"--{flag}", str(getattr(args, flag))]
+    return [shlex.quote(word) for word in words]
 
 
 def run(args) -> int:
@@ -303,6 +336,8 @@ def run(args) -> int:
             track, default = _sweep_track(args, args.run[0] if args.run else None)
         else:
             track, default = from_npz(source), source.with_suffix(".html")
+        if args.animate and args.animate.parent == Path("."):   # a bare file name: beside the page, not here
+            args.animate = Path(args.out or default).parent / args.animate.name
         if not args.no_page:
             phases.start("building the page")
             page = build_page(track, max_mb=args.max_mb, stride=args.stride, color_by=args.color_by,
@@ -316,6 +351,7 @@ def run(args) -> int:
                                    speed=args.speed, rotate=args.rotate, trail_s=min(args.trail, 1.0),
                                    size=size, dpi=args.dpi, progress=not args.no_progress)
             print(f"  wrote {anim.path} ({anim.frames} frames at {anim.fps:g} fps, {anim.width}x{anim.height})")
+        next_steps(*after_view(args, None if args.no_page else path, float(track.times[-1] - track.times[0])))
     except ConfigError:
         raise
     except (RunNotFound, NotReproduced, AnimationUnavailable, ValueError, FileNotFoundError) as err:

@@ -38,6 +38,7 @@ def handler(args) -> int:
     from flocksweep.analysis.calibration.accounting import lines as cost_lines
     from flocksweep.analysis.calibration.config import load_calibration
     from flocksweep.analysis.calibration.run import resume_hint, run_calibration
+    from flocksweep.sweeps.progress import next_steps
 
     check_workers(args.workers, args.executor)
     check_out("--out", args.out)
@@ -45,7 +46,8 @@ def handler(args) -> int:
         raise ConfigError("--scheduler", "only used with --executor dask")
     config = load_calibration(args.config, args.overrides, args.method)
     command = f"{args.config} --method {args.method}" if args.method else args.config
-    args.on_interrupt = lambda: resume_hint(command, args.out or Path("results") / "calibration" / config.folder_name)
+    args.on_interrupt = lambda: stop_early_hint(resume_hint, command, args.out or Path("results") / "calibration"
+                                                / config.folder_name, _steps_key(args.config, config.method.kind))
     result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
                              executor=args.executor, workers=args.workers, scheduler=args.scheduler,
                              yes=args.yes)
@@ -62,7 +64,45 @@ def handler(args) -> int:
     for line in cost_lines(result.report.get("accounting")):
         print(f"  {line}")
     print(f"  wrote {result.out} (report: {result.paths['html']})")
+    next_steps(*after_calibrate(result, config))
     return 0
+
+
+def after_calibrate(result, config) -> list[str]:
+    """Open the report, the predictive page when there is one, and reuse a trained estimator."""
+    out = Path(result.out)
+    steps = [f"open {result.paths['html']} in a browser (verdicts first, then the posterior and its checks)"]
+    predictive = out / "viewer_predictive.html"
+    if predictive.exists():
+        steps.append(f"open {predictive} in a browser (the measured flock beside a posterior predictive run)")
+    if (out / "estimator").is_dir():
+        steps.append(f"flocksweep posterior {out / 'estimator'} --targets FLOCKS.csv   (the same estimator on other "
+                     f"flocks, no new simulation)")
+    return steps
+
+
+def stop_early_hint(resume_hint, command: str, out: Path, steps_key: str = "method.steps") -> str:
+    """What an interrupted calibration saved, how to resume it, and how to stop here with a report
+    (docs/calibration.md, "Stopping early")."""
+    from flocksweep.analysis.calibration.chainfile import stored_steps
+
+    hint = resume_hint(command, out)
+    steps = stored_steps(Path(out) / "chain.h5")
+    if steps:
+        hint += (f"\n  or stop here and still get a report from the {steps} saved steps: flocksweep calibrate "
+                 f"{command} --out {out} --resume --set {steps_key}={steps}")
+    return hint
+
+
+def _steps_key(config_path, kind: str) -> str:
+    """The --set key of the chain's length: method.<kind>.steps in a file with [method.<kind>] tables."""
+    import tomllib
+
+    try:
+        method = tomllib.loads(Path(config_path).read_text()).get("method", {})
+    except (OSError, UnicodeError, ValueError):
+        method = {}
+    return f"method.{kind}.steps" if isinstance(method.get(kind), dict) else "method.steps"
 
 
 COMMAND = Command("calibrate", HELP, DESCRIPTION, arguments, handler)

@@ -22,8 +22,14 @@ def arguments(parser) -> None:
 
 def handler(args) -> int:
     from flocksweep.sweeps.compile_command import run
+    from flocksweep.sweeps.progress import next_steps
 
-    return run(args)
+    code = run(args)
+    if code == 0:
+        first = args.models[0] if args.models else "configs/models/holland.toml"
+        next_steps(f"flocksweep simulate {first}   (a run of a compiled model starts at once now)",
+                   "flocksweep run configs/sweeps/smoke.toml   (a first sweep)")
+    return code
 
 
 COMMAND = Command("compile", HELP, DESCRIPTION, arguments, handler)

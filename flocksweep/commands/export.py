@@ -28,8 +28,16 @@ def arguments(p) -> None:
 
 def handler(args) -> int:
     from flocksweep.sweeps.export import run
+    from flocksweep.sweeps.progress import next_steps
 
-    return run(args)
+    code = run(args)
+    if code == 0:
+        runs = (args.out or Path(args.dir) / "export") / f"runs.{args.format}"
+        read = f'pandas.read_csv("{runs}")' if args.format == "csv" else f'pandas.read_parquet("{runs}")'
+        r_read = f'read.csv("{runs}")' if args.format == "csv" else f'arrow::read_parquet("{runs}")'
+        next_steps(f"{read} in Python, {r_read} in R   (one row per run)",
+                   f"flocksweep report {args.dir}   (statistics and figures, made for you)")
+    return code
 
 
 COMMAND = Command("export", HELP, DESCRIPTION, arguments, handler)

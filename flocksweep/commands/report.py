@@ -31,6 +31,7 @@ def arguments(p) -> None:
 
 def handler(args) -> int:
     from flocksweep.analysis.reports.report import ReportError, build_report
+    from flocksweep.sweeps.progress import next_steps
 
     formats = ("html", "md") if args.format == "both" else (args.format,)
     check_out("--out", args.out)
@@ -47,7 +48,18 @@ def handler(args) -> int:
     claims = result["tables"].get("claims")
     for row in (claims.itertuples() if claims is not None else ()):
         print(f"  claim ({row.claim}): {row.verdict}: {row.statement}")
+    next_steps(*after_report(args.dir, result, claims))
     return 0
+
+
+def after_report(results_dir: Path, result: dict, claims) -> list[str]:
+    """Open the page; and, when a claim is undecided for lack of power, the run that adds replicates."""
+    page = result["paths"].get("html") or result["paths"].get("md")
+    steps = [f"open {page} in a browser (self-contained: figures, tables and claims in one file)"]
+    if claims is not None and (claims["verdict"] == "inconclusive").any():
+        steps.append(f"flocksweep run {Path(results_dir) / 'sweep.toml'} --until-claims --max-replicates 20"
+                     f"   (more replicates where a claim is undecided)")
+    return steps
 
 
 COMMAND = Command("report", HELP, DESCRIPTION, arguments, handler)

@@ -97,6 +97,7 @@ def _results_folder(args) -> Path | None:
 
 def _run(args, pool) -> int:
     from flocksweep.command_line import check_run_args, sweep_from_args
+    from flocksweep.sweeps.progress import next_steps
     from flocksweep.sweeps.runner import resume_hint, run_sweep
 
     check_run_args(args)
@@ -144,6 +145,7 @@ def _run(args, pool) -> int:
             print(f"  first compile: {est['compile_s']:.0f} s, done now by this dry run (numba's cache had no run loop "
                   "for these models); the run will load them")
         print(f"  results directory: {out}")
+        next_steps(f"flocksweep {_without_dry_run(args)}   (runs it)")
         return 0
     table = result.table
     ok = int((table["status"] == "ok").sum())
@@ -153,7 +155,34 @@ def _run(args, pool) -> int:
     print(f"  table: {out / 'runs.parquet'}")
     if failed:
         print(f"  failures: flocksweep status {out}")
-    return report_lost(args, result)
+    code = report_lost(args, result)
+    if ok:
+        next_steps(*after_sweep(config, out, table))
+    return code
+
+
+def after_sweep(config, out: Path, table) -> list[str]:
+    """What to do with a sweep's results: its report, and one of its runs in the 3-D viewer (its first
+    ``[report.showcase]`` entry, else its first finished run)."""
+    showcase = list((config.report or {}).get("showcase", {}))
+    if showcase:
+        view = f"--showcase {showcase[0]}"
+    else:
+        view = f"--run {table.loc[table['status'] == 'ok', 'run_id'].iloc[0]}"
+    return [f"flocksweep report {out}   (statistics, figures and claims: {out / 'report' / 'report.html'})",
+            f"flocksweep view {out} {view}   (one run in 3-D, in a page of {out / 'viewer'})"]
+
+
+def _without_dry_run(args) -> str:
+    """This run's command line without --dry-run (its sweep, model, axes, overrides and folder)."""
+    import shlex
+
+    words = ["run", args.sweep] if args.sweep else ["run", "--model", args.model]
+    words += [f"--axis={axis}" for axis in args.axis] + [f"--set={item}" for item in args.overrides]
+    for flag in ("replicates", "name", "out", "workers"):
+        if getattr(args, flag) is not None:
+            words += [f"--{flag}", str(getattr(args, flag))]
+    return " ".join(shlex.quote(str(word)) for word in words)
 
 def _print_job_script(settings) -> None:
     """A dry run on a cluster: the batch script each job would run (nothing is submitted)."""
@@ -225,6 +254,7 @@ def _check_rounds(args, config, flag: str) -> None:
 def _run_rounds(args, config, out, rule, note: str) -> int:
     """:func:`sweeps.runner.run_until` with ``rule`` and the run's flags; prints the table's line (and
     ``note``) and returns the exit status."""
+    from flocksweep.sweeps.progress import next_steps
     from flocksweep.sweeps.runner import run_until
 
     result = run_until(config, args.sweep_text, out, rule, args.max_replicates, executor=args.executor,
@@ -232,9 +262,12 @@ def _run_rounds(args, config, out, rule, note: str) -> int:
                        retry_failed=args.retry_failed, progress=not args.no_progress, batch_size=args.batch_size,
                        yes=args.yes)
     table = result.table
-    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} "
-          f"({int((table['status'] == 'ok').sum())} ok){note}")
-    return report_lost(args, result)
+    ok = int((table['status'] == 'ok').sum())
+    print(f"{config.name}: {len(table)} runs in {out / 'runs.parquet'} ({ok} ok){note}")
+    code = report_lost(args, result)
+    if ok:
+        next_steps(*after_sweep(config, out, table))
+    return code
 
 
 COMMAND = Command("run", HELP, DESCRIPTION, arguments, handler)

@@ -38,6 +38,7 @@ def handler(args) -> int:
 
     from flocksweep.simcore import load_preset
     from flocksweep.simcore.params import RUN_SHORTHANDS
+    from flocksweep.sweeps.progress import next_steps
     from flocksweep.sweeps.single import run_single
 
     overrides = list(args.overrides)
@@ -86,7 +87,24 @@ def handler(args) -> int:
         print(f"  prey: the flock's centre reached it at t = {summary['prey_reach_time']:g} s (nan: never)")
     for path in written:
         print(f"  wrote {path}")
+    next_steps(*after_simulate(args, out, written))
     return 0
+
+
+def after_simulate(args, out, written) -> list[str]:
+    """Watch the run in 3-D (its trajectory, or the preset re-simulated), then sweep a parameter of it."""
+    import shlex
+
+    trajectory = [p for p in written if Path(p).name == "trajectory.npz"]
+    if trajectory:
+        view = f"flocksweep view {trajectory[0]}"
+    else:
+        extra = [f"--set={item}" for item in args.overrides] + [f"--seed={args.seed}"]
+        extra += [f"--{flag}={getattr(args, flag)}" for flag in ("n", "duration", "dt") if getattr(args, flag) is not None]
+        view = "flocksweep view " + " ".join(shlex.quote(str(word)) for word in [args.model, *extra])
+    return [f"{view}   (this run in 3-D)",
+            f"flocksweep run --model {args.model} --axis perception.field_deg=60,120,180   "
+            f"(a sweep: any key, several values; docs/sweeps.md)"]
 
 
 COMMAND = Command("simulate", HELP, DESCRIPTION, arguments, handler)

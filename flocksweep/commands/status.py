@@ -20,6 +20,7 @@ def arguments(p) -> None:
 
 
 def handler(args) -> int:
+    from flocksweep.sweeps.progress import next_steps
     from flocksweep.sweeps.status import computed, status
 
     try:
@@ -42,7 +43,23 @@ def handler(args) -> int:
         print(f"  failed {run_id}: {error}")
     if len(info["failures"]) > 50:
         print(f"  ... and {len(info['failures']) - 50} more")
+    next_steps(*after_status(Path(args.dir), info))
     return 0
+
+
+def after_status(folder: Path, info: dict) -> list[str]:
+    """Finish the sweep (missing or failed runs), else its report."""
+    if info["running"]:
+        return [f"flocksweep status {folder}   (again, once the runner working here has finished)"]
+    sweep = folder / "sweep.toml"
+    steps = []
+    if info["missing"]:
+        steps.append(f"flocksweep run {sweep} --out {folder}   (computes the {info['missing']} missing runs only)")
+    if info["failed"]:
+        steps.append(f"flocksweep run {sweep} --out {folder} --retry-failed   (runs the failed ones again)")
+    if info["ok"]:
+        steps.append(f"flocksweep report {folder}   (statistics, figures and claims of the finished runs)")
+    return steps
 
 
 COMMAND = Command("status", HELP, DESCRIPTION, arguments, handler)

@@ -64,7 +64,14 @@ def handler(args) -> int:
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
           f"--replicates {args.replicates}")
     print(targets_block(config, rows, sd, truth, flock if np.isfinite(flock).all() else None), end="")
+    print(next_lines(args.config))
     return 0
+
+
+def next_lines(config) -> str:
+    """The next steps as TOML comments (this command's output is a [targets] table to paste)."""
+    return (f"# next: put this [targets] table in {config} (in place of its own), then run\n"
+            f"#   flocksweep calibrate {config}")
 
 def _targets_from_tracks(args) -> int:
     from flocksweep.analysis.calibration.synthetic import measured_targets_block
@@ -72,6 +79,7 @@ def _targets_from_tracks(args) -> int:
     if args.truth:
         raise ConfigError("--from-tracks", "measured targets take no --truth")
     print(measured_targets_block(args.config, args.from_tracks or None, args.overrides), end="")
+    print(next_lines(args.config))
     return 0
 
 

@@ -85,6 +85,7 @@ HEAVY = ("pandas", "matplotlib", "pyarrow", "jinja2", "tqdm", "emcee", "SALib", 
          "multiprocessing", "flocksweep.sweeps.executors")
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_simulate_loads_only_what_it_needs(tmp_path):
     """`flocksweep simulate` (no --plot, no --tracks) imports none of the table, plotting, report, viewer or
     calibration libraries, nor the executors' process pools: a fresh process runs the command, then lists

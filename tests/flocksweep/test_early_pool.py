@@ -61,6 +61,7 @@ def test_a_refused_worker_count_is_still_named(tmp_path, capsys):
     assert "--workers" in capsys.readouterr().err
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_the_run_computes_on_the_early_pool_with_the_serial_results(tmp_path, monkeypatch, capsys):
     sweep = write_sweep(tmp_path)
     assert cli.main(["run", str(sweep), "--executor", "serial", "--out", str(tmp_path / "serial"),

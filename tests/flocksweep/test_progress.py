@@ -15,6 +15,7 @@ import struct
 import subprocess
 import sys
 import termios
+from pathlib import Path
 
 import pytest
 
@@ -24,6 +25,14 @@ from paths import ROOT
 HOLLAND = str(ROOT / "configs/models/holland.toml")
 TINY = ["--set", "run.n=6", "--set", "run.duration=1.0", "--set", "run.record_interval=0.5",
         "--set", "run.warmup=0.25"]
+
+
+def next_lines(out: str) -> list[str]:
+    """The steps a command printed after its last ``next:`` line (stdout), without their indent."""
+    lines = out.splitlines()
+    assert "next:" in lines, out
+    start = len(lines) - lines[::-1].index("next:")
+    return [line.strip() for line in lines[start:]]
 
 
 def in_pty(argv: list[str], cwd) -> tuple[int, str, str]:
@@ -55,20 +64,27 @@ def in_pty(argv: list[str], cwd) -> tuple[int, str, str]:
 @pytest.mark.slow
 def test_run_report_and_view_show_progress_in_a_terminal_and_are_quiet_without(tmp_path):
     results = tmp_path / "tiny"
-    code, err, _ = in_pty(["run", "--model", HOLLAND, "--axis", "perception.field_deg=60,120,180", *TINY,
-                           "--executor", "serial", "--out", str(results)], tmp_path)
+    code, err, out = in_pty(["run", "--model", HOLLAND, "--axis", "perception.field_deg=60,120,180", *TINY,
+                             "--executor", "serial", "--out", str(results)], tmp_path)
     assert code == 0, err
     assert "3/3" in err and "run" in err                                   # the sweep's bar of runs
-    code, err, _ = in_pty(["report", str(results)], tmp_path)
+    assert next_lines(out)[0].startswith(f"flocksweep report {results}   (")   # and what comes next
+    assert next_lines(out)[1].startswith(f"flocksweep view {results} --run ")
+    code, err, out = in_pty(["report", str(results)], tmp_path)
     assert code == 0, err
     for section in ("[1/", "overview", "claims", "statistics and main effects", "heatmaps", "3-D traces",
                     "writing html and md", "report: done in"):
         assert section in err, section
-    code, err, _ = in_pty(["view", HOLLAND, "--n", "5", "--duration", "1", "--animate", "a.gif", "--no-page",
-                           "--fps", "10"], tmp_path)
+    assert re.search(r"report: \[3/\d+\] leadership \(claims took \d+ s; \d+ s so far\)", err)  # each phase's time
+    assert next_lines(out)[0].startswith(f"open {results / 'report' / 'report.html'} in a browser")
+    code, err, out = in_pty(["view", HOLLAND, "--n", "5", "--duration", "1", "--animate", "a.gif", "--no-page",
+                             "--fps", "10"], tmp_path)
     assert code == 0, err
     assert "view: [1/2] simulating the run" in err and "view: [2/2] drawing the animation a.gif" in err
     assert re.search(r"a\.gif: 100%.*\b(\d+)/\1 .*frame/s", err)             # the bar of frames, to the end
+    # a bare file name goes beside the page the command would write (results/view/), not into the cwd
+    assert (tmp_path / "results" / "view" / "a.gif").is_file() and not (tmp_path / "a.gif").exists()
+    assert next_lines(out) == [f"open {Path('results') / 'view' / 'a.gif'}"]
     quiet = [["run", "--model", HOLLAND, "--axis", "perception.field_deg=60,90", *TINY, "--executor", "serial",
               "--out", str(tmp_path / "quiet"), "--no-progress"],
              ["report", str(results), "--out", str(tmp_path / "quiet_report"), "--no-progress"],
@@ -116,11 +132,18 @@ def test_calibrate_sbc_and_measure_show_progress_in_a_terminal_and_are_quiet_wit
                      r"measure: \[2/3\] figures of 1 flock", r"measure: \[3/3\] the report",
                      r"measure: done in"]),
     }
+    first_steps = {"emcee": f"open {Path('o_emcee') / 'report.html'} in a browser",
+                   "optimize": f"open {Path('o_optimize') / 'report.html'} in a browser",
+                   "npe": f"open {Path('o_npe') / 'report.html'} in a browser",
+                   "sbc": f"open {Path('o_sbc') / 'rank_histogram.png'} and {Path('o_sbc') / 'ecdf_diff.png'}",
+                   "measure": f"open {Path('o_measure') / 'report.html'} in a browser"}
     for name, (argv, lines) in expected.items():
-        code, err, _ = in_pty(argv, tmp_path)
+        code, err, out = in_pty(argv, tmp_path)
         assert code == 0, (name, err)
         for line in lines:
             assert re.search(line, err), (name, line, err)
+        assert next_lines(out)[0].startswith(first_steps[name]), (name, out)       # what comes next
+    assert next_lines(out)[1].startswith("flocksweep targets CALIBRATION.toml --from-tracks t.csv")
     for name, (argv, _) in expected.items():
         argv = [a.replace("o_", "quiet_") for a in argv] + ["--no-progress"]
         code, err, _ = in_pty(argv, tmp_path)

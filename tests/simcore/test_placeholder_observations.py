@@ -56,6 +56,7 @@ def test_every_record_is_the_initial_state_of_the_seed_and_nothing_is_perceived(
     assert placeholder.triggers.shape == (0, 2)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_it_compiles_nothing_even_with_an_empty_cache(tmp_path):
     """In a fresh process whose numba cache is empty, placeholders of a leadership model (whose trigger
     bound is a compiled function) start no compile at all."""

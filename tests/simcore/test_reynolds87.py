@@ -109,6 +109,7 @@ OBSTACLE_CASES = [pytest.param(kind, allocation, order, id=f"{allocation}-{order
                   for kind in OBSTACLES]
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 @pytest.mark.parametrize("kind, allocation, order", OBSTACLE_CASES)
 def test_kernel_matches_twin_with_obstacles(kind, allocation, order):
     model = reynolds_model(radius=3.0, obstacles=(OBSTACLES[kind],), allocation=allocation, lookahead=8.0,

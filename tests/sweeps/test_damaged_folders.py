@@ -88,6 +88,7 @@ def reference(tmp_path_factory):
 
 # -- damaged parts -------------------------------------------------------------------------------------
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(tmp_path, reference, capsys,
                                                                                one_part_per_run):
     sweep = write_sweep(tmp_path)

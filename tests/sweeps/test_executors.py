@@ -32,6 +32,7 @@ def die_on_two(x):
     return x
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 @pytest.mark.parametrize("kind, workers", [("serial", 1), ("local", 1), ("local", 2)])
 def test_map_keeps_order_and_as_completed_reports_every_item(kind, workers):
     with Executor(kind, workers) as pool:
@@ -44,6 +45,7 @@ def test_map_keeps_order_and_as_completed_reports_every_item(kind, workers):
     assert all(o.value == o.item and o.reason == "" for o in outcomes if o.error is None)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_map_raises_the_failing_tasks_error():
     with Executor("local", 2) as pool:
         with pytest.raises(ValueError, match="three is bad"):
@@ -263,6 +265,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_local_workers_quick_exit_still_flushes_their_output_and_runs_their_finalizers(tmp_path):
     """Pool workers end without the interpreter's teardown (``_QuickExitProcess``), but only after what
     multiprocessing's own exit does: the finalizers registered in them ran and their unflushed output
@@ -294,6 +297,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_preload_starts_every_worker_at_once_and_imports_the_modules_before_any_task(tmp_path):
     (tmp_path / "marks").mkdir()
     (tmp_path / "marker.py").write_text("import os\nopen(os.path.join(os.path.dirname(__file__), 'marks', "
@@ -307,6 +311,7 @@ def test_preload_starts_every_worker_at_once_and_imports_the_modules_before_any_
     assert done.stdout.startswith("2 workers imported it before any task")
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_a_preload_entry_with_a_function_calls_it_after_the_import(tmp_path):
     (tmp_path / "marks").mkdir()
     (tmp_path / "marker.py").write_text("import os\ndef mark():\n    open(os.path.join(os.path.dirname(__file__), "

@@ -368,6 +368,7 @@ def test_a_tracker_killed_before_the_workers_start_is_relaunched_knowing_the_ear
     assert "relaunching" not in done.stderr, done.stderr
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_a_tracker_relaunched_by_multiprocessing_itself_learns_the_pool_semaphores(capfd):
     """The tracker killed, then a new semaphore (multiprocessing relaunches the tracker on its own, before
     the executor's next turn): the relaunched tracker is told the live names, so releasing them at the

@@ -38,6 +38,7 @@ def unguarded(code: str) -> str:
     return head + textwrap.dedent(body.split("\n", 1)[1])
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_the_readme_api_example_without_its_guard_stops_with_one_clear_line(tmp_path):
     code = readme_api_example()
     assert "run_sweep(" in code and guarded_lines(code)
@@ -66,6 +67,7 @@ def square(x):
 BODY = "with Executor('local', 2) as pool:\n    print('squares', pool.map(square, range(4)))\n"
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_a_guarded_script_runs_its_pool_and_an_unguarded_one_is_refused(tmp_path):
     good, bad = tmp_path / "good.py", tmp_path / "bad.py"
     good.write_text(POOL_SCRIPT.format(disable="", body="if __name__ == '__main__':\n"

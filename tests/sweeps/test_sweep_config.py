@@ -81,6 +81,7 @@ def test_holland648_expands_to_the_full_grid_with_distinct_ids_and_seeds():
         assert spec.metrics.group_radius == c[RANGE]  # group_radius = "auto": the perception range
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_holland648_r5_has_five_replicates_per_cell_and_contains_holland648():
     single = expand(load_sweep(SHIPPED / "holland648.toml"))
     specs = expand(load_sweep(SHIPPED / "holland648_r5.toml"))

@@ -77,6 +77,7 @@ def test_with_everything_compiled_no_helper_is_started():
     assert warm_up_all(specs()).process is None   # ... a second warm-up compiles nothing: no helper
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_the_helper_starts_once_at_the_first_compile_and_measures_the_placeholders():
     helper = MetricsAlongside(specs())
     assert helper.process is None

@@ -9,20 +9,26 @@ leaf test, the very values the test used (the runs meeting its condition):
   differences, as a sign test);
 * a sign test or check: the runs, their mean with its CI, and the reference value as a line.
 
-Each panel's title is the part's label and verdict; its note gives the statistic, p (Holm), n, and the
-power at the effect of interest. The format follows the extension (:mod:`analysis.reports.plotting`).
+Each panel's title is the part's label and verdict; its note, below the plot (never over the runs), gives
+the statistic, p (Holm), n, and in words the power: the chance the test had to find the claim's effect of
+interest with these runs, and the smallest effect it would find 80 % of the time. Axes are labelled in
+words and units (:mod:`analysis.reports.labels`). The format follows the extension
+(:mod:`analysis.reports.plotting`).
 """
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..labels import metric_label, parameter_label
 from ..plotting import pyplot, save
 from ..stats import bootstrap_mean_ci, main_effect
 
+NOTE_WIDTH = 64   # characters per line of a panel's note (a panel is about 4.4 inches wide)
 COLOURS = {"supported": "#0a6b2a", "partly supported": "#2f6f9f", "not supported": "#a11111",
            "inconclusive": "#9a6700"}
 
@@ -35,8 +41,18 @@ def _note(leaf, inherited: int) -> str:
         return "\n".join(where + [result.detail])
     lines = where + [f"{result.method}: {result.statistic:.3g}, p (Holm) {leaf.p_holm:.2g}, n {result.n}"]
     if power is not None:
-        lines.append(f"power {power.power:.2f} at effect {power.effect:.3g}; MDE {power.mde:.3g}")
+        lines.append(power_words(power.power, power.effect, power.mde, power.replicates))
     return "\n".join(lines)
+
+
+def power_words(power: float, effect: float, mde: float, replicates=None) -> str:
+    """The power line of a note, in words: what the test could see with these runs."""
+    chance = f"chance to detect an effect of {effect:.3g}: {power:.0%}"
+    smallest = f"; 80% sure from {mde:.3g}" if np.isfinite(mde) else "; no effect is found 80% of the time"
+    if power < 0.05:
+        more = f" ({replicates} replicates per point would)" if replicates else ""
+        return f"{chance}, too few runs for so small an effect{more}{smallest}"
+    return chance + smallest
 
 
 def _jitter(n: int, rng, width: float) -> np.ndarray:
@@ -57,7 +73,8 @@ def _trend(ax, leaf, rng, seed: int) -> None:
     if data.n >= 2 and np.ptp(data.x) > 0:
         slope, intercept = np.polyfit(data.x, data.y, 1)
         ax.plot(levels, intercept + slope * levels, ls="--", color="#c05000", lw=1, label="least squares")
-    ax.set_xlabel(test.factor)
+    ax.set_xticks(levels, [f"{v:g}" for v in levels])
+    return parameter_label(test.factor)
 
 
 def _groups(ax, leaf, rng, seed: int) -> None:
@@ -68,30 +85,34 @@ def _groups(ax, leaf, rng, seed: int) -> None:
         low, high, _ = bootstrap_mean_ci(values, n_resamples=1000, seed=seed + position)
         mean = float(values.mean()) if values.size else math.nan
         ax.errorbar([position], [mean], yerr=[[np.nan_to_num(mean - low)], [np.nan_to_num(high - mean)]], fmt="o",
-                    color="black", capsize=4, ms=5)
+                    color="black", capsize=4, ms=5, zorder=3)
     ax.set_xticks([0, 1], [f"lower:\n{test.lower.text}", f"higher:\n{test.higher.text}"], fontsize=7)
     ax.set_xlim(-0.6, 1.6)
+    return "the two groups' runs, mean and 95% CI"
 
 
 def _one_sample(ax, leaf, rng, seed: int) -> None:
     test, data = leaf.test, leaf.data
     reference = 0.0 if test.kind == "compare" else test.value
     ax.scatter(_jitter(data.n, rng, 0.2), data.y, s=5, alpha=0.25, color="#777777", lw=0)
-    if data.n:
+    if data.n:   # the mean and its CI on the runs themselves, drawn over them
         low, high, _ = bootstrap_mean_ci(data.y, n_resamples=1000, seed=seed)
         mean = float(data.y.mean())
-        ax.errorbar([0.4], [mean], yerr=[[np.nan_to_num(mean - low)], [np.nan_to_num(high - mean)]], fmt="o",
-                    color="black", capsize=4, ms=5, label="mean, 95% CI")
+        ax.errorbar([0.0], [mean], yerr=[[np.nan_to_num(mean - low)], [np.nan_to_num(high - mean)]], fmt="o",
+                    color="black", capsize=6, ms=6, lw=1.6, zorder=3, label="mean, 95% CI")
     ax.axhline(reference, color="#c05000", ls="--", lw=1, label=f"reference {reference:g}")
-    ax.set_xticks([])
-    ax.set_xlim(-0.5, 0.7)
+    ax.set_xlim(-0.5, 0.5)
     if test.kind == "compare":
-        ax.set_xlabel(f"paired: ({test.higher.text}) - ({test.lower.text})", fontsize=7)
+        ax.set_xticks([0.0], [f"{data.n} pairs: ({test.higher.text}) - ({test.lower.text})"], fontsize=7)
+        return "each pair's difference; its mean and 95% CI; 0 = no difference"
+    ax.set_xticks([0.0], [f"{data.n} runs"], fontsize=7)
+    return f"the runs, their mean and 95% CI; the line: the reference {reference:g}"
 
 
-def _focus(ax, values: np.ndarray) -> None:
+def _focus(ax, values: np.ndarray) -> int:
     """The y range of the runs between their 1st and 99th percentiles, widened to keep every mean and
-    CI drawn, so a few far runs do not flatten the evidence (the note says so when runs are cut off)."""
+    CI drawn, so a few far runs do not flatten the evidence; returns how many runs it leaves outside
+    (the note says so)."""
     low, high = np.percentile(values, [1, 99])
     drawn_low, drawn_high = ax.get_ylim()
     lines = [line.get_ydata() for line in ax.get_lines()]
@@ -104,10 +125,12 @@ def _focus(ax, values: np.ndarray) -> None:
     high = max(high, marks.max()) if marks.size else high
     pad = 0.08 * (high - low or 1.0)
     ax.set_ylim(max(drawn_low, low - pad), min(drawn_high, high + pad))
-    hidden = int(((values < low - pad) | (values > high + pad)).sum())
-    if hidden:
-        ax.text(0.98, 0.02, f"{hidden} runs outside the axis", transform=ax.transAxes, ha="right", va="bottom",
-                fontsize=6, color="#777777")
+    return int(((values < low - pad) | (values > high + pad)).sum())
+
+
+def _metric_text(text: str) -> str:
+    """A claim's metric in words and unit when it is a plain column; an expression stays as written."""
+    return metric_label(text) if text.replace("_", "").isalnum() else text
 
 
 def claim_figure(outcome, path, seed: int = 0) -> Path:
@@ -115,24 +138,28 @@ def claim_figure(outcome, path, seed: int = 0) -> Path:
     leaves = outcome.outcome.leaves()
     ncols = min(3, len(leaves))
     nrows = math.ceil(len(leaves) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.4 * nrows), squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 4.4 * nrows), squeeze=False)
     rng = np.random.default_rng(seed)
     for ax, leaf in zip(axes.flat, leaves):
         test = leaf.test
+        what = ""
         if leaf.data is None or leaf.data.n == 0:
             ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
         elif test.kind == "trend":
-            _trend(ax, leaf, rng, seed)
+            what = _trend(ax, leaf, rng, seed)
         elif test.kind == "compare" and not test.paired:
-            _groups(ax, leaf, rng, seed)
+            what = _groups(ax, leaf, rng, seed)
         else:
-            _one_sample(ax, leaf, rng, seed)
+            what = _one_sample(ax, leaf, rng, seed)
         if leaf.data is not None and leaf.data.n > 20:
-            _focus(ax, leaf.data.y)
+            outside = _focus(ax, leaf.data.y)
+            what += f" ({outside} run{'s' if outside > 1 else ''} outside the axis)" if outside else ""
         ax.set_title(f"{test.label}: {leaf.verdict}", fontsize=9, color=COLOURS.get(leaf.verdict, "black"))
-        ax.set_ylabel(test.metric.text, fontsize=8)
-        ax.text(0.02, 0.98, _note(leaf, len(outcome.claim.test.conditions)), transform=ax.transAxes, va="top", ha="left", fontsize=7,
-                bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+        ax.set_ylabel(_metric_text(test.metric.text), fontsize=8)
+        note = _note(leaf, len(outcome.claim.test.conditions))   # below the plot: never over the runs
+        lines = [wrapped for part in (what, note) if part for line in part.splitlines()
+                 for wrapped in textwrap.wrap(line, NOTE_WIDTH, subsequent_indent="  ")]
+        ax.set_xlabel("\n".join(lines), fontsize=7, loc="left")
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(leaves):]:
         ax.set_visible(False)

@@ -117,6 +117,7 @@ def test_reevaluation_changes_current_log_prob_and_converges():
     np.testing.assert_allclose(post.mean(axis=0), observed_rows().mean(axis=0), atol=0.25)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_points_outside_prior_are_never_simulated():
     calls = []
     prior = JointPrior(["a", "b"], [Uniform(0.5, 1.5), Uniform(-2.5, -1.5)])  # truth near the middle,
@@ -128,6 +129,7 @@ def test_points_outside_prior_are_never_simulated():
     assert np.all((res.chain >= lo) & (res.chain <= hi))
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_nan_rows_dropped_or_minus_inf():
     obs = observed_rows()
 
@@ -147,9 +149,13 @@ def test_nan_rows_dropped_or_minus_inf():
 def test_progress_callback_and_validation():
     seen = []
     run(steps=20, progress=lambda s, a, tau: seen.append((s, a, tau)), progress_every=5)
-    assert [s for s, _, _ in seen] == [5, 10, 15, 20]
+    assert [s for s, _, _ in seen] == list(range(1, 21))              # every step: a bar moves with each
     assert all(0.0 <= a <= 1.0 for _, a, _ in seen)
     assert all(math.isnan(t) or t > 0 for _, _, t in seen)
+    assert all(math.isnan(t) for s, _, t in seen if s < 5)            # tau: first estimated at step 5,
+    taus = {s: t for s, _, t in seen}                                  # then kept until the next estimate
+    assert all(taus[s] == taus[s - s % 5] or (math.isnan(taus[s]) and math.isnan(taus[s - s % 5]))
+               for s in range(5, 21))
     with pytest.raises(ValueError, match="walkers"):
         run(walkers=3)
     with pytest.raises(ValueError, match="likelihood"):

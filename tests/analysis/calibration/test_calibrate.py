@@ -118,6 +118,7 @@ def test_optimize_finds_the_range_and_rechecks_it(truth_targets, tmp_path):
     assert (tmp_path / "o" / "report.html").exists()
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_optimize_distance_objective_with_nelder_mead(truth_targets, tmp_path):
     data = tiny(truth_targets)
     data["method"] = {"kind": "optimize", "n_sim": 8, "algorithm": "nelder_mead", "objective": "distance",

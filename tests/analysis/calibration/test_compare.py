@@ -124,7 +124,9 @@ def test_a_small_comparison_finds_the_true_model_and_reruns_without_simulating(t
     assert np.sum(first["confusion"]) == 60
     assert (out / "confusion.csv").is_file() and "Confusion matrix" in (out / "report.md").read_text()
     # targets with binocular_share 0.2 are a binocular flock's
-    assert first["probabilities"][0][0] > 0.9 and "metric" in capsys.readouterr().out.splitlines()[0]
+    said = capsys.readouterr().out
+    assert first["probabilities"][0][0] > 0.9 and "metric" in said.splitlines()[0]
+    assert f"next:\n  open {out / 'report.md'}" in said                     # the command names what comes next
     assert main(["compare", str(path), "--out", str(out), "--no-progress"]) == 0
     again = json.loads((out / "compare.json").read_text())
     assert again["simulations"]["total_computed"] == 0                      # the runs are found, not rerun

@@ -114,6 +114,9 @@ def test_convergence_verdicts():
     c = dg.convergence(long, np.full(16, 0.1))
     assert c["long_enough"] and not c["acceptance_ok"] and not c["converged"]
     assert any("below 0.2" in m for m in c["messages"])
+    assert any("smaller stretch scale" in m for m in c["messages"])                 # the stretch move's advice
+    de = dg.convergence(long, np.full(16, 0.1), moves="de")["messages"]
+    assert any("below 0.2" in m and "n_sim" in m for m in de) and not any("stretch" in m for m in de)
     assert not dg.convergence(long, 0.7)["acceptance_ok"]
 
 

@@ -233,6 +233,7 @@ def run(problem, **options):
                              **{"walkers": 12, "seed": 5, **options})
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_mcmc_recovers_the_true_theta(linear_problem):
     calls = []
     result = run(linear_problem, walkers=16, steps=300, progress=lambda *a: calls.append(a))
@@ -249,7 +250,7 @@ def test_mcmc_recovers_the_true_theta(linear_problem):
     assert np.all(np.abs(flat.std(axis=0) / exact_sd - 1.0) < 0.35), (flat.std(axis=0), exact_sd)
     assert np.allclose(posterior_median(result.chain, 100), TRUTH, atol=0.25)
     assert 0.2 < result.acceptance_fraction.mean() < 0.9
-    assert [c[0] for c in calls] == list(range(30, 301, 30))
+    assert [c[0] for c in calls] == list(range(1, 301))                  # a bar moves with every step
     assert prior_outside_box(linear_problem["prior"], surrogate) == [
         "a: prior support [-1, 5] reaches beyond the swept range [0, 4]; the posterior is truncated to the "
         "swept range"]

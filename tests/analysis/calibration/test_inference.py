@@ -84,6 +84,7 @@ def test_walkers_stuck_apart_get_a_large_rhat(config, gaussian):
     assert not verdict["rhat_ok"] and "run longer" in verdict["messages"][0]
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_groups_round_trip_through_netcdf(config, tmp_path):
     result, burn = gaussian_chain(config, 200)
     predictive = np.random.default_rng(0).normal(size=(20, 2))

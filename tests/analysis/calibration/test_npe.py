@@ -174,6 +174,9 @@ def test_calibrate_trains_once_then_reuses_the_estimator_and_posterior_serves_ma
     capsys.readouterr()
     assert main(["posterior", str(out / "estimator"), "--targets", str(tmp_path / "flocks.csv"),
                  "--out", str(tmp_path / "post.csv")]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said[-2:] == ["next:", f'  pandas.read_csv("{tmp_path / "post.csv"}")   (one posterior per row: mean, sd, '
+                                  'median, 5% and 95% quantiles)']
     table = pd.read_csv(tmp_path / "post.csv")
     assert list(table["flight"]) == ["a", "b", "c"]
     assert ((table["field_q5"] >= 60) & (table["field_q95"] <= 300)).all()

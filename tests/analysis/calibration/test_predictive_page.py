@@ -85,6 +85,7 @@ def test_a_calibration_from_tracks_shows_the_measured_flock_beside_a_predictive_
     assert main(["calibrate", str(path), "--out", str(out), "--no-progress"]) == 0
     page = out / PREDICTIVE_PAGE
     text = page.read_text()
+    assert str(tmp_path) not in text                             # the tracks file by name, no folder of this machine
     ids = _runs_of(text)
     assert ids[0] == "data-flock0" and len(ids) == 2 and ids[1].startswith("predictive-")
     assert re.findall(r'data-label="([^"]+)"', text) == ids     # a measured flock has no parameters to compare

@@ -43,14 +43,7 @@ def assert_svg(path: Path) -> None:
     assert len(text) > 5 * 1024
 
 
-@pytest.fixture(autouse=True)
-def no_figures_left_open():
-    yield
-    if "matplotlib.pyplot" in sys.modules:
-        plt = sys.modules["matplotlib.pyplot"]
-        left_open = plt.get_fignums()
-        plt.close("all")            # do not let one failure cascade into the next tests
-        assert left_open == [], "a figure was left open"
+# every test here must close its figures: tests/conftest.py's closes_what_it_opens checks it
 
 
 @pytest.fixture
@@ -106,7 +99,7 @@ def tracks(rng, r=40, n=12) -> np.ndarray:
 
 # -- main effects ---------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("suffix", ["png", "svg"])
+@pytest.mark.parametrize("suffix", ["png", pytest.param("svg", marks=pytest.mark.slow)])
 def test_main_effects_figure(effects, tmp_path, suffix):
     target = tmp_path / "sub" / f"effects.{suffix}"
     out = figures.main_effects_figure(effects, "cohesion_mean", target)
@@ -131,6 +124,7 @@ def test_heatmap_figure_panels_and_rows(cells, tmp_path):
     assert_png(out, min_kb=50)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_heatmap_figure_svg_single_row_factor(cells, tmp_path):
     out = figures.heatmap_figure(cells, "cohesion_mean", "perception.field_deg", "init.n", tmp_path / "heat.svg",
                                  panel="perception.range", rows="mode")
@@ -161,7 +155,7 @@ def test_heatmap_figure_rejects_bad_keys(cells, tmp_path):
 
 # -- time series ----------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("suffix", ["png", "svg"])
+@pytest.mark.parametrize("suffix", ["png", pytest.param("svg", marks=pytest.mark.slow)])
 def test_timeseries_figure(timeseries, tmp_path, suffix):
     ts, cells = timeseries
     out = figures.timeseries_figure(ts, cells, ["cohesion", "polarization", "elongation"],
@@ -169,6 +163,7 @@ def test_timeseries_figure(timeseries, tmp_path, suffix):
     assert_png(out, min_kb=20) if suffix == "png" else assert_svg(out)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_timeseries_figure_empty_cell_and_many_panels(timeseries, tmp_path):
     ts, cells = timeseries
     cells = dict(cells, missing=["zzz"])
@@ -185,7 +180,7 @@ def test_timeseries_figure_empty_cell_and_many_panels(timeseries, tmp_path):
 # -- thumbnails -----------------------------------------------------------------------------------------
 
 @pytest.mark.slow
-@pytest.mark.parametrize("suffix", ["png", "svg"])
+@pytest.mark.parametrize("suffix", ["png", pytest.param("svg", marks=pytest.mark.slow)])
 def test_thumbnails_figure_with_and_without_patterns(tmp_path, suffix):
     rng = np.random.default_rng(4)
     items = [("no pattern", tracks(rng), None),
@@ -211,7 +206,7 @@ def test_thumbnails_figure_single_item_and_errors(tmp_path):
 
 # -- effect sizes ---------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("suffix", ["png", "svg"])
+@pytest.mark.parametrize("suffix", ["png", pytest.param("svg", marks=pytest.mark.slow)])
 def test_effect_sizes_figure(tmp_path, suffix):
     rng = np.random.default_rng(6)
     metrics = ["cohesion_mean", "polarization_mean", "stray_fraction_mean", "n_groups_mean", "elongation_mean"]

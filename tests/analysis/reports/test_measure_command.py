@@ -141,6 +141,7 @@ def test_bad_files_exit_2_with_one_message(tmp_path, capsys, name, content, args
         assert "no column for role 't'" in err and "no column for role 'y'" in err   # all at once
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_the_report_draws_each_flocks_leader_follower_hierarchy(tmp_path, capsys):
     from PIL import Image
 

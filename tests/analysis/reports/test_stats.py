@@ -174,6 +174,7 @@ def test_two_way_finds_planted_interaction():
     assert row["p"] < 1e-3 and row["partial_eta2"] > 0.2
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_two_way_null_interaction_rejection_rate():
     # 200 data sets with a main effect of A (0.5 sd per level) and no interaction: the interaction's
     # p < 0.05 at about the nominal rate ([0.01, 0.10]); the planted main effect of A is found

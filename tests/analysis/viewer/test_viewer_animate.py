@@ -26,6 +26,7 @@ def test_frame_times_follow_fps_and_speed(track):
     assert list(source_frames(track, 25, 1.0)[:6]) == [0, 0, 1, 1, 2, 2]  # nearest recorded frame (0.04 s apart)
 
 
+@pytest.mark.slow   # over half a second of CPU: out of the quick loop (CI runs it)
 def test_gif_has_the_expected_frames_and_size(track, tmp_path):
     out = write_animation(track, tmp_path / "flock.gif", fps=5, speed=1.0, size=(320, 240), color_by="pattern")
     assert out.frames == 16 and (out.width, out.height) == (320, 240) and out.format == "gif"
