@@ -423,7 +423,7 @@ def focal_neighbours_frame(p, vel, box, k, pairwise, dist, order, out):
     lower index first); the nearest gives i's nearest-neighbour terms, the min(k, count) nearest its
     k-nearest terms (with ``pairwise`` only). out[0:3] = means over moving i with a neighbour of (ahead,
     bearing_deg, cos^2 bearing) of the nearest; out[3:6] the same over every (i, one of its k nearest)
-    pair; nan when there is no term. Scratch: dist (N,) float, order (N,) int64."""
+    pair; nan when there is no term. Scratch: dist (N,) float, order (N,) int64 (the ranked few)."""
     n = p.shape[0]
     for c in range(6):
         out[c] = 0.0
@@ -434,7 +434,10 @@ def focal_neighbours_frame(p, vel, box, k, pairwise, dist, order, out):
     for i in range(n):
         if not unit(vel[i], h):
             continue
-        m = 0
+        size = min(k, n - 1) if pairwise else 1
+        kept = 0
+        # the `size` nearest, kept sorted by an insertion that moves only past strictly larger distances,
+        # so with j visited in index order equal distances keep the lower index first
         for j in range(n):
             if j == i:
                 continue
@@ -446,25 +449,20 @@ def focal_neighbours_frame(p, vel, box, k, pairwise, dist, order, out):
                 dy = fold(dy, box)
                 dz = fold(dz, box)
             r2 = dx * dx + dy * dy + dz * dz
-            if r2 > 0.0:
-                dist[j] = r2
-                order[m] = j
-                m += 1
-        if m == 0:
+            if not r2 > 0.0 or (kept == size and not r2 < dist[kept - 1]):
+                continue
+            at = kept if kept < size else size - 1
+            while at > 0 and dist[at - 1] > r2:
+                dist[at] = dist[at - 1]
+                order[at] = order[at - 1]
+                at -= 1
+            dist[at] = r2
+            order[at] = j
+            if kept < size:
+                kept += 1
+        if kept == 0:
             continue
-        keep = min(k, m) if pairwise else 1
-        # partial selection sort of the nearest `keep` (stable: ties keep the lower index first)
-        for a in range(keep):
-            best = a
-            for b in range(a + 1, m):
-                if dist[order[b]] < dist[order[best]]:
-                    best = b
-            if best != a:
-                chosen = order[best]
-                for b in range(best, a, -1):
-                    order[b] = order[b - 1]
-                order[a] = chosen
-        for a in range(keep):
+        for a in range(kept):
             j = order[a]
             d[0] = p[j, 0] - p[i, 0]
             d[1] = p[j, 1] - p[i, 1]
@@ -482,7 +480,7 @@ def focal_neighbours_frame(p, vel, box, k, pairwise, dist, order, out):
                 out[4] += angle
                 out[5] += axial
         focal += 1
-        pairs += keep
+        pairs += kept
     for c in range(3):
         out[c] = out[c] / focal if focal > 0 else np.nan
         out[3 + c] = out[3 + c] / pairs if pairwise and pairs > 0 else np.nan
@@ -528,7 +526,7 @@ def correlation_length_frame(points, vel, mask, dist, prod):
             dx = points[j, 0] - points[i, 0]
             dy = points[j, 1] - points[i, 1]
             dz = points[j, 2] - points[i, 2]
-            dist[m] = np.sqrt(dx * dx + dy * dy + dz * dz)
+            dist[m] = dx * dx + dy * dy + dz * dz   # squared: the same order, one root at the end
             prod[m] = ((vel[i, 0] - mean[0]) * (vel[j, 0] - mean[0]) + (vel[i, 1] - mean[1]) * (vel[j, 1] - mean[1])
                        + (vel[i, 2] - mean[2]) * (vel[j, 2] - mean[2]))
             m += 1
@@ -543,7 +541,7 @@ def correlation_length_frame(points, vel, mask, dist, prod):
         if running > best:
             best = running
             length = dist[order[a]]
-    return length
+    return np.sqrt(length)
 
 
 @njit(cache=True)
