@@ -530,7 +530,7 @@ def correlation_length_frame(points, vel, mask, dist, prod):
             prod[m] = ((vel[i, 0] - mean[0]) * (vel[j, 0] - mean[0]) + (vel[i, 1] - mean[1]) * (vel[j, 1] - mean[1])
                        + (vel[i, 2] - mean[2]) * (vel[j, 2] - mean[2]))
             m += 1
-    order = np.argsort(dist[:m], kind="mergesort")
+    order = np.argsort(dist[:m], kind="mergesort")   # equal distances enter S together (any order)
     running = 0.0
     best = 0.0
     length = 0.0

@@ -32,8 +32,8 @@ Each is nan when it has no term (a run shorter than two window records, nobody m
 :func:`decay_time` (lags, C): the first lag where C falls to 1/e, interpolated between the lags around it
 on log C (exact for an exponential; linear when a C there is <= 0), C(0) = 1; when C stays above 1/e up to
 the last lag tau_J, the decay time of the exponential through (tau_J, C(tau_J)), -tau_J / ln C(tau_J)
-(nan when C(tau_J) >= 1: no decorrelation at all, as in a perfectly straight flight); lags whose C is nan
-(no pair) are skipped.
+(nan when C(tau_J) >= 1 - 1e-9: no decorrelation at all, as in a perfectly straight flight); lags whose C
+is nan (no pair) are skipped.
 """
 from __future__ import annotations
 
@@ -46,6 +46,7 @@ from .columns import MOTION_METRIC_NAMES  # noqa: F401 - declared there, part of
 STATE_HIGH = 0.65   # Tunstrom et al. 2013: an order parameter above this is high ...
 STATE_LOW = 0.35    # ... and below this low
 TINY = 1e-12
+FLAT = 1e-9         # C within this of 1 at the last lag: no decorrelation (the FFT sums are exact to ~1e-12)
 
 
 def decay_time(lags: np.ndarray, corr: np.ndarray) -> float:
@@ -66,7 +67,7 @@ def decay_time(lags: np.ndarray, corr: np.ndarray) -> float:
     if last is None:
         return math.nan
     tau, c = last
-    return -tau / math.log(c) if c < 1.0 else math.nan
+    return -tau / math.log(c) if c < 1.0 - FLAT else math.nan
 
 
 def _quantiles(values: np.ndarray, qs) -> list[float]:
@@ -77,18 +78,23 @@ def _quantiles(values: np.ndarray, qs) -> list[float]:
 
 def _lagged_means(a: np.ndarray, lags: int) -> np.ndarray:
     """(J,) for j = 1..J the mean over the (t, i) with a[t, i] and a[t + j, i] known of a[t, i] . a[t + j, i]
-    (a (R, N, d), nan unknown; nan at a lag without such a pair). Sums over t for every lag at once by
-    FFT (numpy.fft on the zero-filled arrays and the known mask, padded to a power of two >= 2R: O(R log R)
-    per individual rather than O(R J)); the counts are whole numbers, rounded."""
+    (a (R, N, d), nan unknown; nan at a lag without such a pair). The sums over t, i and the components for
+    every lag at once by FFT: the summed power spectrum of the zero-filled series (and of the known mask,
+    for the counts), padded to a power of two >= 2R, transformed back once: O(N R log R) rather than
+    O(N R J). The counts are whole numbers, rounded."""
     out = np.full(lags, np.nan)
     if lags < 1:
         return out
     known = np.isfinite(a).all(axis=-1)
-    x = np.where(known[..., None], a, 0.0).reshape(len(a), -1)
     size = 1 << int(2 * len(a) - 1).bit_length()
-    total = np.fft.irfft(np.abs(np.fft.rfft(x, size, axis=0)) ** 2, size, axis=0)[1:lags + 1].sum(axis=1)
-    mask = np.fft.rfft(known.astype(np.float64), size, axis=0)
-    count = np.rint(np.fft.irfft(np.abs(mask) ** 2, size, axis=0)[1:lags + 1].sum(axis=1))
+
+    def summed(series: np.ndarray) -> np.ndarray:      # (R, C) -> sum over C of sum_t s[t] s[t + j], j = 1..J
+        spectrum = np.fft.rfft(np.ascontiguousarray(series.T), size, axis=-1)
+        power = (spectrum.real ** 2 + spectrum.imag ** 2).sum(axis=0)
+        return np.fft.irfft(power, size)[1:lags + 1]
+
+    total = summed(np.where(known[..., None], a, 0.0).reshape(len(a), -1))
+    count = np.rint(summed(known.astype(np.float64)))
     np.divide(total, count, out=out, where=count > 0)
     return out
 

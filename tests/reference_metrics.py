@@ -449,7 +449,7 @@ def decay_time(lags, corr) -> float:
     if len(points) == 1:
         return np.nan
     t, c = points[-1]
-    return -t / np.log(c) if c < 1 else np.nan
+    return -t / np.log(c) if c < 1 - 1e-9 else np.nan
 
 
 def motion_metrics(vel, times, interval, warmup, polarization, milling, high=0.65, low=0.35) -> dict:
