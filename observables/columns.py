@@ -32,7 +32,7 @@ PAIRWISE_SERIES = ("knn_ahead_fraction", "knn_bearing_deg", "knn_anisotropy", "c
 PERCEPTION_SERIES = ("visible_mean", "visible_sd", "binocular_share")   # what a simulated boid perceives: no tracker measures it
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
 # per-run scalars of every row, from the records of the window (observables.motion)
-MOTION_METRIC_NAMES = ("heading_autocorr_time", "turn_rate_mean", "turn_rate_q50", "turn_rate_q90",
+MOTION_METRIC_NAMES = ("heading_autocorr_time", "turn_rate_mean", "turn_rate_q10", "turn_rate_q50", "turn_rate_q90",
                        "speed_autocorr_time", "speed_q10", "speed_q50", "speed_q90", "speed_cv_pooled",
                        "swarming_fraction", "polarized_fraction", "milling_fraction")
 LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",

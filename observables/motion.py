@@ -8,9 +8,9 @@ times ``times`` (R,); only the records with ``times >= warmup`` (the window of t
 v_hat = v / |v| is an individual's heading (none when it is stopped or unseen); s = |v| its speed.
 docs/metrics.md ("Observables of collective motion") gives the definitions with units and citations.
 
-* ``turn_rate_mean``, ``turn_rate_q50``, ``turn_rate_q90`` (degrees/s): the turning rates
-  angle(v_hat_i(t), v_hat_i(t + interval)) / interval of every individual with a heading at both of two
-  consecutive window records, pooled; their mean, median and 90 % quantile (``numpy.quantile``'s
+* ``turn_rate_mean``, ``turn_rate_q10``, ``turn_rate_q50``, ``turn_rate_q90`` (degrees/s): the turning
+  rates angle(v_hat_i(t), v_hat_i(t + interval)) / interval of every individual with a heading at both of
+  two consecutive window records, pooled; their mean and 10, 50 and 90 % quantiles (``numpy.quantile``'s
   linear rule).
 * ``heading_autocorr_time`` (s): the decay time of C_h(tau) = mean over (i, t) of
   v_hat_i(t) . v_hat_i(t + tau), tau = j x interval, j = 1 .. J, J = floor((R_w - 1) / 2) for R_w window
@@ -127,7 +127,7 @@ def motion_metrics(vel: np.ndarray, times: np.ndarray, interval: float, warmup: 
     turns = turning_rates(heading, interval) if len(v) > 1 else np.empty(0)
     out["heading_autocorr_time"] = decay_time(lag_times, _lagged_means(heading, lags))
     out["turn_rate_mean"] = float(turns.mean()) if turns.size else math.nan
-    out["turn_rate_q50"], out["turn_rate_q90"] = _quantiles(turns, (0.5, 0.9))
+    out["turn_rate_q10"], out["turn_rate_q50"], out["turn_rate_q90"] = _quantiles(turns, (0.1, 0.5, 0.9))
 
     seen = speed[np.isfinite(speed)]
     fluct = speed - _individual_means(speed)

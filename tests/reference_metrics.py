@@ -475,6 +475,7 @@ def motion_metrics(vel, times, interval, warmup, polarization, milling, high=0.6
 
     out["heading_autocorr_time"] = decay_time(lags * interval, lagged(head))
     out["turn_rate_mean"] = float(np.mean(turns)) if turns else np.nan
+    out["turn_rate_q10"] = float(np.quantile(turns, 0.1)) if turns else np.nan
     out["turn_rate_q50"] = float(np.quantile(turns, 0.5)) if turns else np.nan
     out["turn_rate_q90"] = float(np.quantile(turns, 0.9)) if turns else np.nan
     own = {i: np.mean([s for (r, j), s in speed.items() if j == i]) for i in range(n)

@@ -180,7 +180,7 @@ def circling(rate_deg: float, n: int = 4, records: int = 21, interval: float = 0
 def test_constant_turning_gives_the_turning_rate_and_the_cosine_decay():
     t, vel = circling(20.0)
     got = motion_metrics(vel, t, 0.5, 0.0, np.ones(len(t)), np.zeros(len(t)))
-    for name in ("turn_rate_mean", "turn_rate_q50", "turn_rate_q90"):
+    for name in ("turn_rate_mean", "turn_rate_q10", "turn_rate_q50", "turn_rate_q90"):
         assert got[name] == pytest.approx(20.0, rel=1e-9)
     # C(tau) = cos(omega tau) at lags of 0.5 s: the 1/e crossing log-interpolated between them
     lags = np.arange(1, 11) * 0.5
