@@ -9,7 +9,8 @@ The file's first model (or ``--model``) at the given truth, with the comparison'
 simulator's records) and as a tracker delivers them (:func:`observables.observation.observe_run`: samples at
 the record interval, each detected with probability ``--detection``, Gaussian position noise of sd
 ``--position-sd`` length units on every coordinate, gaps bridged, velocities differenced over one
-interval). Printed per statistic: the mean exact value, its sd over the replicates (the flock's own
+interval, or over ``--velocity-interval`` s, or the tracker's own velocities with ``recorded``). Printed per
+statistic: the mean exact value, its sd over the replicates (the flock's own
 variation, which the simulations already hold), the mean and the sd of the tracker's error (observed -
 exact) and their root mean square, and then an ``sd = [...]`` line: the root mean square error, at least
 5 % of the replicate sd (a statistic the tracker measures exactly still gets a small, non-zero error).
@@ -34,6 +35,9 @@ def main() -> None:
     parser.add_argument("--replicates", type=int, default=40)
     parser.add_argument("--detection", type=float, default=0.95)
     parser.add_argument("--position-sd", type=float, default=0.02)
+    parser.add_argument("--velocity-interval", default=None,
+                        help='seconds to difference positions over (default: one interval), or "recorded" (the '
+                             "tracker's own velocities: the simulator's, exact)")
     args = parser.parse_args()
     text = args.config.read_text()
     if "[models]" in text:
@@ -49,8 +53,10 @@ def main() -> None:
     preset = summary_simulator(config, n_sim=1).preset(theta)
     run = preset.run
     settings = config.metrics.resolve(preset.model)
+    velocity = args.velocity_interval
+    velocity = float(velocity) if velocity not in (None, "recorded") else velocity
     observation = Observation(interval=run.record_every * run.dt, detection_probability=args.detection,
-                              position_sd=args.position_sd)
+                              position_sd=args.position_sd, velocity_interval=velocity)
     columns = list(config.targets.columns)
     exact, seen = [], []
     for seed in range(args.replicates):
@@ -59,12 +65,12 @@ def main() -> None:
         seen.append([summarize_run(observe_run(obs, observation, seed), settings)[c] for c in columns])
     exact, seen = np.array(exact), np.array(seen)
     error = seen - exact
-    rms = np.sqrt(np.nanmean(error ** 2, axis=0))
+    with np.errstate(invalid="ignore"):
+        rms = np.sqrt(np.nanmean(np.where(np.isfinite(error), error ** 2, np.nan), axis=0))
     spread = np.nanstd(exact, axis=0)
     sd = np.maximum(rms, 0.05 * spread)
     sd = np.where(sd > 0, sd, 1e-3)
-    print(f"{config.name}: truth {truth}; {args.replicates} replicates, detection {args.detection:g}, position sd "
-          f"{args.position_sd:g}, records every {observation.interval:g} s")
+    print(f"{config.name}: truth {truth}; {args.replicates} replicates, {observation.describe()}")
     print("| statistic | exact mean | replicate sd | tracker error mean | error sd | rms error | target sd |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for k, column in enumerate(columns):

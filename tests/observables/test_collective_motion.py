@@ -316,3 +316,15 @@ def test_focal_kernel_ranks_ties_by_index_and_skips_coincident_boids():
     kernels.focal_neighbours_frame(pos, vel, 0.0, 1, True, np.empty(4), np.empty(4, np.int64), out)
     # 0 and 3: nearest 1 (ahead; 2 is as near, higher index); 1: nearest 0 (behind, before 3); 2: 0 (ahead)
     assert out[0] == pytest.approx(3 / 4) and close(out, ref.focal_neighbours(pos, vel, 1))
+
+
+@pytest.mark.parametrize("m", [1, 2, 7, 33, 435, 4950])
+def test_distance_order_sorts_any_keys(m):
+    """The bucket sort behind the correlation length: sorted keys for uniform, clustered (a bucket above 32
+    entries) and tied keys."""
+    rng = np.random.default_rng(m)
+    for key in (rng.random(m), np.r_[rng.random(m // 2) * 1e-3, 5 + rng.random(m - m // 2)],
+                rng.integers(0, 4, m).astype(float), np.full(m, 2.5)):
+        order = np.empty(m, np.int64)
+        kernels.distance_order(key, m, order)
+        assert sorted(order) == list(range(m)) and np.all(np.diff(key[order]) >= 0)

@@ -84,6 +84,10 @@ def test_the_shipped_comparison_is_valid():
     comparison = load_comparison(ROOT / "configs/compare/perception.toml")
     assert comparison.names == ["metric", "topological"] and (comparison.simulations, comparison.heldout) == (1000, 200)
     assert dict(comparison.models)["topological"].names == ("neighbours", "blind")
+    assert comparison.unobservable == ["visible_mean", "binocular_share", "visible_sd"]   # what a simulator perceives
+    tracked = load_comparison(ROOT / "configs/compare/perception_tracks.toml")
+    assert tracked.tracker_statistics and tracked.unobservable == [] and len(tracked.targets.stats) >= 30
+    assert all(config.preset.run.duration == 30.0 for _, config in tracked.models)
 
 
 class Fixed:
