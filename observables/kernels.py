@@ -412,7 +412,7 @@ def _bearing_terms(d, h):
     ahead = 1.0 if along > 0.0 else (0.5 if along == 0.0 else 0.0)
     angle = np.degrees(np.arctan2(across, along))
     norm2 = along * along + across * across
-    return ahead, angle, along * along / norm2
+    return ahead, angle, (along * along / norm2 if norm2 > 0.0 else np.nan)   # 0: values past overflow
 
 
 @njit(cache=True)
