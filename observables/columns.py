@@ -9,6 +9,10 @@ without loading the kernels. Each metric's home module takes its names from here
   (``observables.kernels.COLUMNS``, ``observables.metrics.METRIC_NAMES``);
 * ``PERCEPTION_SERIES``: the series of ``SERIES`` read from the recorded perception (``visible``,
   ``binocular``), which no tracker measures (nan in measured tracks, refused as track targets);
+* ``PAIRWISE_SERIES``: the series of ``SERIES`` that rank every pair of every record (k nearest
+  neighbours, correlation length), nan when ``MetricSettings.pairwise`` is off;
+* ``MOTION_METRIC_NAMES``: the per-run scalars of collective motion of every row (:mod:`~observables.motion`:
+  autocorrelation times, turning-rate and speed distributions, state occupancy);
 * ``RUN_COLUMNS``: the run scalars of every row; ``LEADERSHIP_METRIC_NAMES`` (:mod:`~observables.leadership`),
   ``DCD_METRIC_NAMES`` (:mod:`~observables.directional_correlation`), ``MIGRATION_METRIC_NAMES``
   (:mod:`~observables.migration`);
@@ -20,9 +24,17 @@ from __future__ import annotations
 
 SERIES = ("polarization", "polarization_largest", "milling", "n_groups", "cohesion", "stray_fraction",
           "nn_distance", "gyration_radius", "elongation", "aspect_heading", "speed_mean", "speed_cv",
-          "visible_mean", "visible_sd", "binocular_share", "segregation", "elongation_heading", "overtake_rate")
+          "visible_mean", "visible_sd", "binocular_share", "segregation", "elongation_heading", "overtake_rate",
+          # the field's observables of collective motion (docs/metrics.md "Observables of collective motion")
+          "nn_ahead_fraction", "nn_bearing_deg", "nn_anisotropy", "knn_ahead_fraction", "knn_bearing_deg",
+          "knn_anisotropy", "corr_length", "edge_spacing_ratio", "front_spacing_ratio")
+PAIRWISE_SERIES = ("knn_ahead_fraction", "knn_bearing_deg", "knn_anisotropy", "corr_length")  # off: nan (pairwise_metrics)
 PERCEPTION_SERIES = ("visible_mean", "visible_sd", "binocular_share")   # what a simulated boid perceives: no tracker measures it
 RUN_COLUMNS = ("time_to_fragmentation", "fragmented")
+# per-run scalars of every row, from the records of the window (observables.motion)
+MOTION_METRIC_NAMES = ("heading_autocorr_time", "turn_rate_mean", "turn_rate_q10", "turn_rate_q50", "turn_rate_q90",
+                       "speed_autocorr_time", "speed_q10", "speed_q50", "speed_q90", "speed_cv_pooled",
+                       "swarming_fraction", "polarized_fraction", "milling_fraction")
 LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean", "follow_corr_lag0",
                            "follow_corr_max", "follow_lag_max", "follow_corr_before", "heading_change_deg",
                            "escape_gain")
@@ -53,11 +65,13 @@ def encounter_columns(families=("obstacles", "predator", "prey")) -> tuple[str, 
 
 def summary_columns(leadership: bool = True, migration: bool = False,
                     encounters: tuple[str, ...] = (), dcd: bool = False) -> tuple[str, ...]:
-    """The columns :func:`~observables.summary.summarize_run`'s row may hold, in order: with or without the
+    """The columns :func:`~observables.summary.summarize_run`'s row may hold, in order: every series' mean and
+    final value, the motion scalars, the fragmentation columns, then with or without the
     leadership scalars, the directional correlation delays, the migration scalars, then the columns of the
     given encounter families (all of ``FAMILIES`` for all; a row has a family's columns only when its run
     has obstacles, a predator or prey, see :mod:`observables.encounters`)."""
-    columns = tuple(f"{name}_{kind}" for name in SERIES for kind in ("mean", "final")) + RUN_COLUMNS
+    columns = tuple(f"{name}_{kind}" for name in SERIES for kind in ("mean", "final")) + MOTION_METRIC_NAMES
+    columns += RUN_COLUMNS
     columns += LEADERSHIP_METRIC_NAMES if leadership else ()
     columns += DCD_METRIC_NAMES if dcd else ()
     columns += MIGRATION_METRIC_NAMES if migration else ()

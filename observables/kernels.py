@@ -394,16 +394,281 @@ def count_overtakes(p, p_before, nbr, degree, head, ok, head_before, ok_before, 
     return swaps
 
 
+
+# ---------------------------------------------------------------------------------------------------
+# observables of collective motion (docs/metrics.md "Observables of collective motion")
+
+
+@njit(cache=True)
+def _bearing_terms(d, h):
+    """(ahead, bearing in degrees, cos^2 of the bearing) of offset d seen from unit heading h:
+    ahead 1 when d.h > 0, 0.5 when d.h = 0, 0 behind; the bearing is the angle between d and h,
+    atan2(|d x h|, d.h), in [0, 180]."""
+    along = d[0] * h[0] + d[1] * h[1] + d[2] * h[2]
+    cx = d[1] * h[2] - d[2] * h[1]
+    cy = d[2] * h[0] - d[0] * h[2]
+    cz = d[0] * h[1] - d[1] * h[0]
+    across = np.sqrt(cx * cx + cy * cy + cz * cz)
+    ahead = 1.0 if along > 0.0 else (0.5 if along == 0.0 else 0.0)
+    angle = np.degrees(np.arctan2(across, along))
+    norm2 = along * along + across * across
+    return ahead, angle, (along * along / norm2 if norm2 > 0.0 else np.nan)   # 0: values past overflow
+
+
+@njit(cache=True)
+def focal_neighbours_frame(p, vel, box, k, pairwise, dist, order, out):
+    """Where the neighbours sit in each moving individual's frame (its unit heading h_i), one record.
+
+    For every moving i, the others j != i at a distance > 0 (minimum image) are ranked by distance (ties:
+    lower index first); the nearest gives i's nearest-neighbour terms, the min(k, count) nearest its
+    k-nearest terms (with ``pairwise`` only). out[0:3] = means over moving i with a neighbour of (ahead,
+    bearing_deg, cos^2 bearing) of the nearest; out[3:6] the same over every (i, one of its k nearest)
+    pair; nan when there is no term. Scratch: dist (N,) float, order (N,) int64 (the ranked few)."""
+    n = p.shape[0]
+    for c in range(6):
+        out[c] = 0.0
+    focal = 0
+    pairs = 0
+    h = np.empty(3)
+    d = np.empty(3)
+    for i in range(n):
+        if not unit(vel[i], h):
+            continue
+        size = min(k, n - 1) if pairwise else 1
+        kept = 0
+        # the `size` nearest, kept sorted by an insertion that moves only past strictly larger distances,
+        # so with j visited in index order equal distances keep the lower index first
+        for j in range(n):
+            if j == i:
+                continue
+            dx = p[j, 0] - p[i, 0]
+            dy = p[j, 1] - p[i, 1]
+            dz = p[j, 2] - p[i, 2]
+            if box > 0.0:
+                dx = fold(dx, box)
+                dy = fold(dy, box)
+                dz = fold(dz, box)
+            r2 = dx * dx + dy * dy + dz * dz
+            if not r2 > 0.0 or (kept == size and not r2 < dist[kept - 1]):
+                continue
+            at = kept if kept < size else size - 1
+            while at > 0 and dist[at - 1] > r2:
+                dist[at] = dist[at - 1]
+                order[at] = order[at - 1]
+                at -= 1
+            dist[at] = r2
+            order[at] = j
+            if kept < size:
+                kept += 1
+        if kept == 0:
+            continue
+        for a in range(kept):
+            j = order[a]
+            d[0] = p[j, 0] - p[i, 0]
+            d[1] = p[j, 1] - p[i, 1]
+            d[2] = p[j, 2] - p[i, 2]
+            if box > 0.0:
+                for c in range(3):
+                    d[c] = fold(d[c], box)
+            ahead, angle, axial = _bearing_terms(d, h)
+            if a == 0:
+                out[0] += ahead
+                out[1] += angle
+                out[2] += axial
+            if pairwise:
+                out[3] += ahead
+                out[4] += angle
+                out[5] += axial
+        focal += 1
+        pairs += kept
+    for c in range(3):
+        out[c] = out[c] / focal if focal > 0 else np.nan
+        out[3 + c] = out[3 + c] / pairs if pairwise and pairs > 0 else np.nan
+
+
+@njit(cache=True)
+def distance_order(key, m, order):
+    """order[:m] = the indices 0..m-1 sorted by key[:m] (ascending; equal keys in any order): a bucket sort
+    (about m / 4 buckets spaced evenly between the smallest and largest key, each sorted by insertion, or
+    by a merge sort above 32 entries), several times faster than an argsort for the pairs of a group."""
+    lo = key[0]
+    hi = key[0]
+    for a in range(m):
+        if key[a] < lo:
+            lo = key[a]
+        if key[a] > hi:
+            hi = key[a]
+    if not hi > lo:
+        for a in range(m):
+            order[a] = a
+        return
+    buckets = max(1, m // 4)
+    scale = buckets / (hi - lo)
+    start = np.zeros(buckets + 1, np.int64)
+    slot = np.empty(m, np.int64)
+    for a in range(m):
+        b = min(int((key[a] - lo) * scale), buckets - 1)   # monotone in the key: a larger key, no earlier bucket
+        slot[a] = b
+        start[b + 1] += 1
+    for b in range(buckets):
+        start[b + 1] += start[b]
+    fill = start[:buckets].copy()
+    for a in range(m):
+        order[fill[slot[a]]] = a
+        fill[slot[a]] += 1
+    for b in range(buckets):
+        first, stop = start[b], start[b + 1]
+        if stop - first <= 32:
+            for x in range(first + 1, stop):
+                item = order[x]
+                y = x
+                while y > first and key[order[y - 1]] > key[item]:
+                    order[y] = order[y - 1]
+                    y -= 1
+                order[y] = item
+        else:
+            members = order[first:stop].copy()
+            ranked = np.argsort(key[members], kind="mergesort")
+            for x in range(stop - first):
+                order[first + x] = members[ranked[x]]
+
+
+@njit(cache=True)
+def correlation_length_frame(points, vel, mask, dist, prod):
+    """Correlation length of the velocity fluctuations of the boids with mask true (points unwrapped).
+
+    dv_i = v_i - mean v over the selection; for the pairs i < j of the selection, S(r) = sum of
+    dv_i.dv_j over the pairs with |x_i - x_j| <= r; the length is the smallest r where S reaches its
+    largest value, S(0) = 0 included (0 when no S(r) is above 0). In the limit of many pairs that is the
+    first zero of the correlation function C(r) (Cavagna et al. 2010). nan below 2 boids or when the
+    fluctuations vanish (sum |dv|^2 <= TINY^2 sum |v|^2). Scratch: dist, prod (N (N - 1) / 2,)."""
+    n = points.shape[0]
+    count = 0
+    mean = np.zeros(3)
+    for i in range(n):
+        if mask[i]:
+            count += 1
+            for c in range(3):
+                mean[c] += vel[i, c]
+    if count < 2:
+        return np.nan
+    for c in range(3):
+        mean[c] /= count
+    total = 0.0
+    scale = 0.0
+    for i in range(n):
+        if mask[i]:
+            for c in range(3):
+                total += (vel[i, c] - mean[c]) ** 2
+                scale += vel[i, c] ** 2
+    if not total > TINY * TINY * scale:
+        return np.nan
+    m = 0
+    for i in range(n):
+        if not mask[i]:
+            continue
+        for j in range(i + 1, n):
+            if not mask[j]:
+                continue
+            dx = points[j, 0] - points[i, 0]
+            dy = points[j, 1] - points[i, 1]
+            dz = points[j, 2] - points[i, 2]
+            dist[m] = dx * dx + dy * dy + dz * dz   # squared: the same order, one root at the end
+            prod[m] = ((vel[i, 0] - mean[0]) * (vel[j, 0] - mean[0]) + (vel[i, 1] - mean[1]) * (vel[j, 1] - mean[1])
+                       + (vel[i, 2] - mean[2]) * (vel[j, 2] - mean[2]))
+            m += 1
+    order = np.empty(m, np.int64)
+    distance_order(dist, m, order)
+    running = 0.0
+    best = 0.0
+    length = 0.0
+    for a in range(m):
+        running += prod[order[a]]
+        if a + 1 < m and dist[order[a + 1]] == dist[order[a]]:
+            continue   # S(r) counts every pair at distance <= r: equal distances enter together
+        if running > best:
+            best = running
+            length = dist[order[a]]
+    return np.sqrt(length)
+
+
+@njit(cache=True)
+def _mean_over(values, order, start, stop):
+    total = 0.0
+    for a in range(start, stop):
+        total += values[order[a]]
+    return total / (stop - start)
+
+
+@njit(cache=True)
+def spacing_profile_frame(points, vel, mask, nn, key):
+    """(edge_spacing_ratio, front_spacing_ratio) of the boids with mask true (points unwrapped; nn each
+    boid's nearest-neighbour distance). With x_i = p_i - centroid, m = floor(n / 2): the mean nn of the m
+    boids farthest from the centroid over that of the m nearest, and the mean nn of the m boids most ahead
+    along the heading h (normalised sum of the unit headings of the moving selected boids) over that of
+    the m most behind; ranks by a stable sort (ties: lower index first). nan below 4 boids, when the
+    denominator is 0, and (front) without a heading. Scratch: key (N,)."""
+    n = points.shape[0]
+    count = 0
+    c = np.zeros(3)
+    for i in range(n):
+        if mask[i]:
+            count += 1
+            for a in range(3):
+                c[a] += points[i, a]
+    if count < 4:
+        return np.nan, np.nan
+    for a in range(3):
+        c[a] /= count
+    members = np.empty(count, np.int64)
+    m = 0
+    for i in range(n):
+        if mask[i]:
+            members[m] = i
+            m += 1
+    half = count // 2
+    for a in range(count):
+        i = members[a]
+        key[a] = np.sqrt((points[i, 0] - c[0]) ** 2 + (points[i, 1] - c[1]) ** 2 + (points[i, 2] - c[2]) ** 2)
+    rank = np.argsort(key[:count], kind="mergesort")
+    spacing = np.empty(count)
+    for a in range(count):
+        spacing[a] = nn[members[a]]
+    inner = _mean_over(spacing, rank, 0, half)
+    edge = _mean_over(spacing, rank, count - half, count) / inner if inner > 0.0 else np.nan
+    total = np.zeros(3)
+    hv = np.empty(3)
+    moving = 0
+    for a in range(count):
+        if unit(vel[members[a]], hv):
+            moving += 1
+            for b in range(3):
+                total[b] += hv[b]
+    norm = np.sqrt(total[0] ** 2 + total[1] ** 2 + total[2] ** 2)
+    if moving == 0 or norm <= TINY * moving:
+        return edge, np.nan
+    for a in range(count):
+        i = members[a]
+        key[a] = ((points[i, 0] - c[0]) * total[0] + (points[i, 1] - c[1]) * total[1]
+                  + (points[i, 2] - c[2]) * total[2]) / norm
+    rank = np.argsort(key[:count], kind="mergesort")
+    back = _mean_over(spacing, rank, 0, half)
+    front = _mean_over(spacing, rank, count - half, count) / back if back > 0.0 else np.nan
+    return edge, front
+
 # ---------------------------------------------------------------------------------------------------
 # the whole table
 
 
 @njit(cache=True)
-def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, interval, out):
+def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, radius, box, interval, k_nearest,
+                 pairwise, out):
     """out (R, len(COLUMNS)): every metric of every record, column ``Column.<name>``.
 
     ``overtake_rate`` of record f counts the overtakes between records f - 1 and f per boid per
-    ``interval`` seconds (the time between records); nan at f = 0 and when interval <= 0."""
+    ``interval`` seconds (the time between records); nan at f = 0 and when interval <= 0. ``k_nearest``:
+    the k of the ``knn_*`` columns; ``pairwise`` false leaves the columns that rank every pair (``knn_*``,
+    ``corr_length``) nan."""
     n_frames, n = pos.shape[0], pos.shape[1]
     nbr = np.empty((n, n), np.int32)
     queue = np.empty(n, np.int32)
@@ -423,6 +688,11 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
     ok = np.empty(n, np.bool_)
     head_before = np.zeros((n, 3))
     ok_before = np.zeros(n, np.bool_)
+    dist = np.empty(n)
+    order = np.empty(n, np.int64)
+    focal = np.empty(6)
+    pair_dist = np.empty(n * (n - 1) // 2)
+    pair_prod = np.empty(n * (n - 1) // 2)
     for f in range(n_frames):
         count = graph_frame(pos[f], pattern, radius, box, nbr, queue, comp, sizes, rank,
                             labels, unwrapped, nn, degree, same)
@@ -472,3 +742,14 @@ def frame_kernel(pos, vel, visible, binocular, have_visible, pattern, expected, 
                 ok_before[i] = ok[i]
                 for k in range(3):
                     head_before[i, k] = head[i, k]
+        focal_neighbours_frame(pos[f], vel[f], box, k_nearest, pairwise, dist, order, focal)
+        out[f, Column.nn_ahead_fraction] = focal[0]
+        out[f, Column.nn_bearing_deg] = focal[1]
+        out[f, Column.nn_anisotropy] = focal[2]
+        out[f, Column.knn_ahead_fraction] = focal[3]
+        out[f, Column.knn_bearing_deg] = focal[4]
+        out[f, Column.knn_anisotropy] = focal[5]
+        out[f, Column.corr_length] = (correlation_length_frame(unwrapped, vel[f], largest, pair_dist, pair_prod)
+                                      if pairwise else np.nan)
+        out[f, Column.edge_spacing_ratio], out[f, Column.front_spacing_ratio] = \
+            spacing_profile_frame(unwrapped, vel[f], largest, nn, dist)

@@ -31,6 +31,7 @@ from .groups import check_radius, kernel_box, neighbour_graph, pattern_codes
 METRIC_NAMES = kernels.COLUMNS  # every series of frame_metrics, in this order
 WARMUP_S = 3.0               # Holland & Semwal: snapshots start 3 s in, once the initial flock formed
 FRAGMENTATION_COHESION = 0.5  # fragmented once the largest group holds less than half the flock
+K_NEAREST = 6                # the k of the knn_* series (Ballerini et al. 2008: a starling heeds 6-7 neighbours)
 
 
 def unit_headings(vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -191,15 +192,17 @@ def overtake_rate(pos: np.ndarray, vel: np.ndarray, group_radius: float, record_
 
 def frame_metrics(pos: np.ndarray, vel: np.ndarray, visible: np.ndarray | None, binocular: np.ndarray | None,
                   pattern: np.ndarray | None, group_radius: float, box: float | None = None,
-                  record_interval: float | None = None) -> dict[str, np.ndarray]:
+                  record_interval: float | None = None, k_nearest: int = K_NEAREST,
+                  pairwise: bool = True) -> dict[str, np.ndarray]:
     """Every metric of :data:`METRIC_NAMES` for every record, as float64 arrays of shape ``pos.shape[:-2]``.
 
     ``pos``, ``vel`` (R, N, 3) (or (N, 3) for one record, or any leading shape); ``visible``,
     ``binocular`` int (R, N) as recorded (None: ``visible_mean``, ``visible_sd`` and ``binocular_share`` are nan);
     ``pattern`` (N,) (None: one pattern for all); ``group_radius`` links boids closer than it;
     ``box`` the side of a periodic box (None: open world); ``record_interval`` the seconds between
-    consecutive records of (R, N, 3) input (None, or another leading shape: ``overtake_rate`` is nan).
-    Definitions in docs/metrics.md.
+    consecutive records of (R, N, 3) input (None, or another leading shape: ``overtake_rate`` is nan);
+    ``k_nearest`` the k of the ``knn_*`` series; ``pairwise`` False leaves the series that rank every pair
+    (``PAIRWISE_SERIES``: ``knn_*``, ``corr_length``) nan. Definitions in docs/metrics.md.
     """
     if np.shape(pos) != np.shape(vel) or np.ndim(pos) < 2 or np.shape(pos)[-1] != 3 or np.shape(pos)[-2] < 1:
         raise ValueError(f"pos and vel: expected equal shapes (..., N, 3), N >= 1, got {np.shape(pos)} "
@@ -219,10 +222,18 @@ def frame_metrics(pos: np.ndarray, vel: np.ndarray, visible: np.ndarray | None, 
         interval = float(record_interval)
         if not (np.isfinite(interval) and interval > 0):
             raise ValueError(f"record_interval: got {record_interval!r}; expected seconds > 0")
+    k_nearest = check_k_nearest(k_nearest)
     table = np.empty((n_frames, len(kernels.COLUMNS)))
     kernels.frame_kernel(p, v, visible, binocular, have_visible, codes, expected_same_share(codes),
-                         radius, box_arg, interval, table)
+                         radius, box_arg, interval, k_nearest, bool(pairwise), table)
     return {name: table[:, kernels.COLUMNS.index(name)].reshape(lead) for name in METRIC_NAMES}
+
+
+def check_k_nearest(k) -> int:
+    """``k`` as an int >= 1, or ValueError."""
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise ValueError(f"k_nearest: got {k!r}; expected a whole number >= 1")
+    return int(k)
 
 
 def _nanmean(values: np.ndarray) -> float:

@@ -7,10 +7,10 @@ It quacks like a simulator ``Observations`` where the metrics look (``times``, `
 nobody measures what a bird perceives), and adds ``present`` (R, N) bool: individual i counts at record
 r when its position and velocity there are known. Missing entries of ``pos`` and ``vel`` are nan.
 
-``present_metrics(flock, group_radius, box=None)`` is :func:`~observables.metrics.frame_metrics`
-record by record over the individuals present: at record r the metrics are those of the flock made of
-the ``present[r]`` individuals, in index order (so with everyone present it is exactly
-``frame_metrics`` of the whole arrays). Records are batched into one compiled call per distinct set
+``present_metrics(flock, group_radius, box=None, k_nearest=6, pairwise=True)`` is
+:func:`~observables.metrics.frame_metrics` record by record over the individuals present: at record r
+the metrics are those of the flock made of the ``present[r]`` individuals, in index order (so with
+everyone present it is exactly ``frame_metrics`` of the whole arrays). Records are batched into one compiled call per distinct set
 of present individuals (or per number of them, when patterns do not matter); a record with nobody
 present gets nan for every metric. ``overtake_rate`` compares consecutive records, so it is computed
 (with ``interval``, the grid's spacing) when every individual is present at every record, and is nan
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .metrics import METRIC_NAMES, frame_metrics
+from .metrics import K_NEAREST, METRIC_NAMES, frame_metrics
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,13 +64,16 @@ def _groups(present: np.ndarray, by_members: bool) -> dict:
     return groups
 
 
-def present_metrics(flock, group_radius: float, box: float | None = None) -> dict[str, np.ndarray]:
-    """Every metric of METRIC_NAMES per record over the individuals present (see the module docstring)."""
+def present_metrics(flock, group_radius: float, box: float | None = None, k_nearest: int = K_NEAREST,
+                    pairwise: bool = True) -> dict[str, np.ndarray]:
+    """Every metric of METRIC_NAMES per record over the individuals present (see the module docstring;
+    ``k_nearest`` and ``pairwise`` as for :func:`~observables.metrics.frame_metrics`)."""
     present = np.asarray(flock.present, dtype=bool)
     n_records, n = present.shape
     pattern = None if flock.pattern is None else np.asarray(flock.pattern)
     if present.all():   # everyone at every record: the simulator's definition, overtakes included
-        return frame_metrics(flock.pos, flock.vel, None, None, pattern, group_radius, box, flock.interval)
+        return frame_metrics(flock.pos, flock.vel, None, None, pattern, group_radius, box, flock.interval,
+                             k_nearest, pairwise)
     out = {name: np.full(n_records, np.nan) for name in METRIC_NAMES}
     by_members = pattern is not None and np.unique(pattern).size > 1
     for records in _groups(present, by_members).values():
@@ -85,7 +88,7 @@ def present_metrics(flock, group_radius: float, box: float | None = None) -> dic
             pos = flock.pos[records][members].reshape(len(records), count, 3)
             vel = flock.vel[records][members].reshape(len(records), count, 3)
         group_pattern = None if pattern is None else (pattern[members[0]] if by_members else pattern[:count])
-        series = frame_metrics(pos, vel, None, None, group_pattern, group_radius, box)
+        series = frame_metrics(pos, vel, None, None, group_pattern, group_radius, box, None, k_nearest, pairwise)
         for name in METRIC_NAMES:
             out[name][records] = series[name]
     return out

@@ -54,12 +54,15 @@ from .encounters import (CAPTURE_RADIUS, FAMILIES, PREDATOR_NEAR, PREY_REACH, ag
                          encounter_metrics)
 from .leadership import LEADERSHIP_METRIC_NAMES, leadership_metrics
 from .migration import MIGRATION_METRIC_NAMES, migration_metrics
-from .metrics import FRAGMENTATION_COHESION, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
+from .metrics import FRAGMENTATION_COHESION, K_NEAREST, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
+from .motion import STATE_HIGH, STATE_LOW, motion_metrics
 from .observed import present_metrics
 
 ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
 # the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
 ENCOUNTER_SETTINGS = {"capture_radius": CAPTURE_RADIUS, "predator_near": PREDATOR_NEAR, "prey_reach": PREY_REACH}
+# the settings of the observables of collective motion (keys of [run]), with their defaults
+MOTION_SETTINGS = {"k_nearest": K_NEAREST, "pairwise_metrics": True, "state_high": STATE_HIGH, "state_low": STATE_LOW}
 
 
 class NonFiniteState(RuntimeError):
@@ -84,10 +87,23 @@ class MetricSettings:
     migration: tuple[float, float, float] | None = None  # the model's migration direction (set by resolve)
     dcd: bool = False                          # the directional correlation delays (DCD_METRIC_NAMES)
     dcd_max_delay: float = DCD_MAX_DELAY       # s: their largest delay
+    k_nearest: int = K_NEAREST                 # the k of the knn_* series
+    pairwise_metrics: bool = True              # False: the PAIRWISE_SERIES (knn_*, corr_length) are nan
+    state_high: float = STATE_HIGH             # Tunstrom et al. 2013's thresholds of the state fractions
+    state_low: float = STATE_LOW
 
     def __post_init__(self):
         for key in ENCOUNTER_SETTINGS:
             check_positive(key, getattr(self, key))
+        if isinstance(self.k_nearest, bool) or not isinstance(self.k_nearest, (int, np.integer)) or self.k_nearest < 1:
+            raise ConfigError("k_nearest", f"got {self.k_nearest!r}; expected a whole number >= 1")
+        if not isinstance(self.pairwise_metrics, (bool, np.bool_)):
+            raise ConfigError("pairwise_metrics", f"got {self.pairwise_metrics!r}; expected true or false")
+        check_within("state_high", self.state_high, 0.0, 1.0)
+        check_within("state_low", self.state_low, 0.0, 1.0)
+        if self.state_low > self.state_high:
+            raise ConfigError("state_low", f"got {self.state_low!r}, above state_high = {self.state_high!r}; a low "
+                                           "order parameter must lie below a high one")
         check_non_negative("warmup", self.warmup)
         check_non_negative("dcd_max_delay", self.dcd_max_delay)
         if self.group_radius is not None:
@@ -118,6 +134,14 @@ def encounter_settings(settings: MetricSettings) -> dict:
             if getattr(settings, key) != default}
 
 
+def motion_settings(settings: MetricSettings) -> dict:
+    """The settings of the observables of collective motion (``MOTION_SETTINGS``) that differ from their
+    defaults: what run identity and a sweep's ``model.json`` record, so run ids of earlier sweeps stay
+    valid."""
+    return {key: getattr(settings, key) for key, default in MOTION_SETTINGS.items()
+            if getattr(settings, key) != default}
+
+
 def model_body_radius(model) -> float:
     """The body radius obstacle collisions are measured with: the dynamics' own (its descriptor's
     ``body_radius``, :mod:`simcore.registry`: reynolds87's ``reynolds.body_radius``), else
@@ -145,12 +169,16 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
         if settings.leadership:
             raise ValueError("metric settings: leadership metrics need the simulator's leader records, "
                              "an observed flock has none")
-        series = present_metrics(obs, settings.group_radius, settings.box)
+        series = present_metrics(obs, settings.group_radius, settings.box, settings.k_nearest,
+                                 settings.pairwise_metrics)
         series["tracked"] = obs.tracked
     else:
         series = frame_metrics(obs.pos, obs.vel, obs.visible, obs.binocular, obs.pattern, settings.group_radius,
-                               settings.box, record_interval(obs))
+                               settings.box, record_interval(obs), settings.k_nearest, settings.pairwise_metrics)
     row = summarize(series, obs.times, settings.warmup, settings.fragmentation_cohesion)
+    fragmentation = {name: row.pop(name) for name in RUN_COLUMNS}   # the motion scalars come before them
+    row.update(run_motion_metrics(obs, settings, series))
+    row.update(fragmentation)
     if settings.leadership:
         row.update(leadership_metrics(obs, settings.group_radius, settings.escape_duration, settings.box))
         series["leaders"] = obs.leader.sum(axis=1).astype(np.float64)
@@ -163,6 +191,27 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
         series.update(extra_series)
         row.update(extra_row)
     return RunMetrics(series, row)
+
+
+def run_motion_metrics(obs, settings: MetricSettings, series: dict) -> dict:
+    """The scalars of collective motion (:mod:`~observables.motion`) of a run or an observed flock: its
+    velocities (nan where an individual is not present), the window at or after ``settings.warmup``, and
+    the run's ``polarization`` and ``milling`` series for the state fractions."""
+    present = getattr(obs, "present", None)
+    vel = obs.vel if present is None else np.where(present[..., None], obs.vel, np.nan)
+    return motion_metrics(vel, obs.times, observed_interval(obs), settings.warmup, series["polarization"],
+                          series["milling"], settings.state_high, settings.state_low)
+
+
+def observed_interval(obs) -> float:
+    """Seconds between the records of a simulator ``Observations`` (:func:`record_interval`) or of an
+    observed flock (its grid's ``interval``; else the median spacing of its times, 1.0 for one record)."""
+    if getattr(obs, "present", None) is None:
+        return record_interval(obs)
+    if obs.interval is not None:
+        return float(obs.interval)
+    steps = np.diff(np.asarray(obs.times, dtype=np.float64))
+    return float(np.median(steps)) if steps.size and np.median(steps) > 0 else 1.0
 
 
 def run_directional_correlation(obs, settings: MetricSettings) -> DirectionalCorrelation:

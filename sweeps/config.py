@@ -39,6 +39,10 @@ replicates. Its tables (every key is checked; unknown keys get a did-you-mean)::
     dcd_max_delay = 2.0             # seconds: their largest delay (with dcd_metrics = true)
     timeout_s = 600                 # a run still going after this many seconds is stopped and recorded as
                                     # failed (default: no limit; not part of run ids; sweeps.worker)
+    k_nearest = 6                   # the k of the knn_* series (neighbours in the focal frame)
+    pairwise_metrics = true         # false: no knn_* or corr_length (they rank every pair of every record)
+    state_high = 0.65               # state fractions (Tunstrom et al. 2013): an order parameter above this is high
+    state_low = 0.35                # ... and below this low
 
     [[axes]]                        # one factor: a key and its values (cartesian product of all axes)
     name = "mode"                   # column name (default: the key)
@@ -114,7 +118,8 @@ from typing import Any, Literal
 from flocksweep.observables.columns import EVERY_METRIC_COLUMN
 from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
 from flocksweep.observables.metrics import FRAGMENTATION_COHESION, WARMUP_S
-from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MetricSettings, encounter_settings
+from flocksweep.observables.summary import (ENCOUNTER_SETTINGS, MOTION_SETTINGS, MetricSettings, encounter_settings,
+                                            motion_settings)
 from flocksweep.simcore.params import RUN_SHORTHANDS, canonical_key, read_toml
 from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, check_finite, check_positive,
                             read_config, resolve_path, set_dotted, suggest)
@@ -159,6 +164,10 @@ class RunTable:
     predator_near: float = ENCOUNTER_SETTINGS["predator_near"]
     prey_reach: float = ENCOUNTER_SETTINGS["prey_reach"]
     dcd_max_delay: float = DCD_MAX_DELAY
+    k_nearest: int = MOTION_SETTINGS["k_nearest"]
+    pairwise_metrics: bool = MOTION_SETTINGS["pairwise_metrics"]
+    state_high: float = MOTION_SETTINGS["state_high"]
+    state_low: float = MOTION_SETTINGS["state_low"]
 
     def __post_init__(self):
         radius = self.group_radius
@@ -176,7 +185,8 @@ class RunTable:
         return MetricSettings(warmup=self.warmup, group_radius=radius,
                               fragmentation_cohesion=self.fragmentation_cohesion, leadership=leadership,
                               dcd=dcd, dcd_max_delay=self.dcd_max_delay,
-                              **{key: getattr(self, key) for key in ENCOUNTER_SETTINGS})
+                              **{key: getattr(self, key) for key in ENCOUNTER_SETTINGS},
+                              **{key: getattr(self, key) for key in MOTION_SETTINGS})
 
 
 @dataclass(frozen=True)
@@ -445,7 +455,7 @@ class SweepConfig(FileConfig, loader="load_sweep"):
                   "keep": s.keep, "trajectory_every": s.trajectory_every, "leadership": m.leadership}
         if m.dcd:   # added later: absent when off, so model.json of earlier sweeps reads the same
             record["dcd_max_delay"] = m.dcd_max_delay
-        return record | encounter_settings(m)
+        return record | encounter_settings(m) | motion_settings(m)
 
 
 # ------------------------------------------------------------- keys and values given by name

@@ -31,7 +31,7 @@ import json
 from dataclasses import dataclass
 
 from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
-from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MetricSettings
+from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MOTION_SETTINGS, MetricSettings
 from flocksweep.simcore.params import Preset, preset_from_dict
 from flocksweep.simcore.schema import ConfigError, get_dotted
 
@@ -172,7 +172,8 @@ def rebuild(model_record: dict, row: dict) -> tuple[Preset, MetricSettings]:
                              fragmentation_cohesion=analysis["fragmentation_cohesion"],
                              leadership=bool(analysis.get("leadership", False)),
                              dcd="dcd_max_delay" in analysis, dcd_max_delay=analysis.get("dcd_max_delay", DCD_MAX_DELAY),
-                             **{key: analysis.get(key, default) for key, default in ENCOUNTER_SETTINGS.items()})
+                             **{key: analysis.get(key, default) for key, default in ENCOUNTER_SETTINGS.items()},
+                             **{key: analysis.get(key, default) for key, default in MOTION_SETTINGS.items()})
     return preset, metrics.resolve(preset.model)
 
 

@@ -77,7 +77,7 @@ import numpy as np
 
 from flocksweep.observables.measured import measure_tracks, track_settings
 from flocksweep.observables.resample import RECORDED
-from flocksweep.observables.summary import MetricSettings, summary_columns
+from flocksweep.observables.summary import MOTION_SETTINGS, MetricSettings, summary_columns
 from flocksweep.observables.tracks import TrackSource, load_tracks
 from flocksweep.simcore.schema import ConfigError, suggest
 
@@ -407,7 +407,8 @@ def command_metrics(run_table, where: str = "run") -> MetricSettings:
                                            "(the output is measured, then its scratch folder removed)")
     settings = track_settings(run_table.group_radius, run_table.warmup, run_table.fragmentation_cohesion,
                               run_table.dcd_max_delay)
-    return dataclasses.replace(settings, dcd=run_table.dcd_metrics)
+    return dataclasses.replace(settings, dcd=run_table.dcd_metrics,
+                               **{key: getattr(run_table, key) for key in MOTION_SETTINGS})
 
 
 # ------------------------------------------------------------------------------------------ one run

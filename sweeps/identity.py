@@ -5,8 +5,8 @@
   canonical JSON of everything that determines a run's results: the resolved preset (model, initial
   conditions, run settings), the metric settings (warm-up, group radius resolved for the run,
   fragmentation threshold, leadership metrics when on, the directional correlation delays' largest
-  delay when they are on, the obstacle/predator/prey metric settings
-  that differ from their defaults) and what is stored (keep, trajectory_every), the
+  delay when they are on, the obstacle/predator/prey metric settings and the settings of the observables
+  of collective motion that differ from their defaults) and what is stored (keep, trajectory_every), the
   seed and ``simcore.MODEL_VERSION``. Run seeds are :func:`sweeps.seeds.run_seed`.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 
-from flocksweep.observables.summary import encounter_settings
+from flocksweep.observables.summary import encounter_settings, motion_settings
 from flocksweep.simcore import MODEL_VERSION
 
 
@@ -36,5 +36,6 @@ def run_id(resolved_preset: dict, metrics, storage, seed: int) -> str:
     if metrics.dcd:  # likewise
         settings["dcd_max_delay"] = metrics.dcd_max_delay
     settings.update(encounter_settings(metrics))  # likewise: only those that differ from their defaults
+    settings.update(motion_settings(metrics))     # likewise
     spec = {"model_version": MODEL_VERSION, "preset": resolved_preset, "analysis": settings, "seed": seed}
     return hashlib.sha256(canonical(spec).encode()).hexdigest()[:20]

@@ -320,3 +320,180 @@ def migration_metrics(pos, vel, times, direction, warmup: float) -> dict:
     speed = float(np.mean(speeds))
     return {"migratory_progress": progress,
             "migratory_efficiency": progress / speed if speed > 0 else float("nan")}
+
+
+# ------------------------------------------------------------------- observables of collective motion
+
+def unwrapped_layout(pos: np.ndarray, radius: float, box: float | None) -> np.ndarray:
+    """Each boid placed at its breadth-first parent's position plus their minimum-image offset (links
+    closer than the radius, neighbours visited in index order, each group from its lowest index)."""
+    if box is None:
+        return pos.copy()
+    n = len(pos)
+    d = offsets(pos, box)
+    linked = np.linalg.norm(d, axis=-1) < radius
+    out = np.full_like(pos, np.nan)
+    seen = np.zeros(n, bool)
+    for start in range(n):
+        if seen[start]:
+            continue
+        seen[start] = True
+        out[start] = pos[start]
+        queue = [start]
+        while queue:
+            u = queue.pop(0)
+            for v in range(n):
+                if v != u and linked[u, v] and not seen[v]:
+                    seen[v] = True
+                    out[v] = out[u] + d[u, v]
+                    queue.append(v)
+    return out
+
+
+def bearing_terms(d: np.ndarray, h: np.ndarray) -> tuple[float, float, float]:
+    """(ahead 1 / abeam 0.5 / behind 0, bearing in degrees, cos^2 of the bearing) of offset d from heading h."""
+    along = float(d @ h)
+    across = float(np.linalg.norm(np.cross(d, h)))
+    ahead = 1.0 if along > 0 else (0.5 if along == 0 else 0.0)
+    return ahead, float(np.degrees(np.arctan2(across, along))), along ** 2 / (along ** 2 + across ** 2)
+
+
+def focal_neighbours(pos: np.ndarray, vel: np.ndarray, k: int, box: float | None = None) -> np.ndarray:
+    """(nn_ahead_fraction, nn_bearing_deg, nn_anisotropy, knn_ahead_fraction, knn_bearing_deg,
+    knn_anisotropy) of one record: every moving boid's neighbours, ranked by distance (ties: lower index),
+    others at its exact position left out."""
+    heads, moving = units(vel)
+    d = offsets(pos, box)
+    nearest, knearest = [], []
+    for i in np.flatnonzero(moving):
+        others = [j for j in range(len(pos)) if j != i and np.sum(d[i, j] ** 2) > 0]
+        if not others:
+            continue
+        ranked = sorted(others, key=lambda j: (np.sum(d[i, j] ** 2), j))
+        terms = [bearing_terms(d[i, j], heads[i]) for j in ranked[:k]]
+        nearest.append(terms[0])
+        knearest += terms
+    first = np.mean(nearest, axis=0) if nearest else np.full(3, np.nan)
+    every = np.mean(knearest, axis=0) if knearest else np.full(3, np.nan)
+    return np.concatenate([first, every])
+
+
+def correlation_length(points: np.ndarray, vel: np.ndarray, mask: np.ndarray) -> float:
+    """argmin over r of the largest S(r) = sum over pairs closer than or at r of dv_i . dv_j (S(0) = 0)."""
+    if mask.sum() < 2:
+        return np.nan
+    v = vel[mask]
+    dv = v - v.mean(axis=0)
+    if not np.sum(dv ** 2) > TINY ** 2 * np.sum(v ** 2):
+        return np.nan
+    x = points[mask]
+    pairs = [(float(np.linalg.norm(x[j] - x[i])), float(dv[i] @ dv[j]))
+             for i in range(len(x)) for j in range(i + 1, len(x))]
+    best, length = 0.0, 0.0
+    for r in sorted({r for r, _ in pairs}):
+        total = sum(p for s, p in pairs if s <= r)
+        if total > best:
+            best, length = total, r
+    return length
+
+
+def spacing_profile(points: np.ndarray, vel: np.ndarray, mask: np.ndarray, nn: np.ndarray) -> tuple[float, float]:
+    """(mean nn of the outer half / inner half by distance to the centroid, mean nn of the front half / back
+    half along the heading) of the selected boids; halves of floor(n / 2), stable ranks."""
+    members = np.flatnonzero(mask)
+    n = len(members)
+    if n < 4:
+        return np.nan, np.nan
+    half = n // 2
+    x = points[members] - points[members].mean(axis=0)
+    spacing = nn[members]
+
+    def ratio(key):
+        rank = np.argsort(key, kind="stable")
+        low = spacing[rank[:half]].mean()
+        return float(spacing[rank[-half:]].mean() / low) if low > 0 else np.nan
+
+    edge = ratio(np.linalg.norm(x, axis=1))
+    heads, moving = units(vel[members])
+    total = heads.sum(axis=0)
+    if not moving.any() or np.linalg.norm(total) <= TINY * moving.sum():
+        return edge, np.nan
+    return edge, ratio(x @ (total / np.linalg.norm(total)))
+
+
+def motion_series(pos: np.ndarray, vel: np.ndarray, radius: float, k: int, box: float | None = None) -> dict:
+    """The per-record observables of collective motion of one record (N, 3), by their definitions."""
+    labels = components(pos, radius, box)
+    largest = labels == 0
+    layout = unwrapped_layout(pos, radius, box)
+    distance = np.linalg.norm(offsets(pos, box), axis=-1)
+    np.fill_diagonal(distance, np.inf)
+    nn = distance.min(axis=1)
+    values = focal_neighbours(pos, vel, k, box)
+    edge, front = spacing_profile(layout, vel, largest, nn)
+    names = ("nn_ahead_fraction", "nn_bearing_deg", "nn_anisotropy", "knn_ahead_fraction", "knn_bearing_deg",
+             "knn_anisotropy")
+    return {**dict(zip(names, values)), "corr_length": correlation_length(layout, vel, largest),
+            "edge_spacing_ratio": edge, "front_spacing_ratio": front}
+
+
+def decay_time(lags, corr) -> float:
+    """The 1/e time of C (C(0) = 1): log-linear between the lags around the crossing (linear when a C there
+    is <= 0); past the last lag, -tau / ln C(tau); nan lags skipped."""
+    points = [(0.0, 1.0)] + [(float(t), float(c)) for t, c in zip(lags, corr) if np.isfinite(c)]
+    for (t0, c0), (t1, c1) in zip(points, points[1:]):
+        if c1 <= np.exp(-1.0):
+            if c0 > 0 and c1 > 0:
+                return t0 + (np.log(c0) + 1.0) / (np.log(c0) - np.log(c1)) * (t1 - t0)
+            return t0 + (c0 - np.exp(-1.0)) / (c0 - c1) * (t1 - t0)
+    if len(points) == 1:
+        return np.nan
+    t, c = points[-1]
+    return -t / np.log(c) if c < 1 - 1e-9 else np.nan
+
+
+def motion_metrics(vel, times, interval, warmup, polarization, milling, high=0.65, low=0.35) -> dict:
+    """The per-run scalars of collective motion by loops over individuals and records (nan = not seen)."""
+    kept = [r for r in range(len(times)) if times[r] >= warmup]
+    n = vel.shape[1]
+    speed = {(r, i): float(np.sqrt(vel[kept[r], i] @ vel[kept[r], i])) for r in range(len(kept)) for i in range(n)
+             if np.isfinite(vel[kept[r], i]).all()}
+    head = {key: vel[kept[key[0]], key[1]] / s for key, s in speed.items() if s > 0}
+    lags = np.arange(1, (len(kept) - 1) // 2 + 1)
+    turns = [np.degrees(np.arctan2(np.linalg.norm(np.cross(head[r, i], head[r + 1, i])), head[r, i] @ head[r + 1, i]))
+             / interval for r in range(len(kept) - 1) for i in range(n) if (r, i) in head and (r + 1, i) in head]
+    out = {}
+
+    def lagged(values):
+        """(J,) mean over (r, i) seen at r and r + j of values[r, i] . values[r + j, i]."""
+        result = []
+        for j in lags:
+            terms = [float(np.dot(values[r, i], values[r + j, i])) for r in range(len(kept) - j) for i in range(n)
+                     if (r, i) in values and (r + j, i) in values]
+            result.append(np.mean(terms) if terms else np.nan)
+        return np.array(result, dtype=float)
+
+    out["heading_autocorr_time"] = decay_time(lags * interval, lagged(head))
+    out["turn_rate_mean"] = float(np.mean(turns)) if turns else np.nan
+    out["turn_rate_q10"] = float(np.quantile(turns, 0.1)) if turns else np.nan
+    out["turn_rate_q50"] = float(np.quantile(turns, 0.5)) if turns else np.nan
+    out["turn_rate_q90"] = float(np.quantile(turns, 0.9)) if turns else np.nan
+    own = {i: np.mean([s for (r, j), s in speed.items() if j == i]) for i in range(n)
+           if any(j == i for (_, j) in speed)}
+    fluct = {(r, i): s - own[i] for (r, i), s in speed.items()}
+    seen = np.array(list(speed.values()))
+    mean_speed = seen.mean() if len(seen) else np.nan
+    square = np.mean([f * f for f in fluct.values()]) if fluct else np.nan
+    if fluct and square > (TINY * mean_speed) ** 2:
+        out["speed_autocorr_time"] = decay_time(lags * interval, lagged(fluct) / square)
+    else:
+        out["speed_autocorr_time"] = np.nan
+    for q in (10, 50, 90):
+        out[f"speed_q{q}"] = float(np.quantile(seen, q / 100)) if len(seen) else np.nan
+    out["speed_cv_pooled"] = float(seen.std() / mean_speed) if len(seen) and mean_speed > 0 else np.nan
+    states = [(polarization[r], milling[r]) for r in kept if np.isfinite(polarization[r]) and np.isfinite(milling[r])]
+    for name, test in (("swarming_fraction", lambda p, m: p < low and m < low),
+                       ("polarized_fraction", lambda p, m: p > high and m < low),
+                       ("milling_fraction", lambda p, m: m > high and p < low)):
+        out[name] = float(np.mean([test(p, m) for p, m in states])) if states else np.nan
+    return out

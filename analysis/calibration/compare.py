@@ -9,9 +9,13 @@ A comparison file (``flocksweep compare FILE``)::
     seed = 1
     simulations = 1000          # per model: the classifier's training simulations (prior draws)
     heldout = 200               # per model: more, never trained on: the confusion matrix
+    tracker_statistics = true   # optional: refuse statistics no tracker measures (visible_mean, visible_sd,
+                                # binocular_share, the leadership statistics): a comparison of tracked flocks
     [models]                    # name = a calibration file: its [model], [run] and [parameters] (priors);
     metric = "recover_holland.toml"                  # its own [targets] and [method] are not used
     topological = "recover_holland_topological.toml"
+    [run]                       # optional: keys set in every model's [run], for the data every model is
+    duration = 30.0             # compared on (how long and how often the flock was observed, its size, ...)
     [targets]                   # as a calibration's: the statistics every model is compared on, observed values
 
 Shapes: M models, N training and H held-out simulations per model, k statistics.
@@ -20,7 +24,10 @@ Contract
 --------
 ``load_comparison(path, overrides=()) -> Comparison``: the file validated (errors name the key: the file's
 own, or ``models.<name>.<key>`` for a model file's); each model is that calibration file with the
-comparison's ``[targets]`` and seed, so it has every check of a calibration (priors, keys, statistics).
+comparison's ``[targets]``, seed and ``[run]`` keys (set over the model file's), so it has every check of a
+calibration (priors, keys, statistics). With ``tracker_statistics = true`` a statistic no tracker
+measures (:data:`UNOBSERVABLE`: what a simulated boid perceives, the leadership statistics) is refused;
+``Comparison.unobservable`` lists those a comparison uses (recorded in ``compare.json`` and the report).
 
 ``simulate_model(comparison, m, folder, ...) -> (theta (N + H, d_m), x (N + H, k), computed)``: model m's
 prior draws ``[seed, Tag.COMPARE, DESIGN, m]`` run as a sweep into ``<out>/models/<name>`` (the npe
@@ -56,6 +63,7 @@ from flocksweep.sweeps.seeds import CompareStream, Tag, generator
 from flocksweep.sweeps.store import OutputFolder
 
 from .config import CalibrationConfig, calibration_from_dict
+from .tracks_targets import UNOBSERVABLE
 from .npe import simulated_rows, training_sweep
 
 CONFIDENT = 0.9
@@ -70,6 +78,8 @@ class CompareFile:
     seed: int = 0
     simulations: int = 1000
     heldout: int = 200
+    tracker_statistics: bool = False
+    run: dict = field(default_factory=dict, metadata={"expected": "a table of [run] keys set in every model"})
 
     def __post_init__(self):
         check_name(self.name, "the comparison")
@@ -86,10 +96,16 @@ class Comparison:
     simulations: int
     heldout: int
     models: tuple                  # ((name, CalibrationConfig), ...)
+    tracker_statistics: bool = False
 
     @property
     def names(self) -> list[str]:
         return [name for name, _ in self.models]
+
+    @property
+    def unobservable(self) -> list[str]:
+        """The comparison's statistics that no tracker measures (none in a comparison of tracked flocks)."""
+        return [stat for stat in self.targets.stats if stat in UNOBSERVABLE]
 
     @property
     def targets(self):
@@ -101,11 +117,15 @@ def _model(name: str, value, table: CompareFile, base: Path) -> CalibrationConfi
         raise ConfigError(f"models.{name}", f"got {value!r}; expected the path of a calibration file")
     path = resolve_path(value, base, f"models.{name}", "calibration file")
     data = read_toml(path, "calibration file")
+    run = data.get("run", {})
     data.update(name=f"{table.name}-{name}", seed=table.seed, targets=table.targets,
-                method={"kind": "npe", "simulations": table.simulations, "heldout": table.heldout})
+                method={"kind": "npe", "simulations": table.simulations, "heldout": table.heldout},
+                run={**(run if isinstance(run, dict) else {}), **table.run})
     try:
         return calibration_from_dict(data, path.parent)
     except ConfigError as err:
+        if err.key.startswith("run.") and err.key[4:].split(".")[0] in table.run:   # the comparison's own key
+            raise ConfigError(err.key, f"(in model {name}, {path.name}) {err.detail}") from None
         raise ConfigError(f"models.{name}.{err.key}", f"({path.name}) {err.detail}") from None
 
 
@@ -113,11 +133,20 @@ def load_comparison(path, overrides=()) -> Comparison:
     """A comparison file, validated (module docstring)."""
     path = Path(path)
     table = build(CompareFile, read_config(path, "comparison file", overrides))
+    if not isinstance(table.run, dict):
+        raise ConfigError("run", f"got {table.run!r}; expected a table of [run] keys (duration = 30.0, ...)")
     if not isinstance(table.models, dict) or len(table.models) < 2:
         raise ConfigError("models", f"got {len(table.models) if isinstance(table.models, dict) else table.models!r} "
                                     "model(s); a comparison needs at least two: [models] name = \"calibration.toml\"")
     models = tuple((name, _model(name, value, table, path.resolve().parent)) for name, value in table.models.items())
-    return Comparison(table.name, table.description, table.seed, table.simulations, table.heldout, models)
+    comparison = Comparison(table.name, table.description, table.seed, table.simulations, table.heldout, models,
+                            table.tracker_statistics)
+    if table.tracker_statistics and comparison.unobservable:
+        raise ConfigError("targets.stats", f"{comparison.unobservable[0]!r} is not measured by a tracker (what a "
+                                           "simulated boid perceives, or a leadership statistic), and this "
+                                           "comparison has tracker_statistics = true: choose statistics of "
+                                           "positions and velocities")
+    return comparison
 
 
 def simulate_model(comparison: Comparison, m: int, folder: Path, executor: str = "local", workers=None,
@@ -202,6 +231,7 @@ def _write(folder: OutputFolder, comparison: Comparison, choice: dict, computed:
     folder.write_csv("heldout_probabilities.csv", held, index=False)
     record = {"name": comparison.name, "seed": comparison.seed, "models": names,
               "statistics": list(comparison.targets.columns),
+              "tracker_observable": not comparison.unobservable, "unobservable": comparison.unobservable,
               "probabilities": choice["probabilities"].tolist(), "confusion": choice["confusion"].tolist(),
               "confident_share": dict(zip(names, choice["confident"].tolist())), "confident_threshold": CONFIDENT,
               "accuracy": choice["accuracy"], "messages": choice["messages"],
@@ -223,7 +253,11 @@ def _write(folder: OutputFolder, comparison: Comparison, choice: dict, computed:
                                               f"model by true model (rows) and most probable model (columns); "
                                               f"accuracy {choice['accuracy']:.3f} (confusion.csv)"),
                Table(share, "How often the true model is named with confidence (heldout_probabilities.csv)"),
-               Para(f"Statistics: {', '.join(comparison.targets.columns)}; {comparison.simulations} training and "
+               Para(("Every statistic is measured by a tracker (positions and velocities only). " if not
+                     comparison.unobservable else f"Not measured by a tracker: {', '.join(comparison.unobservable)} "
+                     "(what a simulated boid perceives or a leadership statistic): this comparison cannot be made "
+                     "from tracks. ") +
+                    f"Statistics: {', '.join(comparison.targets.columns)}; {comparison.simulations} training and "
                     f"{comparison.heldout} held-out prior draws per model, each model's own priors; "
                     f"{int(sum(computed.values()))} simulations run by this invocation.")]
     folder.write_text("report.md", to_markdown(blocks, folder.root))

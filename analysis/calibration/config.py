@@ -103,6 +103,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
+from flocksweep.observables.columns import MOTION_METRIC_NAMES, PAIRWISE_SERIES
 from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.metrics import METRIC_NAMES
@@ -121,7 +122,7 @@ from .method_table import chosen_kind, method_settings
 from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
-RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES   # per-run statistics: no _mean / _final
+RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES   # per-run: no _mean / _final
 STAT_NAMES = tuple(METRIC_NAMES) + RUN_SCALARS
 
 
@@ -477,6 +478,10 @@ def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: 
     """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
     stats = _stats(table.targets)
     metrics = table.run.metrics(leadership=False, dcd=any(s in DCD_METRIC_NAMES for s in stats))
+    off = [s for s in stats if s in PAIRWISE_SERIES] if not metrics.pairwise_metrics else []
+    if off:
+        raise ConfigError("targets.stats", f"{off[0]!r} is computed only with run.pairwise_metrics = true (it ranks "
+                                           "every pair of every record): remove it or the setting")
     if table.observation is not None:
         check_observation(table.observation, preset, table.run, stats, kind)
     if table.targets.from_tracks is None:

@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from flocksweep.observables.summary import motion_settings
 from flocksweep.simcore import MODEL_VERSION
 from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.config import SweepConfig
@@ -138,7 +139,8 @@ def estimator_identity(config) -> dict:
     m = config.metrics
     return json_ready({"model": config.preset.to_dict(), "model_version": MODEL_VERSION,
                        "metrics": {"warmup": m.warmup, "group_radius": m.group_radius,
-                                   "fragmentation_cohesion": m.fragmentation_cohesion},
+                                   "fragmentation_cohesion": m.fragmentation_cohesion,
+                                   **motion_settings(m)},   # only those that differ: earlier identities hold
                        "parameters": [[p.name, p.key] for p in config.parameters], "prior": repr(config.prior),
                        "bounds": [list(b) for b in config.prior.bounds],
                        "columns": list(config.targets.columns),

@@ -5,7 +5,7 @@ Contract
 :class:`SummarySimulator` is configured once and called many times:
 
     sim = SummarySimulator(base_preset_data, keys, columns, n_sim, warmup, group_radius=None,
-                           fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0)
+                           fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0, motion=None)
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
     obs, row = sim.run(theta, seed)        # one run's observations (bare) and its row, as simulate gives it
@@ -26,8 +26,10 @@ Contract
   delays ``dcd_*``). A row is :func:`observables.summary.summarize_run` of the run with the metric
   settings ``warmup``, ``group_radius`` and ``fragmentation_cohesion`` (leadership metrics when a
   leadership column is asked for; with ``leadership.x = 0`` there are no events, so ``trigger_rate`` is
-  0; the directional correlation delays, up to ``dcd_max_delay`` s, when a ``dcd_*`` column is). Unknown
-  columns raise ValueError at construction.
+  0; the directional correlation delays, up to ``dcd_max_delay`` s, when a ``dcd_*`` column is) and
+  ``motion``, the settings of the observables of collective motion that differ from their defaults
+  (``k_nearest``, ``pairwise_metrics``, ``state_high``, ``state_low``: :data:`observables.summary.MOTION_SETTINGS`;
+  None: the defaults). Unknown columns raise ValueError at construction.
 * ``group_radius`` None (default) uses the perception range of the model *at theta*, as the sweeps do,
   so a free perception radius also moves the group radius. Pass a number to keep it fixed.
 * ``observation`` (an :class:`observables.observation.Observation`, default None): each run is
@@ -62,7 +64,8 @@ from flocksweep.observables.directional_correlation import DCD_MAX_DELAY, DCD_ME
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.metrics import FRAGMENTATION_COHESION
 from flocksweep.observables.observation import observe_run
-from flocksweep.observables.summary import MetricSettings, NonFiniteState, check_finite, summarize_run, summary_columns
+from flocksweep.observables.summary import (MetricSettings, NonFiniteState, check_finite, motion_settings, summarize_run,
+                                            summary_columns)
 from flocksweep.simcore.params import Preset, preset_from_dict
 from flocksweep.simcore.schema import ConfigError, suggest
 from flocksweep.simcore.simulate import simulate_batch
@@ -101,7 +104,7 @@ class SummarySimulator:
     def __init__(self, base_preset_data: dict, keys: Sequence[str], columns: Sequence[str], n_sim: int,
                  warmup: float, group_radius: float | None = None,
                  fragmentation_cohesion: float = FRAGMENTATION_COHESION, observation=None,
-                 dcd_max_delay: float = DCD_MAX_DELAY):
+                 dcd_max_delay: float = DCD_MAX_DELAY, motion: dict | None = None):
         self.base = copy.deepcopy(dict(base_preset_data))
         self.observation = observation
         self.base_preset = preset_from_dict(self.base)
@@ -125,7 +128,7 @@ class SummarySimulator:
                                       else float(group_radius), fragmentation_cohesion=fragmentation_cohesion,
                                       leadership=any(c in LEADERSHIP_METRIC_NAMES for c in self.columns),
                                       dcd=any(c in DCD_METRIC_NAMES for c in self.columns),
-                                      dcd_max_delay=float(dcd_max_delay))
+                                      dcd_max_delay=float(dcd_max_delay), **dict(motion or {}))
         full = self.base_preset.full_dict()
         integer_keys = []
         for key in self.keys:
@@ -148,7 +151,8 @@ class SummarySimulator:
         if n_sim == self.n_sim:
             return self
         return SummarySimulator(self.base, self.keys, self.columns, n_sim, self.warmup, self.group_radius,
-                                self.metrics.fragmentation_cohesion, self.observation, self.metrics.dcd_max_delay)
+                                self.metrics.fragmentation_cohesion, self.observation, self.metrics.dcd_max_delay,
+                                motion_settings(self.metrics))
 
     def preset(self, theta) -> Preset:
         """The validated preset at ``theta`` (integer keys rounded; ConfigError naming the key when invalid)."""
@@ -215,4 +219,5 @@ def summary_simulator(config, n_sim: int | None = None, extra_columns=()) -> Sum
     m = config.metrics
     columns = tuple(config.targets.columns) + tuple(extra_columns)
     return SummarySimulator(config.preset_data, config.keys, columns, n_sim, m.warmup,
-                            m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay)
+                            m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay,
+                            motion_settings(m))

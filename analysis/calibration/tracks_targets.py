@@ -26,7 +26,9 @@ A calibration file may take its targets from a track file instead of typed numbe
 The tracks are measured by :func:`observables.measured.measure_tracks` with the observation's
 interval, gap limit and velocity interval, the calibration's fragmentation threshold, its
 ``run.dcd_max_delay`` (the directional correlation delays ``dcd_*`` need only velocities: they are
-measured on tracks and observed runs alike) and a fixed group radius (:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
+measured on tracks and observed runs alike), the settings of the observables of collective motion
+(``run.k_nearest``, ``pairwise_metrics``, ``state_high``, ``state_low``) and a fixed group radius
+(:func:`fixed_group_radius`), giving one row of ``targets.columns`` per flock. Checks (each a
 :class:`~simcore.schema.ConfigError` naming the key): the tracks must be in body lengths (tracks in
 metres need ``body_length``), 2-D tracks need a ``projection`` and 3-D tracks must not have one, every
 flock must be measured and every target statistic finite; ``aggregate = "mean"`` needs more flocks than
@@ -43,6 +45,7 @@ statistics), and not the emulator (a sweep's runs were not measured through the 
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -53,7 +56,7 @@ from flocksweep.observables.columns import PERCEPTION_SERIES
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.measured import Measurement, measure_tracks, track_settings
 from flocksweep.observables.observation import Observation, check_projection
-from flocksweep.observables.summary import MetricSettings, default_group_radius
+from flocksweep.observables.summary import MetricSettings, default_group_radius, motion_settings
 from flocksweep.observables.tracks import TrackSource, load_tracks, track_source
 from flocksweep.observables.validation import TrackError
 from flocksweep.simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
@@ -167,8 +170,8 @@ def _measure(path: Path, targets, observation: Observation, metrics: MetricSetti
                                                     'too, e.g. projection = "xz" (the horizontal plane)')
     if table.dims == 3 and observation.projection != "none":
         raise ConfigError("observation.projection", f"{path.name} holds 3-D tracks; a projection is for 2-D ones")
-    settings = track_settings(metrics.group_radius, source.warmup, metrics.fragmentation_cohesion,
-                              metrics.dcd_max_delay)
+    settings = dataclasses.replace(track_settings(metrics.group_radius, source.warmup, metrics.fragmentation_cohesion,
+                                                  metrics.dcd_max_delay), **motion_settings(metrics))
     try:
         return measure_tracks(table, settings, observation.interval, observation.max_gap, observation.velocity_interval)
     except TrackError as err:

@@ -49,6 +49,7 @@ import numpy as np
 
 from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
 from flocksweep.observables.metrics import FRAGMENTATION_COHESION
+from flocksweep.observables.summary import MOTION_SETTINGS
 from flocksweep.simcore.params import canonical_key, preset_from_dict
 from flocksweep.simcore.schema import ConfigError, get_dotted
 from flocksweep.sweeps.results import load_results
@@ -274,6 +275,10 @@ def _analysis_differences(config, model: dict) -> list[str]:
         delay = analysis.get("dcd_max_delay")
         if delay is not None and not _same(delay, mine.dcd_max_delay):
             out.append(f"dcd_max_delay: sweep {delay!r}, calibration {mine.dcd_max_delay!r}")
+    for key, default in MOTION_SETTINGS.items():   # the observables of collective motion (absent: the default)
+        theirs = analysis.get(key, default)
+        if theirs != getattr(mine, key):
+            out.append(f"{key}: sweep {theirs!r}, calibration {getattr(mine, key)!r}")
     return out
 
 

@@ -20,6 +20,8 @@ tracks of which no flock could be measured, exit with status 2 after listing eve
 """
 from __future__ import annotations
 
+import dataclasses
+
 import sys
 from pathlib import Path
 
@@ -46,7 +48,8 @@ def _velocity_interval(text: str | None):
 SHOWN_WARNINGS = 10
 # a metric setting's key (MetricSettings) -> the flag that sets it
 SETTING_FLAGS = {"group_radius": "--group-radius", "warmup": "--warmup",
-                 "fragmentation_cohesion": "--fragmentation-cohesion", "dcd_max_delay": "--dcd-max-delay"}
+                 "fragmentation_cohesion": "--fragmentation-cohesion", "dcd_max_delay": "--dcd-max-delay",
+                 "k_nearest": "--k-nearest", "state_high": "--state-high", "state_low": "--state-low"}
 
 
 def _print_warnings(issues, line_offset, out: Path) -> None:
@@ -81,6 +84,9 @@ def run(args) -> int:
             raise ConfigError(flag, f"got {value}; expected seconds > 0")
     try:
         settings = track_settings(args.group_radius, args.warmup, args.fragmentation_cohesion, args.dcd_max_delay)
+        motion = {"k_nearest": args.k_nearest, "state_high": args.state_high, "state_low": args.state_low}
+        settings = dataclasses.replace(settings, pairwise_metrics=not args.no_pairwise_metrics,
+                                       **{key: value for key, value in motion.items() if value is not None})
     except ConfigError as err:
         raise ConfigError(SETTING_FLAGS.get(err.key, "--group-radius"), err.detail) from None
     except ValueError as err:

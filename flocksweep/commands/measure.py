@@ -80,6 +80,15 @@ def arguments(p) -> None:
                         "observables.metrics.FRAGMENTATION_COHESION)")
     p.add_argument("--dcd-max-delay", type=float, default=None, metavar="S",
                    help="largest delay of the directional correlations (Nagy et al. 2010; default 2 s)")
+    p.add_argument("--k-nearest", type=int, default=None, metavar="K",
+                   help="the k of the knn_* metrics (where the k nearest neighbours sit; default 6)")
+    p.add_argument("--state-high", type=float, default=None, metavar="X",
+                   help="state fractions (Tunstrom et al. 2013): an order parameter above X is high (default 0.65)")
+    p.add_argument("--state-low", type=float, default=None, metavar="X",
+                   help="... and below X low (default 0.35)")
+    p.add_argument("--no-pairwise-metrics", action="store_true",
+                   help="skip the metrics that rank every pair of every record (knn_*, corr_length: nan); "
+                        "faster for large groups")
     p.add_argument("--out", type=Path, help="output folder (default results/measured/<file stem>)")
     p.add_argument("--no-figures", action="store_true", help="write the report without figures (faster)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

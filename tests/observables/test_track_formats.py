@@ -52,8 +52,9 @@ def assert_same(got: dict, expected: dict, rtol: float = 0.0):
     for column, value in expected.items():
         if column.startswith(PERCEPTION_SERIES):
             continue
-        if rtol:
-            assert np.allclose(got[column], value, rtol=rtol, atol=1e-12, equal_nan=True), column
+        if rtol:   # a turning rate of 0 (boids flying straight) comes back as ~1e-5 degrees/s after rounding
+            atol = 1e-4 if column.startswith("turn_rate") else 1e-12
+            assert np.allclose(got[column], value, rtol=rtol, atol=atol, equal_nan=True), column
         else:
             assert np.array_equal(got[column], value, equal_nan=True), column
 

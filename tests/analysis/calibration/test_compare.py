@@ -84,6 +84,10 @@ def test_the_shipped_comparison_is_valid():
     comparison = load_comparison(ROOT / "configs/compare/perception.toml")
     assert comparison.names == ["metric", "topological"] and (comparison.simulations, comparison.heldout) == (1000, 200)
     assert dict(comparison.models)["topological"].names == ("neighbours", "blind")
+    assert comparison.unobservable == ["visible_mean", "binocular_share", "visible_sd"]   # what a simulator perceives
+    tracked = load_comparison(ROOT / "configs/compare/perception_tracks.toml")
+    assert tracked.tracker_statistics and tracked.unobservable == [] and len(tracked.targets.stats) >= 30
+    assert all(config.preset.run.duration == 30.0 for _, config in tracked.models)
 
 
 class Fixed:
@@ -131,3 +135,25 @@ def test_a_small_comparison_finds_the_true_model_and_reruns_without_simulating(t
     again = json.loads((out / "compare.json").read_text())
     assert again["simulations"]["total_computed"] == 0                      # the runs are found, not rerun
     assert again["probabilities"] == first["probabilities"] and again["confusion"] == first["confusion"]
+
+
+def test_the_comparisons_run_keys_reach_every_model_and_unobservable_statistics_are_named(tmp_path):
+    longer = COMPARE.replace("[targets]", "[run]\nduration = 3.0\nk_nearest = 3\n[targets]")
+    comparison = load_comparison(files(tmp_path, longer))
+    for _, config in comparison.models:
+        assert config.preset.run.duration == 3.0 and config.metrics.k_nearest == 3
+        assert config.preset.init.n == 10                                  # the model file's own [run] keys stay
+    assert comparison.unobservable == ["binocular_share"] and not comparison.tracker_statistics
+    with pytest.raises(ConfigError) as err:                                # the comparison's own key is named
+        load_comparison(files(tmp_path, COMPARE.replace("[targets]", "[run]\nduration = -1.0\n[targets]")))
+    assert err.value.key.startswith("run.duration"), err.value.key
+
+
+def test_a_comparison_of_tracked_flocks_refuses_what_no_tracker_measures(tmp_path):
+    tracked = COMPARE.replace('heldout = 30', 'heldout = 30\ntracker_statistics = true')
+    with pytest.raises(ConfigError, match=r"targets.stats: 'binocular_share' is not measured by a tracker"):
+        load_comparison(files(tmp_path, tracked))
+    observable = tracked.replace('"binocular_share"', '"nn_ahead_fraction"')
+    comparison = load_comparison(files(tmp_path, observable))
+    assert comparison.tracker_statistics and comparison.unobservable == []
+    assert comparison.targets.columns[1] == "nn_ahead_fraction_mean"
