@@ -118,6 +118,7 @@ from .feasibility import check_memory, check_support
 from .flock_check import check_flock_table
 from .priors import JointPrior, Normal, prior_from_dict
 from .method_table import chosen_kind, method_settings
+from .methods import method_of
 from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
 
@@ -472,13 +473,13 @@ def _read_samples(path: Path, stats, columns) -> np.ndarray:
 
 # -------------------------------------------------------------------------------------------- public
 
-def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path, kind: str
+def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path
                       ) -> tuple[Targets, MetricSettings]:
     """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
     stats = _stats(table.targets)
     metrics = table.run.metrics(leadership=False, dcd=any(s in DCD_METRIC_NAMES for s in stats))
     if table.observation is not None:
-        check_observation(table.observation, preset, table.run, stats, kind)
+        check_observation(table.observation, preset, table.run, stats)
     if table.targets.from_tracks is None:
         targets = _targets(table.targets, base)
     else:
@@ -503,16 +504,19 @@ def calibration_from_dict(data: dict, base: Path, method: str | None = None) -> 
     base = Path(base)
     preset_path, preset_data, preset = _model_and_run(table, base)
     parameters, joint = _parameters(table, preset)
-    targets, metrics = _observed_targets(table, preset, parameters, base, chosen_kind(table.method, method))
+    chosen_kind(table.method, method)      # an unknown method is named before the targets are measured
+    targets, metrics = _observed_targets(table, preset, parameters, base)
     targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
     choice = method_settings(table.method, base, len(parameters), targets.k, method)
     check_memory(preset, parameters, choice.settings.n_sim)
-    return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
+    config = CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=metrics, parameters=parameters, prior=joint,
                              targets=targets, method=choice.settings, source=data, observation=table.observation,
                              folder_name=table.name if choice.own else f"{table.name}-{choice.kind}",
                              methods=choice.available)
+    method_of(choice.kind).check(config)   # the method's own checks of the whole file
+    return config
 
 
 def load_calibration(path, overrides=(), method: str | None = None) -> CalibrationConfig:

@@ -39,7 +39,7 @@ likelihood's Gaussian has the replicate covariance plus diag(sd^2), as for typed
 an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
 number of steps and fits the run, no ``run.record_interval`` beside it (the samples are the records),
 statistics an observer can measure (not ``visible_mean``, ``visible_sd``, ``binocular_share`` or the leadership
-statistics), and not the emulator (a sweep's runs were not measured through the block).
+statistics). Whether the method takes the block is the method's check (:mod:`analysis.calibration.methods`).
 """
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ class TrackTargets(NamedTuple):
     measurement: Measurement
 
 
-def check_observation(observation: Observation, preset, run_table, stats, method_kind: str) -> None:
+def check_observation(observation: Observation, preset, run_table, stats) -> None:
     """ConfigError when the block does not fit the model or the file (see the module docstring)."""
     boundary = preset.model.world.boundary
     if boundary != "open":
@@ -101,9 +101,6 @@ def check_observation(observation: Observation, preset, run_table, stats, method
     if hidden:
         raise ConfigError("targets.stats", f"{hidden[0]!r} cannot be measured by an observer; with an [observation] "
                                            "block use statistics of positions and velocities")
-    if method_kind == "emulator":
-        raise ConfigError("method.kind", "the emulator learns from a sweep's runs, which were not measured through "
-                                         "the [observation] block; use emcee or optimize")
 
 
 def fixed_group_radius(metrics: MetricSettings, preset, parameters) -> float:

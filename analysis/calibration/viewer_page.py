@@ -18,7 +18,7 @@ time in both:
 * ``predictive-<i>``: posterior predictive run i, the one whose draw is closest to the posterior median
   (``summary['median']``; distance in units of the draws' sd per parameter), re-simulated from its draw
   ``draws[i]`` and its seed (the seed key ``(config.seed, Tag.PREDICTIVE, i)`` of
-  :func:`analysis.calibration.run.predictive_runs`) and checked: its bare statistics (the flock
+  :func:`analysis.calibration.data_model.predictive_runs`) and checked: its bare statistics (the flock
   columns, and the targets when no noise is added to them) must equal row i of ``predictive``/``flock`` bit
   for bit (:func:`predictive_track` raises :class:`NotReproduced`; the page is then not written and the
   warning names the differing columns). It is shown as simulated (before the observation model's
