@@ -66,7 +66,9 @@ def _share_lines(config, rounds) -> list[str]:
 def verdict_lines(config, outcome) -> list[str]:
     """Plain sentences: convergence, warnings, confirmation, predictive tails, the truth."""
     report = outcome.report
-    lines = []
+    lines = [report["verdict"]] if report.get("verdict") else []
+    if report.get("no_posterior"):
+        lines.append(f"no posterior: {report['no_posterior']}")
     convergence = report.get("convergence")
     if convergence:
         word = "converged" if convergence.get("converged") else "NOT converged"
@@ -90,6 +92,10 @@ def verdict_lines(config, outcome) -> list[str]:
                 lines.append(f"{stat}: the observed value {row['observed']:.4g} lies in the tail of the posterior "
                              f"predictive distribution (p = {row['p']:.3g}): the model does not reproduce it well")
     lines += flock_messages(getattr(outcome, "flock", None))
+    group = report.get("group_structure")
+    if group:
+        lines.append(group["message"])
+    lines += [bound["message"] for bound in report.get("bounds", [])]
     lines += _truth_lines(config, outcome.summary)
     return lines
 

@@ -42,6 +42,10 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
     truth = { field = 135, direction = 45 }   # optional: the parameters the targets were simulated at
                                     # (a recovery study): drawn as truth lines, checked in the report
+    transform = "auto"              # optional: how the statistics are transformed for the npe learner and
+                                    # BSL's Gaussian: "auto" (from each statistic's range: logit of
+                                    # polarization, log of nn_distance, ...), "none", or a table
+                                    # { polarization = "logit", nn_distance = "none" } (analysis/calibration/transforms.py)
     flock = { n_groups = 1 }        # optional: the observed flock's other statistics, not fitted: the
                                     # predictive runs are checked against them (analysis/calibration/flock_check.py)
     # from_tracks = "tracks.csv.gz" # OR measured tracks: each flock one sample (aggregate = "mean": their
@@ -121,6 +125,7 @@ from .method_table import chosen_kind, method_settings
 from .methods import method_of
 from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
+from .transforms import Transforms, transforms_from
 
 RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES   # per-run statistics: no _mean / _final
 STAT_NAMES = tuple(METRIC_NAMES) + RUN_SCALARS
@@ -153,6 +158,7 @@ class TargetsTable:
     aggregate: Literal["samples", "mean"] | None = None
     tracks: dict | None = None
     flock: dict | None = None
+    transform: Any = None
 
 
 @dataclass(frozen=True)
@@ -232,10 +238,26 @@ class CalibrationConfig(FileConfig, loader="load_calibration"):
     observation: Observation | None = None   # how the targets were measured; simulated runs are measured alike
     folder_name: str = ""    # results/calibration/<folder_name>: the name, with -<kind> for another method than the file's
     methods: tuple[str, ...] = ()   # the methods the file holds settings for
+    transforms: Transforms | None = field(default=None, repr=False, compare=False, hash=False)  # [targets] transform
+    source_path: Path | None = field(default=None, compare=False, hash=False)   # the file read (load_calibration)
 
     @property
     def warmup(self) -> float:
         return self.metrics.warmup
+
+    @property
+    def record_interval(self) -> float:
+        """Seconds between the records a run is summarised over (the observation's interval with one)."""
+        if self.observation is not None:
+            return float(self.observation.interval)
+        return float(self.preset.run.dt * self.preset.run.record_every)
+
+    @property
+    def dims(self) -> int:
+        """2 for a run seen in 2-D (an observation's projection, or a planar model), else 3."""
+        if self.observation is not None:
+            return self.observation.dims
+        return int(self.preset.model.world.dimensions)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -509,12 +531,13 @@ def calibration_from_dict(data: dict, base: Path, method: str | None = None) -> 
     targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
     choice = method_settings(table.method, base, len(parameters), targets.k, method)
     check_memory(preset, parameters, choice.settings.n_sim)
+    transforms = transforms_from(table.targets.transform, targets.stats, targets.columns)
     config = CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=metrics, parameters=parameters, prior=joint,
                              targets=targets, method=choice.settings, source=data, observation=table.observation,
                              folder_name=table.name if choice.own else f"{table.name}-{choice.kind}",
-                             methods=choice.available)
+                             methods=choice.available, transforms=transforms)
     method_of(choice.kind).check(config)   # the method's own checks of the whole file
     return config
 
@@ -523,5 +546,6 @@ def load_calibration(path, overrides=(), method: str | None = None) -> Calibrati
     """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys; ``model.<preset
     key>`` is short for ``model.set.<preset key>``), pick ``method`` (default: the file's kind), validate."""
     path = Path(path)
-    return calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
-                                 path.resolve().parent, method)
+    config = calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
+                                   path.resolve().parent, method)
+    return dataclasses.replace(config, source_path=path)

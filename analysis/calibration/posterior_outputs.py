@@ -63,11 +63,32 @@ def predictive_phase(config, draws: np.ndarray, pool: Executor, phases: Phases):
         return predictive_runs(config, draws, pool, shown.update)
 
 
+def drawn(warnings: list, name: str, draw, *args, **kwargs):
+    """``draw(*args, **kwargs)``; a figure or page that cannot be drawn is a warning naming it (the
+    calibration's numbers are written already), never a lost calibration. Returns what ``draw`` returned,
+    or None."""
+    try:
+        return draw(*args, **kwargs)
+    except Exception as err:  # noqa: BLE001 - any drawing failure
+        warnings.append(f"{name} was not drawn ({type(err).__name__}: {err}); the tables and posterior.nc are "
+                        "complete")
+        return None
+
+
 def _corner(config, samples, folder: OutputFolder) -> None:
     truth = config.targets.truth
     corner_figure(samples, config.names, folder.path("corner.png"),
                   truths=[truth[n] for n in config.names] if truth else None,
                   labels=[f"{name}: {parameter_label(key)}" for name, key in zip(config.names, config.keys)])
+
+
+def pages(config, summary, draws, predictive, flock, folder, warnings: list) -> None:
+    """The viewer pages: a run at the posterior median, and the measured flock beside a predictive run."""
+    drawn(warnings, "viewer_posterior_median.html", posterior_median_page, config, summary, folder.root)
+    shown = drawn(warnings, "viewer_predictive.html", predictive_page, config, summary, draws, predictive, flock,
+                  folder.root)
+    if shown is not None:
+        warnings += shown[1]
 
 
 def write_posterior(job, result, extra: dict | None = None, warnings: list | None = None) -> CalibrationRun:
@@ -93,16 +114,15 @@ def write_posterior(job, result, extra: dict | None = None, warnings: list | Non
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", check)
     folder.write_csv("flock_check.csv", flock_table)
-    trace_figure(result.chain, config.names, folder.path("trace.png"), burn=burn)
-    rank_figure(idata, folder.path("rank.png"))
-    _corner(config, result.chain[burn:].reshape(-1, config.dim), folder)
-    predictive_figure(check, predictive, config.targets.observed, config.targets.columns,
-                      folder.path("predictive.png"))
-    posterior_median_page(config, summary, folder.root)  # viewer page of a run at the posterior median
-    warnings += predictive_page(config, summary, draws, predictive, flock, folder.root)[1]   # tracks beside a run
+    drawn(warnings, "trace.png", trace_figure, result.chain, config.names, folder.path("trace.png"), burn=burn)
+    drawn(warnings, "rank.png", rank_figure, idata, folder.path("rank.png"))
+    drawn(warnings, "corner.png", _corner, config, result.chain[burn:].reshape(-1, config.dim), folder)
+    drawn(warnings, "predictive.png", predictive_figure, check, predictive, config.targets.observed,
+          config.targets.columns, folder.path("predictive.png"))
+    pages(config, summary, draws, predictive, flock, folder, warnings)
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
-                         "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), "burn": burn,
+                         "transforms": job.transforms_record, "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), "burn": burn,
                          "executor": job.pool.description, **(extra or {}), **folder.provenance()})
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
                           warnings=warnings, predictive=check, flock=flock_table)
@@ -126,15 +146,16 @@ def write_draws(job, draws: np.ndarray, verdict: dict, report_extra: dict, warni
     folder.write_csv("posterior.csv", summary)
     folder.write_csv("predictive.csv", predictive_table)
     folder.write_csv("flock_check.csv", flock_table)
-    rank_figure(idata, folder.path("rank.png"))
-    _corner(config, draws, folder)
-    predictive_figure(predictive_table, predictive, config.targets.observed, config.targets.columns,
-                      folder.path("predictive.png"))
-    posterior_median_page(config, summary, folder.root)
-    _, page_warnings = predictive_page(config, summary, draws[picked], predictive, flock, folder.root)
-    warnings = prior_constraint_warnings(summary, config.prior) + page_warnings + list(warnings)
+    drawn_warnings = []
+    drawn(drawn_warnings, "rank.png", rank_figure, idata, folder.path("rank.png"))
+    drawn(drawn_warnings, "corner.png", _corner, config, draws, folder)
+    drawn(drawn_warnings, "predictive.png", predictive_figure, predictive_table, predictive, config.targets.observed,
+          config.targets.columns, folder.path("predictive.png"))
+    pages(config, summary, draws[picked], predictive, flock, folder, drawn_warnings)
+    warnings = prior_constraint_warnings(summary, config.prior) + drawn_warnings + list(warnings)
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
-                         "seed": config.seed, "convergence": verdict, "warnings": warnings, **report_extra,
+                         "seed": config.seed, "convergence": verdict, "warnings": warnings,
+                         "transforms": job.transforms_record, **report_extra,
                          "draws": len(draws), "executor": job.pool.description, **folder.provenance()})
     outcome = CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
                              warnings=warnings, predictive=predictive_table, flock=flock_table)

@@ -78,6 +78,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from flocksweep.simcore.schema import to_dict
 from flocksweep.sweeps.executors import Executor
 from flocksweep.sweeps.files import json_ready
 from flocksweep.sweeps.progress import Phases
@@ -89,8 +90,11 @@ from .config import CalibrationConfig
 from .data_model import posterior_predictive, predictive_runs, seeded_fn, simulate_fn
 from .inference import load_calibration_results
 from .methods import Job, method_of
-from .outcome import CalibrationRun
+from .outcome import CalibrationRun, NoPosterior
+from .verdicts import bound_verdicts, credibility, group_verdict
 from .simulator import SummarySimulator, summary_simulator
+
+ACCOUNTING_FILE = "accounting.json"
 
 __all__ = ["CalibrationRun", "calibrate", "run_calibration", "load_calibration_results", "summary_simulator",
            "simulate_fn", "seeded_fn", "posterior_predictive", "predictive_runs", "SummarySimulator"]
@@ -154,15 +158,91 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     # the same command, run again after any interrupt, continues what the folder holds (a chain is checked
     # to have been made with the same settings, else ChainMismatch)
     resume = resume or method.continues(config, folder)
-    phases = Phases("calibrate", method.phase_count(config) + 1, progress)
+    cost = Accounting()
+    phases = Checkpoints(method.phase_count(config) + 1, progress, folder, cost, config)
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write
-        job = Job(config=config, folder=folder, pool=pool, phases=phases, cost=Accounting(), resume=resume,
-                  predictive_draws=predictive_draws, executor=(executor, workers, scheduler), started=time.time())
-        outcome = method.run(job)
+        job = Job(config=config, folder=folder, pool=pool, phases=phases, cost=cost, resume=resume,
+                  predictive_draws=predictive_draws, executor=(executor, workers, scheduler), started=time.time(),
+                  transforms_record=config.transforms.record() if method.uses_transforms else None)
+        phases.job = job
+        phases.save("running")          # the run's accounting exists before anything that can fail
+        try:
+            outcome = method.run(job)
+        except NoPosterior as err:
+            outcome = _no_posterior(job, err)
+        except BaseException as err:
+            phases.save("interrupted" if isinstance(err, KeyboardInterrupt) else "failed", err)
+            raise
+        outcome.report.update(fit_verdicts(config, outcome))
         outcome.report["accounting"] = json_ready(job.cost.block(**job.cost_extra))
         outcome.report["wall_s"] = time.time() - job.started
         folder.write_json(method.report_file, outcome.report)
         phases.start("the report (figures and tables)")
-        outcome.paths = calibration_report(config, outcome, folder, method.report_blocks(config, outcome, folder))
+        blocks = method.report_blocks(config, outcome, folder) if outcome.idata is not None else []
+        outcome.paths = calibration_report(config, outcome, folder, blocks)
+        phases.save("done")
     phases.done(f": {folder.root}")
     return outcome
+
+
+def _no_posterior(job: Job, err: NoPosterior) -> CalibrationRun:
+    """The outcome of a method that could give no posterior: its reason as the verdict."""
+    config = job.config
+    report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
+                         "seed": config.seed, "no_posterior": err.reason, **err.report,
+                         "executor": job.pool.description, **job.folder.provenance()})
+    return CalibrationRun(out=job.folder.root, idata=None, report=report, warnings=[])
+
+
+def fit_verdicts(config: CalibrationConfig, outcome: CalibrationRun) -> dict:
+    """The verdicts every fit gets (:mod:`analysis.calibration.verdicts`), as entries of its report."""
+    out = {}
+    draws = posterior_sample(config, outcome)
+    if draws is not None:
+        out["bounds"] = bound_verdicts(config, draws)
+    group = group_verdict(config, outcome.flock)
+    if group is not None:
+        out["group_structure"] = group
+    outcome.report.update(out)
+    return {**out, **credibility(config, outcome)}
+
+
+def posterior_sample(config: CalibrationConfig, outcome: CalibrationRun):
+    """(S, d) posterior draws of the outcome (the optimum as one draw), or None."""
+    import numpy as np
+
+    if outcome.optimum:
+        return np.array([[outcome.optimum["theta"][name] for name in config.names]])
+    posterior = getattr(outcome.idata, "posterior", None) if outcome.idata is not None else None
+    if posterior is None:
+        return None
+    return np.column_stack([np.asarray(posterior[name]).ravel() for name in config.names])
+
+
+class Checkpoints(Phases):
+    """The calibration's numbered phases, each start also saving ``accounting.json``: the run's status
+    (running, done, failed, interrupted), the phase it is in, its accounting so far, and how to go on."""
+
+    def __init__(self, total: int, enabled: bool, folder: OutputFolder, cost: Accounting, config):
+        super().__init__("calibrate", total, enabled)
+        self.folder, self.cost, self.config, self.phase, self.job = folder, cost, config, "", None
+
+    def start(self, name: str) -> None:
+        super().start(name)
+        self.phase = f"[{min(self.count, self.total)}/{self.total}] {name}"
+        self.save("running")
+
+    def save(self, status: str, error: BaseException | None = None) -> None:
+        extra = self.job.cost_extra if self.job is not None else {}
+        record = {"name": self.config.name, "method": self.config.method.kind, "status": status,
+                  "phase": self.phase, "accounting": self.cost.block(**extra)}
+        if error is not None:
+            record["error"] = f"{type(error).__name__}: {error}"
+        if status in ("failed", "interrupted"):
+            record["resume"] = ("finished work is kept; run the same command again to go on: "
+                                + resume_hint(self.config.source_path or "CALIB.toml", self.folder.root, self.config))
+        try:
+            self.folder.write_json(ACCOUNTING_FILE, json_ready(record))
+        except Exception:   # noqa: BLE001 - a failing disk must not hide the error being reported
+            if error is None:
+                raise

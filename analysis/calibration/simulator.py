@@ -9,6 +9,7 @@ Contract
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
     obs, row = sim.run(theta, seed)        # one run's observations (bare) and its row, as simulate gives it
+    sim.identity()                         # what a row depends on besides theta and the seed (a dict)
 
 * ``base_preset_data`` is a preset dict (parsed TOML, fixed settings already applied); it is deep-copied
   and validated once at construction and never modified.
@@ -149,6 +150,19 @@ class SummarySimulator:
             return self
         return SummarySimulator(self.base, self.keys, self.columns, n_sim, self.warmup, self.group_radius,
                                 self.metrics.fragmentation_cohesion, self.observation, self.metrics.dcd_max_delay)
+
+    def identity(self) -> dict:
+        """What a row depends on besides theta and the seed: the model (its preset with the fixed settings,
+        the model version), the free keys, the columns, replicates, metric settings and observation block."""
+        import dataclasses
+
+        from flocksweep.simcore import MODEL_VERSION
+        from flocksweep.sweeps.files import json_ready
+
+        return json_ready({"preset": self.base_preset.to_dict(), "model_version": MODEL_VERSION,
+                           "keys": list(self.keys), "columns": list(self.columns), "n_sim": int(self.n_sim),
+                           "metrics": dataclasses.asdict(self.metrics),
+                           "observation": None if self.observation is None else dataclasses.asdict(self.observation)})
 
     def preset(self, theta) -> Preset:
         """The validated preset at ``theta`` (integer keys rounded; ConfigError naming the key when invalid)."""

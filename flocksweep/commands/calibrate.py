@@ -58,7 +58,7 @@ def handler(args) -> int:
         se = float("nan") if opt["recheck_se"] is None else opt["recheck_se"]   # null: one batch
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
               f"{opt['objective_recheck']:.4g} +- {se:.2g} re-checked with fresh seeds")
-    else:
+    elif result.summary is not None:
         print(result.summary.round(4).to_string())
     for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")

@@ -21,6 +21,8 @@ Everything a calibration does that depends on the method goes through it:
 * ``report_blocks(config, outcome, folder) -> list``: its section of the report (after the verdicts);
 * ``resume_hint(command, out_dir) -> str``: one line on what an interrupted run saved and how to go on;
 * ``report_file``: the file the run's report (its ``CalibrationRun.report``) is written to;
+* ``uses_transforms``: whether it fits the transformed statistics (:mod:`analysis.calibration.transforms`;
+  the report records them, or that the method does not use them);
 * ``sbc``: True when simulation-based calibration (``flocksweep sbc``, :mod:`analysis.calibration.sbc`)
   checks this method's posterior (it re-runs the method on many synthetic datasets: emcee's BSL);
 * ``what``, ``cost``, ``use_when``: its row of the methods table (docs/calibration.md), made from the
@@ -51,6 +53,7 @@ class Job:
     executor: tuple = ("serial", None, None)   # the executor asked for: kind, workers, scheduler
     started: float = 0.0
     cost_extra: dict = field(default_factory=dict)
+    transforms_record: dict | None = None     # the statistics' transforms as reports record them (None: unused)
 
     @property
     def progress(self) -> bool:
@@ -71,6 +74,7 @@ class CalibrationMethod:
     settings: ClassVar[type] = MethodSettings
     report_file: ClassVar[str] = "convergence.json"
     sbc: ClassVar[bool] = False
+    uses_transforms: ClassVar[bool] = True
     what: ClassVar[str] = ""
     cost: ClassVar[str] = ""
     use_when: ClassVar[str] = ""

@@ -42,7 +42,8 @@ def chain_meta(config) -> dict:
                              f"fragmentation_cohesion={m.fragmentation_cohesion!r}",
             "chain_targets": _digest({"summary": targets.summary, "columns": list(targets.columns),
                                       "observed": targets.observed, "cov": targets.cov}),
-            "chain_model": _digest({"preset": config.preset.to_dict(), "version": MODEL_VERSION})}
+            "chain_model": _digest({"preset": config.preset.to_dict(), "version": MODEL_VERSION}),
+            "chain_transforms": config.transforms.describe()}
 
 
 class ChainMethod(CalibrationMethod):
@@ -102,7 +103,9 @@ class Emcee(ChainMethod):
                          f"simulations per evaluation" + (f" (resuming after step {resumed_from})" if resumed_from
                                                           else ""))
         with ProgressBar(settings.steps, config.name, job.progress) as bar:
-            result = run_bsl(simulate_fn(config, summary_simulator(config)), config.targets.observed, config.prior,
+            transforms = config.transforms      # what BSL's Gaussian sees (analysis.calibration.transforms)
+            result = run_bsl(transforms.wrap(simulate_fn(config, summary_simulator(config))),
+                             transforms.apply(config.targets.observed), config.prior,
                              walkers=settings.walkers, steps=settings.steps, seed=config.seed,
                              path=job.folder.path("chain.h5"), resume=job.resume, likelihood=settings.likelihood,
                              reevaluate_every=settings.reevaluate_every, moves=settings.moves,

@@ -15,6 +15,7 @@ from .emcee import ChainMethod
 class Emulator(ChainMethod):
     kind = "emulator"
     settings = EmulatorSettings
+    uses_transforms = False     # the surrogate emulates the statistics' mean and variance on their own scale
     what = ("a Gaussian-process (or RBF) surrogate of the statistics' mean and variance fitted to an existing "
             "sweep's results, emcee on the surrogate, confirmed with real runs; optionally refines the sweep where "
             "the posterior is until the confirmation passes")

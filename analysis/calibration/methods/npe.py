@@ -52,11 +52,10 @@ class Npe(CalibrationMethod):
     def run(self, job: Job):
         from ..npe import run_npe
         from ..plots import sbc_figure
-        from ..posterior_outputs import write_draws
+        from ..posterior_outputs import drawn, write_draws
 
         config, folder = job.config, job.folder
-        pool_kind, workers, scheduler = job.sweep_executor
-        result = run_npe(config, folder, pool_kind, workers, scheduler, job.phases, job.cost)
+        result = run_npe(config, folder, job.pool, job.executor, job.phases, job.cost)
         draws, check = result.draws, result.coverage
         warnings = []
         if result.info["leakage"] > 0.1:
@@ -65,9 +64,10 @@ class Npe(CalibrationMethod):
         verdict = {"converged": check["passed"], "coverage_ok": check["passed"], "messages": check["messages"]}
         outcome, _ = write_draws(job, draws, verdict, {"npe": result.info}, warnings)
         folder.write_csv("coverage.csv", check["table"], index=False)
-        sbc_figure(check["ranks"], check["draws"], 20, config.names, folder.path("coverage_ranks.png"))
-        job.cost_extra["training_runs_reused"] = (result.info["training_simulations"] + config.method.heldout
-                                                  - job.cost.simulations["training"] - job.cost.simulations["heldout"])
+        drawn(outcome.warnings, "coverage_ranks.png", sbc_figure, check["ranks"], check["draws"], 20, config.names,
+              folder.path("coverage_ranks.png"))
+        if result.info["runs_found"]:
+            job.cost_extra["training_runs_reused"] = result.info["runs_found"]
         return outcome
 
     def report_blocks(self, config, outcome, folder) -> list:

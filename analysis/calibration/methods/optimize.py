@@ -16,7 +16,7 @@ class Optimize(CalibrationMethod):
     use_when = "you want a point estimate fast"
 
     def phase_count(self, config) -> int:
-        return 2                                   # the search, the re-check
+        return 3                                   # the search, the re-check, the flock at the optimum
 
     def run(self, job: Job):
         import time
@@ -44,7 +44,7 @@ class Optimize(CalibrationMethod):
                                   config.prior, seed=config.seed, n_sim=settings.n_sim, algorithm=settings.algorithm,
                                   maxiter=settings.maxiter, popsize=settings.popsize, recheck=settings.recheck,
                                   likelihood=settings.likelihood, objective=settings.objective, executor=job.pool,
-                                  tick=search.update)
+                                  tick=search.update, transform=config.transforms.apply)
         job.phases.start(f"re-checked the optimum with {result.recheck_simulations} fresh simulations; writing the "
                          "predictive check")
         check = predictive_check(config.targets.observed, result.recheck_summaries, config.targets.columns)
@@ -61,13 +61,37 @@ class Optimize(CalibrationMethod):
                               "recheck_se": float(result.recheck_se), "optimizer_evaluations": int(result.nfev),
                               "success": bool(result.success), "message": str(result.message),
                               "wall_s": time.time() - started, "executor": job.pool.description,
+                              "transforms": config.transforms.record(),
                               **folder.provenance()})
         idata = optimum_inference_data(config, result.theta, result.recheck_summaries)
         write_inference_data(idata, folder.path(POSTERIOR_FILE))
+        flock_table, warnings = _flock_at_optimum(job, result.theta)
+        optimum["warnings"] = warnings
         return CalibrationRun(out=folder.root, idata=idata, report=optimum, predictive=check, optimum=optimum,
-                              warnings=[])
+                              warnings=warnings, flock=flock_table)
 
     def report_blocks(self, config, outcome, folder) -> list:
         from ..calibration_report import optimum_blocks
 
         return optimum_blocks(outcome)
+
+
+def _flock_at_optimum(job: Job, theta):
+    """``job.predictive_draws`` runs at the optimum (the predictive seeds): the flock check against the observed
+    flock and the viewer pages (a run at the optimum; the measured flock beside one); (table, warnings)."""
+    import numpy as np
+    import pandas as pd
+
+    from ..flock_check import flock_check
+    from ..posterior_outputs import pages, predictive_phase
+
+    config = job.config
+    draws = np.repeat(np.asarray(theta, dtype=float)[None, :], max(1, job.predictive_draws), axis=0)
+    predictive, flock = predictive_phase(config, draws, job.pool, job.phases)
+    job.cost.add("predictive", len(predictive))
+    table = flock_check(config, predictive, flock)
+    job.folder.write_csv("flock_check.csv", table)
+    summary = pd.DataFrame({"median": np.asarray(theta, dtype=float)}, index=pd.Index(config.names, name="parameter"))
+    warnings = []
+    pages(config, summary, draws, predictive, flock, job.folder, warnings)
+    return table, warnings
