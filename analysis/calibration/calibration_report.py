@@ -102,11 +102,15 @@ def verdict_lines(config, outcome) -> list[str]:
 
 def _settings_tables(config) -> list:
     method = pd.DataFrame([{"setting": k, "value": str(v)} for k, v in to_dict(config.method).items()])
-    run = pd.DataFrame([{"setting": "seed", "value": config.seed}, {"setting": "model preset",
-                         "value": str(config.preset_path)},
-                        {"setting": "flock size N", "value": config.preset.init.n},
-                        {"setting": "duration (s)", "value": config.preset.run.duration},
-                        {"setting": "warm-up (s)", "value": config.metrics.warmup}])
+    rows = [{"setting": "seed", "value": config.seed}, {"setting": "model", "value": config.model_label}]
+    if config.preset is not None:
+        rows += [{"setting": "flock size N", "value": config.preset.init.n},
+                 {"setting": "duration (s)", "value": config.preset.run.duration}]
+    rows += [{"setting": "warm-up (s)", "value": config.metrics.warmup},
+             {"setting": "observation", "value": config.observation.describe() if config.observation else "none "
+                                                 "(the runs' own records)"},
+             {"setting": "statistics' transforms", "value": config.transforms.describe() if config.transforms else "none"}]
+    run = pd.DataFrame(rows)
     parameters = pd.DataFrame([{"parameter": p.name, "key": p.key, "meaning": parameter_label(p.key),
                                 "prior": repr(p.prior), "bounds": f"[{p.bounds[0]:g}, {p.bounds[1]:g}]",
                                 "truth": (config.targets.truth or {}).get(p.name, "")} for p in config.parameters])

@@ -122,7 +122,8 @@ def write_posterior(job, result, extra: dict | None = None, warnings: list | Non
     pages(config, summary, draws, predictive, flock, folder, warnings)
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
-                         "transforms": job.transforms_record, "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), "burn": burn,
+                         "transforms": job.transforms_record, "predictive_runs": int(len(predictive)),
+                         "steps": int(result.chain.shape[0]), "walkers": int(result.chain.shape[1]), "burn": burn,
                          "executor": job.pool.description, **(extra or {}), **folder.provenance()})
     return CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
                           warnings=warnings, predictive=check, flock=flock_table)
@@ -155,7 +156,8 @@ def write_draws(job, draws: np.ndarray, verdict: dict, report_extra: dict, warni
     warnings = prior_constraint_warnings(summary, config.prior) + drawn_warnings + list(warnings)
     report = json_ready({"name": config.name, "method": config.method.kind, "settings": to_dict(config.method),
                          "seed": config.seed, "convergence": verdict, "warnings": warnings,
-                         "transforms": job.transforms_record, **report_extra,
+                         "transforms": job.transforms_record, "predictive_runs": int(len(predictive)),
+                         **report_extra,
                          "draws": len(draws), "executor": job.pool.description, **folder.provenance()})
     outcome = CalibrationRun(out=folder.root, idata=idata, report=report, summary=summary, convergence=verdict,
                              warnings=warnings, predictive=predictive_table, flock=flock_table)

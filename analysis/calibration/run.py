@@ -158,6 +158,10 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
     # the same command, run again after any interrupt, continues what the folder holds (a chain is checked
     # to have been made with the same settings, else ChainMismatch)
     resume = resume or method.continues(config, folder)
+    if config.command is not None and executor == "serial":
+        # an external command's runs start processes: from worker processes, never from this one once JAX
+        # (npe) has started its threads here (a fork beside them can deadlock); the results are the same
+        executor = "local"
     cost = Accounting()
     phases = Checkpoints(method.phase_count(config) + 1, progress, folder, cost, config)
     with Executor(executor, workers, scheduler) as pool, folder.lock():   # a scheduler is reached before any write

@@ -82,18 +82,21 @@ class TrackTargets(NamedTuple):
 
 
 def check_observation(observation: Observation, preset, run_table, stats) -> None:
-    """ConfigError when the block does not fit the model or the file (see the module docstring)."""
-    boundary = preset.model.world.boundary
-    if boundary != "open":
-        raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are differenced "
-                                         "and bridged over time, which needs the continuous tracks of an open world")
-    try:
-        observation.record_every(preset.run.dt)
-    except ConfigError as err:
-        raise ConfigError("observation.interval", err.detail) from None
-    if observation.interval > preset.run.duration:
-        raise ConfigError("observation.interval", f"got {observation.interval!r}; longer than the run "
-                                                  f"({preset.run.duration!r} s)")
+    """ConfigError when the block does not fit the model or the file (see the module docstring); ``preset``
+    None: a command model (its tracks are put on the observation's grid whatever their own sampling)."""
+    if preset is not None:
+        boundary = preset.model.world.boundary
+        if boundary != "open":
+            raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are "
+                                             "differenced and bridged over time, which needs the continuous tracks "
+                                             "of an open world")
+        try:
+            observation.record_every(preset.run.dt)
+        except ConfigError as err:
+            raise ConfigError("observation.interval", err.detail) from None
+        if observation.interval > preset.run.duration:
+            raise ConfigError("observation.interval", f"got {observation.interval!r}; longer than the run "
+                                                      f"({preset.run.duration!r} s)")
     if run_table.record_interval is not None:
         raise ConfigError("run.record_interval", "with an [observation] block the records are its samples "
                                                  "(observation.interval); remove run.record_interval")

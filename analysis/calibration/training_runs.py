@@ -10,9 +10,10 @@ Shapes: N design rows, d parameters, k statistics.
 Contract
 --------
 ``design_rows(simulator, theta (N, d), keys, folder, pool, tick=None, save_every=10.0) -> DesignRows``:
-row i is the bare statistics (no measurement noise) of one run at ``theta[i]`` with the run seed drawn from
-``generator(*keys[i])`` (:func:`analysis.calibration.bsl.simulate_keyed` on a one-replicate simulator): a
-deterministic function of the row, whatever the executor ``pool`` or the finishing order. The rows are
+row i is the bare statistics (no measurement noise) of the simulator's ``n_sim`` runs at ``theta[i]``
+(their mean; one run with ``n_sim = 1``), the run seeds drawn from ``generator(*keys[i])``
+(:func:`analysis.calibration.bsl.simulate_keyed`): a deterministic function of the row, whatever the
+executor ``pool`` or the finishing order. The rows are
 stored in ``folder`` under the design's digest (:func:`design_digest`: the simulator's identity, theta and
 the seed keys): ``<digest>.npz`` (``index``, ``rows``: numbers only, read without pickle) and
 ``<digest>.json`` (``label``, the identity and every failed row's reason), both written atomically every
@@ -38,6 +39,8 @@ import numpy as np
 
 from flocksweep.sweeps.executors import Executor
 from flocksweep.sweeps.files import atomic_path, json_ready
+
+from flocksweep.sweeps.seeds import generator, seeds_for
 
 from .bsl import simulate_keyed
 
@@ -72,7 +75,22 @@ def design_digest(simulator, theta: np.ndarray, keys) -> tuple[str, dict]:
 
 
 def _one_row(simulator, task) -> np.ndarray:
-    return simulate_keyed(simulator, task)[0]
+    """A design row: the mean statistics of the simulator's ``n_sim`` runs with the seeds of the row's key
+    (NaN when any failed); a failure's reason, when the simulator gives one, is raised for the caller to
+    record."""
+    reasons = getattr(simulator, "rows_and_reasons", None)
+    if reasons is None:
+        return simulate_keyed(simulator, task).mean(axis=0)
+    theta, key = task
+    rows, why = reasons(np.array(theta, dtype=float), seeds_for(generator(*key), simulator.n_sim))
+    failed = [reason for reason in why if reason]
+    if failed:
+        raise RunFailed(failed[0])
+    return rows.mean(axis=0)
+
+
+class RunFailed(RuntimeError):
+    """A design row's run failed (its reason)."""
 
 
 def _load(path_npz: Path, path_json: Path, n: int, k: int) -> tuple[np.ndarray, np.ndarray, dict]:

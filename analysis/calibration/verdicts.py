@@ -22,7 +22,8 @@ group structure is not known.
 ``credibility(config, outcome) -> dict``: ``credible`` (bool), ``verdict`` (one line: "credible: ..." or
 "NOT credible: reason; reason"), ``reasons``: the sampler or the estimator not converged (the method's
 ``convergence.converged``: chain verdicts, npe's held-out coverage), a failed emulator confirmation, an
-optimum re-checked far worse than found (more than 3 standard errors), a target in the tail of its
+optimum re-checked far worse than found (more than 3 standard errors), most predictive runs without
+the targets' statistics (``predictive_runs`` against the predictive table's ``n_pred``), a target in the tail of its
 predictive distribution (p below 0.05 / k, Bonferroni over the k targets), a flock statistic that
 disagrees with the observed flock, a failed group structure, mass against a prior bound, no posterior.
 """
@@ -97,6 +98,18 @@ def group_verdict(config, table) -> dict | None:
             "message": message}
 
 
+def _failed_predictive(outcome) -> list[str]:
+    """A reason when most posterior predictive runs gave no statistics (the fit's flocks are undefined)."""
+    runs = outcome.report.get("predictive_runs")
+    table = outcome.predictive
+    if not runs or table is None or not len(table):
+        return []
+    got = int(table["n_pred"].min())
+    if got >= 0.5 * runs:
+        return []
+    return [f"{runs - got} of {runs} posterior predictive runs gave no finite value of the targets' statistics"]
+
+
 def _target_tails(outcome) -> list[str]:
     table = outcome.predictive
     if table is None or not len(table):
@@ -135,6 +148,7 @@ def credibility(config, outcome) -> dict:
         if gap > RECHECK_Z:
             reasons.append(f"the optimum re-checked with fresh seeds is {gap:.1f} standard errors worse than found "
                            "(it fits the search's seeds, not the data)")
+    reasons += _failed_predictive(outcome)
     reasons += _target_tails(outcome)
     reasons += _flock_disagreements(outcome)
     group = report.get("group_structure")

@@ -42,7 +42,8 @@ def chain_meta(config) -> dict:
                              f"fragmentation_cohesion={m.fragmentation_cohesion!r}",
             "chain_targets": _digest({"summary": targets.summary, "columns": list(targets.columns),
                                       "observed": targets.observed, "cov": targets.cov}),
-            "chain_model": _digest({"preset": config.preset.to_dict(), "version": MODEL_VERSION}),
+            "chain_model": _digest({"preset": config.preset.to_dict(), "version": MODEL_VERSION}
+                                   if config.command is None else {"command": config.command.identity}),
             "chain_transforms": config.transforms.describe()}
 
 

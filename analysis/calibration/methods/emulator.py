@@ -34,9 +34,10 @@ class Emulator(ChainMethod):
     def check(self, config) -> None:
         from flocksweep.simcore.schema import ConfigError
 
-        if config.observation is not None:
-            raise ConfigError("method.kind", "the emulator learns from a sweep's runs, which were not measured "
-                                             "through the [observation] block; use emcee or optimize")
+        if config.observation is not None and config.command is not None:
+            raise ConfigError("method.kind", "the emulator measures a sweep's runs through the [observation] block "
+                                             "from their trajectories, which a command model's sweep does not keep; "
+                                             "use npe, emcee or optimize")
 
     def check_cost(self, config, yes: bool) -> None:
         from ..feasibility import check_chain_size

@@ -62,6 +62,7 @@ class Optimize(CalibrationMethod):
                               "success": bool(result.success), "message": str(result.message),
                               "wall_s": time.time() - started, "executor": job.pool.description,
                               "transforms": config.transforms.record(),
+                              "predictive_runs": int(len(result.recheck_summaries)),
                               **folder.provenance()})
         idata = optimum_inference_data(config, result.theta, result.recheck_summaries)
         write_inference_data(idata, folder.path(POSTERIOR_FILE))
