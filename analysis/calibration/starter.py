@@ -9,14 +9,16 @@ columns, units, body_length, fps, as ``flocksweep measure`` takes them; the file
 which must be in body lengths (tracks in metres need ``body_length``), measures them
 (:func:`observables.measured.measure_tracks`) and writes ``out``:
 
-* ``[model]``: the preset (its path relative to ``out``), scaled to the tracks: ``init.speed`` the measured
-  speed, ``init.radius`` the measured flock radius (gyration radius), an open world (tracks are differenced
-  over time: a periodic or wrapping world is replaced);
+* ``[model]``: the preset (its path relative to ``out``; its lengths and the tracks' both in body lengths),
+  an open world (tracks are differenced over time: a periodic or wrapping world is replaced); its initial
+  conditions are kept and stated beside the measured flock's size and speed (a comment says how to change
+  them: the first seconds of a run depend on them);
 * ``[run]``: ``n`` the median number of individuals, ``warmup`` (:data:`WARMUP_S`) plus the tracks'
   median duration (at most :data:`WINDOW_S`), a ``dt`` that divides the sampling interval, the group radius
   (:data:`GROUP_RADIUS_NN` x the measured nearest-neighbour distance);
 * ``[observation]``: the tracks' sampling interval (median over flocks), velocities as recorded when the
-  file has them (else differenced over one interval), the detection probability estimated from the
+  file has them (else differenced over the fewest whole intervals spanning :data:`VELOCITY_S`, 0.4 s: position
+  noise differenced over a short interval becomes heading noise), the detection probability estimated from the
   tracks' gaps, position noise 0 (the tracker's error, to be filled in), a 2-D projection for 2-D tracks
   (``xz``, the simulator's horizontal plane; ``xy`` for a planar model);
 * ``[parameters.*]``: the model's speed, interaction range and noise (and its separation weight where it
@@ -43,6 +45,7 @@ STATS = ("polarization", "nn_distance", "speed_mean", "speed_cv")
 WARMUP_S = 5.0
 WINDOW_S = 60.0
 GROUP_RADIUS_NN = 4.0
+VELOCITY_S = 0.4
 
 # per dynamics: (kind, key) candidates; kind sizes the prior from the measured scales
 CANDIDATES = {
@@ -144,11 +147,30 @@ def _scales(table, interval: float, velocity) -> dict:
     if not len(runs):
         raise ConfigError("TRACKS", "no flock of the file could be measured")
     median = (lambda column: float(np.nanmedian(runs[column].to_numpy(dtype=float))))
-    detected = np.clip(runs["tracked_mean"].to_numpy(dtype=float) / runs["individuals"].to_numpy(dtype=float), 0, 1)
     return {"speed": median("speed_mean_mean"), "nn_distance": median("nn_distance_mean"),
             "gyration_radius": median("gyration_radius_mean"), "individuals": median("individuals"),
             "duration": median("duration"), "flocks": int(len(runs)),
-            "detection": float(np.nanmedian(detected)), "polarization": median("polarization_mean")}
+            "detection": _detection(table, interval), "polarization": median("polarization_mean")}
+
+
+def _detection(table, interval: float) -> float:
+    """The share of samples present between each individual's first and last sample (every flock)."""
+    from flocksweep.observables.tracks import raw_flocks
+
+    present, expected = 0, 0
+    for flock in raw_flocks(table)[0]:
+        bounds = flock.bounds()
+        for i in range(len(flock.ids)):
+            t = flock.t[bounds[i]:bounds[i + 1]]
+            if len(t):
+                present += len(np.unique(np.round(t / interval)))
+                expected += int(round((t.max() - t.min()) / interval)) + 1
+    return present / expected if expected else 1.0
+
+
+def _velocity_interval(interval: float) -> float:
+    """The smallest whole number of sampling intervals spanning at least :data:`VELOCITY_S` seconds."""
+    return _sig(interval * max(1, math.ceil(VELOCITY_S / interval - 1e-9)), 9)
 
 
 def _dt(interval: float, dt: float) -> tuple[float, bool]:
@@ -217,12 +239,6 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     name = name or f"{tracks.name.split('.')[0]}_{preset.model.name}".replace("-", "_")
     full = preset.full_dict()
     model_set = {}
-    notes = []
-    if "init" in full and "speed" in full["init"]:
-        model_set["init.speed"] = (_sig(scales["speed"]), "the flock starts at the measured speed (BL/s)")
-    if "init" in full and "radius" in full["init"]:
-        model_set["init.radius"] = (_sig(max(scales["gyration_radius"], 1.0)),
-                                    "in a ball the size of the measured flock (gyration radius, BL)")
     if preset.model.world.boundary != "open":
         model_set["world.boundary"] = ("open", f"the preset's world is {preset.model.world.boundary!r}; tracks "
                                                "are differenced over time, which needs an open world")
@@ -243,6 +259,11 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     if model_set:
         lines.append("set = { " + ", ".join(f'"{k}" = {_toml_value(v)}' for k, (v, _) in model_set.items()) + " }")
         lines += [f"#   {k}: {why}" for k, (_, why) in model_set.items()]
+    start = full.get("init", {})
+    lines += [f"# The simulated flock starts as the preset says: a ball of radius {start.get('radius', '?')} BL at "
+              f"{start.get('speed', '?')} BL/s (the tracked flock's radius is {scales['gyration_radius']:.3g} BL, its "
+              f"speed {scales['speed']:.3g} BL/s). A run's first seconds depend on it: if your flock started otherwise, "
+              'set "init.radius" and "init.speed" here, or lengthen run.warmup.']
     lines += ["",
               "[run]",
               f"n = {n}                 # individuals: the median number tracked",
@@ -257,9 +278,10 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
               "[observation]      # how the tracks were measured; every simulated run is measured the same way",
               f"interval = {interval!r}    # seconds between samples (the tracks' median sampling interval)",
               ('velocity_interval = "recorded"    # the tracker\'s own velocities' if velocity == RECORDED else
-               f"velocity_interval = {interval!r}    # velocities: positions differenced over one interval"),
-              f"detection_probability = {detection:g}    # the share of individuals detected at a sample, from the "
-              "tracks' gaps",
+               f"velocity_interval = {_velocity_interval(interval)!r}    # velocities: positions differenced over "
+               f"{_velocity_interval(interval) / interval:.0f} interval(s), at least {VELOCITY_S:g} s: a shorter one "
+               "turns position noise into heading noise (docs/measured.md, pitfalls)"),
+              f"detection_probability = {detection:g}    # the share of samples present within each track (its gaps)",
               "position_sd = 0.0     # the tracker's position error (BL): put yours here",
               f'projection = "{projection}"' + ("    # the tracks are 2-D: the simulated flock is seen from above"
                                                 if projection != "none" else "    # the tracks are 3-D"),

@@ -13,10 +13,11 @@ class Npe(CalibrationMethod):
     kind = "npe"
     settings = NpeSettings
     what = ("neural posterior estimation: a conditional normalising flow q(theta given statistics) trained on "
-            "prior draws run as a sweep, its coverage checked on held-out simulations; amortised (new targets "
-            "cost no simulation)")
-    cost = ("`simulations + heldout` runs once (default 1,000 + 200; stored runs are found, not rerun), then only "
-            "the predictive check")
+            "prior draws run through the calibration's own simulator (measured through the `[observation]` block "
+            "like the tracks), its coverage checked on held-out simulations; amortised (new targets cost no "
+            "simulation)")
+    cost = ("`simulations + heldout` runs once (default 1,000 + 200; stored as they finish and found again, not "
+            "rerun), then only the predictive check")
     use_when = "simulations are expensive, or many flocks/flights share one model; needs the `sbi` extra"
 
     def resolve(self, settings, where, base, dim: int, k: int):

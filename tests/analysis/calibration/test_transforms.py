@@ -84,3 +84,41 @@ def test_a_calibration_file_states_its_transforms_and_bsl_sees_them():
     assert chain_meta(config)["chain_transforms"] != chain_meta(plain)["chain_transforms"]   # no silent resume
     with pytest.raises(ConfigError, match="targets.transform.elongation"):
         calibration_from_dict(calibration(transform={"elongation": "log"}), ROOT)
+
+
+def heading_noise(tmp_path, transform: str) -> dict:
+    """A Vicsek flock of 10 aligning with everyone (radius 5, a ball of radius 1.5) at a heading noise of 0.15:
+    its polarization is 0.9992; the noise fitted by npe from that one statistic, prior 0.01-1.5."""
+    from flocksweep.analysis.calibration.synthetic import synthetic_observation
+
+    def data(samples):
+        return {"name": "noise", "seed": 6, "model": {"preset": str(ROOT / "configs/models/vicsek.toml"),
+                "set": {"world.boundary": "open", "vicsek.radius": 5.0, "vicsek.speed": 1.0, "init.radius": 1.5,
+                        "init.speed": 1.0}},
+                "run": {"n": 10, "duration": 10.0, "dt": 0.1, "record_interval": 0.5, "warmup": 2.0},
+                "parameters": {"noise": {"key": "vicsek.noise", "prior": {"dist": "uniform", "low": 0.01, "high": 1.5}}},
+                "targets": {"stats": ["polarization"], "samples": str(samples), "transform": transform,
+                            "truth": {"noise": 0.15}},
+                "method": {"kind": "npe", "simulations": 300, "heldout": 150, "draws": 1000,
+                           "flow": {"width": 16, "layers": 2, "max_epochs": 200, "patience": 20}}}
+    samples = tmp_path / "observed.csv"
+    samples.write_text("polarization\n0.5\n")
+    observed = float(np.ravel(synthetic_observation(calibration_from_dict(data(samples), ROOT), {"noise": 0.15},
+                                                    seed=3)[0])[0])
+    samples.write_text(f"polarization\n{observed!r}\n")
+    from flocksweep.analysis.calibration.run import run_calibration
+
+    result = run_calibration(calibration_from_dict(data(samples), ROOT), tmp_path / transform, progress=False,
+                             predictive_draws=10)
+    row = result.summary.loc["noise"]
+    return {"observed": observed, "q5": row["q5"], "q95": row["q95"], "passed": result.report["npe"]["coverage"]["passed"]}
+
+
+@pytest.mark.slow
+def test_a_heading_noise_is_identified_from_a_polarization_above_0_99(tmp_path):
+    pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
+    auto = heading_noise(tmp_path, "auto")
+    assert auto["observed"] > 0.99
+    assert auto["q5"] <= 0.15 <= auto["q95"]
+    assert auto["q95"] - auto["q5"] <= (1.5 - 0.01) / 3          # at most a third of the prior's width
+    assert auto["passed"]                                        # the held-out coverage check passes
