@@ -239,6 +239,10 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     name = name or f"{tracks.name.split('.')[0]}_{preset.model.name}".replace("-", "_")
     full = preset.full_dict()
     model_set = {}
+    if preset.run.dt * preset.run.record_every > 0.5 * window:
+        model_set["run.record_interval"] = (_sig(interval, 6), f"the preset records every "
+                                            f"{preset.run.dt * preset.run.record_every:g} s, too few records for "
+                                            "the window (the observation's samples are the records that count)")
     if preset.model.world.boundary != "open":
         model_set["world.boundary"] = ("open", f"the preset's world is {preset.model.world.boundary!r}; tracks "
                                                "are differenced over time, which needs an open world")

@@ -79,7 +79,8 @@ def sidecar(truth: dict = TRUTH) -> dict:
 
 
 def write(folder, name: str = "flight_2d", **options) -> Path:
-    """``<folder>/<name>.csv.gz`` and its sidecar ``<name>.json``; the track file's path."""
+    """``<folder>/<name>.csv.gz`` and its sidecar ``<name>.json``; the track file's path (``options``: those of
+    :func:`flights`, e.g. ``count`` flights, ``last`` second)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.csv.gz"

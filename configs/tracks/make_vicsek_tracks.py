@@ -2,7 +2,7 @@
 of ``configs/calibration/external_vicsek.toml``, which calibrates the shipped external Vicsek-like command.
 
 Not real animals: one run of ``configs/external/vicsek_sim.py`` (the external simulator of docs/sweeps.md, run
-as a program) with 20 agents at a known heading noise of 0.4 and speed 2 body lengths/s for 20 s, seen by a
+as a program) with 20 agents at a known heading noise of 0.4 and speed 2 body lengths/s for 15 s, seen by a
 tracker: samples every 0.2 s from t = 5 s (the flock formed), each agent detected with probability 0.9,
 Gaussian position noise of sd 0.1 body lengths, in body lengths and seconds, positions only.
 
@@ -23,7 +23,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 SIMULATOR = HERE.parent / "external" / "vicsek_sim.py"
 TRUTH = {"noise": 0.4, "speed": 2.0}
-AGENTS, DURATION, FIRST = 20, 20.0, 5.0
+AGENTS, DURATION, FIRST = 20, 15.0, 5.0
 INTERVAL, DETECTION, POSITION_SD = 0.2, 0.9, 0.1
 SEED = 77
 

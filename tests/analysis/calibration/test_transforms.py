@@ -120,5 +120,8 @@ def test_a_heading_noise_is_identified_from_a_polarization_above_0_99(tmp_path):
     auto = heading_noise(tmp_path, "auto")
     assert auto["observed"] > 0.99
     assert auto["q5"] <= 0.15 <= auto["q95"]
-    assert auto["q95"] - auto["q5"] <= (1.5 - 0.01) / 3          # at most a third of the prior's width
+    assert auto["q95"] - auto["q5"] <= (1.5 - 0.01) / 3          # at most a third of the prior's width (the issue's)
     assert auto["passed"]                                        # the held-out coverage check passes
+    # measured: 0.134-0.153, 1.3% of the prior's width; on the linear scale (transform = "none", the starting code's)
+    # the same budget gives 0.083-0.176, 6.3%, and with 400 simulations its 90% intervals cover 84.5% of held-out truths
+    assert auto["q95"] - auto["q5"] <= 0.03 * (1.5 - 0.01)
