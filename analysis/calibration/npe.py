@@ -107,11 +107,6 @@ def _jax_seed(config, which: NPEStream, *more: int) -> int:
     return int(_stream(config, which, *more).integers(0, 2 ** 31 - 1))
 
 
-def check_npe(config) -> None:
-    """What npe cannot do, as ConfigErrors naming the key (none today: kept for the method's check)."""
-    return None
-
-
 def replicates(config) -> int:
     """Runs per training simulation: the number of observed rows (module docstring)."""
     return int(len(config.targets.observed))
@@ -328,7 +323,6 @@ def _failure_info(failed: dict) -> dict:
 def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> NpeResult:
     """Train or reuse the estimator, check its coverage, draw the posterior at the targets; ``phases``
     (:class:`sweeps.progress.Phases`) shows each step on stderr."""
-    check_npe(config)
     settings = config.method
     if settings.rounds > 1:
         return _with_training_pool(pool, executor, lambda training: _run_rounds(config, folder, training, phases,

@@ -31,23 +31,34 @@ results do not depend on it.
   data; prior draws; :mod:`~analysis.calibration.inference`);
 * ``chain.h5``: the emcee chain (HDF5 backend; ``resume`` continues it exactly, and so does the same
   command run again without it: an existing chain is always continued, never replaced). It records everything
-  that defines the chain (:func:`chain_meta`: seed, walkers, moves, likelihood, re-evaluation, n_sim, the
+  that defines the chain (:func:`~analysis.calibration.methods.emcee.chain_meta`: seed, walkers, moves,
+  likelihood, re-evaluation, n_sim, the statistics' transforms, the
   parameters and their priors, the targets, the model and the metric settings); ``resume`` with any of
   them changed is refused with the list of differences (``ChainMismatch``, a ConfigError at
   ``--resume``), never silently continued;
 * ``posterior.csv``: mean, sd, median, 95% and 90% intervals, emcee's integrated autocorrelation time and
   effective sample size, acceptance, and ArviZ's R-hat, bulk and tail ESS and MCSE per parameter;
 * ``convergence.json``: plain verdicts (chain length >= 50 tau, acceptance in [0.2, 0.5], R-hat <= 1.01,
-  bulk and tail ESS >= 400), the warnings for parameters the targets do not constrain, and the
-  provenance stamp;
+  bulk and tail ESS >= 400), the warnings for parameters the targets do not constrain, the verdicts every
+  fit gets (:mod:`~analysis.calibration.verdicts`: ``bounds``, ``group_structure``, and ``credible``,
+  ``verdict``, ``reasons``: one line, credible or not and why), the statistics' ``transforms``, the
+  ``accounting`` and the provenance stamp;
+* ``accounting.json``: written before the method starts and as each phase starts (:class:`Checkpoints`):
+  ``status`` (running, done, failed, interrupted), ``phase``, the accounting so far, and after a failure
+  the ``error`` and how to go on. A method that can give no posterior raises
+  :class:`~analysis.calibration.outcome.NoPosterior`: the report then holds its reason as the verdict;
 * ``predictive.csv``: the posterior predictive check (each target against its distribution under
   posterior draws, with its two-sided tail probability);
 * ``trace.png``, ``rank.png``, ``corner.png`` (the ``corner`` package: quantiles, contours, truth lines
   when ``targets.truth`` is given), ``predictive.png``;
 * ``report.html`` / ``report.md``: the calibration report (:mod:`~analysis.calibration.calibration_report`);
 * ``viewer_posterior_median.html``: an interactive 3-D page of one run at the posterior median;
-* ``viewer_predictive.html`` (targets from tracks): the measured flock and the predictive run nearest the
-  posterior median, re-simulated and checked, as two runs of one page (:mod:`~analysis.calibration.viewer_page`).
+* ``viewer_predictive.html`` (targets from tracks, every method): the measured flock and the predictive run
+  nearest the posterior median, re-simulated and checked, as two runs of one page
+  (:mod:`~analysis.calibration.viewer_page`).
+
+A command model's calibration runs its simulations in worker processes (``serial`` becomes ``local``): the
+command starts processes, which must not be forked beside JAX's threads.
 
 The simulator runs ``n_sim`` replicates per evaluation in one batched compiled call, with fresh seeds
 at every evaluation. When the targets are given as mean and sd (or a covariance), that observation

@@ -31,11 +31,6 @@ class Npe(CalibrationMethod):
                                                                     where("estimator"), "estimator folder",
                                                                     must_exist=False))
 
-    def check(self, config) -> None:
-        from ..npe import check_npe
-
-        check_npe(config)
-
     def check_cost(self, config, yes: bool) -> None:
         from ..feasibility import check_simulation_count
 
