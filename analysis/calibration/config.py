@@ -79,6 +79,13 @@ Summary columns: a per-record metric ``x`` is compared through the run summary c
 The ``dcd_*`` statistics need only velocities: simulated targets, ``from_tracks`` and the ``[observation]``
 block all take them.
 
+``[model]`` may instead name an external simulator run as a command (``command``, ``[model.parameters]``,
+``[model.tracks]``, as a sweep's: :mod:`sweeps.external`): a free parameter's ``key`` is then one of its
+numeric parameters (its declared bounds must hold the prior's support), ``[run]`` gives a numeric
+``group_radius``, the warm-up and the metric settings but no preset keys, and every run is the command's
+tracks measured (:mod:`analysis.calibration.command_simulator`); ``config.command`` holds it,
+``config.preset`` is None.
+
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
 preset the same way. ``[method]`` (:mod:`analysis.calibration.method_table`) becomes typed settings per kind (:mod:`analysis.calibration.settings`:
@@ -116,7 +123,7 @@ from flocksweep.simcore.params import Preset, canonical_key, preset_from_dict
 from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, input_file, read_config,
                             resolve_path, suggest)
 from flocksweep.observables.measured import track_settings
-from flocksweep.sweeps.config import ModelTable, RunTable, check_name, check_window, model_data, model_table
+from flocksweep.sweeps.config import RunTable, check_name, check_window, model_data, model_table
 from flocksweep.sweeps.external import CommandModel, CommandTable, command_model
 from flocksweep.sweeps.model_set import model_overrides
 

@@ -101,7 +101,7 @@ def check_measurement(identity: dict, table, measured: dict | None = None) -> li
     checked = []
     for i in range(len(table)):
         row = table.iloc[i]
-        if "interval" in table.columns:
+        if "interval" in table.columns and wanted.get("interval") is not None:
             checked.append("interval")
             if not _same(row["interval"], wanted["interval"]):
                 raise ConfigError("--targets", f"{name(i)} was measured every {float(row['interval']):g} s; the "
@@ -114,7 +114,7 @@ def check_measurement(identity: dict, table, measured: dict | None = None) -> li
                 if not _same(have, want):
                     raise ConfigError("--targets", f"{name(i)} has velocities {_say(have)}; the estimator's are "
                                                    f"{_say(want)} (measurement.velocity_interval): {hint}")
-        if "dims" in table.columns:
+        if "dims" in table.columns and wanted.get("dims") is not None:
             checked.append("dims")
             if int(row["dims"]) != int(wanted["dims"]):
                 raise ConfigError("--targets", f"{name(i)} holds {int(row['dims'])}-D tracks; the estimator was trained "
@@ -134,10 +134,12 @@ def check_measurement(identity: dict, table, measured: dict | None = None) -> li
                                                f"the estimator's statistics use {wanted[key]:g} "
                                                f"(measurement.{key}): {hint}")
     if not checked:
+        every = "as its training runs' own records" if wanted.get("interval") is None else (
+            f"every {wanted['interval']:g} s, velocities "
+            f"{_say(_velocity(wanted['velocity_interval'], wanted['interval']))}")
         return [f"the table does not say how it was measured (no interval, velocity_interval, dims or length_unit "
-                f"column): the estimator expects statistics measured every {wanted['interval']:g} s, velocities "
-                f"{_say(_velocity(wanted['velocity_interval'], wanted['interval']))}, {wanted['dims']}-D, in body "
-                f"lengths, group radius {wanted['group_radius']}"]
+                f"column): the estimator expects statistics measured {every}, in body lengths, group radius "
+                f"{wanted['group_radius']}"]
     return [f"measurement checked against the estimator's: {', '.join(dict.fromkeys(checked))}"]
 
 
@@ -226,13 +228,16 @@ def measure_for(estimator_dir, tracks: Path):
         if table.unit_label != wanted["length_unit"]:
             raise ConfigError("--tracks", f"{Path(tracks).name} is in {table.unit_label}; the estimator's lengths are "
                                           "in body lengths: give body_length in the tracks' sidecar JSON")
-        if table.dims != wanted["dims"]:
+        if wanted.get("dims") is not None and table.dims != wanted["dims"]:
             raise ConfigError("--tracks", f"{Path(tracks).name} holds {table.dims}-D tracks; the estimator was trained "
                                           f"on {wanted['dims']}-D ones")
         settings = track_settings(wanted["group_radius"], wanted.get("warmup", 0.0), wanted["fragmentation_cohesion"],
                                   wanted["dcd_max_delay"])
-        measurement = measure_tracks(table, settings, wanted["interval"], wanted["max_gap"],
-                                     wanted["velocity_interval"])
+        velocity = wanted["velocity_interval"]
+        if velocity == "recorded" and not table.has_velocity:
+            raise ConfigError("--tracks", f"{Path(tracks).name} has no velocities; the estimator's statistics use "
+                                          "recorded velocities (measurement.velocity_interval)")
+        measurement = measure_tracks(table, settings, wanted["interval"], wanted["max_gap"], velocity)
     except TrackError as err:
         raise ConfigError("--tracks", str(err)) from None
     runs = measurement.runs
