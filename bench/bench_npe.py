@@ -6,8 +6,8 @@ against simulations, held-out coverage, and 100 posteriors from one trained esti
     python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 5     # sequential rounds (TSNPE)
 
 Each budget trains its own estimator (``--set method.npe.simulations=N``) into ``OUT/N``; the training
-sweep's runs are content-addressed there, so a rerun reuses them (``--rounds R``: R truncated
-sequential rounds of N each into ``OUT/N-K-rR``). ``--curve``: one training sweep of the
+runs are stored there as they finish, so a rerun reuses them (``--rounds R``: R truncated
+sequential rounds of N each into ``OUT/N-K-rR``). ``--curve``: one training design of the
 largest budget plus the held-out runs (``OUT/curve``), then for each budget N and ensemble size K an
 estimator trained on its first N runs, its posterior at the targets and its coverage on the held-out
 runs (the budgets share their runs: the curve is not blurred by other designs). Prints a markdown table for
@@ -61,16 +61,18 @@ def against_reference(summary: pd.DataFrame) -> dict:
 
 def curve(budgets, heldout: int, ensembles, out: Path) -> list[dict]:
     """Width and coverage against simulations on one shared training sweep (module docstring)."""
-    from flocksweep.analysis.calibration.npe import (NPEStream, _jax_seed, coverage_check, simulated_rows, support_of,
-                                          training_design, training_sweep)
+    from flocksweep.analysis.calibration.npe import (NPEStream, _jax_seed, _keys, _stream, _with_noise, coverage_check,
+                                                     npe_simulator, observed_row, support_of, training_design)
     from flocksweep.analysis.calibration.npe_flow import train_ensemble
-    from flocksweep.sweeps.runner import run_sweep
+    from flocksweep.analysis.calibration.training_runs import design_rows
+    from flocksweep.sweeps.executors import Executor
 
     largest = max(budgets)
     config = load_calibration(FILE, [f"method.npe.simulations={largest}", f"method.npe.heldout={heldout}"], "npe")
     theta = training_design(config)
-    result = run_sweep(training_sweep(config, theta), None, out / "curve", executor="local", progress=True)
-    x = simulated_rows(config, theta, result.table)
+    with Executor("local") as pool:     # the calibration's own runs, stored as they finish (a rerun finds them)
+        rows = design_rows(npe_simulator(config), theta, _keys(config, len(theta)), out / "curve", pool).rows
+    x = config.transforms.apply(_with_noise(config, rows, _stream(config, NPEStream.NOISE)))
     usable = np.isfinite(x).all(axis=1)
     held = (np.arange(len(theta)) >= largest) & usable
     support = support_of(config.prior)
@@ -84,7 +86,8 @@ def curve(budgets, heldout: int, ensembles, out: Path) -> list[dict]:
             row = {"simulations": budget, "ensemble": members, "train_s": time.time() - started}
             check = coverage_check(estimator, theta[held], x[held], 199, _jax_seed(config, NPEStream.COVERAGE),
                                    support, config.method.coverage_tolerance, config.names)
-            draws = estimator.sample(config.targets.observed[0], 4000, _jax_seed(config, NPEStream.POSTERIOR), support)
+            observed = config.transforms.apply(observed_row(config)[None, :])[0]
+            draws = estimator.sample(observed, 4000, _jax_seed(config, NPEStream.POSTERIOR), support)
             summary = pd.DataFrame({"q5": np.quantile(draws, 0.05, axis=0), "median": np.median(draws, axis=0),
                                     "q95": np.quantile(draws, 0.95, axis=0)}, index=config.names)
             row.update(against_reference(summary), coverage_passed=check["passed"])

@@ -18,6 +18,8 @@ An :class:`Observation` (the ``[observation]`` table of a calibration file; the 
 
 Measured tracks already carry their detection losses and noise: for them only ``interval``,
 ``velocity_interval`` and ``max_gap`` act, through :func:`~observables.resample.resample`.
+Tracks a simulator wrote (an external command's output) go through :func:`observe_tracks`: put on the
+sampling grid, then projected, detected and given noise the same way, and resampled.
 A simulated run goes through :func:`observe_run`: its records at the sampling interval are projected,
 each sample is detected with ``detection_probability`` and gets position noise (:func:`detect`, giving
 the samples a tracker would have delivered), then the same :func:`resample` makes the records. So the
@@ -181,6 +183,33 @@ def observe_run(obs, observation: Observation, seed) -> ObservedFlock:
     """A simulated run as the observer sees it: :func:`detect`, then the same resampling as measured tracks."""
     return resample(detect(obs, observation, seed), observation.interval, observation.max_gap,
                     observation.velocity_interval)
+
+
+def observe_tracks(raw: RawFlock, observation: Observation, seed) -> ObservedFlock:
+    """Tracks a simulator wrote (an external command's output) as the observer sees them: each individual's
+    track on the observation's sampling grid (:func:`~observables.resample.resample`: interpolated there,
+    velocities as recorded, else differenced over one interval), projected, each sample detected with
+    ``detection_probability`` and given position noise from the seed's observation stream (as
+    :func:`detect`), then resampled as measured tracks are (:func:`observe_run`'s second half)."""
+    grid = resample(raw, observation.interval, None, RECORDED if raw.vel is not None else None)
+    pos, vel = np.array(grid.pos, dtype=np.float64), np.array(grid.vel, dtype=np.float64)
+    axis = PROJECTIONS[observation.projection]
+    kept = [a for a in range(3) if a != axis]
+    if axis is not None:
+        pos[:, :, axis] = 0.0
+        vel[:, :, axis] = 0.0
+    detection_rng, noise_rng = observation_streams(seed)
+    n_records, n = pos.shape[:2]
+    detected = np.array(grid.present, dtype=bool)
+    if observation.detection_probability < 1:
+        detected &= detection_rng.random((n_records, n)) < observation.detection_probability
+    if observation.position_sd > 0:
+        pos[:, :, kept] += noise_rng.normal(0.0, observation.position_sd, (n_records, n, len(kept)))
+    ind, rec = np.nonzero(detected.T)
+    dims = observation.dims if axis is not None else raw.dims
+    seen = RawFlock(name=raw.name, ids=raw.ids, t=grid.times[rec], ind=ind.astype(np.int64), pos=pos[rec, ind],
+                    vel=vel[rec, ind], pattern=raw.pattern, dims=dims)
+    return resample(seen, observation.interval, observation.max_gap, observation.velocity_interval)
 
 
 def predicted_velocity_sd(observation: Observation) -> float:

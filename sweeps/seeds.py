@@ -65,7 +65,7 @@ class Tag(IntEnum):
 @unique
 class NPEStream(IntEnum):
     """The streams of the npe method: [seed, Tag.NPE, stream]."""
-    DESIGN = 0      # the prior draws of the training and held-out simulations (one sweep design)
+    DESIGN = 0      # the prior draws of the training and held-out simulations (one design)
     NOISE = 1       # the targets' measurement noise added to those simulations
     TRAIN = 2       # the flow's initial weights, batches and validation split (a JAX key)
     POSTERIOR = 3   # the posterior draws at the targets (a JAX key)
@@ -74,6 +74,8 @@ class NPEStream(IntEnum):
     ROUND_DESIGN = 6   # [seed, Tag.NPE, 6, r]: round r's draws from the truncated prior (rejection)
     ROUND_NOISE = 7    # [seed, Tag.NPE, 7, r]: the targets' measurement noise added to round r's simulations
     ROUND_TRAIN = 8    # [seed, Tag.NPE, 8, r]: the flows of round r (a JAX key)
+    RUNS = 9           # [seed, Tag.NPE, 9, i]: the run seed of design row i (round 1 and the one-round design)
+    ROUND_RUNS = 10    # [seed, Tag.NPE, 10, r, i]: the run seed of round r's design row i (r >= 2)
 
 
 @unique

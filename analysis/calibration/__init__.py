@@ -30,11 +30,12 @@ from flocksweep.lazy import public_names
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use (__getattr__)
     from .config import CalibrationConfig, load_calibration
     from .inference import load_calibration_results
-    from .run import CalibrationRun, calibrate, run_calibration
+    from .outcome import CalibrationRun
+    from .run import calibrate, run_calibration
 
 __all__ = ["CalibrationConfig", "CalibrationRun", "calibrate", "load_calibration", "load_calibration_results",
            "run_calibration"]
 
 __getattr__, __dir__ = public_names(__name__, globals(), {
     "CalibrationConfig": "config", "load_calibration": "config", "load_calibration_results": "inference",
-    "CalibrationRun": "run", "calibrate": "run", "run_calibration": "run"})
+    "CalibrationRun": "outcome", "calibrate": "run", "run_calibration": "run"})

@@ -19,8 +19,8 @@ evaluations, each ``n_sim`` runs) under ``phase``, one of :data:`PHASES`:
 * ``refinement``: sweep runs the emulator's sequential design added to its sweep.
 
 Only what this invocation ran is counted: a resumed chain's earlier steps are not (``resumed_from`` says
-from which step it went on), and the sweep runs an emulator was trained on are reported apart
-(``training_runs_reused``, run before, by the sweep).
+from which step it went on), and the runs made before that this invocation used are reported apart
+(``training_runs_reused``: the sweep runs an emulator was trained on, or the npe training runs found stored).
 
 ``total_simulations(blocks) -> dict``: the phase-wise sum of several blocks' ``simulations`` (SBC's
 datasets), ``total`` included.
@@ -84,6 +84,6 @@ def lines(block: dict | None) -> list[str]:
     if block.get("resumed_from"):
         out.append(f"  (resumed from step {block['resumed_from']}: the simulations of earlier runs are not counted)")
     if block.get("training_runs_reused"):
-        out.append(f"  (the emulator or estimator was trained on {block['training_runs_reused']:,} sweep runs made "
-                   "before)")
+        out.append(f"  (and {block['training_runs_reused']:,} runs made before were used: the emulator's sweep, or "
+                   "the estimator's stored training runs, found and not run again)")
     return out

@@ -14,7 +14,7 @@ the provenance and the files.
 ``verdict_lines(outcome) -> list[str]``: the same verdicts as plain sentences, for the console (after a
 refinement, with the last round's emulator share against ``refine.max_emulator_share``).
 
-``outcome`` is :class:`analysis.calibration.run.CalibrationRun`-like: ``report`` (the convergence.json
+``outcome`` is :class:`analysis.calibration.outcome.CalibrationRun`-like: ``report`` (the convergence.json
 dict), ``summary`` (posterior.csv's frame or None), ``predictive``, ``warnings``, and for the emulator
 ``confirm`` and ``refine``; ``optimum`` for optimisation.
 """
@@ -32,6 +32,8 @@ from .accounting import lines
 from .flock_check import flock_messages
 
 P_TAIL = 0.05
+CORNER_CAPTION = ("Pairwise posterior: 5%, 50% and 95% quantiles, contours holding 50% and 90% of the draws, "
+                  "the truth in red when known.")
 
 
 def _truth_lines(config, summary: pd.DataFrame | None) -> list[str]:
@@ -64,7 +66,9 @@ def _share_lines(config, rounds) -> list[str]:
 def verdict_lines(config, outcome) -> list[str]:
     """Plain sentences: convergence, warnings, confirmation, predictive tails, the truth."""
     report = outcome.report
-    lines = []
+    lines = [report["verdict"]] if report.get("verdict") else []
+    if report.get("no_posterior"):
+        lines.append(f"no posterior: {report['no_posterior']}")
     convergence = report.get("convergence")
     if convergence:
         word = "converged" if convergence.get("converged") else "NOT converged"
@@ -88,17 +92,25 @@ def verdict_lines(config, outcome) -> list[str]:
                 lines.append(f"{stat}: the observed value {row['observed']:.4g} lies in the tail of the posterior "
                              f"predictive distribution (p = {row['p']:.3g}): the model does not reproduce it well")
     lines += flock_messages(getattr(outcome, "flock", None))
+    group = report.get("group_structure")
+    if group:
+        lines.append(group["message"])
+    lines += [bound["message"] for bound in report.get("bounds", [])]
     lines += _truth_lines(config, outcome.summary)
     return lines
 
 
 def _settings_tables(config) -> list:
     method = pd.DataFrame([{"setting": k, "value": str(v)} for k, v in to_dict(config.method).items()])
-    run = pd.DataFrame([{"setting": "seed", "value": config.seed}, {"setting": "model preset",
-                         "value": str(config.preset_path)},
-                        {"setting": "flock size N", "value": config.preset.init.n},
-                        {"setting": "duration (s)", "value": config.preset.run.duration},
-                        {"setting": "warm-up (s)", "value": config.metrics.warmup}])
+    rows = [{"setting": "seed", "value": config.seed}, {"setting": "model", "value": config.model_label}]
+    if config.preset is not None:
+        rows += [{"setting": "flock size N", "value": config.preset.init.n},
+                 {"setting": "duration (s)", "value": config.preset.run.duration}]
+    rows += [{"setting": "warm-up (s)", "value": config.metrics.warmup},
+             {"setting": "observation", "value": config.observation.describe() if config.observation else "none "
+                                                 "(the runs' own records)"},
+             {"setting": "statistics' transforms", "value": config.transforms.describe() if config.transforms else "none"}]
+    run = pd.DataFrame(rows)
     parameters = pd.DataFrame([{"parameter": p.name, "key": p.key, "meaning": parameter_label(p.key),
                                 "prior": repr(p.prior), "bounds": f"[{p.bounds[0]:g}, {p.bounds[1]:g}]",
                                 "truth": (config.targets.truth or {}).get(p.name, "")} for p in config.parameters])
@@ -119,7 +131,8 @@ def _figure(folder, name: str, caption: str) -> list:
     return [Figure(path, caption)] if path.exists() else []
 
 
-def _emulator_blocks(outcome, folder) -> list:
+def emulator_blocks(outcome, folder) -> list:
+    """The emulator's training set, refinement rounds and confirmation."""
     report = outcome.report
     blocks = []
     info = report.get("emulator")
@@ -158,7 +171,7 @@ def _cost_blocks(block: dict | None) -> list:
             Para(" ".join(lines(block)))]
 
 
-def _npe_blocks(outcome, folder) -> list:
+def npe_blocks(outcome, folder) -> list:
     """npe: the posterior of independent draws, the estimator and its held-out coverage."""
     info = outcome.report["npe"]
     trained = ("reused from " if info["reused"] else "trained and stored in ") + f"`{info['estimator']}`"
@@ -167,8 +180,7 @@ def _npe_blocks(outcome, folder) -> list:
                    f"(split into 4 chains for ArviZ's r_hat and ESS); the estimator was {trained} (identity "
                    f"{info['identity']}, {info['training_simulations']} training simulations)."),
               Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
-    blocks += _figure(folder, "corner.png", "Pairwise posterior: 5%, 50% and 95% quantiles, contours holding "
-                                            "50% and 90% of the draws, the truth in red when known.")
+    blocks += _figure(folder, "corner.png", CORNER_CAPTION)
     blocks += [Heading("Coverage on held-out simulations"),
                Table(pd.DataFrame(info["coverage"]["table"]), f"Share of {info['heldout_simulations']} held-out "
                                                                "truths inside the central intervals (coverage.csv)")]
@@ -177,34 +189,51 @@ def _npe_blocks(outcome, folder) -> list:
     return blocks
 
 
-def calibration_report(config, outcome, folder) -> dict:
-    """Write report.html and report.md (see the module docstring)."""
+def chain_blocks(outcome, folder) -> list:
+    """A chain's posterior (emcee, the emulator): its summary, trace, rank and corner plots."""
+    report = outcome.report
+    blocks = [Heading("Posterior"),
+              Para(f"{report.get('walkers')} walkers x {report.get('steps')} steps, burn-in {report.get('burn')} "
+                   "steps (2 x the largest autocorrelation time). tau and ess: emcee's integrated "
+                   "autocorrelation time and effective sample size; r_hat, ess_bulk, ess_tail, mcse: ArviZ's "
+                   "(walkers as chains). The full posterior is `posterior.nc` (ArviZ InferenceData)."),
+              Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
+    blocks += _figure(folder, "trace.png", "Walkers' traces; the burn-in is shaded.")
+    blocks += _figure(folder, "rank.png", "Rank plots: per parameter, each walker's rank histogram; flat "
+                                          "histograms mean the walkers sample the same distribution.")
+    blocks += _figure(folder, "corner.png", CORNER_CAPTION)
+    return blocks
+
+
+def draws_blocks(outcome, folder) -> list:
+    """A posterior of independent draws (a method's default section): its summary and corner plot."""
+    blocks = [Heading("Posterior"),
+              Para(f"{outcome.report.get('draws')} independent posterior draws (split into 4 chains for ArviZ's "
+                   "r_hat and ESS). The full posterior is `posterior.nc` (ArviZ InferenceData)."),
+              Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
+    return blocks + _figure(folder, "corner.png", CORNER_CAPTION)
+
+
+def optimum_blocks(outcome) -> list:
+    """An optimisation's optimum and its objective."""
+    optimum = pd.DataFrame([{"parameter": k, "optimum": v} for k, v in outcome.optimum["theta"].items()])
+    return [Heading("Optimum"), Table(optimum, "Optimum (optimum.json)"),
+            Para(f"Objective {outcome.optimum['objective_common_seeds']:.4g} with the search's common seeds, "
+                 f"{outcome.optimum['objective_recheck']:.4g} +- {_se(outcome.optimum['recheck_se'])} "
+                 "re-checked with fresh seeds.")]
+
+
+def calibration_report(config, outcome, folder, method_blocks=()) -> dict:
+    """Write report.html and report.md (see the module docstring); ``method_blocks``: the method's own
+    section (its posterior or optimum, :meth:`~analysis.calibration.methods.base.CalibrationMethod.report_blocks`),
+    placed after the verdicts."""
     report = outcome.report
     verdicts = verdict_lines(config, outcome)
     blocks = [Heading(f"Calibration report: {config.name}", 1)]
     if config.description:
         blocks.append(Para(config.description))
     blocks += [Heading("Verdicts")] + [Para(line) for line in verdicts]
-    if outcome.summary is not None and report.get("method") == "npe":
-        blocks += _npe_blocks(outcome, folder)
-    elif outcome.summary is not None:
-        blocks += [Heading("Posterior"),
-                   Para(f"{report.get('walkers')} walkers x {report.get('steps')} steps, burn-in {report.get('burn')} "
-                        "steps (2 x the largest autocorrelation time). tau and ess: emcee's integrated "
-                        "autocorrelation time and effective sample size; r_hat, ess_bulk, ess_tail, mcse: ArviZ's "
-                        "(walkers as chains). The full posterior is `posterior.nc` (ArviZ InferenceData)."),
-                   Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
-        blocks += _figure(folder, "trace.png", "Walkers' traces; the burn-in is shaded.")
-        blocks += _figure(folder, "rank.png", "Rank plots: per parameter, each walker's rank histogram; flat "
-                                              "histograms mean the walkers sample the same distribution.")
-        blocks += _figure(folder, "corner.png", "Pairwise posterior: 5%, 50% and 95% quantiles, contours holding "
-                                                "50% and 90% of the draws, the truth in red when known.")
-    if outcome.optimum:
-        optimum = pd.DataFrame([{"parameter": k, "optimum": v} for k, v in outcome.optimum["theta"].items()])
-        blocks += [Heading("Optimum"), Table(optimum, "Optimum (optimum.json)"),
-                   Para(f"Objective {outcome.optimum['objective_common_seeds']:.4g} with the search's common seeds, "
-                        f"{outcome.optimum['objective_recheck']:.4g} +- {_se(outcome.optimum['recheck_se'])} "
-                        "re-checked with fresh seeds.")]
+    blocks += list(method_blocks)
     if outcome.predictive is not None:
         blocks += [Heading("Posterior predictive check"),
                    Table(outcome.predictive.reset_index(), "Each target against its predictive distribution (p: "
@@ -216,7 +245,6 @@ def calibration_report(config, outcome, folder) -> dict:
                    Table(flock.reset_index().rename(columns={"index": "statistic"}),
                          "Every flock statistic of the posterior predictive runs, targets or not, against the observed "
                          "flock where known (flock_check.csv; disagrees: outside the central 95% of the runs)")]
-    blocks += _emulator_blocks(outcome, folder)
     blocks += _cost_blocks(report.get("accounting"))
     blocks += [Heading("Settings")] + _settings_tables(config)
     provenance = pd.DataFrame([{"item": "git revision", "value": report.get("git_revision")},

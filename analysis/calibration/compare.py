@@ -63,8 +63,8 @@ from flocksweep.sweeps.seeds import CompareStream, Tag, generator
 from flocksweep.sweeps.store import OutputFolder
 
 from .config import CalibrationConfig, calibration_from_dict
+from .simulator import summary_simulator
 from .tracks_targets import UNOBSERVABLE
-from .npe import simulated_rows, training_sweep
 
 CONFIDENT = 0.9
 
@@ -162,6 +162,43 @@ def simulate_model(comparison: Comparison, m: int, folder: Path, executor: str =
                        scheduler=scheduler, progress=progress)
     noise = generator(comparison.seed, Tag.COMPARE, int(CompareStream.NOISE), m)
     return theta, simulated_rows(config, theta, result.table, noise), len(result.plan.todo)
+
+
+def training_sweep(config, theta: np.ndarray):
+    """A model's prior draws as a sweep (one zipped axis over the free parameters' keys, one replicate, the
+    model file's ``[model]``, ``[run]`` and seed; an integer key's values rounded, as the calibration's
+    simulator rounds them): content-addressed, resumable runs on the sweep machinery."""
+    from flocksweep.sweeps.config import SweepConfig
+
+    source = config.source
+    integer = summary_simulator(config, n_sim=1).integer_keys   # an integer key (init.n, neighbours) runs rounded
+    rows = [[int(round(v)) if whole else float(v) for v, whole in zip(row, integer)] for row in theta]
+    if any(integer) and len({tuple(row) for row in rows}) < len(rows):
+        raise ConfigError("parameters", "rounded to integers, the prior draws repeat (a sweep runs each point once): "
+                                        "an integer parameter needs a continuous one beside it for compare")
+    values = rows if config.dim > 1 else [row[0] for row in rows]
+    axis = {"keys": list(config.keys)} if config.dim > 1 else {"key": config.keys[0]}
+    axis.update(name="prior_draw", values=values)
+    data = {"name": f"{config.name}-npe-training", "seed": int(config.seed), "replicates": 1,
+            "model": {"preset": str(config.preset_path), "set": dict(source.get("model", {}).get("set", {}))},
+            "run": dict(source.get("run", {})), "axes": [axis]}
+    return SweepConfig.from_dict(data, config.preset_path.parent)
+
+
+def simulated_rows(config, theta: np.ndarray, table: pd.DataFrame, noise: np.random.Generator) -> np.ndarray:
+    """The runs table's target columns in design order (a failed run's row is NaN), plus, for mean/sd
+    targets, the targets' measurement noise N(0, cov) from ``noise``."""
+    columns = list(config.targets.columns)
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise ConfigError("targets.stats", f"the training runs have no column {missing[0]!r}")
+    rows = np.full((len(theta), len(columns)), np.nan)
+    ok = table[table["status"] == "ok"]
+    rows[ok["point_index"].to_numpy(dtype=int)] = ok[columns].to_numpy(dtype=float)
+    cov = config.targets.cov
+    if cov is not None:
+        rows = rows + noise.multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
+    return rows
 
 
 def fit_classifier(x, labels, seed: int):

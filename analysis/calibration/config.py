@@ -42,6 +42,10 @@ checked (unknown keys get a did-you-mean) and every value is validated before an
     # samples = "observed.csv"      # CSV, one column per stat (named by the stat), one row per dataset
     truth = { field = 135, direction = 45 }   # optional: the parameters the targets were simulated at
                                     # (a recovery study): drawn as truth lines, checked in the report
+    transform = "auto"              # optional: how the statistics are transformed for the npe learner and
+                                    # BSL's Gaussian: "auto" (from each statistic's range: logit of
+                                    # polarization, log of nn_distance, ...), "none", or a table
+                                    # { polarization = "logit", nn_distance = "none" } (analysis/calibration/transforms.py)
     flock = { n_groups = 1 }        # optional: the observed flock's other statistics, not fitted: the
                                     # predictive runs are checked against them (analysis/calibration/flock_check.py)
     # from_tracks = "tracks.csv.gz" # OR measured tracks: each flock one sample (aggregate = "mean": their
@@ -74,6 +78,13 @@ Summary columns: a per-record metric ``x`` is compared through the run summary c
 :mod:`observables.directional_correlation`) is a per-run scalar and keeps its own name (``RUN_SCALARS``).
 The ``dcd_*`` statistics need only velocities: simulated targets, ``from_tracks`` and the ``[observation]``
 block all take them.
+
+``[model]`` may instead name an external simulator run as a command (``command``, ``[model.parameters]``,
+``[model.tracks]``, as a sweep's: :mod:`sweeps.external`): a free parameter's ``key`` is then one of its
+numeric parameters (its declared bounds must hold the prior's support), ``[run]`` gives a numeric
+``group_radius``, the warm-up and the metric settings but no preset keys, and every run is the command's
+tracks measured (:mod:`analysis.calibration.command_simulator`); ``config.command`` holds it,
+``config.preset`` is None.
 
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
@@ -108,19 +119,23 @@ from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.metrics import METRIC_NAMES
 from flocksweep.observables.observation import Observation
-from flocksweep.observables.summary import MetricSettings, encounter_settings
+from flocksweep.observables.summary import MetricSettings, encounter_settings, motion_settings
 from flocksweep.simcore.params import Preset, canonical_key, preset_from_dict
 from flocksweep.simcore.schema import (ConfigError, FileConfig, build, check_at_least, get_dotted, input_file, read_config,
                             resolve_path, suggest)
-from flocksweep.sweeps.config import ModelTable, RunTable, check_name, check_window, model_data
+from flocksweep.observables.measured import track_settings
+from flocksweep.sweeps.config import RunTable, check_name, check_window, model_data, model_table
+from flocksweep.sweeps.external import CommandModel, CommandTable, command_model
 from flocksweep.sweeps.model_set import model_overrides
 
 from .feasibility import check_memory, check_support
 from .flock_check import check_flock_table
 from .priors import JointPrior, Normal, prior_from_dict
 from .method_table import chosen_kind, method_settings
+from .methods import method_of
 from .settings import MethodSettings
 from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
+from .transforms import Transforms, transforms_from
 
 RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES   # per-run: no _mean / _final
 STAT_NAMES = tuple(METRIC_NAMES) + RUN_SCALARS
@@ -153,6 +168,7 @@ class TargetsTable:
     aggregate: Literal["samples", "mean"] | None = None
     tracks: dict | None = None
     flock: dict | None = None
+    transform: Any = None
 
 
 @dataclass(frozen=True)
@@ -160,7 +176,8 @@ class CalibrationFile:
     """A calibration file's tables, type-checked (see the module docstring)."""
 
     name: str = field(metadata={"expected": "a non-empty string naming the calibration"})
-    model: ModelTable = field(metadata={"expected": 'a table naming a preset: [model] preset = "..."'})
+    model: Any = field(metadata={"expected": 'a table naming a preset ([model] preset = "...") or a command '
+                                             '([model] command = [...], an external simulator)'})
     parameters: dict[str, ParameterTable] = field(
         metadata={"expected": "at least one [parameters.<name>] table with key and prior"})
     targets: TargetsTable = field(
@@ -175,6 +192,7 @@ class CalibrationFile:
     def __post_init__(self):
         check_name(self.name, "the calibration")
         check_at_least("seed", self.seed, 0)
+        object.__setattr__(self, "model", model_table(self.model))
 
 
 # ---------------------------------------------------------------------------------------- the config
@@ -232,10 +250,40 @@ class CalibrationConfig(FileConfig, loader="load_calibration"):
     observation: Observation | None = None   # how the targets were measured; simulated runs are measured alike
     folder_name: str = ""    # results/calibration/<folder_name>: the name, with -<kind> for another method than the file's
     methods: tuple[str, ...] = ()   # the methods the file holds settings for
+    transforms: Transforms | None = field(default=None, repr=False, compare=False, hash=False)  # [targets] transform
+    source_path: Path | None = field(default=None, compare=False, hash=False)   # the file read (load_calibration)
+    command: CommandModel | None = field(default=None, repr=False, compare=False, hash=False)  # an external simulator
 
     @property
     def warmup(self) -> float:
         return self.metrics.warmup
+
+    @property
+    def record_interval(self) -> float | None:
+        """Seconds between the records a run is summarised over (the observation's interval with one; a
+        command's ``[model.tracks] interval``, None when its output's own)."""
+        if self.observation is not None:
+            return float(self.observation.interval)
+        if self.command is not None:
+            return self.command.tracks.interval
+        return float(self.preset.run.dt * self.preset.run.record_every)
+
+    @property
+    def dims(self) -> int | None:
+        """2 for a run seen in 2-D (an observation's projection, or a planar model), else 3 (None: a command's
+        output, as it writes it)."""
+        if self.observation is not None:
+            return self.observation.dims
+        if self.command is not None:
+            return None
+        return int(self.preset.model.world.dimensions)
+
+    @property
+    def model_label(self) -> str:
+        """The model in words: its preset file, or the command."""
+        if self.command is not None:
+            return "command: " + " ".join(self.command.template)
+        return str(self.preset_path)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -271,6 +319,21 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 
 # -------------------------------------------------------------------------------------------- tables
+
+def _command_and_run(table: CalibrationFile, base: Path):
+    """An external simulator's model (:mod:`sweeps.external`) and the checks of ``[run]`` it needs."""
+    command = command_model(table.model, base)
+    run = table.run
+    for short in ("n", "duration", "dt", "record_interval"):
+        if getattr(run, short) is not None:
+            raise ConfigError(f"run.{short}", "sets a key of a model preset; a command model has none: declare the "
+                                              "simulator's own settings in [model.parameters]")
+    if not isinstance(run.group_radius, (int, float)) or isinstance(run.group_radius, bool):
+        raise ConfigError("run.group_radius", f"got {run.group_radius!r}; a command model has no perception range "
+                                              "to default to: give the linking radius in body lengths")
+    check_no_encounter_settings(run)
+    return command
+
 
 def _model_and_run(table: CalibrationFile, base: Path) -> tuple[Path, dict, Preset]:
     preset_path, preset_data, origin = model_data(table.model, table.run, base)
@@ -314,13 +377,35 @@ def _bounds(spec: ParameterTable, prior, where: str) -> tuple[float, float]:
     return low, high
 
 
-def _parameters(table: CalibrationFile, preset: Preset) -> tuple[tuple[Parameter, ...], JointPrior]:
+def _command_parameter(name: str, key: str, marginal, bounds, command) -> None:
+    """A command model's free parameter: a numeric parameter of ``[model.parameters]`` whose declared bounds
+    hold the prior's support (both ends)."""
+    declared = dict(command.parameters)
+    where = f"parameters.{name}"
+    if key not in declared:
+        raise ConfigError(f"{where}.key", f"{key!r} is not a parameter of the command{suggest(key, list(declared))}; "
+                                          f"declared in [model.parameters]: {', '.join(declared) or 'none'}")
+    spec = declared[key]
+    if spec.choices is not None:
+        raise ConfigError(f"{where}.key", f"{key!r} takes one of {list(spec.choices)}; a free parameter must be a "
+                                          "number")
+    for end in bounds:
+        value = int(round(end)) if spec.integer else float(end)
+        try:
+            spec.check(value, key)
+        except ConfigError as err:
+            raise ConfigError(f"{where}.prior", f"the prior's support [{bounds[0]:g}, {bounds[1]:g}] reaches "
+                                                f"{value!r}, where {err.detail}; keep it inside the parameter's "
+                                                "bounds (e.g. with bounds = [low, high])") from None
+
+
+def _parameters(table: CalibrationFile, preset: Preset, command=None) -> tuple[tuple[Parameter, ...], JointPrior]:
     if not table.parameters:
         raise ConfigError("parameters", "missing: give at least one [parameters.<name>] table with key and prior")
     names, keys, priors, bounds = [], [], [], {}
     for name, spec in table.parameters.items():
         where = f"parameters.{name}"
-        key = canonical_key(spec.key)
+        key = canonical_key(spec.key) if command is None else spec.key
         if key in keys:
             other = names[keys.index(key)]
             raise ConfigError(f"{where}.key", f"{key!r} is already set by parameter {other!r}; each key once")
@@ -336,6 +421,11 @@ def _parameters(table: CalibrationFile, preset: Preset) -> tuple[tuple[Parameter
         if name in names:
             raise _rekey_prior_error(err, name) from None
         raise
+    if command is not None:
+        for name, key, marginal in zip(names, keys, joint.marginals):
+            _command_parameter(name, key, marginal, bounds[name], command)
+        return tuple(Parameter(name=n, key=k, prior=p, bounds=bounds[n])
+                     for n, k, p in zip(names, keys, joint.marginals)), joint
     base_values = preset.full_dict()
     for name, key, marginal in zip(names, keys, joint.marginals):
         _check_parameter_key(name, key, marginal.moments[0], preset, base_values)
@@ -473,22 +563,31 @@ def _read_samples(path: Path, stats, columns) -> np.ndarray:
 
 # -------------------------------------------------------------------------------------------- public
 
-def _observed_targets(table: CalibrationFile, preset: Preset, parameters, base: Path, kind: str
+def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters, base: Path
                       ) -> tuple[Targets, MetricSettings]:
-    """The targets and metric settings, with the [observation] block checked and from_tracks measured."""
+    """The targets and metric settings, with the [observation] block checked and from_tracks measured
+    (``preset`` None: a command model, whose runs are measured as tracks)."""
     stats = _stats(table.targets)
-    metrics = table.run.metrics(leadership=False, dcd=any(s in DCD_METRIC_NAMES for s in stats))
+    dcd = any(s in DCD_METRIC_NAMES for s in stats)
+    if preset is None:
+        run = table.run
+        metrics = dataclasses.replace(track_settings(run.group_radius, run.warmup, run.fragmentation_cohesion,
+                                                     run.dcd_max_delay), dcd=dcd,
+                                      **motion_settings(run.metrics(leadership=False, dcd=dcd)))
+    else:
+        metrics = table.run.metrics(leadership=False, dcd=dcd)
     off = [s for s in stats if s in PAIRWISE_SERIES] if not metrics.pairwise_metrics else []
     if off:
         raise ConfigError("targets.stats", f"{off[0]!r} is computed only with run.pairwise_metrics = true (it ranks "
                                            "every pair of every record): remove it or the setting")
     if table.observation is not None:
-        check_observation(table.observation, preset, table.run, stats, kind)
+        check_observation(table.observation, preset, table.run, stats)
     if table.targets.from_tracks is None:
         targets = _targets(table.targets, base)
     else:
         columns = stat_columns(stats, table.targets.summary)
-        metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
+        if preset is not None:
+            metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
         found = tracks_targets(table.targets, table.observation, metrics, columns, base)
         targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
                           observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
@@ -506,23 +605,34 @@ def calibration_from_dict(data: dict, base: Path, method: str | None = None) -> 
     ``method`` picks one of the methods the file holds settings for (default: its ``method.kind``)."""
     table = build(CalibrationFile, data)
     base = Path(base)
-    preset_path, preset_data, preset = _model_and_run(table, base)
-    parameters, joint = _parameters(table, preset)
-    targets, metrics = _observed_targets(table, preset, parameters, base, chosen_kind(table.method, method))
+    if isinstance(table.model, CommandTable):
+        command = _command_and_run(table, base)
+        preset_path, preset_data, preset = None, {}, None
+    else:
+        command = None
+        preset_path, preset_data, preset = _model_and_run(table, base)
+    parameters, joint = _parameters(table, preset, command)
+    chosen_kind(table.method, method)      # an unknown method is named before the targets are measured
+    targets, metrics = _observed_targets(table, preset, parameters, base)
     targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
     choice = method_settings(table.method, base, len(parameters), targets.k, method)
-    check_memory(preset, parameters, choice.settings.n_sim)
-    return CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
+    if preset is not None:
+        check_memory(preset, parameters, choice.settings.n_sim)
+    transforms = transforms_from(table.targets.transform, targets.stats, targets.columns)
+    config = CalibrationConfig(name=table.name, description=table.description, seed=table.seed,
                              preset_path=preset_path, preset_data=preset_data, preset=preset,
                              metrics=metrics, parameters=parameters, prior=joint,
                              targets=targets, method=choice.settings, source=data, observation=table.observation,
                              folder_name=table.name if choice.own else f"{table.name}-{choice.kind}",
-                             methods=choice.available)
+                             methods=choice.available, transforms=transforms, command=command)
+    method_of(choice.kind).check(config)   # the method's own checks of the whole file
+    return config
 
 
 def load_calibration(path, overrides=(), method: str | None = None) -> CalibrationConfig:
     """Read a calibration TOML, apply ``key=value`` overrides (of this file's own keys; ``model.<preset
     key>`` is short for ``model.set.<preset key>``), pick ``method`` (default: the file's kind), validate."""
     path = Path(path)
-    return calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
-                                 path.resolve().parent, method)
+    config = calibration_from_dict(read_config(path, "calibration file", model_overrides(overrides)),
+                                   path.resolve().parent, method)
+    return dataclasses.replace(config, source_path=path)

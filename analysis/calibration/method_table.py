@@ -6,7 +6,7 @@ Contract
 
 * A ``[method]`` table is either today's flat table (``kind = "emcee"`` and that method's keys), or
   holds settings for several methods in sub-tables named by method (``[method.emcee]``,
-  ``[method.optimize]``, ``[method.emulator]``, :data:`~analysis.calibration.settings.METHODS`), or both:
+  ``[method.optimize]``, ``[method.emulator]``: the registered methods, :mod:`analysis.calibration.methods`), or both:
   the flat keys are then the settings of ``kind`` (the file's own method), and the keys every method
   has (``n_sim``, ``likelihood``: :class:`~analysis.calibration.settings.MethodSettings`) are shared by
   the other methods' sub-tables, whose own keys win. A key given both flat and in ``[method.<kind>]``
@@ -17,15 +17,15 @@ Contract
 * Every sub-table is validated, whether chosen or not, and so are the flat keys: an unknown key is a
   :class:`~simcore.schema.ConfigError` naming the method (``method.emcee.walkrs: unknown key (did you
   mean 'walkers'?)``); a flat key the file's ``kind`` does not have says how to switch methods
-  (``--method``, sub-tables). Cross-checks (``n_sim`` against the ``k`` statistics, ``walkers`` against
-  the ``dim`` parameters, the emulator's ``results`` resolved against ``base``) are run for each.
+  (``--method``, sub-tables). Cross-checks (``n_sim`` against the ``k`` statistics, then the method's own:
+  its ``resolve``, e.g. ``walkers`` against the ``dim`` parameters, the emulator's ``results`` resolved
+  against ``base``) are run for each.
 * :class:`MethodChoice`: ``settings`` (the chosen method's typed settings), ``kind``, ``own`` (True when
   it is the file's own ``kind``; another method's outputs go to their own folder, ``<name>-<kind>``),
   ``available`` (the methods the file holds settings for).
 """
 from __future__ import annotations
 
-import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,7 +33,8 @@ from pathlib import Path
 from flocksweep.simcore.schema import ConfigError, build, check_choice, field_names, resolve_path, unknown_key
 
 from .likelihood import min_replicates
-from .settings import METHODS, ChainSettings, EmulatorSettings, MethodSettings, NpeSettings
+from .methods import kinds, method_of, settings_classes
+from .settings import MethodSettings
 
 SHARED = field_names(MethodSettings)
 
@@ -68,57 +69,44 @@ def _checked(cls, data: dict, from_flat, kind: str, base: Path, dim: int, k: int
     if settings.n_sim < need:
         raise ConfigError(where("n_sim"), f"got {settings.n_sim}; the {settings.likelihood} synthetic likelihood "
                                           f"needs at least {need} replicates for {k} stats (n_sim >= k + {need - k})")
-    changes = {}
-    if isinstance(settings, ChainSettings):
-        walkers = max(16, 2 * dim) if settings.walkers is None else settings.walkers
-        if walkers < 2 * dim:
-            raise ConfigError(where("walkers"), f"got {walkers}; need at least 2 x {dim} parameters = {2 * dim}")
-        if walkers % 2:
-            raise ConfigError(where("walkers"), f"got {walkers}; must be even")
-        changes["walkers"] = walkers
-    if isinstance(settings, EmulatorSettings):
-        changes["results"] = resolve_path(str(settings.results), base, where("results"), "results folder",
-                                          must_exist=False)
-    if isinstance(settings, NpeSettings) and settings.estimator is not None:
-        changes["estimator"] = resolve_path(str(settings.estimator), base, where("estimator"), "estimator folder",
-                                            must_exist=False)
-    return dataclasses.replace(settings, **changes)
+    return method_of(kind).resolve(settings, where, base, dim, k)
 
 
 def chosen_kind(table: dict, chosen: str | None = None) -> str:
     """The method that runs (see the module docstring)."""
-    subs = [name for name in table if name in METHODS]
+    subs = [name for name in table if name in kinds()]
     if chosen is not None:
-        check_choice("--method", chosen, tuple(METHODS))
+        check_choice("--method", chosen, kinds())
         return chosen
     if "kind" in table:
-        check_choice("method.kind", table["kind"], tuple(METHODS))
+        check_choice("method.kind", table["kind"], kinds())
         return table["kind"]
     if len(subs) == 1:
         return next(iter(subs))
     held = f"this file holds settings for {', '.join(subs)}; " if subs else ""
     raise ConfigError("method.kind", f"missing required key; {held}choose one with kind = \"...\" in [method] or "
-                                     f"--method; allowed: {', '.join(METHODS)}")
+                                     f"--method; allowed: {', '.join(kinds())}")
 
 
 def method_settings(table: dict, base: Path, dim: int, k: int, chosen: str | None = None) -> MethodChoice:
     """The chosen method's validated settings (see the module docstring)."""
-    subs = {name: value for name, value in table.items() if name in METHODS}
+    methods = settings_classes()
+    subs = {name: value for name, value in table.items() if name in methods}
     for name, value in subs.items():
         if not isinstance(value, dict):
             raise ConfigError(f"method.{name}", f"expected a table of {name}'s settings ([method.{name}]), "
                                                 f"got {value!r}")
     kind = chosen_kind(table, chosen)
     owner = table.get("kind")
-    flat = {key: value for key, value in table.items() if key != "kind" and key not in METHODS}
+    flat = {key: value for key, value in table.items() if key != "kind" and key not in methods}
     if owner is None:   # no kind: the flat keys are defaults for every method that has them
-        known = list(dict.fromkeys(name for cls in METHODS.values() for name in field_names(cls)))
+        known = list(dict.fromkeys(name for cls in methods.values() for name in field_names(cls)))
         for key in flat:
             if key not in known:
                 raise unknown_key(f"method.{key}", known)
     found = {}
     for name in dict.fromkeys([*([owner] if owner else []), *subs, kind]):
-        cls = METHODS[name]
+        cls = methods[name]
         sub = subs.get(name, {})
         if name == owner:
             allowed = field_names(cls)

@@ -18,8 +18,10 @@ CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
 :class:`Estimator` (frozen): ``sample(x (k,), count, seed, support=None) -> (count, d)`` draws of the
 posterior at one observed row; with ``support`` (a predicate on (S, d) -> (S,) bool, e.g. inside the
 prior's bounds) the draws outside it are redrawn (the flow leaks mass outside a bounded prior; the
-share is ``Estimator.last_leakage``; a row keeping under about 1/1,300 of its draws is a ValueError); ``sample_many(X (m, k), count, seed, support=None) -> (m, count,
-d)`` one posterior per row in one vectorised call (an amortised estimator answers a new flock without
+share is ``Estimator.last_leakage``; a row keeping under about 1/1,300 of its draws is :class:`OutsideSupport`, a
+ValueError); ``sample_many(X (m, k), count, seed, support=None, short="raise") -> (m, count, d)`` one
+posterior per row in one vectorised call (``short = "nan"``: a row that cannot be filled is all NaN instead,
+for the caller to count and leave out) (an amortised estimator answers a new flock without
 simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
 weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
 standardisation), so a stored estimator rebuilds exactly.
@@ -69,6 +71,11 @@ def require_jax():
         raise ConfigError("method.kind", "npe needs the sbi extra (JAX and flowjax, about 100 MB): "
                                          "pip install -e '.[sbi]'") from None
     return jax, equinox
+
+
+class OutsideSupport(ValueError):
+    """The estimator puts almost no mass inside the support at an observed row: the statistics lie far
+    outside what the training simulations cover."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -177,8 +184,9 @@ class Estimator:
         draws = np.asarray(_sampler()(self.flow, jnp.asarray(conditions), keys, int(count)), dtype=float)
         return draws * self.theta_sd + self.theta_mean
 
-    def sample_many(self, x, count: int, seed: int, support=None) -> np.ndarray:
-        """(m, count, d): ``count`` posterior draws for each of the m observed rows."""
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise") -> np.ndarray:
+        """(m, count, d): ``count`` posterior draws for each of the m observed rows; a row the support
+        holds too little of (module docstring) raises, or with ``short = "nan"`` is all NaN."""
         conditions = np.atleast_2d(self._condition(x))
         draws = self._raw(conditions, count, seed)
         if support is None:
@@ -198,7 +206,12 @@ class Estimator:
         if inside.all():
             return draws
         for i in np.flatnonzero(~inside.all(axis=1)):
-            draws[i] = self._fill(conditions[i], draws[i][inside[i]], count, seed, support)
+            try:
+                draws[i] = self._fill(conditions[i], draws[i][inside[i]], count, seed, support)
+            except OutsideSupport:
+                if short != "nan":
+                    raise
+                draws[i] = np.nan
         return draws
 
     def _fill(self, condition, have, count: int, seed: int, support) -> np.ndarray:
@@ -212,12 +225,13 @@ class Estimator:
             found += len(keep)
             if found >= count:
                 return np.concatenate(pool)[:count]
-        raise ValueError(f"the estimator puts almost no mass inside the support (leakage {self.leakage[0]:.3f}; "
+        raise OutsideSupport(f"the estimator puts almost no mass inside the support (leakage {self.leakage[0]:.3f}; "
                          f"one row kept {found} of {count} draws out of {MAX_REDRAWS * count + MAX_WIDE * WIDE_BATCH * count}): "
                          "the observed statistics are far outside the training set")
 
     def sample(self, x, count: int, seed: int, support=None) -> np.ndarray:
-        """(count, d) posterior draws at one observed row ``x`` (k,)."""
+        """(count, d) posterior draws at one observed row ``x`` (k,); :class:`OutsideSupport` when the
+        support holds too little of its mass."""
         return self.sample_many(np.asarray(x, dtype=float)[None, :], count, seed, support)[0]
 
     def log_prob(self, theta, x) -> np.ndarray:
@@ -275,17 +289,19 @@ class Ensemble:
     def last_leakage(self) -> float:
         return self.leakage[0]
 
-    def sample_many(self, x, count: int, seed: int, support=None) -> np.ndarray:
-        """(m, count, d) draws of the mixture for each of the m observed rows."""
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise") -> np.ndarray:
+        """(m, count, d) draws of the mixture for each of the m observed rows (``short``: as
+        :meth:`Estimator.sample_many`; a row any member cannot fill is all NaN)."""
         size = len(self.members)
         shares = [count // size + (i < count % size) for i in range(size)]
         parts, leaks = [], []
         for i, (member, share) in enumerate(zip(self.members, shares)):
             if share:
-                parts.append(member.sample_many(x, share, seed + MEMBER_SEED_STEP * i, support))
+                parts.append(member.sample_many(x, share, seed + MEMBER_SEED_STEP * i, support, short))
                 leaks.append(member.last_leakage * share)
         self.leakage[0] = float(sum(leaks) / count)
         draws = np.concatenate(parts, axis=1)
+        draws[np.isnan(draws).any(axis=(1, 2))] = np.nan
         order = np.random.default_rng(seed).permuted(np.broadcast_to(np.arange(count), draws.shape[:2]), axis=1)
         return np.take_along_axis(draws, order[:, :, None], axis=1)
 

@@ -125,8 +125,10 @@ def _batch_value(observed, sims, objective: str, likelihood: str, log_prior: flo
 class _Objective:
     """theta -> objective value with a fixed list of seeds (see module docstring)."""
 
-    def __init__(self, simulate_seeds_fn, observed, prior, seeds, objective: str, likelihood: str):
+    def __init__(self, simulate_seeds_fn, observed, prior, seeds, objective: str, likelihood: str,
+                 transform: Callable | None = None):
         self.simulate_seeds_fn = simulate_seeds_fn
+        self.transform = transform
         self.observed = np.asarray(observed, dtype=float)
         self.prior = prior
         self.seeds = list(seeds)
@@ -146,6 +148,8 @@ class _Objective:
         if not math.isfinite(lp):
             return math.inf
         sims = self.simulate_seeds_fn(theta.copy(), list(seeds))
+        if self.transform is not None:
+            sims = self.transform(sims)
         return _batch_value(self.observed, sims, self.objective, self.likelihood, lp)
 
     def __call__(self, theta) -> float:
@@ -239,9 +243,13 @@ def max_evaluations(algorithm: str, maxiter: int, popsize: int, dim: int) -> int
 def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_sim: int,
                  algorithm: str = "differential_evolution", objective: str = "loglik", maxiter: int = 100,
                  popsize: int = 15, recheck: int = 200, likelihood: str = "gaussian",
-                 executor=None, tick: Callable[[], object] | None = None) -> OptimizeResult:
+                 executor=None, tick: Callable[[], object] | None = None, transform: Callable | None = None
+                 ) -> OptimizeResult:
     """Minimise the CRN objective, then re-check the optimum with fresh seeds (module docstring);
-    ``tick()`` is called after each evaluation of the search (a progress bar's ``update``)."""
+    ``tick()`` is called after each evaluation of the search (a progress bar's ``update``); ``transform``
+    ((n, k) -> (n, k), e.g. :meth:`analysis.calibration.transforms.Transforms.apply`) is applied to the
+    observed and simulated statistics inside the objective only (the re-check rows are returned as
+    simulated)."""
     _check_choices(objective, likelihood)
     algo = algorithm.lower().replace("-", "_") if isinstance(algorithm, str) else algorithm
     algo = {"differential_evolution": "differential_evolution", "de": "differential_evolution",
@@ -254,7 +262,9 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
     popsize = integer(popsize, "popsize", 1)
     recheck = integer(recheck, "recheck", 1)
 
-    func = _Objective(simulate_seeds_fn, observed, prior, common_seeds(seed, n_sim), objective, likelihood)
+    transform = transform or (lambda x: np.asarray(x, dtype=float))
+    func = _Objective(simulate_seeds_fn, transform(np.atleast_2d(observed)), prior, common_seeds(seed, n_sim),
+                      objective, likelihood, transform)
     bounds = [(float(lo), float(hi)) for lo, hi in prior.bounds]
     if algo == "differential_evolution":
         theta, nfev, success, message = _run_de(func, bounds, seed, maxiter, popsize, executor, tick)
@@ -270,8 +280,8 @@ def run_optimize(simulate_seeds_fn: Callable, observed, prior, *, seed: int, n_s
     task = functools.partial(_simulate_batch, simulate_seeds_fn, theta.copy())
     tables = executor.map(task, batches) if executor is not None else [task(b) for b in batches]
     tables = [np.asarray(t, dtype=float) for t in tables]
-    values = [_batch_value(func.observed, sims, objective, likelihood, lp) if math.isfinite(lp) else math.inf
-              for sims in tables]
+    values = [_batch_value(func.observed, transform(sims), objective, likelihood, lp) if math.isfinite(lp)
+              else math.inf for sims in tables]
     values = np.asarray(values, dtype=float)
     rows = np.concatenate(tables, axis=0)
     finite_rows = rows[np.isfinite(rows).all(axis=1)]

@@ -95,11 +95,14 @@ def corner_figure(samples, names: Sequence[str] | None, path, truths=None, label
     if S:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")   # corner warns about too few points for contours on tiny samples
+            one = d == 1        # corner draws truth lines on a grid of axes: one parameter has a single one
             corner.corner(x, fig=fig, labels=list(labels or names), quantiles=CORNER_QUANTILES, show_titles=True,
                           title_quantiles=CORNER_QUANTILES, title_fmt=".3g", levels=CORNER_LEVELS,
                           plot_datapoints=S < SCATTER_MAX, fill_contours=True, smooth=1.0 if S >= SCATTER_MAX else None,
-                          truths=None if truths is None else list(truths), truth_color="tab:red",
+                          truths=None if truths is None or one else list(truths), truth_color="tab:red",
                           bins=int(np.clip(np.sqrt(S) / 2, 10, 40)))
+            if one and truths is not None:
+                fig.axes[0].axvline(float(truths[0]), color="tab:red")
     return save(fig, path)
 
 

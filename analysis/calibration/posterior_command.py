@@ -1,17 +1,35 @@
-"""``flocksweep posterior ESTIMATOR --targets FLOCKS.csv``: one posterior per observed flock from a trained
-``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; the command's work,
-``run(args)``, for its declaration in ``flocksweep/commands/posterior.py``.
+"""``flocksweep posterior ESTIMATOR --targets FLOCKS.csv`` (or ``--tracks TRACKS``): one posterior per
+observed flock from a trained ``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; the
+command's work, ``run(args)``, for its declaration in ``flocksweep/commands/posterior.py``.
 
-``posteriors(estimator_dir, table, draws=4000, seed=0) -> DataFrame``: the table's rows (one observed
-flock or flight each: the estimator's statistic columns, e.g. the per-flight rows ``flocksweep
-measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids) -> one row per flock with, per parameter, the posterior
-mean, sd, median and 5% / 95% quantiles, and ``leakage`` (the share of raw draws outside the prior).
-All flocks are sampled in one vectorised call; flock i's draws depend only on ``seed`` and i. An
-estimator of sequential rounds (``rounds > 1``) serves one flock only and is refused (ConfigError).
+``posteriors(estimator_dir, table, draws=4000, seed=0, force=False, measured=None) -> (DataFrame, notes)``: the
+table's rows (one observed flock or flight each: the estimator's statistic columns, e.g. the per-flight rows
+``flocksweep measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids)
+-> one row per flock with, per parameter, the posterior mean, sd, median and 5% / 95% quantiles, ``leakage``
+(the share of raw draws outside the prior) and ``credible`` (False when the estimator failed its coverage
+check and ``force`` gave the posteriors anyway). All flocks are sampled in one vectorised call; flock i's
+draws depend only on ``seed`` and i. ``notes``: the plain lines the command prints (the estimator's
+coverage verdict first).
+
+Refused (a :class:`~simcore.schema.ConfigError` naming what to do):
+
+* an estimator of sequential rounds (``rounds > 1``): it serves one flock only;
+* an estimator whose held-out coverage check failed (``coverage.json`` beside it), unless ``force``: then
+  every row is marked ``credible = False``;
+* a table measured otherwise than the estimator's training runs (:func:`check_measurement`): its ``interval``,
+  ``velocity_interval``, ``dims`` and ``length_unit`` columns (written by ``flocksweep measure``) and, when a
+  ``measure.json`` lies beside the table (``measured``), its group radius and fragmentation threshold, each
+  against the estimator's ``measurement`` settings; the message names the setting. A table that does not say
+  how it was measured (no such column) is taken with a note.
+
+``measure_for(estimator_dir, tracks) -> DataFrame``: the tracks measured as the estimator's settings say
+(interval, velocity interval, gap limit, group radius, fragmentation threshold, warm-up; the file read as its
+sidecar JSON says), the table ``--tracks`` gives to :func:`posteriors`.
 """
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,6 +41,8 @@ from flocksweep.sweeps.progress import next_steps
 if TYPE_CHECKING:
     import pandas as pd
 
+TOLERANCE = 1e-6        # relative: two intervals this close are the same
+
 
 def _read_table(path: Path) -> pd.DataFrame:
     import pandas as pd   # numpy and pandas load when the command runs, not for --help
@@ -32,24 +52,134 @@ def _read_table(path: Path) -> pd.DataFrame:
     return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
 
 
-def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int = 0) -> pd.DataFrame:
-    """One posterior summary per row of ``table`` (module docstring)."""
-    import numpy as np
-    import pandas as pd
+def _identity(estimator_dir: Path) -> dict:
+    from .npe import IDENTITY_FILE
 
-    from .npe import IDENTITY_FILE, support_of
-    from .npe_flow import load_estimator
-
-    estimator_dir = Path(estimator_dir)
     identity_path = estimator_dir / IDENTITY_FILE
     if not identity_path.is_file():
         raise ConfigError("ESTIMATOR", f"{estimator_dir}: no {IDENTITY_FILE}; give the estimator/ folder of an npe "
                                        "calibration's output")
-    identity = json.loads(identity_path.read_text())
+    return json.loads(identity_path.read_text())
+
+
+def coverage_verdict(estimator_dir: Path) -> dict | None:
+    """The estimator's held-out coverage check as stored beside it (``coverage.json``), or None."""
+    from .npe import COVERAGE_FILE
+
+    path = Path(estimator_dir) / COVERAGE_FILE
+    try:
+        return json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, str) or isinstance(b, str):
+        return str(a) == str(b)
+    return math.isclose(float(a), float(b), rel_tol=TOLERANCE, abs_tol=1e-12)
+
+
+def _velocity(value, interval):
+    """A measured table's velocity interval: "recorded", or seconds ("None": one interval)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)) or str(value) in ("None", "nan", ""):
+        return float(interval)
+    if str(value) == "recorded":
+        return "recorded"
+    return float(value)
+
+
+def check_measurement(identity: dict, table, measured: dict | None = None) -> list[str]:
+    """ConfigError when ``table`` (and its ``measure.json``, ``measured``) was measured otherwise than the
+    estimator's statistics; the notes to print otherwise (module docstring)."""
+    wanted = identity.get("measurement")
+    if wanted is None:
+        return ["this estimator was trained before estimators recorded how their statistics are measured: make "
+                "sure the table was measured as its training runs were"]
+    ids = [c for c in table.columns if table[c].dtype == object and c not in ("velocity_interval", "length_unit")]
+    name = (lambda i: f"row {i} ({table[ids[0]].iloc[i]})") if ids else (lambda i: f"row {i}")
+    hint = ("measure the tracks again with those settings (flocksweep measure), or give them with --tracks FILE to "
+            "have them measured as the estimator needs")
+    checked = []
+    for i in range(len(table)):
+        row = table.iloc[i]
+        if "interval" in table.columns and wanted.get("interval") is not None:
+            checked.append("interval")
+            if not _same(row["interval"], wanted["interval"]):
+                raise ConfigError("--targets", f"{name(i)} was measured every {float(row['interval']):g} s; the "
+                                               f"estimator's statistics are measured every {wanted['interval']:g} s "
+                                               f"(measurement.interval): {hint}")
+            if "velocity_interval" in table.columns:
+                checked.append("velocity_interval")
+                have = _velocity(row["velocity_interval"], row["interval"])
+                want = _velocity(wanted["velocity_interval"], wanted["interval"])
+                if not _same(have, want):
+                    raise ConfigError("--targets", f"{name(i)} has velocities {_say(have)}; the estimator's are "
+                                                   f"{_say(want)} (measurement.velocity_interval): {hint}")
+        if "dims" in table.columns and wanted.get("dims") is not None:
+            checked.append("dims")
+            if int(row["dims"]) != int(wanted["dims"]):
+                raise ConfigError("--targets", f"{name(i)} holds {int(row['dims'])}-D tracks; the estimator was trained "
+                                               f"on {wanted['dims']}-D ones (measurement.dims: the observation's "
+                                               "projection)")
+        if "length_unit" in table.columns:
+            checked.append("length_unit")
+            if str(row["length_unit"]) != wanted["length_unit"]:
+                raise ConfigError("--targets", f"{name(i)} is in {row['length_unit']}; the estimator's lengths are "
+                                               "in body lengths (measurement.length_unit): measure the tracks with "
+                                               "--body-length")
+    for key in ("group_radius", "fragmentation_cohesion", "warmup"):
+        if measured and key in measured and wanted.get(key) is not None and isinstance(measured[key], (int, float)):
+            checked.append(key)
+            if not _same(measured[key], wanted[key]):
+                raise ConfigError("--targets", f"the table was measured with {key} = {measured[key]:g} (measure.json); "
+                                               f"the estimator's statistics use {wanted[key]:g} "
+                                               f"(measurement.{key}): {hint}")
+    if not checked:
+        every = "as its training runs' own records" if wanted.get("interval") is None else (
+            f"every {wanted['interval']:g} s, velocities "
+            f"{_say(_velocity(wanted['velocity_interval'], wanted['interval']))}")
+        return [f"the table does not say how it was measured (no interval, velocity_interval, dims or length_unit "
+                f"column): the estimator expects statistics measured {every}, in body lengths, group radius "
+                f"{wanted['group_radius']}"]
+    return [f"measurement checked against the estimator's: {', '.join(dict.fromkeys(checked))}"]
+
+
+def _say(velocity) -> str:
+    return "as recorded by the tracker" if velocity == "recorded" else f"differenced over {velocity:g} s"
+
+
+def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int = 0, force: bool = False,
+               measured: dict | None = None):
+    """One posterior summary per row of ``table``, and the notes (module docstring)."""
+    import numpy as np
+
+    from .npe import support_of
+    from .npe_flow import load_estimator
+    from .transforms import Transforms
+
+    estimator_dir = Path(estimator_dir)
+    identity = _identity(estimator_dir)
     if identity.get("rounds", 1) != 1:
         raise ConfigError("ESTIMATOR", f"{estimator_dir} was trained in {identity['rounds']} sequential rounds, "
                                        "truncated to one flock's posterior region: it is not amortised; train "
                                        "with rounds = 1 for many flocks")
+    verdict = coverage_verdict(estimator_dir)
+    notes = []
+    credible = True
+    if verdict is None:
+        notes.append("coverage: not recorded beside this estimator (trained before coverage.json existed); run its "
+                     "calibration again to check it")
+    elif verdict["passed"]:
+        notes.append(f"coverage: passed ({verdict['messages'][0]})")
+    else:
+        if not force:
+            raise ConfigError("ESTIMATOR", f"{estimator_dir} FAILED its held-out coverage check "
+                                           f"({'; '.join(verdict['messages'][1:3])}): its posteriors are not to be "
+                                           "trusted; train a better one (more simulations, an ensemble), or pass "
+                                           "--force to get them marked credible = false")
+        credible = False
+        notes.append("coverage: FAILED; --force: every posterior below is marked credible = false")
+    notes += check_measurement(identity, table, measured)
     columns, names = identity["columns"], [name for name, _ in identity["parameters"]]
     missing = [c for c in columns if c not in table.columns]
     if missing:
@@ -58,8 +188,11 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         raise ConfigError("--targets", f"row {int(np.flatnonzero(bad)[0])} has a missing or non-finite statistic")
+    transforms = Transforms.from_record(identity.get("transforms") or {}, columns)
     estimator = load_estimator(estimator_dir)
-    samples = estimator.sample_many(x, draws, seed, support_of(bounds=identity["bounds"]))
+    samples = estimator.sample_many(transforms.apply(x), draws, seed, support_of(bounds=identity["bounds"]), short="nan")
+    import pandas as pd
+
     ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
     out = table[ids].reset_index(drop=True).copy()
     for j, name in enumerate(names):
@@ -70,20 +203,70 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         out[f"{name}_q5"] = np.quantile(values, 0.05, axis=1)
         out[f"{name}_q95"] = np.quantile(values, 0.95, axis=1)
     out["leakage"] = estimator.last_leakage
-    return out
+    outside = np.isnan(samples).any(axis=(1, 2))
+    out["credible"] = credible & ~outside
+    if outside.any():
+        notes.append(f"{int(outside.sum())} row(s) lie outside what the training simulations cover (no posterior: "
+                     "NaN, credible = false)")
+    return out, notes
+
+
+def measure_for(estimator_dir, tracks: Path):
+    """The tracks measured as the estimator's statistics were (module docstring)."""
+    from flocksweep.observables.measured import measure_tracks, track_settings
+    from flocksweep.observables.tracks import load_tracks, track_source
+    from flocksweep.observables.validation import TrackError
+
+    identity = _identity(Path(estimator_dir))
+    wanted = identity.get("measurement")
+    if wanted is None:
+        raise ConfigError("--tracks", "this estimator does not record how its statistics are measured (trained "
+                                      "before estimators did): measure the tracks yourself and give --targets")
+    if not Path(tracks).exists():
+        raise ConfigError("--tracks", f"file not found: {tracks}")
+    try:
+        table = load_tracks(tracks, track_source(tracks, {}, "--tracks"))
+        if table.unit_label != wanted["length_unit"]:
+            raise ConfigError("--tracks", f"{Path(tracks).name} is in {table.unit_label}; the estimator's lengths are "
+                                          "in body lengths: give body_length in the tracks' sidecar JSON")
+        if wanted.get("dims") is not None and table.dims != wanted["dims"]:
+            raise ConfigError("--tracks", f"{Path(tracks).name} holds {table.dims}-D tracks; the estimator was trained "
+                                          f"on {wanted['dims']}-D ones")
+        settings = track_settings(wanted["group_radius"], wanted.get("warmup", 0.0), wanted["fragmentation_cohesion"],
+                                  wanted["dcd_max_delay"])
+        velocity = wanted["velocity_interval"]
+        if velocity == "recorded" and not table.has_velocity:
+            raise ConfigError("--tracks", f"{Path(tracks).name} has no velocities; the estimator's statistics use "
+                                          "recorded velocities (measurement.velocity_interval)")
+        measurement = measure_tracks(table, settings, wanted["interval"], wanted["max_gap"], velocity)
+    except TrackError as err:
+        raise ConfigError("--tracks", str(err)) from None
+    runs = measurement.runs
+    return runs[runs["status"] == "ok"].reset_index(drop=True)
 
 
 def run(args) -> int:
     check_count("--draws", args.draws, 10)
     check_out("--out", args.out)
+    if (args.targets is None) == (args.tracks is None):
+        raise ConfigError("--targets", "give either --targets TABLE (measured statistics) or --tracks FILE (measured "
+                                       "here as the estimator needs), one of them")
     started = time.time()
-    table = posteriors(args.estimator, _read_table(args.targets), args.draws, args.seed)
+    if args.tracks is not None:
+        table, measured = measure_for(args.estimator, args.tracks), None
+    else:
+        table = _read_table(args.targets)
+        beside = Path(args.targets).parent / "measure.json"
+        measured = json.loads(beside.read_text()) if beside.is_file() else None
+    result, notes = posteriors(args.estimator, table, args.draws, args.seed, force=args.force, measured=measured)
+    for note in notes:
+        print(note)
     if args.out:
-        table.to_csv(args.out, index=False)
-        print(f"wrote {args.out}: {len(table)} posteriors in {time.time() - started:.1f} s")
+        result.to_csv(args.out, index=False)
+        print(f"wrote {args.out}: {len(result)} posteriors in {time.time() - started:.1f} s")
         next_steps(f'pandas.read_csv("{args.out}")   (one posterior per row: mean, sd, median, 5% and 95% quantiles)')
     else:
-        print(table.round(4).to_string())
-        next_steps(f"flocksweep posterior {args.estimator} --targets {args.targets} --out posteriors.csv   "
-                   "(the same as a table)")
+        print(result.round(4).to_string())
+        given = f"--tracks {args.tracks}" if args.tracks is not None else f"--targets {args.targets}"
+        next_steps(f"flocksweep posterior {args.estimator} {given} --out posteriors.csv   (the same as a table)")
     return 0

@@ -19,7 +19,7 @@ bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
     - stream 1: the observed data ``y_j``, shape (m, k) (m = rows of the config's targets, 1 for
       mean/sd targets), from the SAME data model the likelihood assumes: the summary simulator plus,
       for mean/sd (or cov) targets, Gaussian observation noise with the targets' covariance
-      (:func:`analysis.calibration.run.simulate_fn` on a one-replicate-per-row simulator);
+      (:func:`analysis.calibration.data_model.simulate_fn` on a one-replicate-per-row simulator);
     - stream 2: the integer ``seed`` given to :func:`~analysis.calibration.bsl.run_bsl` (observed=y_j,
       the config's walkers, steps, n_sim, likelihood, reevaluate_every);
     - stream 3: which thinned posterior draws are kept; stream 4: tie-breaking in the ranks.
@@ -89,7 +89,8 @@ from .accounting import Accounting
 from .bsl import run_bsl
 from .checks import integer
 from .diagnostics import integrated_times, sbc_ranks
-from .run import simulate_fn, summary_simulator
+from .data_model import simulate_fn
+from .simulator import summary_simulator
 from .sbc_report import dataset_path, write_report
 
 
@@ -122,10 +123,18 @@ class SBCProblem:
 
 # ------------------------------------------------------------------------------------------ the problem
 
+def check_sbc_method(config) -> None:
+    """ConfigError at ``method.kind`` unless SBC checks the config's method (its ``sbc`` flag)."""
+    from .methods import method_of, sbc_kinds
+
+    if not method_of(config.method.kind).sbc:
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the posterior of "
+                                         f"{', '.join(sbc_kinds())} (BSL), re-run on many synthetic datasets")
+
+
 def problem_from_config(config, steps: int | None = None, walkers: int | None = None) -> SBCProblem:
     """The SBC problem of an emcee calibration config (optionally with other steps / walkers)."""
-    if config.method.kind != "emcee":
-        raise ValueError(f"SBC runs the emcee (BSL) method; this config's method is {config.method.kind!r}")
+    check_sbc_method(config)
     settings = config.method
     rows = int(np.asarray(config.targets.observed).shape[0])
     observer = summary_simulator(config, n_sim=rows)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_count, check_out, check_workers
 from flocksweep.sweeps.progress import next_steps
 
@@ -13,7 +12,7 @@ from flocksweep.sweeps.progress import next_steps
 def run(args) -> int:
     """Run the SBC check the arguments describe; prints the rank table and the verdict."""
     from .config import load_calibration
-    from .sbc import run_sbc
+    from .sbc import check_sbc_method, run_sbc
 
     for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--steps", args.steps)):
         check_count(flag, value, 1)
@@ -21,8 +20,7 @@ def run(args) -> int:
     check_count("--walkers", args.walkers, 2)
     check_out("--out", args.out)
     config = load_calibration(args.config, args.overrides)
-    if config.method.kind != "emcee":
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the emcee (BSL) posterior")
+    check_sbc_method(config)
     out = args.out or Path("results") / "calibration" / config.name / "sbc"
     args.on_interrupt = lambda: (f"saved: {len(list((out / 'datasets').glob('*.json')))} datasets in {out}; "
                                  "run the same command again to resume")

@@ -1,9 +1,10 @@
 """Typed settings of each calibration method: the ``[method]`` table of a calibration file, read by the
 schema engine (:func:`simcore.schema.build`) into :class:`EmceeSettings`, :class:`OptimizeSettings`
-or :class:`EmulatorSettings` or :class:`NpeSettings` by its ``kind`` (:data:`METHODS`). Each checks its own ranges;
-:mod:`analysis.calibration.config` adds the checks that need the rest of the file (``n_sim`` against the
-number of statistics, ``walkers`` against the number of parameters, ``results`` resolved against the
-file's folder).
+or :class:`EmulatorSettings` or :class:`NpeSettings` by its ``kind`` (each the ``settings`` of a registered
+method, :mod:`analysis.calibration.methods`). Each checks its own ranges; :mod:`analysis.calibration.method_table`
+adds the checks that need the rest of the file (``n_sim`` against the number of statistics, then the
+method's ``resolve``: ``walkers`` against the number of parameters, ``results`` resolved against the file's
+folder). A method of one's own subclasses :class:`MethodSettings` with its ``kind``.
 """
 from __future__ import annotations
 
@@ -149,5 +150,3 @@ class NpeSettings(MethodSettings):
         if not 0 < self.coverage_tolerance < 0.5:
             raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
 
-
-METHODS = {cls.kind: cls for cls in (EmceeSettings, OptimizeSettings, EmulatorSettings, NpeSettings)}

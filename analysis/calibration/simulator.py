@@ -5,10 +5,12 @@ Contract
 :class:`SummarySimulator` is configured once and called many times:
 
     sim = SummarySimulator(base_preset_data, keys, columns, n_sim, warmup, group_radius=None,
-                           fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0, motion=None)
+                           fragmentation_cohesion=0.5, observation=None, dcd_max_delay=2.0, motion=None,
+                           strict=None)
     rows = sim.simulate(theta, seeds)      # float64 (n_sim, k), k = len(columns)
     rows = sim(theta, rng)                 # = sim.simulate(theta, seeds_for(rng, n_sim))
     obs, row = sim.run(theta, seed)        # one run's observations (bare) and its row, as simulate gives it
+    sim.identity()                         # what a row depends on besides theta and the seed (a dict)
 
 * ``base_preset_data`` is a preset dict (parsed TOML, fixed settings already applied); it is deep-copied
   and validated once at construction and never modified.
@@ -42,7 +44,9 @@ Contract
   the same rows). All seeds run in ONE :func:`simcore.simulate.simulate_batch` call (threaded, compiled);
   row i is bit-identical to ``simulate`` + ``summarize_run`` of seed i alone, whatever the other seeds are.
 
-Non-finite results (decision): a row is either all finite or all NaN. When a run's trajectory has a
+Non-finite results (decision): a row is either all finite or all NaN; with ``strict = j`` only its first j
+columns decide (the targets of a predictive run: a flock statistic that is undefined, as the elongation of
+a group of two, is NaN alone and the run still counts). When a run's trajectory has a
 non-finite value, or any of its requested summaries is nan or +-inf (e.g. ``time_to_fragmentation``
 of a flock that never fragments, ``follow_corr_lag0`` without a trigger event), its whole row is NaN.
 Nothing is dropped or replaced here; the caller decides (e.g. ``rows[np.isfinite(rows).all(axis=1)]``,
@@ -104,8 +108,9 @@ class SummarySimulator:
     def __init__(self, base_preset_data: dict, keys: Sequence[str], columns: Sequence[str], n_sim: int,
                  warmup: float, group_radius: float | None = None,
                  fragmentation_cohesion: float = FRAGMENTATION_COHESION, observation=None,
-                 dcd_max_delay: float = DCD_MAX_DELAY, motion: dict | None = None):
+                 dcd_max_delay: float = DCD_MAX_DELAY, motion: dict | None = None, strict: int | None = None):
         self.base = copy.deepcopy(dict(base_preset_data))
+        self.strict = None if strict is None else int(strict)
         self.observation = observation
         self.base_preset = preset_from_dict(self.base)
         self.keys = tuple(keys)
@@ -152,7 +157,20 @@ class SummarySimulator:
             return self
         return SummarySimulator(self.base, self.keys, self.columns, n_sim, self.warmup, self.group_radius,
                                 self.metrics.fragmentation_cohesion, self.observation, self.metrics.dcd_max_delay,
-                                motion_settings(self.metrics))
+                                motion_settings(self.metrics), self.strict)
+
+    def identity(self) -> dict:
+        """What a row depends on besides theta and the seed: the model (its preset with the fixed settings,
+        the model version), the free keys, the columns, replicates, metric settings and observation block."""
+        import dataclasses
+
+        from flocksweep.simcore import MODEL_VERSION
+        from flocksweep.sweeps.files import json_ready
+
+        return json_ready({"preset": self.base_preset.to_dict(), "model_version": MODEL_VERSION,
+                           "keys": list(self.keys), "columns": list(self.columns), "n_sim": int(self.n_sim),
+                           "metrics": dataclasses.asdict(self.metrics),
+                           "observation": None if self.observation is None else dataclasses.asdict(self.observation)})
 
     def preset(self, theta) -> Preset:
         """The validated preset at ``theta`` (integer keys rounded; ConfigError naming the key when invalid)."""
@@ -208,16 +226,25 @@ class SummarySimulator:
             obs = observe_run(obs, self.observation, _fresh_seed(seed))
         values = summarize_run(obs, settings)
         row = np.array([values[c] for c in self.columns], dtype=np.float64)
-        return row if np.isfinite(row).all() else nan_row
+        strict = len(row) if self.strict is None else self.strict
+        if not np.isfinite(row[:strict]).all():
+            return nan_row
+        return np.where(np.isfinite(row), row, np.nan)
 
 
 def summary_simulator(config, n_sim: int | None = None, extra_columns=()) -> SummarySimulator:
     """The simulator of a calibration ``config`` (its fixed preset, free keys, target columns and metric
     settings) with ``n_sim`` replicates per call (default: ``config.method.n_sim``); ``extra_columns``
-    are reported after the targets' (the predictive runs' flock statistics)."""
+    are reported after the targets' (the predictive runs' flock statistics). A command model's is a
+    :class:`~analysis.calibration.command_simulator.CommandSimulator` (the same interface)."""
     n_sim = config.method.n_sim if n_sim is None else n_sim
     m = config.metrics
     columns = tuple(config.targets.columns) + tuple(extra_columns)
+    if getattr(config, "command", None) is not None:     # an external simulator: its tracks measured
+        from .command_simulator import CommandSimulator
+
+        return CommandSimulator(config.command, config.keys, columns, n_sim, m, config.observation,
+                                len(config.targets.columns) if extra_columns else None)
     return SummarySimulator(config.preset_data, config.keys, columns, n_sim, m.warmup,
                             m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay,
-                            motion_settings(m))
+                            motion_settings(m), len(config.targets.columns) if extra_columns else None)

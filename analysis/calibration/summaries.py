@@ -4,8 +4,8 @@ calibration compares with its targets, observation noise included.
 ``summary_simulator(calibration, n_sim=1, threads=None) -> CalibrationSimulator`` is the simulator and
 data model a calibration file defines, for another inference library (pyABC, sbi, ELFI, a hand-written
 rejection ABC). It is exactly the calibration's own: its calls run
-:func:`analysis.calibration.run.simulate_fn` (fresh seeds from a generator, as the emcee BSL chain and
-SBC draw them) and :func:`~analysis.calibration.run.seeded_fn` (a deterministic function of given seeds,
+:func:`analysis.calibration.data_model.simulate_fn` (fresh seeds from a generator, as the emcee BSL chain and
+SBC draw them) and :func:`~analysis.calibration.data_model.seeded_fn` (a deterministic function of given seeds,
 as the optimiser's common random numbers), on :func:`analysis.calibration.simulator.summary_simulator`
 (the fixed preset, the free keys, the target columns, the metric settings and the ``[observation]``
 block). So the same theta and the same generator state give the same numbers, bit for bit, inside a
@@ -38,7 +38,7 @@ import numpy as np
 from flocksweep.sweeps.seeds import generator
 
 from .config import CalibrationConfig, load_calibration
-from .run import seeded_fn, simulate_fn
+from .data_model import seeded_fn, simulate_fn
 from .simulator import summary_simulator as _bare_simulator
 
 __all__ = ["CalibrationSimulator", "summary_simulator"]

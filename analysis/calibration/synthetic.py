@@ -32,7 +32,7 @@ from flocksweep.sweeps.seeds import common_seeds
 
 from .config import CalibrationConfig, calibration_from_dict
 from .flock_check import flock_columns
-from .run import summary_simulator
+from .simulator import summary_simulator
 from .tracks_targets import tracks_block
 
 

@@ -41,7 +41,7 @@ likelihood's Gaussian has the replicate covariance plus diag(sd^2), as for typed
 an open world (differences and gap bridging need continuous tracks), a sampling interval that is a whole
 number of steps and fits the run, no ``run.record_interval`` beside it (the samples are the records),
 statistics an observer can measure (not ``visible_mean``, ``visible_sd``, ``binocular_share`` or the leadership
-statistics), and not the emulator (a sweep's runs were not measured through the block).
+statistics). Whether the method takes the block is the method's check (:mod:`analysis.calibration.methods`).
 """
 from __future__ import annotations
 
@@ -84,20 +84,23 @@ class TrackTargets(NamedTuple):
     measurement: Measurement
 
 
-def check_observation(observation: Observation, preset, run_table, stats, method_kind: str) -> None:
-    """ConfigError when the block does not fit the model or the file (see the module docstring)."""
-    check_projection(observation, preset.model.world.dimensions)
-    boundary = preset.model.world.boundary
-    if boundary != "open":
-        raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are differenced "
-                                         "and bridged over time, which needs the continuous tracks of an open world")
-    try:
-        observation.record_every(preset.run.dt)
-    except ConfigError as err:
-        raise ConfigError("observation.interval", err.detail) from None
-    if observation.interval > preset.run.duration:
-        raise ConfigError("observation.interval", f"got {observation.interval!r}; longer than the run "
-                                                  f"({preset.run.duration!r} s)")
+def check_observation(observation: Observation, preset, run_table, stats) -> None:
+    """ConfigError when the block does not fit the model or the file (see the module docstring); ``preset``
+    None: a command model (its tracks are put on the observation's grid whatever their own sampling)."""
+    if preset is not None:
+        check_projection(observation, preset.model.world.dimensions)
+        boundary = preset.model.world.boundary
+        if boundary != "open":
+            raise ConfigError("observation", f"the model's world.boundary is {boundary!r}; observed tracks are "
+                                             "differenced and bridged over time, which needs the continuous tracks "
+                                             "of an open world")
+        try:
+            observation.record_every(preset.run.dt)
+        except ConfigError as err:
+            raise ConfigError("observation.interval", err.detail) from None
+        if observation.interval > preset.run.duration:
+            raise ConfigError("observation.interval", f"got {observation.interval!r}; longer than the run "
+                                                      f"({preset.run.duration!r} s)")
     if run_table.record_interval is not None:
         raise ConfigError("run.record_interval", "with an [observation] block the records are its samples "
                                                  "(observation.interval); remove run.record_interval")
@@ -105,9 +108,6 @@ def check_observation(observation: Observation, preset, run_table, stats, method
     if hidden:
         raise ConfigError("targets.stats", f"{hidden[0]!r} cannot be measured by an observer; with an [observation] "
                                            "block use statistics of positions and velocities")
-    if method_kind == "emulator":
-        raise ConfigError("method.kind", "the emulator learns from a sweep's runs, which were not measured through "
-                                         "the [observation] block; use emcee or optimize")
 
 
 def fixed_group_radius(metrics: MetricSettings, preset, parameters) -> float:

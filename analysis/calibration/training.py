@@ -13,6 +13,8 @@ Contract
     * ``method.results``: folder missing, no ``runs.parquet`` / ``model.json``; the sweep's fixed
       settings differ from the calibration's (every resolved preset value that neither design varies
       is compared: model name, dynamics, run duration, dt, record interval, ``init.n``, steering, ...;
+      for an external command model its command, the SHA-256 of its files, its output and how it is read,
+      and the defaults of the parameters neither design varies;
       plus the warmup, an automatic group radius, the fragmentation threshold when a fragmentation
       column is a target, and ``dcd_max_delay`` when a directional correlation delay is); a swept
       factor that is not a free parameter has no run at the
@@ -26,6 +28,13 @@ Contract
     A free parameter's column is its key (the runs table holds every swept key's resolved value); a
     table without it may still hold the values under the axis' ``name`` (used when numeric).
     Points with a single usable replicate are dropped and recorded in ``TrainingSet.notes``.
+
+    With an ``[observation]`` block (targets from tracks) every kept run is measured anew through it
+    (:func:`observed_summaries`): its stored trajectory (the sweep must keep them, ``keep =
+    "trajectories"``, recorded at an interval dividing the observation's) seen by the observer (projection,
+    missed detections, position noise from the run's seed) and summarised with the calibration's metric
+    settings, exactly as the calibration's own runs are; the sweep's record interval and metric settings
+    then do not matter.
 
 ``group_replicates(points (N, d), summaries (N, k), names, columns, keys=None) -> TrainingSet``
     The same grouping for arrays (synthetic simulators, tests); raises ValueError.
@@ -192,7 +201,7 @@ def _load_sweep(path: Path):
         raise ConfigError("method.results", f"{path} has no runs.parquet: not a finished sweep results folder "
                                             "(run or resume the sweep with `flocksweep run`)")
     model = ResultsStore(path).model()
-    if not model.get("preset"):
+    if not model.get("preset") and not model.get("command"):
         raise ConfigError("method.results", f"{path} has no model.json: cannot check the sweep's fixed settings")
     try:
         results = load_results(path)
@@ -282,10 +291,37 @@ def _analysis_differences(config, model: dict) -> list[str]:
     return out
 
 
+def _command_differences(config, model: dict, neutral_keys) -> list[str]:
+    """What differs between the sweep's command model (model.json) and the calibration's: the command, its
+    files' contents, the output and how it is read, and the defaults of the parameters neither design
+    varies (a command sweep against a preset calibration, or the reverse, differs in everything)."""
+    if (config.command is None) != (model.get("command") is None):
+        mine = "a command model" if config.command is not None else "a model preset"
+        theirs = "a command model" if model.get("command") is not None else "a model preset"
+        return [f"model: the sweep ran {theirs}, the calibration has {mine}"]
+    out = []
+    identity = config.command.identity
+    for key in ("command", "files", "output", "tracks"):
+        if model.get(key) != identity.get(key):
+            out.append(f"model.{key}: sweep {model.get(key)!r}, calibration {identity.get(key)!r}")
+    theirs = {name: spec.get("default") for name, spec in model.get("parameters", {}).items()}
+    mine = config.command.values({})
+    for name in sorted(set(theirs) | set(mine)):
+        if name not in neutral_keys and not _same(theirs.get(name), mine.get(name)):
+            out.append(f"model.parameters.{name}: sweep default {theirs.get(name)!r}, calibration {mine.get(name)!r}")
+    return out
+
+
 def _check_fixed_settings(config, model: dict, path: Path) -> None:
     swept = [str(k) for k in model.get("swept_keys", [])]
-    differences = _preset_differences(config, model, sorted(set(swept) | set(config.keys)))
-    differences += _analysis_differences(config, model)
+    neutral = sorted(set(swept) | set(config.keys))
+    if config.command is not None or model.get("command") is not None:
+        differences = _command_differences(config, model, neutral)
+    else:   # with an [observation] block the runs are measured anew at its interval: their records do not matter
+        neutral += ["run.record_interval"] if config.observation is not None else []
+        differences = _preset_differences(config, model, neutral)
+    if config.observation is None:   # with one, the runs are measured anew with the calibration's settings
+        differences += _analysis_differences(config, model)
     if differences:
         raise ConfigError("method.results", f"the sweep in {path} was run with other fixed settings than this "
                                             f"calibration: {'; '.join(differences)}. Make the calibration's "
@@ -347,13 +383,19 @@ def _level_order(value):
 
 
 def _filter_fixed_factors(config, runs, model: dict):
-    """Keep the runs whose non-free swept keys equal the calibration preset's values."""
-    calibration_full = _resolved(config.preset_data)
+    """Keep the runs whose non-free swept keys equal the calibration preset's values (a command's
+    parameter defaults)."""
+    if config.command is not None:
+        calibration_full = config.command.values({})
+        get_dotted_value = (lambda data, key: data[key])
+    else:
+        calibration_full = _resolved(config.preset_data)
+        get_dotted_value = get_dotted
     fixed = {}
     for key in [str(k) for k in model.get("swept_keys", [])]:
         if key in config.keys or key not in runs.columns:
             continue
-        target = get_dotted(calibration_full, key)
+        target = get_dotted_value(calibration_full, key)
         keep = _matches(runs[key].tolist(), target)
         if not keep.any():
             levels = sorted(set(runs[key].tolist()), key=_level_order)
@@ -375,6 +417,55 @@ def _check_prior_overlap(config, training: TrainingSet) -> None:
                               f"[{low}, {high}] of {parameter.key}; the emulator cannot go outside it")
 
 
+def _trajectory_run(path: Path):
+    """A stored trajectory as the observation model reads a run: times, positions, velocities, patterns and
+    its record interval (one record per step of that length)."""
+    from types import SimpleNamespace
+
+    from flocksweep.sweeps.trajectory import read_trajectory
+
+    data = read_trajectory(path)
+    times = np.asarray(data["times"], dtype=float)
+    interval = float(times[1] - times[0]) if len(times) > 1 else 1.0
+    pattern = data["pattern"] if data["pattern"] is not None else np.zeros(data["pos"].shape[1], dtype=np.int64)
+    return SimpleNamespace(times=times, pos=data["pos"], vel=data["vel"], pattern=pattern, dt=interval,
+                           record_every=1)
+
+
+def observed_summaries(config, runs, columns, path: Path) -> np.ndarray:
+    """(N, k): every run of the sweep measured through the calibration's ``[observation]`` block, from its
+    stored trajectory (the sweep must keep them, every ``trajectory_every`` steps dividing the observation's
+    interval), the observation noise drawn from the run's seed as for a calibration's own runs; a run whose
+    statistics are not finite is a NaN row."""
+    from flocksweep.observables.observation import observe_run
+    from flocksweep.observables.summary import summarize_run
+
+    from .simulator import summary_simulator
+
+    folder = path / "trajectories"
+    if not folder.is_dir():
+        raise ConfigError("method.results", f"{path} kept no trajectories; the emulator measures the sweep's runs "
+                                            "through the [observation] block from them: run the sweep with "
+                                            '[run] keep = "trajectories" (trajectory_every dividing the '
+                                            "observation's interval)")
+    simulator = summary_simulator(config, n_sim=1)
+    out = np.full((len(runs), len(config.targets.columns)), np.nan)
+    for i, (run_id, seed, theta) in enumerate(zip(runs["run_id"], runs["seed"], runs[columns].to_numpy(dtype=float))):
+        trajectory = folder / f"{run_id}.npz"
+        if not trajectory.is_file():
+            raise ConfigError("method.results", f"{path}: run {run_id} has no trajectory file; the emulator needs "
+                                                "every run's trajectory to measure it through the [observation] block")
+        try:
+            flock = observe_run(_trajectory_run(trajectory), config.observation, int(seed))
+        except ValueError as err:
+            raise ConfigError("observation.interval", f"the sweep's trajectories cannot be seen through the "
+                                                      f"observation block: {err}") from None
+        settings = simulator.metrics.resolve(simulator.preset(theta).model)
+        row = summarize_run(flock, settings)
+        out[i] = [row.get(c, np.nan) for c in config.targets.columns]
+    return out
+
+
 def training_set(results_path, config) -> TrainingSet:
     """Per-point training statistics from a sweep results folder; see the module docstring."""
     path = Path(results_path if results_path is not None else config.method.results)
@@ -382,10 +473,14 @@ def training_set(results_path, config) -> TrainingSet:
     runs = results.ok
     columns = _free_columns(config, runs, model, results.sweep)
     _check_fixed_settings(config, model, path)
-    _check_stat_columns(config, runs, results.metrics)
+    if config.observation is None:
+        _check_stat_columns(config, runs, results.metrics)
     runs, fixed = _filter_fixed_factors(config, runs, model)
     points = runs[columns].to_numpy(dtype=float)
-    summaries = runs[list(config.targets.columns)].to_numpy(dtype=float)
+    if config.observation is not None:
+        summaries = observed_summaries(config, runs, columns, path)
+    else:
+        summaries = runs[list(config.targets.columns)].to_numpy(dtype=float)
     try:
         training = group_replicates(points, summaries, config.names, config.targets.columns, config.keys,
                                     fixed=fixed, source=path)

@@ -18,7 +18,7 @@ time in both:
 * ``predictive-<i>``: posterior predictive run i, the one whose draw is closest to the posterior median
   (``summary['median']``; distance in units of the draws' sd per parameter), re-simulated from its draw
   ``draws[i]`` and its seed (the seed key ``(config.seed, Tag.PREDICTIVE, i)`` of
-  :func:`analysis.calibration.run.predictive_runs`) and checked: its bare statistics (the flock
+  :func:`analysis.calibration.data_model.predictive_runs`) and checked: its bare statistics (the flock
   columns, and the targets when no noise is added to them) must equal row i of ``predictive``/``flock`` bit
   for bit (:func:`predictive_track` raises :class:`NotReproduced`; the page is then not written and the
   warning names the differing columns). It is shown as simulated (before the observation model's
@@ -53,10 +53,15 @@ class NotReproduced(RuntimeError):
 def posterior_median_page(config, summary, out_dir) -> Path:
     """The calibration's model at the posterior median (see the module docstring)."""
     theta = median_theta(config, summary)
-    simulator = SummarySimulator(config.preset_data, config.keys, config.targets.columns, 1, config.metrics.warmup)
-    preset = simulator.preset(theta)
     info = {"calibration": config.name, "seed": config.seed,
             **{f"median {name}": f"{value:.4g}" for name, value in zip(config.names, theta)}}
+    if config.command is not None:      # an external simulator: its tracks, as measured
+        flock, _ = summary_simulator(config, n_sim=1).run(theta, config.seed)
+        track = from_observed(flock, title=f"{config.name}: a run at the posterior median", info=info,
+                              group_radius=config.metrics.group_radius)
+        return build_runs_page([track], ["posterior-median"], color_by=COLOR_BY).save(Path(out_dir) / MEDIAN_PAGE)
+    simulator = SummarySimulator(config.preset_data, config.keys, config.targets.columns, 1, config.metrics.warmup)
+    preset = simulator.preset(theta)
     return preset_page(preset, config.seed, Path(out_dir) / MEDIAN_PAGE,
                        title=f"{config.name}: a run at the posterior median", info=info)
 
@@ -102,15 +107,19 @@ def predictive_track(config, theta, i: int, stored_row: np.ndarray):
                  if same and not (a == b or (np.isnan(a) and np.isnan(b)))]
     if differing:
         raise NotReproduced(f"predictive run {i} re-simulated differs in {', '.join(differing)}")
-    preset = simulator.preset(theta)
     values = {name: f"{value:.4g}" for name, value in zip(config.names, np.asarray(theta, dtype=float))}
     shift = config.metrics.warmup - config.targets.tracks_warmup
+    title = f"{config.name}: predictive run {i} (nearest the posterior median)"
     info = {"calibration": config.name, "predictive run": f"{i} (its draw nearest the posterior median)",
             "seed": seed, **values,
             "reproduced": f"bit for bit ({int(bare.sum())} statistics of the predictive check)",
-            "shown": "as simulated, before the observation model",
             "clock": f"the tracks' (t = 0 is the run's {shift:g} s: run.warmup {config.metrics.warmup:g} s less "
                      f"the tracks' warmup {config.targets.tracks_warmup:g} s)"}
-    track = from_observations(obs, preset, title=f"{config.name}: predictive run {i} (nearest the posterior median)",
-                              info=info, group_radius=config.metrics.group_radius)
+    if config.command is not None:   # an external simulator's run: its tracks as measured
+        track = from_observed(obs, title=title, info={**info, "shown": "as measured (the command's tracks)"},
+                              group_radius=config.metrics.group_radius)
+    else:
+        track = from_observations(obs, simulator.preset(theta), title=title,
+                                  info={**info, "shown": "as simulated, before the observation model"},
+                                  group_radius=config.metrics.group_radius)
     return track.since(shift, shift)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import importlib
 
-ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "targets", "posterior",
-         "compare", "sbc", "view", "measure")
+ORDER = ("simulate", "run", "status", "compile", "export", "report", "calibrate", "init", "targets",
+         "posterior", "compare", "sbc", "view", "measure")
 
 
 def load(name: str):

@@ -8,19 +8,22 @@ from flocksweep.simcore.schema import ConfigError
 from flocksweep.sweeps.failures import check_out, check_workers
 
 HELP = "fit model parameters to target flock statistics"
-DESCRIPTION = ("Fit the free parameters of a calibration TOML with its method (emcee BSL, optimize, emulator or npe;"
-               " --method picks another the file has settings for); writes the posterior or optimum, diagnostics, "
-               "figures and the cost.")
+DESCRIPTION = ("Fit the free parameters of a calibration TOML with its method (--method picks another the file has "
+               "settings for; the methods are listed under --method); writes the posterior or optimum, diagnostics, "
+               "figures, the verdicts and the cost.")
 
 
 def arguments(p) -> None:
+    from flocksweep.analysis.calibration.methods import kinds   # the registered methods (light: no engine)
+
     p.add_argument("config", help="calibration TOML, e.g. configs/calibration/recover_holland.toml")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key of the calibration file, e.g. --set method.steps=500 (a flat [method] "
                         "table) or --set method.emcee.steps=500 (a [method.emcee] table)")
-    p.add_argument("--method", metavar="emcee|optimize|emulator|npe",
-                   help="run this method with its [method.<name>] settings instead of the file's method.kind; "
-                        "its outputs go to results/calibration/<name>-<method> unless --out is given")
+    p.add_argument("--method", metavar="|".join(kinds()),
+                   help="run this method with its [method.<name>] settings instead of the file's method.kind "
+                        f"(registered: {', '.join(kinds())}); its outputs go to "
+                        "results/calibration/<name>-<method> unless --out is given")
     p.add_argument("--out", type=Path, help="output directory (default results/calibration/<name>)")
     p.add_argument("--resume", action="store_true", help="continue the stored chain up to method.steps (the same "
                                                          "command without it does too)")
@@ -37,7 +40,7 @@ def arguments(p) -> None:
 def handler(args) -> int:
     from flocksweep.analysis.calibration.accounting import lines as cost_lines
     from flocksweep.analysis.calibration.config import load_calibration
-    from flocksweep.analysis.calibration.run import resume_hint, run_calibration
+    from flocksweep.analysis.calibration.run import output_folder, resume_hint, run_calibration
     from flocksweep.sweeps.progress import next_steps
 
     check_workers(args.workers, args.executor)
@@ -46,8 +49,9 @@ def handler(args) -> int:
         raise ConfigError("--scheduler", "only used with --executor dask")
     config = load_calibration(args.config, args.overrides, args.method)
     command = f"{args.config} --method {args.method}" if args.method else args.config
-    args.on_interrupt = lambda: stop_early_hint(resume_hint, command, args.out or Path("results") / "calibration"
-                                                / config.folder_name, _steps_key(args.config, config.method.kind))
+    args.on_interrupt = lambda: stop_early_hint(lambda c, out: resume_hint(c, out, config), command,
+                                                output_folder(config, args.out),
+                                                _steps_key(args.config, config.method.kind))
     result = run_calibration(config, args.out, resume=args.resume, progress=not args.no_progress,
                              executor=args.executor, workers=args.workers, scheduler=args.scheduler,
                              yes=args.yes)
@@ -57,7 +61,7 @@ def handler(args) -> int:
         se = float("nan") if opt["recheck_se"] is None else opt["recheck_se"]   # null: one batch
         print(f"  objective {opt['objective_common_seeds']:.4g} with the search's common seeds, "
               f"{opt['objective_recheck']:.4g} +- {se:.2g} re-checked with fresh seeds")
-    else:
+    elif result.summary is not None:
         print(result.summary.round(4).to_string())
     for message in result.verdicts(config):   # convergence, warnings, confirmation (failed too), truth
         print(f"  {message}")
