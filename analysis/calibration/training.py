@@ -301,10 +301,11 @@ def _command_differences(config, model: dict, neutral_keys) -> list[str]:
         return [f"model: the sweep ran {theirs}, the calibration has {mine}"]
     out = []
     identity = config.command.identity
+    record = model["command"]          # model.json: {"command": the command's record, "swept_keys": ...}
     for key in ("command", "files", "output", "tracks"):
-        if model.get(key) != identity.get(key):
-            out.append(f"model.{key}: sweep {model.get(key)!r}, calibration {identity.get(key)!r}")
-    theirs = {name: spec.get("default") for name, spec in model.get("parameters", {}).items()}
+        if record.get(key) != identity.get(key):
+            out.append(f"model.{key}: sweep {record.get(key)!r}, calibration {identity.get(key)!r}")
+    theirs = {name: spec.get("default") for name, spec in record.get("parameters", {}).items()}
     mine = config.command.values({})
     for name in sorted(set(theirs) | set(mine)):
         if name not in neutral_keys and not _same(theirs.get(name), mine.get(name)):

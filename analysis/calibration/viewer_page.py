@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from flocksweep.analysis.viewer.hooks import preset_page
-from flocksweep.analysis.viewer.page import build_runs_page
+from flocksweep.analysis.viewer.page import build_page, build_runs_page
 from flocksweep.analysis.viewer.track import from_observations, from_observed
 from flocksweep.sweeps.seeds import Tag, generator, seeds_for
 
@@ -59,7 +59,7 @@ def posterior_median_page(config, summary, out_dir) -> Path:
         flock, _ = summary_simulator(config, n_sim=1).run(theta, config.seed)
         track = from_observed(flock, title=f"{config.name}: a run at the posterior median", info=info,
                               group_radius=config.metrics.group_radius)
-        return build_runs_page([track], ["posterior-median"], color_by=COLOR_BY).save(Path(out_dir) / MEDIAN_PAGE)
+        return build_page(track, color_by=COLOR_BY).save(Path(out_dir) / MEDIAN_PAGE)
     simulator = SummarySimulator(config.preset_data, config.keys, config.targets.columns, 1, config.metrics.warmup)
     preset = simulator.preset(theta)
     return preset_page(preset, config.seed, Path(out_dir) / MEDIAN_PAGE,
