@@ -109,11 +109,26 @@ def cluster_settings(table) -> ClusterSettings | None:
 
 
 def _jobqueue_class(kind: str):
+    return getattr(_import_jobqueue(), KINDS[kind])
+
+
+def _import_jobqueue():
+    """dask_jobqueue, imported without its side effect: importing it replaces the process's SIGINT handler
+    (its runner module makes Ctrl-C a bare ``sys.exit()``), which would take Ctrl-C away from the command's
+    own handling (docs/errors.md); the handler in place before is put back."""
+    import signal
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.getsignal(signal.SIGINT) if main else None
     try:
         import dask_jobqueue
     except ImportError:
         raise ConfigError("--executor", INSTALL) from None
-    return getattr(dask_jobqueue, KINDS[kind])
+    finally:
+        if main and before is not None and signal.getsignal(signal.SIGINT) is not before:
+            signal.signal(signal.SIGINT, before)
+    return dask_jobqueue
 
 
 def _arguments(settings: ClusterSettings) -> dict:

@@ -291,8 +291,7 @@ def test_a_projection_that_drops_the_plane_a_2d_world_moves_in_is_refused():
     assert preset.model.world.dimensions == 2
     with pytest.raises(ConfigError, match=r"observation.projection: got 'xz', which drops y; the model's 2-D world "
                                           r"moves in the x-y plane"):
-        check_observation(Observation(interval=preset.run.dt, projection="xz"), preset, RunTable(), ["polarization"],
-                          "emcee")
+        check_observation(Observation(interval=preset.run.dt, projection="xz"), preset, RunTable(), ["polarization"])
     check_projection(Observation(interval=0.1, projection="xy"), 2)
     check_projection(Observation(interval=0.1, projection="xz"), 3)           # a 3-D flock seen from above
     run = planar_run()

@@ -209,3 +209,15 @@ def test_a_sweep_on_a_scheduler_and_workers_started_from_the_dask_command_line(t
         for process in reversed(started):
             os.killpg(process.pid, signal.SIGTERM)
             process.wait(timeout=60)
+
+
+def test_loading_dask_jobqueue_keeps_the_processs_ctrl_c():
+    """dask_jobqueue's runner module sets SIGINT to a bare sys.exit() on import; ours is put back."""
+    import signal
+
+    pytest.importorskip("dask_jobqueue")
+    from flocksweep.sweeps.cluster import _jobqueue_class
+
+    before = signal.getsignal(signal.SIGINT)
+    _jobqueue_class("slurm")
+    assert signal.getsignal(signal.SIGINT) is before
