@@ -189,6 +189,7 @@ print("done", flush=True)
 """
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_simcore_compile_notice_ticks_on_a_terminal_with_its_estimate():
     child, master = on_a_terminal(NOTICE)
     seen = read_until(master, r"\rsimcore: compiling run_model: \d+ s so far \(usually about 1 min")

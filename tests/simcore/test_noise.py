@@ -60,6 +60,7 @@ def unit(rng, n):
 
 # --- the draws and the drive against the numpy twin ------------------------------------------------------
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_draws_are_the_twins_counter_based_values():
     row = _draws(np.uint64(KEY), 17, 40)
     assert np.all(row[:, 0] == 0.0)

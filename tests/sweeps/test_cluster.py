@@ -147,6 +147,7 @@ def test_without_a_cluster_table_the_cluster_executor_is_refused_naming_the_fix(
     assert "cluster.jobs x cluster.processes" in capsys.readouterr().err
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_dry_run_prints_the_job_script_and_submits_nothing(tmp_path, capsys, monkeypatch):
     bin_dir = fake_scheduler(tmp_path, "slurm")
     monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ['PATH']}")

@@ -192,6 +192,7 @@ def dead_pid() -> int:
     return proc.pid
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_lock_kept_by_processes_a_dead_runner_left_behind_is_recognised(tmp_path, monkeypatch):
     monkeypatch.setattr(lock, "SETTLE", 0.1)
     monkeypatch.setattr(lock, "ORPHAN_GRACE", 1.0)

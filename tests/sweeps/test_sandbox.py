@@ -40,6 +40,7 @@ def test_values_and_exceptions_come_back_and_the_child_is_reused():
     assert gone(first)
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_crash_is_task_crashed_and_the_next_task_gets_a_new_child():
     with Sandbox() as box:
         first = box.call(os.getpid)
@@ -49,6 +50,7 @@ def test_a_crash_is_task_crashed_and_the_next_task_gets_a_new_child():
         assert box.call(os.getpid) not in (first, None)
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_task_over_its_time_is_killed():
     with Sandbox() as box:
         pid = box.call(os.getpid)

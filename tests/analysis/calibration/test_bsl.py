@@ -146,6 +146,7 @@ def test_nan_rows_dropped_or_minus_inf():
     assert np.all(np.isfinite(res.log_prob[-1]))
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_progress_callback_and_validation():
     seen = []
     run(steps=20, progress=lambda s, a, tau: seen.append((s, a, tau)), progress_every=5)
@@ -220,6 +221,7 @@ def test_until_converged_stops_at_the_first_check_where_the_verdicts_hold_and_is
         gaussian_chain(50, until_converged=True, check_every=1)
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_bsl_passes_the_stopping_rule_to_the_driver():
     # tau cannot be judged on 8 rows: the rule never holds, the cap stands; check_every is validated
     assert run(steps=8, seed=8, until_converged=True, check_every=4).chain.shape[0] == 8

@@ -66,6 +66,7 @@ def test_a_command_model_is_validated_like_a_preset(tmp_path):
         calibration_from_dict(preset_key, ROOT)
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_command_run_is_seen_through_the_observation_block_and_repeats_with_its_seed():
     config = calibration_from_dict(command_calibration(METHODS["emcee"]), ROOT)
     simulator = summary_simulator(config, n_sim=2)

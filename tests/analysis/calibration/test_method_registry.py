@@ -84,6 +84,7 @@ def test_the_builtins_are_registered_and_nothing_else_names_a_method():
     assert found == []
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_a_registered_method_runs_end_to_end_with_the_common_outputs(toy, tmp_path):
     config = calibration_from_dict(calibration(), ROOT)
     assert config.method.kind == "toy" and config.method.draws == 200

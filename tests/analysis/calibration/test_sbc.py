@@ -100,6 +100,7 @@ def test_results_do_not_depend_on_the_processing_order(tmp_path):
         sbc.run_sbc(toy(), datasets=5, draws=9, out_dir=tmp_path / "c", progress=False, order=[0, 1])
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_other_settings_or_no_resume_are_refused(tmp_path):
     sbc.run_sbc(toy(), datasets=2, draws=9, out_dir=tmp_path, progress=False)
     with pytest.raises(ValueError, match="seed"):
@@ -157,6 +158,7 @@ def test_worker_processes_give_the_same_results(tmp_path):
     assert records(tmp_path / "one") == records(tmp_path / "two")
 
 
+@pytest.mark.slow   # over a second of CPU: out of the quick loop, still in CI
 def test_shipped_config_data_model_matches_the_likelihood_and_runs(tmp_path):
     from flocksweep.analysis.calibration.run import simulate_fn
     from flocksweep.analysis.calibration.simulator import SummarySimulator
