@@ -218,7 +218,7 @@ def _same(a, b) -> bool:
     return math.isclose(a, b, rel_tol=TANK_TOLERANCE)
 
 
-def _same_tank(model_tank, tracks_tank, dims: int) -> bool:
+def same_tank(model_tank, tracks_tank, dims: int) -> bool:
     """Whether the model's tank has the geometry the tracks see (their ``dims``; the centre aside)."""
     if model_tank.kind != tracks_tank.kind:
         return False
@@ -243,7 +243,7 @@ def shared_tank(preset, preset_data: dict, table: TrackTable, observation: Obser
                                                     "x-y plane and the model's tank stands along z, so its runs are "
                                                     'seen along z: use projection = "xy"')
     if preset.model.arena.enabled:
-        if not _same_tank(preset.model.arena, tank, dims):
+        if not same_tank(preset.model.arena, tank, dims):
             raise ConfigError("arena", f"the model's tank ({describe_tank(preset.model.arena, dims)} body lengths) is "
                                        f"not {said}: give the preset that geometry (its centre may differ), or leave "
                                        "its [arena] out and the calibration takes the tracks' tank")

@@ -129,3 +129,24 @@ def test_what_would_break_the_shared_tank_is_refused_by_key(tmp_path):
 def test_tracks_without_a_tank_leave_the_model_in_the_open(tmp_path):
     config = calibration(tmp_path, sidecar_arena=None)
     assert not config.preset.model.arena.enabled and "arena" not in config.preset_data
+
+
+def test_flocksweep_init_writes_the_tracks_tank_into_the_calibration(tmp_path):
+    from flocksweep.analysis.calibration.starter import start_calibration
+    from paths import ROOT
+
+    calibration(tmp_path)                                   # writes tank.csv and the 2-D model.toml
+    started = start_calibration(tmp_path / "tank.csv", tmp_path / "model.toml", tmp_path / "fit.toml")
+    assert '"arena.kind" = "cylinder"' in started.text and '"arena.radius" = 10.0' in started.text
+    assert 'projection = "xy"' in started.text
+    config = load_calibration(started.path)
+    assert config.preset.model.arena.radius == pytest.approx(10.0) and config.preset.model.arena.kind == "cylinder"
+    # a 3-D model whose start ball (radius 20) does not fit: seen along the tank's axis, its start region shrunk
+    holland = start_calibration(tmp_path / "tank.csv", ROOT / "configs/models/holland.toml", tmp_path / "h.toml")
+    assert 'projection = "xy"' in holland.text and '"init.radius" = 5.0' in holland.text
+    assert load_calibration(holland.path).preset.model.arena.radius == pytest.approx(10.0)
+    # the preset's own tank of that geometry: nothing to set, a comment says so
+    (tmp_path / "walled.toml").write_text((tmp_path / "model.toml").read_text().replace(
+        "[run]", '[arena]\nkind = "cylinder"\nradius = 10.0\n\n[run]'))
+    walled = start_calibration(tmp_path / "tank.csv", tmp_path / "walled.toml", tmp_path / "w.toml")
+    assert "arena.kind" not in walled.text and "is the preset's own" in walled.text
