@@ -230,6 +230,7 @@ class Targets:
     flock_runs: Any = None              # from_tracks: every measured flock's row (all metrics), for the flock check
     flock_tracks: tuple = field(default=(), repr=False)   # from_tracks: the measured flocks (ObservedFlock), for the viewer
     tracks_warmup: float = 0.0          # from_tracks: seconds skipped at the start of each measured flock
+    tank: Any = None                    # from_tracks: the tank the tracks declare (simcore.arena.Arena, their coordinates)
 
     @property
     def k(self) -> int:
@@ -599,7 +600,8 @@ def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters,
                           samples_path=found.path if found.cov is None else None, tracks_path=found.path,
                           flocks=found.flocks, per_flock=_readonly(found.per_flock),
                           flock_runs=found.measurement.runs, flock_tracks=tuple(found.measurement.flocks),
-                          tracks_warmup=float(found.measurement.table.source.warmup))
+                          tracks_warmup=float(found.measurement.table.source.warmup),
+                          tank=found.measurement.table.source.tank())
     targets = dataclasses.replace(targets, flock=check_flock_table(table.targets.flock, targets.summary,
                                                                     targets.columns))
     return targets, metrics
