@@ -150,3 +150,13 @@ def test_flocksweep_init_writes_the_tracks_tank_into_the_calibration(tmp_path):
         "[run]", '[arena]\nkind = "cylinder"\nradius = 10.0\n\n[run]'))
     walled = start_calibration(tmp_path / "tank.csv", tmp_path / "walled.toml", tmp_path / "w.toml")
     assert "arena.kind" not in walled.text and "is the preset's own" in walled.text
+
+
+def test_compares_training_sweep_runs_in_the_tracks_tank(tmp_path):
+    from flocksweep.analysis.calibration.compare import training_sweep
+    from flocksweep.sweeps.design import base_preset
+
+    config = calibration(tmp_path)
+    sweep = training_sweep(config, np.array([[0.3], [0.6]]))
+    arena = base_preset(sweep).model.arena
+    assert arena.kind == "cylinder" and arena.radius == pytest.approx(10.0)
