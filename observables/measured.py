@@ -52,7 +52,7 @@ from .resample import MAX_GAP_INTERVALS, RECORDED, check_size, resample
 from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .trimming import drop_padding, parse_trim, trim_flock
-from .validation import BurstRule, Issue, TrackError, check_flock
+from .validation import BurstRule, Issue, TrackError, check_flock, check_tank
 
 def track_settings(group_radius: float, warmup: float = 0.0,
                    fragmentation_cohesion: float = FRAGMENTATION_COHESION,
@@ -159,6 +159,7 @@ def prepare_flocks(table: TrackTable, interval: float | None = None, max_gap: fl
     source = table.source
     trim = parse_trim(source.trim) if source.trim else None
     burst = BurstRule(source.burst_share, source.burst_frames, source.burst_jump)
+    tank = source.tank()
     prepared, errors = [], []
     for raw in raws:
         try:
@@ -185,6 +186,7 @@ def prepare_flocks(table: TrackTable, interval: float | None = None, max_gap: fl
                                 "consecutive samples would not be joined", flock=raw.name))
             continue
         raw, found = check_flock(raw, step, gap, source.max_speed, source.bad_speeds, table.unit_label, burst)
+        found = found + check_tank(raw, tank, table.unit_label)
         errors += [i for i in found if i.level == "error"]
         issues += [i for i in found if i.level != "error"]
         prepared.append(Prepared(raw, step, gap, clock, how))

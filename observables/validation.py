@@ -30,7 +30,13 @@ The checks on one flock (:func:`check_flock`), after reading (:mod:`.tracks`):
 * **gaps**: consecutive samples of an individual more than 1.5 sampling intervals apart. Gaps up to
   ``max_gap`` are bridged by linear interpolation when resampling (a note), longer ones stay missing (a
   warning); one issue of each kind per flock, counting them and naming the longest gap, its individual
-  and rows.
+  and rows;
+* **the tank** (tracks that declare their arena, :meth:`~observables.tracks.TrackSource.tank`): every
+  sample must lie inside the declared walls. A sample beyond a wall by more than ``TANK_TOLERANCE`` (5%)
+  of the tank's inner extent (its radius, or half its shortest side) is an error (a wrong centre, radius or
+  unit is far more likely than an animal outside its tank), naming the farthest sample and the rows; samples
+  outside by less (a centroid on the wall, tracker noise, a tank measured a little small) get a warning and
+  are used (:func:`check_tank`). 2-D tracks are checked in their plane.
 
 An issue's ``rule`` says which rule of its check fired; ``issues_table`` lists issues with empty text where
 an issue names no flock, individual or column. ``infer_interval(flock)`` is the sampling interval of tracks that do not state it, from their time stamps
@@ -56,6 +62,7 @@ BURST_FRAMES = 5.0        # ... within this many sampling intervals of it ...
 BURST_JUMP = 3.0          # ... each move faster than this many times their own recent speed
 RECENT_STEPS = 10         # an individual's recent speed: the median of its last this many steps
 LEVELS = ("error", "warning", "note")
+TANK_TOLERANCE = 0.05     # a sample beyond the declared tank's wall by more than this share of its inner extent
 
 
 @dataclass(frozen=True)
@@ -349,3 +356,46 @@ def check_flock(raw, interval: float, max_gap: float, max_speed: float | None = 
         return raw, issues
     raw, speed_issues = _speeds(raw, max_speed, bad_speeds, unit, interval, burst)
     return raw, speed_issues + _velocity_agreement(raw, unit) + _gaps(raw, interval, max_gap)
+
+
+def beyond_wall(tank, pos: np.ndarray, dims: int) -> np.ndarray:
+    """(S,) how far each position (S, 3) lies beyond the walls of ``tank`` (a
+    :class:`simcore.arena.Arena`; 0 or less: inside); ``dims`` 2: in the x-y plane only."""
+    offset = np.asarray(pos, dtype=np.float64) - np.asarray(tank.centre, dtype=np.float64)
+    if tank.kind == "cylinder":
+        out = np.hypot(offset[:, 0], offset[:, 1]) - tank.radius
+        if dims == 3 and tank.height is not None:
+            out = np.maximum(out, np.abs(offset[:, 2]) - tank.height / 2.0)
+        return out
+    half = np.asarray(tank.size, dtype=np.float64)[:dims] / 2.0
+    return (np.abs(offset[:, :dims]) - half).max(axis=1)
+
+
+def check_tank(raw, tank, unit: str = "length units") -> list[Issue]:
+    """The samples of ``raw`` outside the declared ``tank`` (see the module docstring): an error beyond the
+    tolerance, a warning within it; [] when every sample is inside (or there is no tank)."""
+    if tank is None or not len(raw.t):
+        return []
+    out = beyond_wall(tank, raw.pos, raw.dims)
+    margin = TANK_TOLERANCE * tank.inner_extent(raw.dims)
+    shape = (f"the declared {'circle' if raw.dims == 2 else 'cylinder'} of radius {tank.radius:.4g} {unit} about "
+             if tank.kind == "cylinder" else
+             f"the declared {'rectangle' if raw.dims == 2 else 'box'} of sides "
+             f"{' x '.join(f'{s:.4g}' for s in tank.size[:raw.dims])} {unit} about ")
+    shape += "(" + ", ".join(f"{c:.4g}" for c in tank.centre[:raw.dims]) + ")"
+    issues = []
+    for level, selected, said in (
+            ("error", out > margin, f"more than {margin:.4g} {unit} ({TANK_TOLERANCE:.0%} of its inner extent) beyond "
+                                    "its wall: check the arena's centre and size (in the file's length unit) and the "
+                                    "tracks' units"),
+            ("warning", (out > 0) & (out <= margin), f"within {margin:.4g} {unit} of its wall (the tolerance): "
+                                                    "used as they are")):
+        if not selected.any():
+            continue
+        worst = np.flatnonzero(selected)[np.argmax(out[selected])]
+        count = int(np.unique(raw.ind[selected]).size)
+        issues.append(Issue(level, "outside the tank", f"{int(selected.sum())} sample(s) of {count} individual(s) "
+                            f"outside {shape}, {said}; the farthest {out[worst]:.4g} {unit} outside, at t = "
+                            f"{raw.t[worst]:.6g} s", flock=raw.name, id=str(raw.ids[raw.ind[worst]]),
+                            rows=raw.source_rows(np.flatnonzero(selected))))
+    return issues

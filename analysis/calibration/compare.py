@@ -166,8 +166,8 @@ def simulate_model(comparison: Comparison, m: int, folder: Path, executor: str =
 
 def training_sweep(config, theta: np.ndarray):
     """A model's prior draws as a sweep (one zipped axis over the free parameters' keys, one replicate, the
-    model file's ``[model]``, ``[run]`` and seed; an integer key's values rounded, as the calibration's
-    simulator rounds them): content-addressed, resumable runs on the sweep machinery."""
+    model file's ``[model]`` (with the tank tracks declare, :func:`.tracks_targets.shared_tank`), ``[run]`` and
+    seed; an integer key's values rounded, as the calibration's simulator rounds them): content-addressed, resumable runs on the sweep machinery."""
     from flocksweep.sweeps.config import SweepConfig
 
     source = config.source
@@ -179,8 +179,12 @@ def training_sweep(config, theta: np.ndarray):
     values = rows if config.dim > 1 else [row[0] for row in rows]
     axis = {"keys": list(config.keys)} if config.dim > 1 else {"key": config.keys[0]}
     axis.update(name="prior_draw", values=values)
+    model_set = dict(source.get("model", {}).get("set", {}))
+    if config.targets.tank is not None:     # the tank the tracks declare, which the calibration put the model in
+        model_set.update({f"arena.{k}": v for k, v in (config.preset_data.get("arena") or {}).items()
+                          if f"arena.{k}" not in model_set})
     data = {"name": f"{config.name}-npe-training", "seed": int(config.seed), "replicates": 1,
-            "model": {"preset": str(config.preset_path), "set": dict(source.get("model", {}).get("set", {}))},
+            "model": {"preset": str(config.preset_path), "set": model_set},
             "run": dict(source.get("run", {})), "axes": [axis]}
     return SweepConfig.from_dict(data, config.preset_path.parent)
 

@@ -86,6 +86,10 @@ numeric parameters (its declared bounds must hold the prior's support), ``[run]`
 tracks measured (:mod:`analysis.calibration.command_simulator`); ``config.command`` holds it,
 ``config.preset`` is None.
 
+Tracks that declare their tank (``from_tracks`` with an ``arena``) put the model in it: a preset without an
+``[arena]`` gets the tracks' (in ``preset_data`` too, so every simulation has it), one with a tank of another
+geometry is refused naming both (:func:`analysis.calibration.tracks_targets.shared_tank`).
+
 The file is read by the schema engine (:mod:`simcore.schema`); ``[model]`` and ``[run]`` are the tables
 of sweep files (:class:`sweeps.config.ModelTable`, :class:`sweeps.config.RunTable`), applied to the
 preset the same way. ``[method]`` (:mod:`analysis.calibration.method_table`) becomes typed settings per kind (:mod:`analysis.calibration.settings`:
@@ -134,7 +138,8 @@ from .priors import JointPrior, Normal, prior_from_dict
 from .method_table import chosen_kind, method_settings
 from .methods import method_of
 from .settings import MethodSettings
-from .tracks_targets import check_observation, fixed_group_radius, tracks_targets
+from .tracks_targets import (check_observation, check_tank_parameters, fixed_group_radius, read_target_tracks,
+                             shared_tank, tracks_targets)
 from .transforms import Transforms, transforms_from
 
 RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES   # per-run: no _mean / _final
@@ -225,6 +230,7 @@ class Targets:
     flock_runs: Any = None              # from_tracks: every measured flock's row (all metrics), for the flock check
     flock_tracks: tuple = field(default=(), repr=False)   # from_tracks: the measured flocks (ObservedFlock), for the viewer
     tracks_warmup: float = 0.0          # from_tracks: seconds skipped at the start of each measured flock
+    tank: Any = None                    # from_tracks: the tank the tracks declare (simcore.arena.Arena, their coordinates)
 
     @property
     def k(self) -> int:
@@ -563,7 +569,7 @@ def _read_samples(path: Path, stats, columns) -> np.ndarray:
 
 # -------------------------------------------------------------------------------------------- public
 
-def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters, base: Path
+def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters, base: Path, tracks=None
                       ) -> tuple[Targets, MetricSettings]:
     """The targets and metric settings, with the [observation] block checked and from_tracks measured
     (``preset`` None: a command model, whose runs are measured as tracks)."""
@@ -588,13 +594,14 @@ def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters,
         columns = stat_columns(stats, table.targets.summary)
         if preset is not None:
             metrics = dataclasses.replace(metrics, group_radius=fixed_group_radius(metrics, preset, parameters))
-        found = tracks_targets(table.targets, table.observation, metrics, columns, base)
+        found = tracks_targets(table.targets, table.observation, metrics, columns, base, tracks)
         targets = Targets(summary=table.targets.summary, stats=stats, columns=columns,
                           observed=_readonly(found.observed), cov=None if found.cov is None else _readonly(found.cov),
                           samples_path=found.path if found.cov is None else None, tracks_path=found.path,
                           flocks=found.flocks, per_flock=_readonly(found.per_flock),
                           flock_runs=found.measurement.runs, flock_tracks=tuple(found.measurement.flocks),
-                          tracks_warmup=float(found.measurement.table.source.warmup))
+                          tracks_warmup=float(found.measurement.table.source.warmup),
+                          tank=found.measurement.table.source.tank())
     targets = dataclasses.replace(targets, flock=check_flock_table(table.targets.flock, targets.summary,
                                                                     targets.columns))
     return targets, metrics
@@ -611,9 +618,14 @@ def calibration_from_dict(data: dict, base: Path, method: str | None = None) -> 
     else:
         command = None
         preset_path, preset_data, preset = _model_and_run(table, base)
+    tracks = None
+    if table.targets.from_tracks is not None and preset is not None and table.observation is not None:
+        tracks = read_target_tracks(table.targets, base)     # read once: its tank is the model's (shared_tank)
+        preset, preset_data = shared_tank(preset, preset_data, tracks, table.observation)
     parameters, joint = _parameters(table, preset, command)
+    check_tank_parameters(parameters, tracks)
     chosen_kind(table.method, method)      # an unknown method is named before the targets are measured
-    targets, metrics = _observed_targets(table, preset, parameters, base)
+    targets, metrics = _observed_targets(table, preset, parameters, base, tracks)
     targets = dataclasses.replace(targets, truth=_truth(table.targets.truth, parameters))
     choice = method_settings(table.method, base, len(parameters), targets.k, method)
     if preset is not None:

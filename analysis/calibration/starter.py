@@ -23,6 +23,10 @@ which must be in body lengths (tracks in metres need ``body_length``), measures 
   (``xz``, the simulator's horizontal plane; ``xy`` for a planar model);
 * ``[parameters.*]``: the model's speed, interaction range and noise (and its separation weight where it
   has one) with priors sized from the measured speed and spacing (:data:`CANDIDATES`);
+* a tank the tracks declare (their ``arena``): the model's ``[model] set`` puts it in that tank (kind, radius or
+  size, height, centred on the origin where the flock starts, in the preset file's units; the start region made
+  to fit it), unless the preset's own tank has that geometry; 2-D tracks are then seen along the tank's axis
+  (``projection = "xy"``), as the calibration requires (:func:`analysis.calibration.tracks_targets.shared_tank`);
 * ``[targets]``: ``from_tracks`` (relative to ``out``), ``stats``, the reading keys;
 * ``[method]``: ``method`` (default npe: 1,500 training + 200 held-out simulations, an ensemble of 3).
 
@@ -193,6 +197,44 @@ def _toml_value(value) -> str:
     return repr(value)
 
 
+def _tank_settings(tank, preset, table, n: int, model_set: dict, name: str) -> list[str]:
+    """Put the model in the tank the tracks declare: its ``[model] set`` entries added to ``model_set`` (in the
+    preset file's units), and the comment lines that say so; [] without a tank."""
+    from .tracks_targets import same_tank, describe_tank
+
+    if tank is None:
+        return []
+    said = f"{describe_tank(tank, table.dims)} body lengths"
+    arena = preset.model.arena
+    if arena.enabled and same_tank(arena, tank, table.dims):
+        return [f"The tracks' tank ({said}, declared by {name}) is the preset's own: the simulated flock lives in it."]
+    scale = preset.units.body_length_m if preset.units.length == "m" else 1.0
+    why = (f"the tank {name} declares ({said}), centred where the flock starts"
+           + (f"; it replaces the preset's {describe_tank(arena, table.dims)}" if arena.enabled else ""))
+    model_set["arena.kind"] = (tank.kind, why)
+    if tank.kind == "cylinder":
+        model_set["arena.radius"] = (_sig(tank.radius * scale, 9), "the tank's radius")
+        if tank.height is not None:
+            model_set["arena.height"] = (_sig(tank.height * scale, 9), "the tank's height")
+    else:
+        model_set["arena.size"] = ([_sig(v * scale, 9) for v in tank.size], "the tank's sides")
+    if arena.enabled and any(arena.centre):
+        model_set["arena.centre"] = ([0.0, 0.0, 0.0], "the tank about the origin, where the flock starts")
+    dims = int(preset.model.world.dimensions)
+    init = preset.init
+    inner = tank.inner_extent(dims)
+    cube = math.sqrt(dims) if init.region == "cube" else 1.0
+    reach = (init.radius * (n / 100.0) ** (1.0 / dims) if init.scale_with_n else init.radius) * cube
+    if init.from_file is None and reach > inner:
+        model_set["init.radius"] = (_sig(0.5 * inner / cube * scale, 3), f"the preset's start region (reach {reach:.3g} "
+                                    f"BL) does not fit in the tank: half the tank's inner radius {inner:.3g} BL")
+        if init.scale_with_n:
+            model_set["init.scale_with_n"] = (False, "the start region as stated, inside the tank")
+    return ["The flock lives in the tank the tracks declare: the walls' strength and range (arena.wall_weight, "
+            f"arena.wall_range: {arena.wall_weight:g} and {arena.wall_range:g}) may be set here or fitted "
+            "as parameters."]
+
+
 def start_calibration(tracks, preset_path, out, reading: dict | None = None, stats=STATS, method: str = "npe",
                       name: str | None = None, force: bool = False) -> Starter:
     """Write a ready calibration file (module docstring)."""
@@ -228,7 +270,8 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     velocity = RECORDED if table.has_velocity else None
     scales = _scales(table, interval, velocity)
     planar = int(preset.model.world.dimensions) == 2
-    projection = "none" if table.dims == 3 else ("xy" if planar else "xz")
+    tank = table.source.tank()
+    projection = "none" if table.dims == 3 else ("xy" if planar or tank is not None else "xz")
     dt, changed_dt = _dt(interval, preset.run.dt)
     window = min(scales["duration"], WINDOW_S)
     n = max(2, int(round(scales["individuals"])))
@@ -246,6 +289,7 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     if preset.model.world.boundary != "open":
         model_set["world.boundary"] = ("open", f"the preset's world is {preset.model.world.boundary!r}; tracks "
                                                "are differenced over time, which needs an open world")
+    tank_said = _tank_settings(tank, preset, table, n, model_set, tracks.name)
     lines = [f"# A calibration of {preset.model.name} to the flock(s) in {tracks.name}, written by flocksweep init.",
              "# Measured from the tracks (median over flocks): "
              f"{scales['flocks']} flock(s), {scales['individuals']:.0f} individuals, {scales['duration']:.3g} s, "
@@ -263,6 +307,7 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
     if model_set:
         lines.append("set = { " + ", ".join(f'"{k}" = {_toml_value(v)}' for k, (v, _) in model_set.items()) + " }")
         lines += [f"#   {k}: {why}" for k, (_, why) in model_set.items()]
+    lines += [f"# {line}" for line in tank_said]
     start = full.get("init", {})
     lines += [f"# The simulated flock starts as the preset says: a ball of radius {start.get('radius', '?')} BL at "
               f"{start.get('speed', '?')} BL/s (the tracked flock's radius is {scales['gyration_radius']:.3g} BL, its "
@@ -287,7 +332,9 @@ def start_calibration(tracks, preset_path, out, reading: dict | None = None, sta
                "turns position noise into heading noise (docs/measured.md, pitfalls)"),
               f"detection_probability = {detection:g}    # the share of samples present within each track (its gaps)",
               "position_sd = 0.0     # the tracker's position error (BL): put yours here",
-              f'projection = "{projection}"' + ("    # the tracks are 2-D: the simulated flock is seen from above"
+              f'projection = "{projection}"' + (("    # the tracks are 2-D: the simulated flock is seen along the "
+                                                 "tank's axis (z)" if tank is not None else
+                                                 "    # the tracks are 2-D: the simulated flock is seen from above")
                                                 if projection != "none" else "    # the tracks are 3-D"),
               ""]
     for pname, key, prior, why in free:

@@ -42,10 +42,30 @@ an open world (differences and gap bridging need continuous tracks), a sampling 
 number of steps and fits the run, no ``run.record_interval`` beside it (the samples are the records),
 statistics an observer can measure (not ``visible_mean``, ``visible_sd``, ``binocular_share`` or the leadership
 statistics). Whether the method takes the block is the method's check (:mod:`analysis.calibration.methods`).
+
+**A tank the tracks declare** (their ``arena``, :meth:`observables.tracks.TrackSource.tank`, docs/measured.md) is the
+model's tank (:func:`shared_tank`, before the parameters are checked): the tracks are read once
+(:func:`read_target_tracks`), their tank converted to body lengths, and
+
+* a preset without an ``[arena]`` gets the tracks' (its kind, radius or size, height) centred on the origin, where
+  the simulated flock starts (statistics do not depend on where the tank sits; the preset's wall term, or the
+  arena defaults, are kept), written into the preset data every simulation is built from, so its runs start inside
+  (the start region is checked against it) and stay in it;
+* a preset with one must have the same geometry (kind; radius or the sides the tracks see; a 3-D cylinder's
+  height) within ``TANK_TOLERANCE`` (0.1%, relative): otherwise a ConfigError names both tanks; its centre may differ;
+* 2-D tracks see the tank in their x-y plane, and the model's cylinder stands along z: its runs must be seen
+  along z, ``projection = "xy"`` (refused otherwise);
+* the tank's geometry is no free parameter (a ``[parameters.*]`` key ``arena.radius`` etc. is refused); its wall
+  term (``arena.wall_weight``, ``arena.wall_range``) may be.
+
+Every sample of the tracks is checked to lie inside their tank when they are read (the ``outside the tank``
+check of :mod:`observables.validation`).
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -57,11 +77,14 @@ from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.measured import Measurement, measure_tracks, track_settings
 from flocksweep.observables.observation import Observation, check_projection
 from flocksweep.observables.summary import MetricSettings, default_group_radius, motion_settings
-from flocksweep.observables.tracks import TrackSource, load_tracks, track_source
+from flocksweep.observables.tracks import TrackSource, TrackTable, load_tracks, track_source
 from flocksweep.observables.validation import TrackError
+from flocksweep.simcore.params import preset_from_dict
 from flocksweep.simcore.schema import ConfigError, check_non_negative, get_dotted, resolve_path
 
 UNOBSERVABLE = PERCEPTION_SERIES + tuple(LEADERSHIP_METRIC_NAMES)
+TANK_TOLERANCE = 1e-3     # relative: a preset's tank and the tracks' are the same within this
+TANK_GEOMETRY = ("arena.kind", "arena.centre", "arena.radius", "arena.size", "arena.height")
 
 
 @dataclass(frozen=True)
@@ -156,7 +179,10 @@ def measurement_sd(targets, k: int) -> np.ndarray | None:
     return sd
 
 
-def _measure(path: Path, targets, observation: Observation, metrics: MetricSettings) -> Measurement:
+def read_target_tracks(targets, base: Path) -> TrackTable:
+    """The track file of ``[targets] from_tracks``, read with ``[targets.tracks]`` (and its sidecar); lengths
+    must be in body lengths, the model's units."""
+    path = resolve_path(targets.from_tracks, base, "targets.from_tracks", "track file")
     source = track_source(path, targets.tracks or {}, "targets.tracks", cls=TracksTable)
     try:
         table = load_tracks(path, source)
@@ -165,11 +191,94 @@ def _measure(path: Path, targets, observation: Observation, metrics: MetricSetti
     if table.unit_label != "BL":
         raise ConfigError("targets.tracks.body_length", f"{path.name} is in metres; give the body length (metres) "
                                                         "so that lengths are in body lengths, the model's units")
+    return table
+
+
+def _check_planes(table: TrackTable, observation: Observation) -> None:
+    name = table.path.name
     if table.dims == 2 and observation.projection == "none":
-        raise ConfigError("observation.projection", f"{path.name} holds 2-D tracks: project the simulated runs "
+        raise ConfigError("observation.projection", f"{name} holds 2-D tracks: project the simulated runs "
                                                     'too, e.g. projection = "xz" (the horizontal plane)')
     if table.dims == 3 and observation.projection != "none":
-        raise ConfigError("observation.projection", f"{path.name} holds 3-D tracks; a projection is for 2-D ones")
+        raise ConfigError("observation.projection", f"{name} holds 3-D tracks; a projection is for 2-D ones")
+
+
+def describe_tank(tank, dims: int = 3) -> str:
+    """'cylinder of radius 10 about (0, 0)' / 'box of sides 20 x 10 about (1, 2)' (body lengths)."""
+    about = "(" + ", ".join(f"{c:.6g}" for c in tank.centre[:dims]) + ")"
+    if tank.kind == "cylinder":
+        height = f", height {tank.height:.6g}" if dims == 3 and tank.height is not None else ""
+        return f"{'circle' if dims == 2 else 'cylinder'} of radius {tank.radius:.6g}{height} about {about}"
+    return f"{'rectangle' if dims == 2 else 'box'} of sides {' x '.join(f'{v:.6g}' for v in tank.size[:dims])} about {about}"
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(a, b, rel_tol=TANK_TOLERANCE)
+
+
+def same_tank(model_tank, tracks_tank, dims: int) -> bool:
+    """Whether the model's tank has the geometry the tracks see (their ``dims``; the centre aside)."""
+    if model_tank.kind != tracks_tank.kind:
+        return False
+    if model_tank.kind == "cylinder":
+        return _same(model_tank.radius, tracks_tank.radius) and (
+            dims == 2 or _same(model_tank.height, tracks_tank.height))
+    return all(_same(a, b) for a, b in zip(model_tank.size[:dims], tracks_tank.size[:dims]))
+
+
+def shared_tank(preset, preset_data: dict, table: TrackTable, observation: Observation) -> tuple:
+    """(preset, preset data) in the tank the tracks declare (see the module docstring); unchanged when they
+    declare none. ConfigError: a preset tank of another geometry, a projection other than "xy" for 2-D
+    tracks, a start region that does not fit the tracks' tank."""
+    tank = table.source.tank()
+    if tank is None:
+        return preset, preset_data
+    _check_planes(table, observation)
+    name, dims = table.path.name, table.dims
+    said = f"the tank {name} declares ({describe_tank(tank, dims)} body lengths)"
+    if dims == 2 and observation.projection != "xy":
+        raise ConfigError("observation.projection", f"got {observation.projection!r}; {said} lies in the tracks' "
+                                                    "x-y plane and the model's tank stands along z, so its runs are "
+                                                    'seen along z: use projection = "xy"')
+    if preset.model.arena.enabled:
+        if not same_tank(preset.model.arena, tank, dims):
+            raise ConfigError("arena", f"the model's tank ({describe_tank(preset.model.arena, dims)} body lengths) is "
+                                       f"not {said}: give the preset that geometry (its centre may differ), or leave "
+                                       "its [arena] out and the calibration takes the tracks' tank")
+        return preset, preset_data
+    scale = preset.units.body_length_m if preset.units.length == "m" else 1.0   # the preset file's length unit
+    geometry = {"kind": tank.kind, "centre": [0.0, 0.0, 0.0]}
+    if tank.kind == "cylinder":
+        geometry["radius"] = tank.radius * scale
+        if tank.height is not None:
+            geometry["height"] = tank.height * scale
+    else:
+        geometry["size"] = [side * scale for side in tank.size]
+    data = copy.deepcopy(preset_data)
+    data["arena"] = {**(data.get("arena") or {}), **geometry}
+    try:
+        placed = preset_from_dict(copy.deepcopy(data))
+    except ConfigError as err:
+        raise ConfigError(err.key, f"{err.detail} (the model is put in {said})") from None
+    return placed, data
+
+
+def check_tank_parameters(parameters, table: TrackTable | None) -> None:
+    """ConfigError for a free parameter that moves the tank the tracks declare (its wall term may be free)."""
+    if table is None or table.source.tank() is None:
+        return
+    for parameter in parameters:
+        if parameter.key in TANK_GEOMETRY:
+            raise ConfigError(f"parameters.{parameter.name}.key", f"{parameter.key} is fixed by the tank "
+                                                                 f"{table.path.name} declares; fit the wall term "
+                                                                 "(arena.wall_weight, arena.wall_range) instead")
+
+
+def _measure(table: TrackTable, targets, observation: Observation, metrics: MetricSettings) -> Measurement:
+    source = table.source
+    _check_planes(table, observation)
     settings = dataclasses.replace(track_settings(metrics.group_radius, source.warmup, metrics.fragmentation_cohesion,
                                                   metrics.dcd_max_delay), **motion_settings(metrics))
     try:
@@ -179,16 +288,18 @@ def _measure(path: Path, targets, observation: Observation, metrics: MetricSetti
 
 
 def tracks_targets(targets, observation: Observation | None, metrics: MetricSettings, columns,
-                   base: Path) -> TrackTargets:
+                   base: Path, table: TrackTable | None = None) -> TrackTargets:
     """The targets of ``[targets] from_tracks`` (see the module docstring); ``metrics``: the calibration's,
-    its group radius fixed (:func:`fixed_group_radius`)."""
+    its group radius fixed (:func:`fixed_group_radius`); ``table``: the tracks already read
+    (:func:`read_target_tracks`)."""
     path = resolve_path(targets.from_tracks, base, "targets.from_tracks", "track file")
     if observation is None:
         raise ConfigError("targets.from_tracks", "needs an [observation] block (at least interval = seconds between "
                                                  "samples) so that simulated runs are measured as the tracks were")
     _given_with_tracks(targets)
     measurement_sd(targets, len(columns))          # checked before the tracks are measured
-    measurement = _measure(path, targets, observation, metrics)
+    measurement = _measure(table if table is not None else read_target_tracks(targets, base), targets, observation,
+                           metrics)
     runs = measurement.runs
     failed = runs[runs["status"] != "ok"]
     if len(failed):

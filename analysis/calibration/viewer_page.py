@@ -87,7 +87,7 @@ def predictive_page(config, summary, draws, predictive, flock, out_dir) -> tuple
     i = nearest_draw(np.asarray(draws, dtype=float), median_theta(config, summary))
     data = from_observed(shown, title=f"{config.name}: measured flock {shown.name}",
                          info={"source": Path(targets.tracks_path).name, "flock": shown.name},   # no folder: a page is shared
-                         group_radius=config.metrics.group_radius)
+                         group_radius=config.metrics.group_radius, tank=targets.tank)
     try:
         run = predictive_track(config, draws[i], i, np.concatenate([predictive[i], flock[i]]))
     except NotReproduced as err:

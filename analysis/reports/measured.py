@@ -196,7 +196,8 @@ def reading_settings(source: TrackSource) -> dict:
             "body_length": source.body_length, "fps": source.fps, "body_length_px": source.body_length_px,
             "layout": dict(source.layout) if source.layout else None, "keep_padding": source.keep_padding,
             "trim": source.trim, "max_speed": source.max_speed, "bad_speeds": source.bad_speeds,
-            "burst_share": source.burst_share, "burst_frames": source.burst_frames, "burst_jump": source.burst_jump}
+            "burst_share": source.burst_share, "burst_frames": source.burst_frames, "burst_jump": source.burst_jump,
+            "arena": source.arena}
 
 
 def measure_folder(path, source: TrackSource, settings: MetricSettings, out_dir, interval: float | None = None,

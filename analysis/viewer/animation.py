@@ -13,7 +13,9 @@ each drawn from the nearest recorded frame of the track, so the file has exactly
 ``frame_count(track, fps, speed)`` frames of ``size`` pixels, 16 to ``MAX_SIDE`` (3840) a side (MP4 sizes
 must be even; another size is a ValueError). Colours (``boid``, ``pattern``, ``leader``, ``group``, ``speed``) follow the viewer page.
 The view follows the flock (the centroid of its largest group, at a fixed scale) in an open world and
-shows the whole world when it wraps. The file is written atomically. Without ``imageio-ffmpeg`` an MP4
+shows the whole world when it wraps. A tank (the scene's ``arena`` wireframe: a model's ``[arena]``, or the
+tank measured tracks declare) is drawn as its outline, a circle or rectangle from above, the edges of its
+cylinder or box in 3-D, and the view then holds the whole tank. The file is written atomically. Without ``imageio-ffmpeg`` an MP4
 raises :class:`AnimationUnavailable` naming the install command.
 
 :class:`Animation` (path, format, frames, fps, width, height) displays inline in Jupyter.
@@ -139,8 +141,43 @@ def is_flat(track: Track) -> bool:
     return track.world.get("dimensions") == 2 or not (np.any(track.pos[..., 2]) or np.any(track.vel[..., 2]))
 
 
+def tank_of(track: Track) -> dict | None:
+    """The track's tank: its scene's ``arena`` wireframe (a box or a cylinder, :func:`.track.arena_scene`)."""
+    return next((o for o in track.scene if o.get("label") == "arena" and o.get("type") in ("box", "cylinder")), None)
+
+
+def tank_outline(tank: dict, flat: bool, points: int = 96) -> list[np.ndarray]:
+    """The tank's edges as polylines (K, 3) in world coordinates: from above, its circle or rectangle in the
+    plane; in 3-D, a cylinder's two rims and four side lines, a box's twelve edges."""
+    if tank["type"] == "cylinder":
+        a, b = np.asarray(tank["a"], dtype=float), np.asarray(tank["b"], dtype=float)
+        angle = np.linspace(0.0, 2.0 * np.pi, points + 1)
+        ring = np.stack([tank["radius"] * np.cos(angle), tank["radius"] * np.sin(angle), np.zeros_like(angle)], -1)
+        if flat:
+            return [ring + [a[0], a[1], 0.0]]
+        sides = [np.array([a, b]) + [tank["radius"] * np.cos(t), tank["radius"] * np.sin(t), 0.0]
+                 for t in np.arange(4) * np.pi / 2]
+        return [ring + a, ring + b] + sides
+    centre, half = np.asarray(tank["center"], dtype=float), np.asarray(tank["size"], dtype=float) / 2.0
+    if flat:
+        corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [-1, -1]], dtype=float) * half[:2] + centre[:2]
+        return [np.column_stack([corners, np.zeros(5)])]
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    corners = centre + signs * half
+    return [corners[[i, j]] for i in range(8) for j in range(i + 1, 8) if np.abs(signs[i] - signs[j]).sum() == 2]
+
+
 def _view_box(track: Track, labels: np.ndarray) -> tuple[np.ndarray, float]:
     """Per shown frame the centre of the view, and one half-width for all frames."""
+    tank = tank_of(track)
+    if tank is not None and track.wrap_jump is None:     # the whole tank, and the flock in it
+        edges = np.concatenate(tank_outline(tank, is_flat(track)))
+        low, high = edges.min(axis=0), edges.max(axis=0)
+        if is_flat(track):
+            low[2] = high[2] = 0.0
+        centre = (low + high) / 2.0
+        spread = np.nanmax(np.abs(track.pos - centre)) if np.isfinite(track.pos).any() else 0.0
+        return np.tile(centre, (track.frames, 1)), max(float((high - low).max()) / 2.0, float(spread)) * 1.05
     if track.wrap_jump is not None:
         half = track.world.get("sphere_radius", track.world.get("box_size", 0) / 2)
         return np.zeros((track.frames, 3)), float(half) * 1.05
@@ -207,6 +244,13 @@ class _Drawing:
             axis.set_major_locator(matplotlib.ticker.MaxNLocator(3))
         self.trails = collection([], linewidths=0.6, alpha=0.45)
         self._add(self.trails)
+        tank = tank_of(track)
+        if tank is not None:   # drawn once: the walls do not move
+            edges = tank_outline(tank, self.flat)
+            walls = collection([e[:, :2] if self.flat else e[:, [0, 2, 1]] for e in edges], linewidths=1.2,
+                               colors="0.35")
+            walls.set_gid("tank")
+            self._add(walls)
         self.quiver = None
         self.agents = check_agents(track.agents, track.frames)
         self.agent_trails, self.agent_marks = [], []

@@ -261,8 +261,11 @@ def _track_pages(args, kind: str, phases) -> tuple[list, list, Path]:
         raise ConfigError("--animate", f"animates one flock; {path.name} holds {len(flocks)} ({', '.join(names[:6])}"
                                        f"{' ...' if len(names) > 6 else ''}): name one with --flock")
     info = {"source": path.name, "format": table.source.format, "lengths in": table.unit_label}
+    tank = table.source.tank()      # the tank the tracks declare, drawn around them
+    if tank is not None:
+        info["tank"] = "declared by the tracks, drawn as a wireframe"
     tracks = [from_observed(f, title=f"{path.name}: flock {f.name}", info={**info, "flock": str(f.name)},
-                            group_radius=radius) for f in flocks]
+                            group_radius=radius, tank=tank) for f in flocks]
     name = slug(flocks[0].name) if len(flocks) == 1 else "flocks"
     default = folder / f"{name}.html" if kind == "measured" else folder.parent / f"{folder.name}-{name}.html"
     return tracks, [str(f.name) for f in flocks], default

@@ -276,13 +276,15 @@ def from_arrays(times, pos, vel=None, pattern=None, leader=None, **meta) -> Trac
 
 
 def from_observed(flock, title: str | None = None, info: dict | None = None,
-                  group_radius: float | None = None) -> Track:
+                  group_radius: float | None = None, tank=None) -> Track:
     """A Track of an observed flock (:class:`observables.observed.ObservedFlock`: measured tracks, or a run
     seen through an observation model). The viewer draws a fixed flock, so every individual present at some
     record is drawn at every record: where it was not present, its position and velocity are interpolated
     linearly in time between its known records (held before its first and after its last); ``info`` says
     how many individuals are drawn and what share of their positions was filled in; 2-D tracks are marked
-    as a run in the plane (drawn from above). ValueError when nobody is ever present."""
+    as a run in the plane (drawn from above); ``tank`` (a :class:`simcore.arena.Arena`, the tank the tracks
+    declare, in their analysis unit) is drawn as the scene's wireframe (:func:`arena_scene`). ValueError when
+    nobody is ever present."""
     seen = flock.present.any(axis=0)
     if not seen.any():
         raise ValueError(f"flock {flock.name!r}: no individual is present at any record")
@@ -297,7 +299,8 @@ def from_observed(flock, title: str | None = None, info: dict | None = None,
     return Track(times=flock.times, pos=pos, vel=vel,
                  pattern=None if flock.pattern is None else np.asarray(flock.pattern)[seen],
                  title=title or f"flock {flock.name}", info={**(info or {}), **said},
-                 group_radius=None if group_radius is None else float(group_radius), world=world)
+                 group_radius=None if group_radius is None else float(group_radius), world=world,
+                 scene=() if tank is None else (arena_scene(tank, getattr(flock, "dims", 3), pos),))
 
 
 def _filled(times: np.ndarray, values: np.ndarray, present: np.ndarray) -> np.ndarray:

@@ -319,3 +319,23 @@ def test_measured_tracks_open_from_the_command_line_seen_from_above_with_a_menu_
     np.testing.assert_allclose(np.array(page.state("boidMatrix(0)"))[12:14], [10.0, 0.0], atol=0.05)
     assert page.errors == []
     page.page.close()
+
+
+@pytest.mark.slow
+def test_the_tank_tracks_declare_is_drawn_around_them(browser, tmp_path):
+    """flocksweep view of pixel tracks that declare a round tank: the page opens offline without errors and
+    draws the tank as a scene cylinder for each flock of the menu."""
+    from flocksweep.cli import main
+    from tank_tracks import write_tank_tracks
+
+    path = write_tank_tracks(tmp_path)
+    assert main(["view", str(path), "--out", str(tmp_path / "tank.html"), "--group-radius", "5", "--no-progress"]) == 0
+    page = browser.open(tmp_path / "tank.html")
+    assert page.errors == [] and page.blocked == []
+    assert page.state("sceneNames()").count("scene:cylinder") == 1
+    page.page.select_option("#run", "B")
+    page.page.wait_for_function("window.flockViewer && window.flockViewer.run === 'B'", timeout=60_000)
+    assert page.state("sceneNames()").count("scene:cylinder") == 1 and page.errors == []
+    ARTIFACTS.mkdir(exist_ok=True)
+    assert page.screenshot(ARTIFACTS / "viewer_tank_tracks.png").reshape(-1, 3).std(axis=0).mean() > 10
+    page.page.close()

@@ -125,3 +125,65 @@ def test_a_2d_models_world_is_drawn_from_above():
     drawing = _Drawing(track, "boid", np.array([0]), 1.0, (320, 240), 100, None, False, 1.0)
     assert is_flat(track) and drawing.ax.name == "rectilinear"
     drawing.close()
+
+
+def _page_data(html: str, run: str | None = None) -> dict:
+    tag = f'id="flock-data[-0-9]*" data-run="{run}"' if run else 'id="flock-data"'
+    return json.loads(re.search(tag + r'[^>]*>(.*?)</script>', html, re.S).group(1))
+
+
+def test_the_tank_the_tracks_declare_is_drawn_on_their_page_and_in_their_animation(tmp_path, capsys):
+    from tank_tracks import write_tank_tracks
+
+    path = write_tank_tracks(tmp_path)                     # pixels, a round tank of radius 10 BL about (16, 12)
+    out = tmp_path / "tank.html"
+    assert main(["view", str(path), "--out", str(out), "--group-radius", "5", "--no-progress"]) == 0
+    for run in ("A", "B"):
+        (tank,) = _page_data(out.read_text(), run)["scene"]
+        assert tank["type"] == "cylinder" and tank["wireframe"] and tank["label"] == "arena"
+        assert tank["radius"] == pytest.approx(10.0) and tank["a"][:2] == pytest.approx([16.0, 12.0])
+    folder = tmp_path / "measured"                         # a measure folder keeps the tank it was read with
+    assert main(["measure", str(path), "--group-radius", "5", "--out", str(folder), "--no-figures",
+                 "--no-progress"]) == 0
+    assert json.loads((folder / "measure.json").read_text())["reading"]["arena"]["radius"] == 200.0
+    assert main(["view", str(folder), "--flock", "A", "--no-progress"]) == 0
+    (tank,) = _page_data((folder / "viewer" / "A.html").read_text())["scene"]
+    assert tank["radius"] == pytest.approx(10.0)
+    capsys.readouterr()
+    from flocksweep.analysis.viewer.command import _track_pages
+    from argparse import Namespace
+    args = Namespace(source=str(path), reading={}, interval=None, max_gap=None, velocity_interval=None,
+                     group_radius=5.0, flock="A", animate=None)
+    (track,), _, _ = _track_pages(args, "tracks", None)
+    drawing = _Drawing(track, "boid", np.array([5]), 1.0, (320, 240), 100, None, False, 1.0)
+    try:
+        drawing.draw(0, 5)
+        (walls,) = [c for c in drawing.ax.collections if c.get_gid() == "tank"]
+        ring = walls.get_segments()[0]
+        assert np.hypot(ring[:, 0] - 16.0, ring[:, 1] - 12.0) == pytest.approx(np.full(len(ring), 10.0))
+        low, high = drawing.ax.get_xlim()                   # the view holds the whole tank
+        assert low <= 6.0 and high >= 26.0
+    finally:
+        drawing.close()
+
+
+def test_a_simulated_runs_page_and_animation_draw_its_models_tank(tmp_path):
+    from flocksweep.analysis.viewer.animation import tank_outline
+    from flocksweep.analysis.viewer.track import arena_scene
+    from flocksweep.simcore.arena import Arena
+
+    preset = tmp_path / "tank.toml"
+    preset.write_text('name = "walled"\ndynamics = "vicsek"\n[perception]\nkind = "sphere"\n[vicsek]\nradius = 3.0\n'
+                      'speed = 1.5\nnoise = 0.5\n[world]\ndimensions = 2\nboundary = "open"\n[init]\nn = 6\n'
+                      'radius = 3.0\nspeed = 1.5\n[arena]\nkind = "box"\nsize = [12.0, 8.0, 1.0]\n'
+                      '[run]\ndt = 0.1\nduration = 2.0\n')
+    out = tmp_path / "run.html"
+    assert main(["view", str(preset), "--out", str(out), "--no-progress"]) == 0
+    (tank,) = _page_data(out.read_text())["scene"]
+    assert tank["type"] == "box" and tank["size"][:2] == [12.0, 8.0] and tank["label"] == "arena"
+    (rectangle,) = tank_outline(tank, flat=True)
+    assert rectangle[:, :2].min(axis=0) == pytest.approx([-6.0, -4.0]) and rectangle[:, :2].max(axis=0) == pytest.approx([6.0, 4.0])
+    box = tank_outline(arena_scene(Arena(kind="box", size=(2.0, 4.0, 6.0)), 3), flat=False)
+    assert len(box) == 12 and all(np.count_nonzero(e[1] - e[0]) == 1 for e in box)   # 12 edges along the axes
+    cylinder = tank_outline(arena_scene(Arena(kind="cylinder", radius=2.0, height=4.0), 3), flat=False)
+    assert len(cylinder) == 6 and cylinder[0][:, 2] == pytest.approx(-2.0) and cylinder[1][:, 2] == pytest.approx(2.0)
