@@ -83,11 +83,16 @@ def test_statuses_are_named():
 
 def test_an_interrupt_while_waiting_ends_the_child():
     """Ctrl-C while a task runs: the caller gets its KeyboardInterrupt and the child is killed (here the
-    task itself sends the caller SIGINT, so the signal surely lands while the caller waits)."""
+    task itself sends the caller SIGINT, so the signal surely lands while the caller waits). Python's own
+    Ctrl-C handler is installed for the test, whatever an earlier test's library left behind."""
     import signal
 
-    with Sandbox() as box:
-        pid = box.call(os.getpid)
-        with pytest.raises(KeyboardInterrupt):
-            box.call(os.kill, os.getpid(), signal.SIGINT)
-        assert gone(pid) and box.pid is None
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with Sandbox() as box:
+            pid = box.call(os.getpid)
+            with pytest.raises(KeyboardInterrupt):
+                box.call(os.kill, os.getpid(), signal.SIGINT)
+            assert gone(pid) and box.pid is None
+    finally:
+        signal.signal(signal.SIGINT, before)
