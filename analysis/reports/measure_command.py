@@ -123,11 +123,11 @@ def run(args) -> int:
 
 
 def after_measure(tracks: Path, result: dict) -> list[str]:
-    """Look at the measurement, then fit a model to these tracks (a calibration file taking its targets
-    from them: configs/calibration/tracks_holland.toml is a template)."""
+    """Look at the measurement and the flocks, then start a fit to these tracks (``flocksweep init``
+    writes the calibration file)."""
     page = result["paths"].get("html") or result["paths"].get("md")
     steps = [f"open {page} in a browser (the flocks' metrics, figures and what the checks found)"] if page else []
-    return steps + [f"flocksweep targets CALIBRATION.toml --from-tracks {tracks}   (these flocks as calibration "
-                    f"targets; a template: configs/calibration/tracks_holland.toml)",
-                    "flocksweep calibrate CALIBRATION.toml   (with [targets] from_tracks = "
-                    f'"{tracks}": a model fitted to these flocks; docs/measured.md)']
+    return steps + [f"flocksweep view {tracks}   (the flocks in the 3-D viewer)",
+                    f"flocksweep init {tracks} --model configs/models/holland.toml --out fit.toml   (a "
+                    "calibration file from these tracks: targets, observation block, priors; then "
+                    "flocksweep calibrate fit.toml)"]

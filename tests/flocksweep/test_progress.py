@@ -143,7 +143,8 @@ def test_calibrate_sbc_and_measure_show_progress_in_a_terminal_and_are_quiet_wit
         for line in lines:
             assert re.search(line, err), (name, line, err)
         assert next_lines(out)[0].startswith(first_steps[name]), (name, out)       # what comes next
-    assert next_lines(out)[1].startswith("flocksweep targets CALIBRATION.toml --from-tracks t.csv")
+    assert next_lines(out)[1].startswith("flocksweep view t.csv")
+    assert next_lines(out)[2].startswith("flocksweep init t.csv --model configs/models/holland.toml --out fit.toml")
     for name, (argv, _) in expected.items():
         argv = [a.replace("o_", "quiet_") for a in argv] + ["--no-progress"]
         code, err, _ = in_pty(argv, tmp_path)
