@@ -115,12 +115,12 @@ def test_calibrate_sbc_and_measure_show_progress_in_a_terminal_and_are_quiet_wit
                    r"calibrate: \[2/3\] the posterior predictive check: \d+ simulations", r"predictive: 100%",
                    r"calibrate: \[3/3\] the report", r"calibrate: done in \d+ s"]),
         "optimize": (["calibrate", "optimize.toml", "--out", "o_optimize"],
-                     [r"calibrate: \[1/3\] searching \(differential_evolution\): up to 15 evaluations",
+                     [r"calibrate: \[1/4\] searching \(differential_evolution\): up to 15 evaluations",
                       r"search: 100%.*15/15 \[.*<00:00",                  # a known count: an ETA, to the end
-                      r"calibrate: \[2/3\] re-checked the optimum with 10 fresh simulations",
-                      r"calibrate: \[3/3\] the report"]),
+                      r"calibrate: \[2/4\] re-checked the optimum with 10 fresh simulations",
+                      r"calibrate: \[3/4\] the posterior predictive check", r"calibrate: \[4/4\] the report"]),
         "npe": (["calibrate", "npe.toml", "--out", "o_npe"],
-                [r"calibrate: \[1/5\] the training sweep: 40 simulations", r"training: 100%.*40/40",
+                [r"calibrate: \[1/5\] the training simulations: 40 \(30 for training, 10 held out\)", r"training: 100%.*40/40",
                  r"calibrate: \[2/5\] training the flow on 30 simulations", r"\d+/5 \[",   # flowjax's epochs
                  r"calibrate: \[3/5\] the coverage check on 10 held-out", r"calibrate: \[4/5\] the posterior",
                  r"calibrate: \[5/5\] the report"]),
