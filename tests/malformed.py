@@ -868,6 +868,32 @@ TARGET_TABLES = [
 ]
 POSTERIOR_INPUTS = ESTIMATOR_FOLDERS + TARGET_TABLES
 
+COMPARE = """name = "cmp"
+seed = 1
+simulations = {simulations}
+heldout = {heldout}
+[models]
+a = "c.toml"
+b = "c.toml"
+[targets]
+stats = ["cohesion", "polarization"]
+mean = [0.9, 0.8]
+sd = [0.05, 0.05]
+"""
+COMPARISONS = [
+    Case("compare: simulations 10^12", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=10 ** 12, heldout=200)}, 2,
+         "simulations: got 1,000,000,000,000: 2 models x (1,000,000,000,000 + 200 held out) = 2,000,000,000,400 "
+         "simulations: their parameter vectors alone would need about"),
+    Case("compare: simulations 10^8 without --yes", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=10 ** 8, heldout=200)}, 2,
+         "(more than 20,000,000); that takes long: use fewer, or pass --yes to go ahead"),
+    Case("compare: heldout 10^12 with --yes", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress", "--yes"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=100, heldout=10 ** 12)}, 2,
+         "their parameter vectors alone would need about"),
+]
+CASES += COMPARISONS
+
 
 def _has_sbi() -> bool:
     import importlib.util
