@@ -55,8 +55,8 @@ MAX_JSON = 64 << 20          # an identity, flow record or verdict is a few kB; 
 NUMBER = (int, float)
 MEASUREMENT = {"interval": (*NUMBER, type(None)), "velocity_interval": (*NUMBER, str, type(None)),
                "max_gap": (*NUMBER, type(None)), "dims": (int, type(None)), "length_unit": str,
-               "group_radius": NUMBER, "fragmentation_cohesion": NUMBER, "dcd_max_delay": (*NUMBER, type(None)),
-               "warmup": NUMBER}   # what posterior reads of an identity's measurement
+               "group_radius": (*NUMBER, type(None)), "fragmentation_cohesion": (*NUMBER, type(None)),
+               "dcd_max_delay": (*NUMBER, type(None)), "warmup": (*NUMBER, type(None))}   # what posterior reads of an identity's measurement
 
 
 class DamagedEstimator(Unreadable):
