@@ -24,7 +24,8 @@ command had already finished when the signal was due is run again with the windo
 
 The section "contained faults" holds the cases of issue 42 (:data:`CONTAINED`, run by
 :func:`contained_trial`): plug-ins that crash, loop or return NaN, commands that flood stderr or leave
-children behind, a results folder whose manifest was deleted after an edit.
+children behind, a results folder whose manifest was deleted after an edit, a full disk while npe writes
+``posterior.nc`` (run through ``tests/full_disk.py``: a :class:`Contained` case's ``module``).
 """
 from __future__ import annotations
 
@@ -40,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from npe_tiny import CALIBRATION as NPE_TINY
 from paths import ROOT
 
 HOW = ("sigint", "sigterm", "sigkill", "worker", "tracker")
@@ -64,8 +66,8 @@ class Trial:
         return "Traceback" in self.stderr
 
 
-def command(argv) -> list[str]:
-    return [sys.executable, "-m", "flocksweep.cli", *map(str, argv)]
+def command(argv, module: str = "flocksweep.cli") -> list[str]:
+    return [sys.executable, "-m", module, *map(str, argv)]
 
 
 def environment() -> dict:
@@ -441,6 +443,9 @@ values = [90, 270]
 """
 
 
+COMMANDS = ("run", "status", "simulate", "calibrate")   # named in a case's problems
+
+
 @dataclass(frozen=True)
 class Contained:
     name: str
@@ -448,6 +453,7 @@ class Contained:
     steps: tuple               # ((argv, exit status, words in stdout + stderr), ...), run in order
     between: object = None     # called with the folder after the first step
     env: dict = field(default_factory=dict)
+    module: str = "flocksweep.cli"   # what runs the steps (full_disk: flocksweep with a full disk for one file)
 
 
 def _plugin_files(values: str, run: str = "", module: str = "faulty_plugin", key: str = "plugin.fault") -> dict:
@@ -505,6 +511,15 @@ CONTAINED = (
                (("status", "--verify", "out"), 0, "2 runs: 2 done, 0 failed, 0 missing")),
               between=_forge_and_delete_manifest),
 )
+# a full disk while npe writes posterior.nc (tests/full_disk.py: that one file's writes go to /dev/full): exit
+# 4 naming the file, no traceback, no SIGSEGV (HDF5 once wrote it itself and crashed at exit); the test
+# (tests/analysis/calibration/test_calibration_faults.py) also reads the accounting kept
+FULL_POSTERIOR = ("flocksweep.analysis.calibration.inference", "posterior.nc")
+CONTAINED += (
+    Contained("npe: a full disk while posterior.nc is written", {"c.toml": NPE_TINY},
+              ((FULL_POSTERIOR + ("calibrate", "c.toml", "--out", "out", "--no-progress"), 4,
+                "posterior.nc: No space left on device (ENOSPC, errno 28)"),), module="full_disk"),
+)
 CONTAINED_QUICK = ("plug-in: out-of-bounds write (SIGSEGV), 2 workers", "simulate: plug-in NaN force",
                    "command: 200 MiB on stderr", "command: a background child of a command that exits 0",
                    "results: a value edited, then manifest.json deleted")
@@ -532,14 +547,15 @@ sys.exit(code)
 """
 
 
-def _watched(argv, cwd: Path, env: dict, timeout: float = 900) -> tuple[int, str, float, float, set]:
+def _watched(argv, cwd: Path, env: dict, timeout: float = 900,
+             module: str = "flocksweep.cli") -> tuple[int, str, float, float, set]:
     """Run one command: (exit status, stdout + stderr, seconds, the peak memory in MB of the largest
     process it started, every descendant seen while it ran)."""
     out_path, peak_path = cwd / ".contained.out", cwd / ".contained.peak"
     seen: set[int] = set()
     started = time.monotonic()
     with open(out_path, "w") as out:
-        proc = subprocess.Popen([sys.executable, "-c", LAUNCHER, str(peak_path), *command(argv)], cwd=cwd,
+        proc = subprocess.Popen([sys.executable, "-c", LAUNCHER, str(peak_path), *command(argv, module)], cwd=cwd,
                                 stdout=out, stderr=subprocess.STDOUT, env={**environment(), **env},
                                 start_new_session=True)
         deadline = started + timeout
@@ -562,14 +578,14 @@ def contained_trial(case: Contained, folder: Path) -> ContainedResult:
         (folder / name).write_text(text)
     result = ContainedResult()
     for number, (argv, code, words) in enumerate(case.steps):
-        status, text, seconds, peak, seen = _watched(argv, folder, case.env)
+        status, text, seconds, peak, seen = _watched(argv, folder, case.env, module=case.module)
         result.seconds.append(seconds)
         result.peak_mb.append(peak)
         grace = time.monotonic() + 20
         while any(alive(p) for p in seen) and time.monotonic() < grace:
             time.sleep(0.2)
         result.orphans += sorted(p for p in seen if alive(p))
-        said = " ".join(argv[:1])
+        said = next((a for a in argv if a in COMMANDS), argv[0])
         if status != code:
             result.problems.append(f"{said}: exit status {status}, expected {code}: {text.strip()[-300:]}")
         if words not in text:

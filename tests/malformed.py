@@ -26,6 +26,7 @@ class Case:
     may_write: str = ""   # a folder the refusal may write its report into (measure's validation.csv)
     links: dict = field(default_factory=dict)   # symbolic links made in the folder: name -> target
     specials: dict = field(default_factory=dict)  # special files made in the folder: name -> "fifo" or "socket"
+    prepare: object = None   # called with the folder after the files are written (an estimator folder made)
 
 
 SWEEP = """name = "tiny"
@@ -734,6 +735,174 @@ RUNS_AND_PLUGINS = [
 ]
 CASES += RUNS_AND_PLUGINS
 
+
+# -- flocksweep posterior: damaged estimator folders and bad targets (issue 42) -------------------------
+# The estimator folder est/ is made by tests/npe_tiny.py fake_estimator (an untrained flow, sealed as
+# calibrate seals one), then damaged; "resealed": its manifest written again over the damage, as a buggy
+# or foreign writer would, so that the reader's own checks of each file's content are what refuses it.
+POSTERIOR = ("posterior", "{d}/est", "--targets", "{d}/flocks.csv")
+FLOCKS = "flock,visible_mean,binocular_share\nF1,3.0,0.2\nF2,3.5,0.25\n"
+
+
+def _estimator(*damages, reseal: bool = False):
+    def prepare(folder):
+        from npe_tiny import fake_estimator
+        from flocksweep.analysis.calibration.estimator_folder import seal
+        where = fake_estimator(folder / "est")
+        for damage in damages:
+            damage(where)
+        if reseal:
+            (where / "manifest.json").unlink()
+            seal(where)
+    return prepare
+
+
+def _edit(name: str, change):
+    def damage(where):
+        path = where / name
+        path.write_bytes(change(path.read_bytes()))
+    return damage
+
+
+def _json_edit(name: str, change):
+    import json
+    return _edit(name, lambda raw: json.dumps(change(json.loads(raw))).encode())
+
+
+def _remove(name: str):
+    return lambda where: (where / name).unlink()
+
+
+def _wider_weights(where):
+    from npe_tiny import fake_estimator
+    other = fake_estimator(where.parent / "other", width=12)
+    (where / "flow.eqx").write_bytes((other / "flow.eqx").read_bytes())
+    for path in sorted(other.rglob("*"), reverse=True):
+        path.unlink() if path.is_file() else path.rmdir()
+    other.rmdir()
+
+
+def posterior_case(name, expect, *damages, reseal=False, files=None, argv=POSTERIOR, specials=None, est=True):
+    return Case(f"posterior: {name}", argv, {"flocks.csv": FLOCKS} if files is None else files, 2, expect,
+                specials=specials or {}, prepare=_estimator(*damages, reseal=reseal) if est else None)
+
+
+ESTIMATOR_FOLDERS = [
+    posterior_case("estimator folder missing", "est does not exist; expected the estimator/ folder", est=False),
+    posterior_case("estimator written before estimators were sealed (no manifest.json)",
+                   "est/manifest.json is missing: the estimator's files cannot be verified", _remove("manifest.json")),
+    posterior_case("a member missing (flow.eqx deleted)",
+                   "est/flow.eqx is missing (the estimator's manifest.json records it); train it again: "
+                   "flocksweep calibrate c.toml", _remove("flow.eqx")),
+    posterior_case("a member truncated", "est/flow.eqx changed since it was written",
+                   _edit("flow.eqx", lambda raw: raw[:len(raw) // 2])),
+    posterior_case("a member garbage", "est/flow.json changed since it was written", _edit("flow.json", lambda raw: b"\x00garbage")),
+    posterior_case("identity.json edited", "est/identity.json changed since it was written",
+                   _json_edit("identity.json", lambda d: {**d, "bounds": [[0, 360]]})),
+    posterior_case("a file dropped into the folder", "est/member9/flow.eqx cannot be verified",
+                   lambda where: (where / "member9").mkdir() or (where / "member9" / "flow.eqx").write_bytes(b"x")),
+    posterior_case("manifest.json edited", "est/manifest.json changed since it was written",
+                   _edit("manifest.json", lambda raw: raw.replace(b'"c.toml"', b'"d.toml"'))),
+    posterior_case("identity.json not JSON (resealed)", "est/identity.json: not valid JSON",
+                   _edit("identity.json", lambda raw: raw[:-5]), reseal=True),
+    posterior_case("identity.json a list (resealed)", "est/identity.json: a JSON list, not an object",
+                   _edit("identity.json", lambda raw: b"[1, 2]"), reseal=True),
+    posterior_case("identity.json columns a number (resealed)", "est/identity.json: columns: got 3",
+                   _json_edit("identity.json", lambda d: {**d, "columns": 3}), reseal=True),
+    posterior_case("identity.json bounds reversed (resealed)", "est/identity.json: bounds: got [[300, 60]]",
+                   _json_edit("identity.json", lambda d: {**d, "bounds": [[300, 60]]}), reseal=True),
+    posterior_case("identity.json parameters of strings (resealed)", "est/identity.json: parameters: got 'field'",
+                   _json_edit("identity.json", lambda d: {**d, "parameters": "field"}), reseal=True),
+    posterior_case("identity.json without the measurement's interval (resealed)",
+                   "est/identity.json: measurement: no interval",
+                   _json_edit("identity.json", lambda d: {**d, "measurement": {k: v for k, v in d["measurement"].items()
+                                                                                if k != "interval"}}), reseal=True),
+    posterior_case("identity.json naming 3 statistics for a flow of 2 (resealed)",
+                   "its flow has 1 parameters and 2 statistics, its identity.json 1 and 3",
+                   _json_edit("identity.json", lambda d: {**d, "columns": ["visible_mean", "binocular_share", "flock"]}),
+                   reseal=True, files={"flocks.csv": "flock,visible_mean,binocular_share\n1,3.0,0.2\n"}),
+    posterior_case("flow weights of the wrong shapes (resealed)",
+                   "est/flow.eqx: not the weights of this estimator's flow (ValueError: an array of shape",
+                   _wider_weights, reseal=True),
+    posterior_case("flow weights truncated (resealed)", "est/flow.eqx: not the weights of this estimator's flow",
+                   _edit("flow.eqx", lambda raw: raw[:len(raw) // 2]), reseal=True),
+    posterior_case("flow weights with bytes left over (resealed)", "bytes left over after the flow's last array",
+                   _edit("flow.eqx", lambda raw: raw + b"\x00" * 64), reseal=True),
+    posterior_case("flow.json of the wrong lengths (resealed)", "est/flow.json: theta_mean: got 3 values; expected 1",
+                   _json_edit("flow.json", lambda d: {**d, "theta_mean": [1.0, 2.0, 3.0]}), reseal=True),
+    posterior_case("flow.json a width of 10^9 (resealed)", "est/flow.json: settings: got",
+                   _json_edit("flow.json", lambda d: {**d, "settings": {**d["settings"], "width": 10 ** 9}}), reseal=True),
+    posterior_case("flow.json of an ensemble of -1 members (resealed)", "est/flow.json: members: got -1",
+                   _json_edit("flow.json", lambda d: {"members": -1}), reseal=True),
+    posterior_case("coverage.json not a verdict (resealed)", "est/coverage.json: not a coverage verdict",
+                   _json_edit("coverage.json", lambda d: {"passed": "yes"}), reseal=True),
+]
+TARGET_TABLES = [
+    posterior_case("targets file missing", "--targets: file not found", files={}),
+    posterior_case("targets missing a column", "no column 'binocular_share'",
+                   files={"flocks.csv": "flock,visible_mean\nF1,3.0\n"}),
+    posterior_case("targets not numeric", "column 'visible_mean': row 1 holds 'high', not a number",
+                   files={"flocks.csv": "flock,visible_mean,binocular_share\nF1,3.0,0.2\nF2,high,0.2\n"}),
+    posterior_case("targets NaN", "row 0 has a missing or non-finite statistic",
+                   files={"flocks.csv": "flock,visible_mean,binocular_share\nF1,nan,0.2\n"}),
+    posterior_case("targets an empty file", "flocks.csv cannot be read as a CSV table (EmptyDataError",
+                   files={"flocks.csv": ""}),
+    posterior_case("targets a header and no rows", "flocks.csv holds no rows",
+                   files={"flocks.csv": "flock,visible_mean,binocular_share\n"}),
+    posterior_case("targets binary garbage", "flocks.csv cannot be read as a CSV table",
+                   files={"flocks.csv": bytes(range(256)) * 4}),
+    posterior_case("targets a folder", "is not a regular file", files={"flocks.csv/x": "x"}),
+    posterior_case("targets a FIFO", "is not a regular file", files={}, specials={"flocks.csv": "fifo"}),
+    posterior_case("targets a Parquet file of garbage", "flocks.parquet cannot be read as a Parquet table",
+                   files={"flocks.parquet": b"PAR1garbage"}, argv=("posterior", "{d}/est", "--targets", "{d}/flocks.parquet")),
+    posterior_case("measure.json beside the targets not JSON", "measure.json (beside the table: how it was measured) "
+                   "is not valid JSON", files={"flocks.csv": FLOCKS, "measure.json": "{"}),
+    posterior_case("--tracks file missing", "--tracks: file not found", files={},
+                   argv=("posterior", "{d}/est", "--tracks", "{d}/t.csv")),
+    posterior_case("--tracks binary garbage", "t.csv: cannot read it as csv", files={"t.csv": bytes(range(256)) * 4},
+                   argv=("posterior", "{d}/est", "--tracks", "{d}/t.csv")),
+    posterior_case("--tracks a FIFO", "not a regular file", files={}, specials={"t.csv": "fifo"},
+                   argv=("posterior", "{d}/est", "--tracks", "{d}/t.csv")),
+    posterior_case("--tracks with a column missing", "--tracks: ", files={"t.csv": "id,t,x\n1,0,0\n1,1,1\n"},
+                   argv=("posterior", "{d}/est", "--tracks", "{d}/t.csv")),
+]
+POSTERIOR_INPUTS = ESTIMATOR_FOLDERS + TARGET_TABLES
+
+COMPARE = """name = "cmp"
+seed = 1
+simulations = {simulations}
+heldout = {heldout}
+[models]
+a = "c.toml"
+b = "c.toml"
+[targets]
+stats = ["cohesion", "polarization"]
+mean = [0.9, 0.8]
+sd = [0.05, 0.05]
+"""
+COMPARISONS = [
+    Case("compare: simulations 10^12", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=10 ** 12, heldout=200)}, 2,
+         "simulations: got 1,000,000,000,000: 2 models x (1,000,000,000,000 + 200 held out) = 2,000,000,000,400 "
+         "simulations: their parameter vectors alone would need about"),
+    Case("compare: simulations 10^8 without --yes", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=10 ** 8, heldout=200)}, 2,
+         "(more than 20,000,000); that takes long: use fewer, or pass --yes to go ahead"),
+    Case("compare: heldout 10^12 with --yes", ("compare", "{d}/cmp.toml", "--out", "{d}/out", "--no-progress", "--yes"),
+         {**GOOD_CAL, "cmp.toml": COMPARE.format(simulations=100, heldout=10 ** 12)}, 2,
+         "their parameter vectors alone would need about"),
+]
+CASES += COMPARISONS
+
+
+def _has_sbi() -> bool:
+    import importlib.util
+    return importlib.util.find_spec("flowjax") is not None
+
+
+if _has_sbi():   # the estimator folders are made with JAX (the sbi extra)
+    CASES += POSTERIOR_INPUTS
+
 def materialise(case: Case, folder) -> list[str]:
     """Write the case's files into ``folder``; its argv with ``{d}`` and ``{holland}`` filled in."""
     for name, content in case.files.items():
@@ -747,6 +916,8 @@ def materialise(case: Case, folder) -> list[str]:
         (folder / name).symlink_to(target)
     for name, kind in case.specials.items():
         _special(folder / name, kind)
+    if case.prepare is not None:
+        case.prepare(folder)
     return [str(a).replace("{d}", str(folder)).replace("{holland}", HOLLAND) for a in case.argv]
 
 

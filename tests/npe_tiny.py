@@ -29,3 +29,35 @@ heldout = 20
 draws = 400
 flow = {{ width = 16, layers = 2, max_epochs = 20, patience = 5 }}
 '''
+
+
+COLUMNS = ["visible_mean", "binocular_share"]
+MEASUREMENT = {"interval": 0.5, "velocity_interval": 0.5, "max_gap": None, "dims": 3, "length_unit": "BL",
+               "group_radius": 5.0, "fragmentation_cohesion": 0.5, "dcd_max_delay": 1.0, "warmup": 0.0}
+
+
+def fake_estimator(where, width: int = 8, passed: bool = True):
+    """An estimator folder as calibrate writes it, for the reading tests: an untrained flow of one parameter
+    (field, 60 to 300) given the two statistics of CALIBRATION, its identity, a coverage verdict, and the
+    manifest sealing them (no training: a flow's weights as built)."""
+    import json
+    from pathlib import Path
+
+    import numpy as np
+
+    from flocksweep.analysis.calibration.estimator_folder import seal
+    from flocksweep.analysis.calibration.npe_flow import Estimator, FlowSettings, _build, require_jax
+
+    jax, _ = require_jax()
+    where = Path(where)
+    settings = FlowSettings(width=width, layers=1, knots=4)
+    flow = _build(settings, 1, 2, jax.random.key(0))
+    Estimator(flow, settings, np.array([180.0]), np.array([60.0]), np.array([3.0, 0.2]), np.array([1.0, 0.1])).save(where)
+    identity = {"parameters": [["field", "perception.field_deg"]], "bounds": [[60.0, 300.0]], "columns": COLUMNS,
+                "transforms": {}, "measurement": MEASUREMENT, "seed": 3, "simulations": 60, "heldout": 20}
+    (where / "identity.json").write_text(json.dumps(identity))
+    (where / "coverage.json").write_text(json.dumps({"passed": passed, "heldout": 20, "excluded": 0,
+                                                     "messages": ["coverage: fine" if passed else "coverage FAILED",
+                                                                  "field: 50% intervals cover 10%"]}))
+    seal(where, calibration="c.toml", out=str(where.parent))
+    return where

@@ -129,10 +129,17 @@ def _model(name: str, value, table: CompareFile, base: Path) -> CalibrationConfi
         raise ConfigError(f"models.{name}.{err.key}", f"({path.name}) {err.detail}") from None
 
 
-def load_comparison(path, overrides=()) -> Comparison:
-    """A comparison file, validated (module docstring)."""
+def load_comparison(path, overrides=(), yes: bool = False) -> Comparison:
+    """A comparison file, validated (module docstring); its simulations counted before any model is read
+    (more than ``feasibility.MAX_SIMULATIONS`` need ``yes``, ``--yes``)."""
+    from .feasibility import check_simulation_count
+
     path = Path(path)
     table = build(CompareFile, read_config(path, "comparison file", overrides))
+    if isinstance(table.models, dict) and len(table.models) >= 2:
+        count = len(table.models) * (table.simulations + table.heldout)
+        check_simulation_count("simulations", count, yes, given=f"got {table.simulations:,}: {len(table.models)} models "
+                               f"x ({table.simulations:,} + {table.heldout:,} held out) = ")
     if not isinstance(table.run, dict):
         raise ConfigError("run", f"got {table.run!r}; expected a table of [run] keys (duration = 30.0, ...)")
     if not isinstance(table.models, dict) or len(table.models) < 2:

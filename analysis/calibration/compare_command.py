@@ -15,7 +15,7 @@ def run(args) -> int:
     check_out("--out", args.out)
     if args.workers is not None:
         check_workers(args.workers, args.executor)
-    comparison = load_comparison(args.config, args.overrides)
+    comparison = load_comparison(args.config, args.overrides, yes=args.yes)
     result = run_comparison(comparison, args.out, args.executor, args.workers, args.scheduler,
                             progress=not args.no_progress)
     for line in result["messages"]:

@@ -11,6 +11,9 @@
   steps`` rows of ``dim`` coordinates and a log-probability, read back whole for the diagnostics) must
   fit in memory, and a chain of more than :data:`MAX_SIMULATIONS` simulations (``walkers x (steps + 1)
   x n_sim``) needs ``yes`` (``--yes``), as a sweep of more than ``sweeps.budget.MAX_RUNS`` runs does.
+* ``check_simulation_count(key, simulations, yes=False, given="", dim=1)``: the same gate for a known
+  number of simulations (npe, ``flocksweep compare``), and a refusal whatever ``yes`` says when their
+  parameter vectors alone would not fit in memory.
   :class:`~sweeps.budget.BudgetError` naming ``method.walkers`` with the figures and how to shrink it.
 """
 from __future__ import annotations
@@ -42,11 +45,18 @@ def check_chain_size(walkers: int, steps: int, n_sim: int, dim: int, yes: bool =
                                             "long: use fewer walkers, steps or n_sim, or pass --yes to go ahead")
 
 
-def check_simulation_count(key: str, simulations: int, yes: bool = False) -> None:
-    """Gate a method that runs a known number of simulations (npe's training and held-out sets) as a chain
-    is gated: more than ``MAX_SIMULATIONS`` needs ``yes``."""
+def check_simulation_count(key: str, simulations: int, yes: bool = False, given: str = "", dim: int = 1) -> None:
+    """Gate a method that runs a known number of simulations (npe's training and held-out sets, a model
+    comparison's) as a chain is gated: more than ``MAX_SIMULATIONS`` needs ``yes``; a design whose
+    parameter vectors alone (``simulations x dim`` numbers) would not fit in memory is refused even then.
+    ``given``: how the count came about, said before it ("got 10 x ... = ")."""
+    available = available_memory()
+    if available is not None and 8 * simulations * dim > available:
+        raise BudgetError(key, f"{given}{simulations:,} simulations: their parameter vectors alone would need about "
+                               f"{human(8 * simulations * dim)} of memory; this machine has {human(available)} "
+                               f"available; at most {MAX_SIMULATIONS:,} run without --yes: use fewer")
     if simulations > MAX_SIMULATIONS and not yes:
-        raise BudgetError(key, f"{simulations:,} simulations (more than {MAX_SIMULATIONS:,}); that takes long: "
+        raise BudgetError(key, f"{given}{simulations:,} simulations (more than {MAX_SIMULATIONS:,}); that takes long: "
                                "use fewer, or pass --yes to go ahead")
 
 

@@ -34,7 +34,11 @@ replicates at it (as above, chain 1), with ``observed_data``, ``prior`` and the 
 ``draws_inference_data(config, draws, *, chains=4, predictive=None, attrs=None)``: independent
 posterior draws (npe) split into chains, with the same other groups.
 
-``write_inference_data(idata, path)``: atomically (``sweeps.files.atomic_path``), engine h5netcdf.
+``write_inference_data(idata, path)``: atomically (``sweeps.files.atomic_path``), engine h5netcdf. The file
+is built in memory (the groups and attributes ArviZ's ``to_netcdf`` writes, zlib on numeric variables) and
+its bytes then written by plain writes: HDF5 never writes to the disk itself, so a full disk is one
+``WriteFailed`` (exit 4) and leaves no half-closed HDF5 file, whose library would retry its writes while
+the interpreter exits and die of SIGSEGV (issue 42).
 ``load_calibration_results(out_dir) -> InferenceData``: ``arviz.from_netcdf(out_dir / "posterior.nc")``.
 ``arviz_diagnostics(idata) -> DataFrame``: per parameter ``r_hat, ess_bulk, ess_tail, mcse_mean, mcse_sd``
 (``arviz.summary(kind="diagnostics")`` on the posterior).
@@ -42,6 +46,7 @@ posterior draws (npe) split into chains, with the same other groups.
 """
 from __future__ import annotations
 
+import io
 import time
 import warnings
 from pathlib import Path
@@ -196,11 +201,28 @@ def draws_inference_data(config, draws, *, chains: int = 4, predictive=None, att
     return az.InferenceData(**_with_attrs(groups, {**_base_attrs(config, attrs), "inference_library": "flowjax"}))
 
 
+def netcdf_bytes(idata) -> bytes:
+    """``idata`` as the bytes of the NetCDF file ArviZ's ``to_netcdf(engine="h5netcdf")`` writes, built in
+    memory (module docstring)."""
+    buffer, mode = io.BytesIO(), "w"
+    if idata._attrs:
+        xr.Dataset(attrs=idata._attrs).to_netcdf(buffer, mode=mode, engine="h5netcdf", group="/")
+        mode = "a"
+    for group in idata._groups_all:
+        data = getattr(idata, group)
+        encoding = {name: {"zlib": True} for name, values in data.variables.items()
+                    if values.dtype.kind in "biufcS"}
+        data.to_netcdf(buffer, mode=mode, group=f"/{group}", engine="h5netcdf", encoding=encoding)
+        mode = "a"
+    return buffer.getvalue()
+
+
 def write_inference_data(idata, path) -> Path:
-    """``idata`` to NetCDF at ``path``, atomically."""
+    """``idata`` to NetCDF at ``path``, atomically (built in memory, then written: module docstring)."""
     path = Path(path)
+    content = netcdf_bytes(idata)
     with atomic_path(path) as tmp:
-        idata.to_netcdf(str(tmp), engine="h5netcdf")
+        Path(tmp).write_bytes(content)
     return path
 
 

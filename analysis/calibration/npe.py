@@ -86,13 +86,13 @@ from flocksweep.sweeps.progress import bar
 from flocksweep.sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
+from .estimator_folder import IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
 from .npe_flow import Estimator, FlowSettings, OutsideSupport, load_estimator, train_ensemble
 from .npe_rounds import truncated_prior_draws, truncation_region
 from .outcome import NoPosterior
 from .simulator import summary_simulator
 from .training_runs import design_rows
 
-IDENTITY_FILE = "identity.json"
 COVERAGE_FILE = "coverage.json"
 LEVELS = (0.5, 0.9)
 MAX_EXCLUDED = 0.05      # held-out simulations outside the estimator's support allowed before the check fails
@@ -345,13 +345,15 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
                            _stream(config, NPEStream.NOISE), heldout_only=reused)
 
     if reused:
+        reused = _trusted(folder, where, external=settings.estimator is not None)
+    if reused:
         design = _with_training_pool(pool, executor, simulate)   # the held-out runs, found stored as a rule
         estimator = load_estimator(where)
         phases.start(f"reusing the trained estimator in {where} (no training)")
     else:
         design = _with_training_pool(pool, executor, simulate)
         estimator = _fit(config, *design.usable(slice(0, n)), _jax_seed(config, NPEStream.TRAIN), phases)
-        _store(folder, where, estimator, identity)
+        _store(config, folder, where, estimator, identity)
     heldout = design.usable(slice(n, None))
     info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
             "training_simulations": n, "replicates": replicates(config), "runs_found": design.reused_runs,
@@ -359,9 +361,30 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
     return _checked_posterior(config, estimator, *heldout, support_of(config.prior), phases, info, where)
 
 
-def _store(folder, where: Path, estimator, identity: dict) -> None:
+def _trusted(folder, where: Path, external: bool) -> bool:
+    """Whether the estimator folder ``where``, trained for this calibration, passes its checksums
+    (:func:`analysis.calibration.estimator_folder.verify`). One of the calibration's own that does not is
+    moved to ``quarantine/`` (a warning) and trained again; a ``method.estimator`` folder is refused."""
+    try:
+        verify(where)
+        return True
+    except DamagedEstimator as err:
+        if external:
+            raise ConfigError("method.estimator", str(err)) from None
+        set_aside(folder.root, where, f"cannot be trusted ({str(err).split('; train it again')[0]}); an estimator is "
+                                      "trained in its place")
+        return False
+
+
+def _store(config, folder, where: Path, estimator, identity: dict) -> None:
+    """The trained estimator and its identity in ``where`` (an older folder there moved to quarantine/ first,
+    so the new one is sealed whole), then its manifest."""
+    if Path(where).exists() and any(Path(where).iterdir()):
+        set_aside(folder.root, where, "was trained for other settings (or its writing was cut short); a new "
+                                      "estimator is trained in its place")
     estimator.save(where)
     _write_json(folder, where, IDENTITY_FILE, identity)
+    seal(where, calibration=str(config.source_path) if config.source_path else None, out=str(folder.root))
 
 
 def _write_json(folder, where: Path, name: str, data: dict) -> None:
@@ -393,6 +416,7 @@ def _checked_posterior(config, estimator, heldout_theta, heldout_x, support, pha
 
         with atomic_path(Path(where) / COVERAGE_FILE) as tmp:
             Path(tmp).write_text(json.dumps(json_ready(verdict), indent=1))
+        seal(where, [COVERAGE_FILE])
     observed = config.transforms.apply(observed_row(config)[None, :], clip=True)[0]
     try:
         if not np.isfinite(observed).all():
@@ -426,12 +450,12 @@ def _round_estimator(config, folder, r: int, identity: dict, theta, rows, phases
     trains no finished round anew), else trained on all rounds' simulations so far and stored."""
     last = r == config.method.rounds
     where = folder.path("estimator" if last else f"estimator-round{r}")
-    if stored_identity(where) == identity:
+    if stored_identity(where) == identity and _trusted(folder, where, external=False):
         phases.start(f"reusing round {r}'s trained estimator in {where}")
         return load_estimator(where), where, True
     seed = _jax_seed(config, NPEStream.TRAIN) if r == 1 else _jax_seed(config, NPEStream.ROUND_TRAIN, r)
     estimator = _fit(config, theta, rows, seed, phases, label)
-    _store(folder, where, estimator, identity)
+    _store(config, folder, where, estimator, identity)
     return estimator, where, False
 
 

@@ -375,18 +375,94 @@ def train_flow(theta, x, settings: FlowSettings, seed: int, progress: bool = Fal
     return Estimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses)
 
 
+MAX_MEMBERS = 256            # an ensemble's flow.json naming more members is not one flocksweep wrote
+
+
 def load_estimator(folder):
-    """The estimator (or ensemble) stored by ``save`` in ``folder``."""
+    """The estimator (or ensemble) stored by ``save`` in ``folder``: its records' types and the weights'
+    shapes checked against the flow they describe (:class:`~analysis.calibration.estimator_folder.
+    DamagedEstimator` naming the file otherwise; the folder's checksums are the caller's:
+    ``estimator_folder.verify``)."""
+    from .estimator_folder import DamagedEstimator, read_json, retrain_hint
+
     jax, eqx = require_jax()
     folder = Path(folder)
-    record = json.loads((folder / FLOW_RECORD).read_text()) if (folder / FLOW_RECORD).is_file() else {}
+    record = read_json(folder / FLOW_RECORD, missing=True) or {}
+    if not isinstance(record, dict):
+        raise DamagedEstimator(f"{folder / FLOW_RECORD}: not a flow record (a JSON object); {retrain_hint()}")
     if "members" in record:
-        return Ensemble(_one_structure([load_estimator(folder / f"member{i}") for i in range(record["members"])]))
+        members = record["members"]
+        if not (isinstance(members, int) and not isinstance(members, bool) and 1 <= members <= MAX_MEMBERS):
+            raise DamagedEstimator(f"{folder / FLOW_RECORD}: members: got {members!r:.40}; expected an integer from 1 "
+                                   f"to {MAX_MEMBERS}; {retrain_hint()}")
+        return Ensemble(_one_structure([load_estimator(folder / f"member{i}") for i in range(members)]))
     if not record or not (folder / FLOW_WEIGHTS).is_file():
-        raise FileNotFoundError(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
-                                "with flocksweep calibrate FILE --method npe")
-    settings = FlowSettings(**record["settings"])
+        raise DamagedEstimator(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
+                               "with flocksweep calibrate FILE --method npe")
+    settings, arrays = _checked_record(folder / FLOW_RECORD, record, DamagedEstimator, retrain_hint())
     skeleton = _build(settings, record["d"], record["k"], jax.random.key(0))
-    flow = eqx.tree_deserialise_leaves(str(folder / FLOW_WEIGHTS), skeleton)
-    return Estimator(flow, settings, *(np.asarray(record[name], dtype=float)
-                                       for name in ("theta_mean", "theta_sd", "x_mean", "x_sd")))
+    flow = _read_weights(folder / FLOW_WEIGHTS, skeleton, DamagedEstimator, retrain_hint())
+    return Estimator(flow, settings, *arrays)
+
+
+def _checked_record(path: Path, record: dict, damaged, hint: str):
+    """(FlowSettings, (theta_mean, theta_sd, x_mean, x_sd)) of a flow record whose types hold."""
+    def refuse(what):
+        return damaged(f"{path}: {what}; not a flow record flocksweep writes: {hint}")
+
+    d, k = record.get("d"), record.get("k")
+    if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 10_000 for v in (d, k)):
+        raise refuse(f"d and k: got {d!r:.20} and {k!r:.20}; expected the numbers of parameters and statistics")
+    try:
+        settings = FlowSettings(**record["settings"])
+    except (KeyError, TypeError, ValueError, ConfigError) as err:
+        raise refuse(f"settings: {err}") from None
+    if not all(isinstance(getattr(settings, name), (int, float)) and not isinstance(getattr(settings, name), bool)
+               for name in ("width", "layers", "knots", "max_epochs", "patience", "learning_rate", "batch_size",
+                            "validation")) or not (1 <= settings.width <= 4096 and 1 <= settings.layers <= 64
+                                                   and 1 <= settings.knots <= 256):
+        raise refuse(f"settings: got {record['settings']!r:.120}")
+    arrays = []
+    for name, size in (("theta_mean", d), ("theta_sd", d), ("x_mean", k), ("x_sd", k)):
+        try:
+            values = np.asarray(record[name], dtype=float)
+        except (KeyError, TypeError, ValueError):
+            raise refuse(f"{name}: missing or not numbers") from None
+        if values.shape != (size,) or not np.isfinite(values).all() or (name.endswith("_sd") and (values <= 0).any()):
+            raise refuse(f"{name}: got {values.shape[0] if values.ndim == 1 else values.shape} values; expected {size} "
+                         f"finite numbers{' > 0' if name.endswith('_sd') else ''}")
+        arrays.append(values)
+    return settings, tuple(arrays)
+
+
+def _read_weights(path: Path, skeleton, damaged, hint: str):
+    """The flow's weights from ``path`` (equinox's leaves, one .npy each, read with pickling off), each
+    leaf's header checked against the flow's own shape and dtype before its data is read, and nothing
+    left over."""
+    jax, eqx = require_jax()
+
+    def leaf(handle, like):
+        if not (isinstance(like, (jax.Array, jax.ShapeDtypeStruct, np.ndarray)) or eqx.is_array_like(like)):
+            return like
+        start = handle.tell()
+        version = np.lib.format.read_magic(handle)
+        shape, _, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
+                           else np.lib.format.read_array_header_2_0(handle))
+        want_shape, want_dtype = np.shape(like), np.asarray(like).dtype
+        if tuple(shape) != tuple(want_shape) or np.dtype(dtype) != want_dtype:
+            raise ValueError(f"an array of shape {tuple(shape)} ({np.dtype(dtype)}) where the flow has "
+                             f"{tuple(want_shape)} ({want_dtype})")
+        handle.seek(start)
+        return eqx.default_deserialise_filter_spec(handle, like)   # numpy's load: pickling off
+
+    try:
+        with open(path, "rb") as handle:
+            flow = eqx.tree_deserialise_leaves(handle, skeleton, filter_spec=leaf)
+            if handle.read(1):
+                raise ValueError("bytes left over after the flow's last array")
+    except (ValueError, EOFError, OSError, RuntimeError) as raised:   # equinox wraps a leaf's error (RuntimeError)
+        err = raised
+        while isinstance(err, RuntimeError) and err.__cause__ is not None:
+            err = err.__cause__
+        raise damaged(f"{path}: not the weights of this estimator's flow ({type(err).__name__}: {err}); {hint}") from None
+    return flow

@@ -44,33 +44,76 @@ if TYPE_CHECKING:
 TOLERANCE = 1e-6        # relative: two intervals this close are the same
 
 
+MAX_TABLE = 256 << 20   # bytes of a --targets table (a row per flock: a few kB as a rule)
+
+
 def _read_table(path: Path) -> pd.DataFrame:
+    """The ``--targets`` table: a regular file of at most :data:`MAX_TABLE` bytes, read as Parquet or CSV
+    (ConfigError naming the file and what is wrong otherwise)."""
     import pandas as pd   # numpy and pandas load when the command runs, not for --help
 
-    if not path.is_file():
+    path = Path(path)
+    if not path.exists():
         raise ConfigError("--targets", f"file not found: {path}")
-    return pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+    if not path.is_file():
+        raise ConfigError("--targets", f"{path} is not a regular file (a folder, FIFO, device or socket); expected a "
+                                       "CSV or Parquet table")
+    if path.stat().st_size > MAX_TABLE:
+        raise ConfigError("--targets", f"{path}: {path.stat().st_size:,} bytes, more than a table of flocks may hold "
+                                       f"({MAX_TABLE >> 20} MiB)")
+    kind = "Parquet" if path.suffix == ".parquet" else "CSV"
+    try:
+        table = pd.read_parquet(path) if kind == "Parquet" else pd.read_csv(path)
+    except Exception as err:  # noqa: BLE001 - pandas and pyarrow raise many kinds for a file that is not a table
+        raise ConfigError("--targets", f"{path} cannot be read as a {kind} table ({type(err).__name__}: "
+                                       f"{str(err).strip().splitlines()[0] if str(err).strip() else 'empty'}); "
+                                       "expected one row per flock, a column per statistic") from None
+    if table.empty:
+        raise ConfigError("--targets", f"{path} holds no rows; expected one row per flock, a column per statistic")
+    return table
+
+
+def _measure_json(path: Path) -> dict | None:
+    """``measure.json`` beside a ``--targets`` table (how it was measured), or None."""
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8")) if path.stat().st_size <= MAX_TABLE else None
+    except (ValueError, UnicodeDecodeError, OSError) as err:
+        raise ConfigError("--targets", f"{path} (beside the table: how it was measured) is not valid JSON "
+                                       f"({type(err).__name__}); fix or move it, or measure the tracks again "
+                                       "(flocksweep measure)") from None
+    if not isinstance(data, dict):
+        raise ConfigError("--targets", f"{path} (beside the table: how it was measured) is not a JSON object; fix or "
+                                       "move it, or measure the tracks again (flocksweep measure)")
+    return data
 
 
 def _identity(estimator_dir: Path) -> dict:
-    from .npe import IDENTITY_FILE
+    """The estimator's identity, after its folder's checksums are verified (analysis.calibration.
+    estimator_folder: DamagedEstimator, exit 2, naming the file otherwise)."""
+    from .estimator_folder import read_identity, verify
 
-    identity_path = estimator_dir / IDENTITY_FILE
-    if not identity_path.is_file():
-        raise ConfigError("ESTIMATOR", f"{estimator_dir}: no {IDENTITY_FILE}; give the estimator/ folder of an npe "
-                                       "calibration's output")
-    return json.loads(identity_path.read_text())
+    verify(estimator_dir)
+    return read_identity(estimator_dir)
 
 
 def coverage_verdict(estimator_dir: Path) -> dict | None:
-    """The estimator's held-out coverage check as stored beside it (``coverage.json``), or None."""
+    """The estimator's held-out coverage check as stored beside it (``coverage.json``), or None; one that
+    is not a verdict flocksweep writes is DamagedEstimator."""
+    from .estimator_folder import DamagedEstimator, read_json, retrain_hint
     from .npe import COVERAGE_FILE
 
     path = Path(estimator_dir) / COVERAGE_FILE
-    try:
-        return json.loads(path.read_text()) if path.is_file() else None
-    except (OSError, ValueError):
+    verdict = read_json(path, missing=True)
+    if verdict is None:
         return None
+    if not (isinstance(verdict, dict) and isinstance(verdict.get("passed"), bool)
+            and isinstance(verdict.get("messages"), list) and verdict["messages"]
+            and all(isinstance(m, str) for m in verdict["messages"])):
+        raise DamagedEstimator(f"{path}: not a coverage verdict flocksweep writes ({{passed, messages}}); "
+                               f"{retrain_hint()}")
+    return verdict
 
 
 def _same(a, b) -> bool:
@@ -152,6 +195,7 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
                measured: dict | None = None):
     """One posterior summary per row of ``table``, and the notes (module docstring)."""
     import numpy as np
+    import pandas as pd
 
     from .npe import support_of
     from .npe_flow import load_estimator
@@ -184,14 +228,28 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise ConfigError("--targets", f"no column {missing[0]!r}; the estimator needs the columns {', '.join(columns)}")
+    text = [c for c in columns if not pd.api.types.is_numeric_dtype(table[c])]
+    if text:
+        column = table[text[0]]
+        row = int(np.flatnonzero((pd.to_numeric(column, errors="coerce").isna() & column.notna()).to_numpy())[0])
+        raise ConfigError("--targets", f"column {text[0]!r}: row {row} holds {column.iloc[row]!r:.40}, not a number; "
+                                       "every statistic must be a number")
     x = table[columns].to_numpy(dtype=float)
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         raise ConfigError("--targets", f"row {int(np.flatnonzero(bad)[0])} has a missing or non-finite statistic")
-    transforms = Transforms.from_record(identity.get("transforms") or {}, columns)
+    try:
+        transforms = Transforms.from_record(identity.get("transforms") or {}, columns)
+        transforms.apply(x[:1])
+    except (KeyError, TypeError, ValueError) as err:
+        from .estimator_folder import DamagedEstimator, retrain_hint
+        raise DamagedEstimator(f"{estimator_dir}/identity.json: transforms: {err}; {retrain_hint()}") from None
     estimator = load_estimator(estimator_dir)
+    if estimator.d != len(names) or estimator.k != len(columns):
+        from .estimator_folder import DamagedEstimator, retrain_hint
+        raise DamagedEstimator(f"{estimator_dir}: its flow has {estimator.d} parameters and {estimator.k} statistics, "
+                               f"its identity.json {len(names)} and {len(columns)}; {retrain_hint()}")
     samples = estimator.sample_many(transforms.apply(x), draws, seed, support_of(bounds=identity["bounds"]), short="nan")
-    import pandas as pd
 
     ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
     out = table[ids].reset_index(drop=True).copy()
@@ -255,9 +313,9 @@ def run(args) -> int:
     if args.tracks is not None:
         table, measured = measure_for(args.estimator, args.tracks), None
     else:
+        _identity(args.estimator)          # a damaged estimator is named before the table is read
         table = _read_table(args.targets)
-        beside = Path(args.targets).parent / "measure.json"
-        measured = json.loads(beside.read_text()) if beside.is_file() else None
+        measured = _measure_json(Path(args.targets).parent / "measure.json")
     result, notes = posteriors(args.estimator, table, args.draws, args.seed, force=args.force, measured=measured)
     for note in notes:
         print(note)

@@ -22,6 +22,8 @@ def arguments(p) -> None:
     p.add_argument("--workers", type=int, help="worker processes (default: all cores)")
     p.add_argument("--scheduler", help="dask scheduler address (with --executor dask)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--yes", action="store_true",
+                   help="go ahead with more than 20,000,000 simulations in all (refused otherwise, before anything runs)")
 
 
 def handler(args) -> int:

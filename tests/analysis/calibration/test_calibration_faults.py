@@ -307,3 +307,23 @@ def test_a_calibration_killed_at_a_random_moment_resumes_bit_for_bit(how, tmp_pa
     assert trial.orphans == []
     assert rerun.returncode == 0 and "Traceback" not in rerun.stderr, rerun.stderr
     assert difference == ""
+
+
+@pytest.mark.slow
+def test_a_full_disk_while_npe_writes_posterior_nc_is_exit_4_and_keeps_the_accounting(tmp_path):
+    """issue 42: a traceback, then SIGSEGV, before. Now exit 4 naming posterior.nc, no traceback; the
+    calibration's accounting.json says it failed writing, with its simulations counted, and the estimator it
+    trained is kept sealed: the same command, space freed, reuses it (no training run)."""
+    pytest.importorskip("flowjax", reason="the sbi extra")
+    case = {c.name: c for c in faults.CONTAINED}["npe: a full disk while posterior.nc is written"]
+    result = faults.contained_trial(case, tmp_path)
+    assert result.problems == []
+    import json
+
+    from flocksweep.analysis.calibration.estimator_folder import verify
+    accounting = json.loads((tmp_path / "out" / "accounting.json").read_text())
+    assert accounting["status"] == "failed" and "posterior.nc" in accounting["error"]
+    assert accounting["accounting"]["simulations"]["training"] == 60
+    assert accounting["accounting"]["simulations"]["predictive"] == 100
+    verify(tmp_path / "out" / "estimator")
+    assert not (tmp_path / "out" / "posterior.nc").exists()

@@ -157,3 +157,13 @@ def test_a_comparison_of_tracked_flocks_refuses_what_no_tracker_measures(tmp_pat
     comparison = load_comparison(files(tmp_path, observable))
     assert comparison.tracker_statistics and comparison.unobservable == []
     assert comparison.targets.columns[1] == "nn_ahead_fraction_mean"
+
+
+@pytest.mark.parametrize("case", __import__("malformed").COMPARISONS, ids=lambda c: c.name)
+def test_a_huge_simulations_value_is_refused_before_anything_runs(case, tmp_path):
+    """issue 42: compare with simulations = 10**12 allocated its design until memory ran out; now it is
+    counted from the file before any model is read: the key, the value and what is allowed, exit 2."""
+    from malformed import attempt
+    refusal = attempt(case, tmp_path)
+    assert refusal.crash == "" and refusal.code == 2, refusal.crash or refusal.stderr
+    assert case.expect in refusal.stderr and refusal.written == set(), refusal.stderr
