@@ -180,3 +180,20 @@ def test_calibrate_trains_once_then_reuses_the_estimator_and_posterior_serves_ma
     table = pd.read_csv(tmp_path / "post.csv")
     assert list(table["flight"]) == ["a", "b", "c"]
     assert ((table["field_q5"] >= 60) & (table["field_q95"] <= 300)).all()
+    # a damaged estimator of its own is set aside and trained again (its training runs found stored) ...
+    import shutil
+
+    shutil.copytree(out / "estimator", tmp_path / "kept")
+    member = next(p for p in sorted((out / "estimator").rglob("*")) if p.is_file() and p.name != "manifest.json")
+    member.write_bytes(member.read_bytes() + b"\0")
+    capsys.readouterr()
+    assert main(["calibrate", str(path), "--out", str(out), "--no-progress"]) == 0
+    third = json.loads((out / "convergence.json").read_text())
+    assert not third["npe"]["reused"] and "training" not in third["accounting"]["simulations"]
+    assert any((out / "quarantine").iterdir()) and "cannot be trusted" in capsys.readouterr().err
+    # ... and one named by method.estimator is refused, naming the key, before anything is trained
+    kept = next(p for p in sorted((tmp_path / "kept").rglob("*")) if p.is_file() and p.name != "manifest.json")
+    kept.write_bytes(kept.read_bytes() + b"\0")
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "elsewhere"), "--no-progress",
+                 "--set", f"method.estimator={tmp_path / 'kept'}"]) == 2
+    assert "method.estimator" in capsys.readouterr().err
