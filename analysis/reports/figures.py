@@ -2,7 +2,8 @@
 
 Contract, shared by every function here:
 
-* it takes data (pandas / numpy, already aggregated by the caller) and an output ``path``; the format
+* it takes data (pandas / numpy, already aggregated by the caller) and an output ``path`` (or a list of
+  paths: one figure written in each format, laid out once; the first is returned); the format
   follows the extension (``.png`` at 150 dpi, ``.svg`` vector; anything matplotlib knows, e.g. ``.pdf``);
   missing parent directories are created;
 * it draws with matplotlib's Agg backend (selected inside the function), lays the figure out tightly

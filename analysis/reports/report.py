@@ -140,10 +140,8 @@ def _figure(ctx: Context, name: str, draw, caption: str, svg: bool = True) -> No
     """Draw a figure as PNG (embedded in the HTML) and, for the light ones, also as SVG (vector copy
     beside the Markdown)."""
     png = ctx.fig_dir / f"{name}.png"
-    draw(png)
     svg_path = ctx.fig_dir / f"{name}.svg" if svg else None
-    if svg_path:
-        draw(svg_path)
+    draw([png, svg_path] if svg_path else png)   # one figure, laid out once, written in both formats
     ctx.blocks.append(Figure(png, caption, svg_path))
 
 

@@ -26,6 +26,23 @@ def test_average_ranks_match_scipy_with_and_without_ties():
             assert row == pytest.approx(float((counts ** 3 - counts).sum()))
 
 
+def test_average_ranks_flat_tie_groups_match_scipy_row_by_row():
+    """The tie groups are found on the flattened rows: a group never runs across rows, even when a
+    row ends and the next begins with the same value; rows with and without ties, constant rows, n = 1."""
+    rng = np.random.default_rng(3)
+    Y = rng.integers(0, 4, (6, 50)).astype(float)
+    Y[1] = 2.0                                  # constant row
+    Y[2] = rng.normal(size=50)                  # no ties in this row
+    Y[3, :] = np.sort(Y[3])[::-1]               # ends low, the next row starts low
+    Y[4, 0] = Y[3, -1]
+    for block in (Y, Y[:1], Y[:, :1], Y[:, :2], np.vstack([Y[2], Y[2]])):
+        ranks, ties = S.average_ranks(block)
+        assert np.array_equal(ranks, stats.rankdata(block, axis=1))
+        for row, y in zip(ties, block):
+            _, counts = np.unique(y, return_counts=True)
+            assert row == float((counts ** 3 - counts).sum())
+
+
 @pytest.mark.parametrize("n", [5, 30, 400])
 def test_spearman_matches_scipy(n):
     rng = np.random.default_rng(n)

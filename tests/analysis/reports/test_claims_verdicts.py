@@ -351,3 +351,23 @@ def test_leaf_data_drops_non_finite_values_and_counts_them():
     data = leaf_data(declared[0].test, table, columns.factors)
     assert data.n == 48 and data.n_missing == 12                          # X = 0 has no follow correlation
     assert leaf_result(declared[0].test, data).sign == 1
+
+
+@pytest.mark.parametrize("kind, make, factors, claim", KINDS)
+def test_power_in_many_batches_on_two_threads_equals_one_batch_on_one(kind, make, factors, claim, monkeypatch):
+    """The power simulations' batches may run on two threads: powers, MDEs and replicates needed are
+    those of the obvious way, every simulated data set tested in one batch on one thread."""
+    from flocksweep.analysis.reports.claims import power
+
+    table = make(0.0, seed=5)
+    claim = {**claim, "power": {"simulations": 200}}
+
+    def leaf_power(threads: int, chunk: int):
+        monkeypatch.setattr(power, "THREADS", threads)
+        monkeypatch.setattr(power, "CHUNK", chunk)
+        return judge(table, factors, claim)[0].outcome.power
+
+    obvious = leaf_power(1, 10**9)
+    batched = leaf_power(2, 500)     # a few rows a batch: dozens of batches shared by two threads
+    assert obvious is not None and obvious.power < obvious.target   # the replicates search runs too
+    assert batched == obvious
