@@ -87,6 +87,16 @@ def require_jax():
     return jax, equinox
 
 
+def support_of(prior=None, bounds=None):
+    """(S, d) -> (S,) inside the prior's bounds (or the given (d, 2) bounds): the support the samplers
+    redraw into."""
+    bounds = np.asarray(prior.bounds if prior is not None else bounds, dtype=float)
+
+    def inside(theta):
+        return np.all((theta >= bounds[:, 0]) & (theta <= bounds[:, 1]), axis=1)
+    return inside
+
+
 class OutsideSupport(ValueError):
     """The estimator puts almost no mass inside the support at an observed row: the statistics lie far
     outside what the training simulations cover."""
@@ -207,14 +217,14 @@ class Estimator:
         rows = np.arange(len(conditions)) if rows is None else np.asarray(rows)
         chunk = rows_per_call(count)
         key = jax.random.key(int(seed))
-        draws = np.empty((len(conditions), count, self.d))
+        calls = []   # dispatched before any is read: JAX runs them on its CPU threads as they come
         for start in range(0, len(conditions), chunk):
-            part = slice(start, start + chunk)
-            pad = chunk - len(rows[part])
-            values = _sampler()(self.flow, jnp.asarray(np.pad(conditions[part], ((0, pad), (0, 0)), mode="edge")),
-                                key, jnp.asarray(np.pad(rows[part], (0, pad), mode="edge"), dtype=jnp.uint32),
-                                int(count))
-            draws[part] = np.asarray(values, dtype=float)[:chunk - pad]
+            pad = chunk - len(rows[start:start + chunk])
+            calls.append(_sampler()(self.flow, jnp.asarray(np.pad(conditions[start:start + chunk], ((0, pad), (0, 0)),
+                                                                  mode="edge")),
+                                    key, jnp.asarray(np.pad(rows[start:start + chunk], (0, pad), mode="edge"),
+                                                     dtype=jnp.uint32), int(count)))
+        draws = np.concatenate([np.asarray(values, dtype=float) for values in calls])[:len(conditions)]
         return draws * self.theta_sd + self.theta_mean
 
     def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None) -> np.ndarray:

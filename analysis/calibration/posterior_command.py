@@ -105,8 +105,7 @@ def _identity(estimator_dir: Path) -> dict:
 def coverage_verdict(estimator_dir: Path) -> dict | None:
     """The estimator's held-out coverage check as stored beside it (``coverage.json``), or None; one that
     is not a verdict flocksweep writes is DamagedEstimator."""
-    from .estimator_folder import DamagedEstimator, read_json, retrain_hint
-    from .npe import COVERAGE_FILE
+    from .estimator_folder import COVERAGE_FILE, DamagedEstimator, read_json, retrain_hint
 
     path = Path(estimator_dir) / COVERAGE_FILE
     verdict = read_json(path, missing=True)
@@ -201,8 +200,7 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     import numpy as np
     import pandas as pd
 
-    from .npe import support_of
-    from .npe_flow import load_estimator
+    from .npe_flow import load_estimator, support_of
     from .transforms import Transforms
 
     estimator_dir = Path(estimator_dir)
