@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -60,6 +61,7 @@ MAX_REDRAWS = 50            # redraws of every row lacking draws inside the supp
 WIDE_BATCH, MAX_WIDE = 64, 20   # ... then of each row still lacking, WIDE_BATCH x count at a time
 MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
 DENSITY_CHUNK = 4096        # log_prob runs compiled on chunks of this many rows (the last one padded)
+SAMPLE_THREADS = 2          # an ensemble's members sample in this many threads
 SAMPLE_BLOCK, SAMPLE_ROWS = 12_800, 16   # a compiled sampler call draws for up to SAMPLE_ROWS observed rows, at most
                             # about SAMPLE_BLOCK draws in all (at least one row): the rows per call depend on the
                             # draws per row only, never on how many rows there are (the last call is padded), so a
@@ -347,12 +349,15 @@ class Ensemble:
         :meth:`Estimator.sample_many`; a row any member cannot fill is all NaN)."""
         size = len(self.members)
         shares = [count // size + (i < count % size) for i in range(size)]
-        parts, leaks, row_leaks = [], [], []
-        for i, (member, share) in enumerate(zip(self.members, shares)):
-            if share:
-                parts.append(member.sample_many(x, share, seed + MEMBER_SEED_STEP * i, support, short, rows))
-                leaks.append(member.last_leakage * share)
-                row_leaks.append(member.last_row_leakage * share)
+        jobs = [(member, share, seed + MEMBER_SEED_STEP * i) for i, (member, share) in enumerate(zip(self.members, shares))
+                if share]
+        _sampler()   # made before the threads start: one compiled sampler for all
+        # the members sample in two threads (JAX releases the GIL while a compiled call runs): each
+        # member's draws are its own calls' whatever the threads, so the mixture is bit for bit the same
+        with ThreadPoolExecutor(max_workers=min(SAMPLE_THREADS, len(jobs))) as threads:
+            parts = list(threads.map(lambda job: job[0].sample_many(x, job[1], job[2], support, short, rows), jobs))
+        leaks = [member.last_leakage * share for member, share, _ in jobs]
+        row_leaks = [member.last_row_leakage * share for member, share, _ in jobs]
         self.leakage[:] = [float(sum(leaks) / count), sum(row_leaks) / count]
         draws = np.concatenate(parts, axis=1)
         draws[np.isnan(draws).any(axis=(1, 2))] = np.nan
