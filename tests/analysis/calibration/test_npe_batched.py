@@ -45,6 +45,7 @@ def ensemble(tmp_path_factory):
 COUNT = 80            # 40 draws a member, as posterior's --draws 40 of one flow: one compiled sampler for all
 
 
+@pytest.mark.slow
 def test_a_flock_sampled_alone_gets_the_draws_it_gets_among_many(ensemble):
     count = COUNT     # 16 rows a compiled call: the 6 rows take one padded call, alone 1 each
     together = ensemble.sample_many(ROWS[:-1], count, 11, SUPPORT)
@@ -58,6 +59,7 @@ def test_a_flock_sampled_alone_gets_the_draws_it_gets_among_many(ensemble):
     assert not np.array_equal(ensemble.sample_many(ROWS[3:4], count, 11, SUPPORT)[0], together[3])
 
 
+@pytest.mark.slow
 def test_a_table_of_any_size_gives_each_flock_the_same_draws(ensemble, monkeypatch):
     count = COUNT
     monkeypatch.setattr(npe_flow, "SAMPLE_BLOCK", 3 * count // 2)   # 3 rows a call (40 draws a member): 7 rows
