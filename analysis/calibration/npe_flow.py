@@ -18,11 +18,13 @@ CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
 :class:`Estimator` (frozen): ``sample(x (k,), count, seed, support=None) -> (count, d)`` draws of the
 posterior at one observed row; with ``support`` (a predicate on (S, d) -> (S,) bool, e.g. inside the
 prior's bounds) the draws outside it are redrawn (the flow leaks mass outside a bounded prior; the
-share is ``Estimator.last_leakage``; a row keeping under about 1/1,300 of its draws is :class:`OutsideSupport`, a
-ValueError); ``sample_many(X (m, k), count, seed, support=None, short="raise") -> (m, count, d)`` one
-posterior per row in one vectorised call (``short = "nan"``: a row that cannot be filled is all NaN instead,
-for the caller to count and leave out) (an amortised estimator answers a new flock without
-simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
+share is ``Estimator.last_leakage``, each row's ``last_row_leakage``; a row keeping under about 1/1,300 of its
+draws is :class:`OutsideSupport`, a ValueError); ``sample_many(X (m, k), count, seed, support=None,
+short="raise", rows=None) -> (m, count, d)`` one posterior per row, vectorised in compiled calls of
+:func:`rows_per_call` rows (``short = "nan"``: a row that cannot be filled is all NaN instead, for the caller
+to count and leave out; row i draws with the key ``fold_in(key(seed), rows[i])``, ``rows`` 0..m-1 by default,
+so its draws are bit for bit the same alone or among any others) (an amortised estimator answers a new flock
+without simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
 weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
 standardisation), so a stored estimator rebuilds exactly.
 
