@@ -65,7 +65,9 @@ if "FLOCKSWEEP_CACHE_DIR" not in os.environ:
 # workers and the commands they start, so a program is compiled once per run. A cached program is the
 # one XLA would compile again (the cache is keyed on the program and the compiler's options), so results
 # stay bit for bit those of a fresh compile. Every program, however quick to compile, is kept. A
-# JAX_COMPILATION_CACHE_DIR set by the caller is used instead (kept between test runs).
+# JAX_COMPILATION_CACHE_DIR set by the caller is used instead (kept between test runs). flocksweep's own
+# cache (analysis/calibration/jax_cache.py, ~/.cache/flocksweep/jax) defers to JAX_COMPILATION_CACHE_DIR, so
+# no test, nor any command a test starts, writes into the user's cache.
 if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
     os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="flocksweep-test-jax-")
     atexit.register(shutil.rmtree, os.environ["JAX_COMPILATION_CACHE_DIR"], ignore_errors=True)

@@ -49,6 +49,7 @@ from flocksweep.sweeps.quarantine import quarantine
 
 MANIFEST = "manifest.json"
 IDENTITY_FILE = "identity.json"
+COVERAGE_FILE = "coverage.json"   # the held-out coverage verdict (analysis.calibration.npe)
 MAX_JSON = 64 << 20          # an identity, flow record or verdict is a few kB; a larger one is not ours
 
 

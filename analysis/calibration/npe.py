@@ -86,14 +86,13 @@ from flocksweep.sweeps.progress import bar
 from flocksweep.sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
-from .estimator_folder import IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
-from .npe_flow import Estimator, FlowSettings, OutsideSupport, load_estimator, train_ensemble
+from .estimator_folder import COVERAGE_FILE, IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
+from .npe_flow import Estimator, FlowSettings, OutsideSupport, load_estimator, support_of, train_ensemble
 from .npe_rounds import truncated_prior_draws, truncation_region
 from .outcome import NoPosterior
 from .simulator import summary_simulator
 from .training_runs import design_rows
 
-COVERAGE_FILE = "coverage.json"
 LEVELS = (0.5, 0.9)
 MAX_EXCLUDED = 0.05      # held-out simulations outside the estimator's support allowed before the check fails
 COVERAGE_DRAWS = 199
@@ -186,15 +185,6 @@ def stored_identity(folder: Path) -> dict | None:
         return json.loads(path.read_text()) if path.is_file() else None
     except (OSError, ValueError):
         return None
-
-
-def support_of(prior=None, bounds=None):
-    """(S, d) -> (S,) inside the prior's bounds (or the given (d, 2) bounds)."""
-    bounds = np.asarray(prior.bounds if prior is not None else bounds, dtype=float)
-
-    def inside(theta):
-        return np.all((theta >= bounds[:, 0]) & (theta <= bounds[:, 1]), axis=1)
-    return inside
 
 
 def coverage_check(estimator: Estimator, theta, x, draws: int, seed: int, support, tolerance: float,

@@ -18,11 +18,13 @@ CPU (tested bit for bit: float32, one thread of XLA's CPU reductions in order).
 :class:`Estimator` (frozen): ``sample(x (k,), count, seed, support=None) -> (count, d)`` draws of the
 posterior at one observed row; with ``support`` (a predicate on (S, d) -> (S,) bool, e.g. inside the
 prior's bounds) the draws outside it are redrawn (the flow leaks mass outside a bounded prior; the
-share is ``Estimator.last_leakage``; a row keeping under about 1/1,300 of its draws is :class:`OutsideSupport`, a
-ValueError); ``sample_many(X (m, k), count, seed, support=None, short="raise") -> (m, count, d)`` one
-posterior per row in one vectorised call (``short = "nan"``: a row that cannot be filled is all NaN instead,
-for the caller to count and leave out) (an amortised estimator answers a new flock without
-simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
+share is ``Estimator.last_leakage``, each row's ``last_row_leakage``; a row keeping under about 1/1,300 of its
+draws is :class:`OutsideSupport`, a ValueError); ``sample_many(X (m, k), count, seed, support=None,
+short="raise", rows=None) -> (m, count, d)`` one posterior per row, vectorised in compiled calls of
+:func:`rows_per_call` rows (``short = "nan"``: a row that cannot be filled is all NaN instead, for the caller
+to count and leave out; row i draws with the key ``fold_in(key(seed), rows[i])``, ``rows`` 0..m-1 by default,
+so its draws are bit for bit the same alone or among any others) (an amortised estimator answers a new flock
+without simulating); ``log_prob(theta, x)``; ``save(folder)`` / :func:`load_estimator(folder)` store the
 weights (``flow.eqx``, equinox's serialisation) beside ``flow.json`` (settings, dimensions,
 standardisation), so a stored estimator rebuilds exactly.
 
@@ -44,6 +46,7 @@ from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -52,16 +55,30 @@ import numpy as np
 from flocksweep.simcore.schema import ConfigError, check_at_least
 from flocksweep.sweeps.files import atomic_path
 
+from .jax_cache import enable_cache
+
 FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"
 MAX_REDRAWS = 50            # redraws of every row lacking draws inside the support, count each ...
 WIDE_BATCH, MAX_WIDE = 64, 20   # ... then of each row still lacking, WIDE_BATCH x count at a time
 MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
 DENSITY_CHUNK = 4096        # log_prob runs compiled on chunks of this many rows (the last one padded)
+SAMPLE_THREADS = 2          # an ensemble's members sample in this many threads
+SAMPLE_BLOCK, SAMPLE_ROWS = 12_800, 16   # a compiled sampler call draws for up to SAMPLE_ROWS observed rows, at most
+                            # about SAMPLE_BLOCK draws in all (at least one row): the rows per call depend on the
+                            # draws per row only, never on how many rows there are (the last call is padded), so a
+                            # row's draws are bit for bit the same alone or among many (XLA's float32 rounding
+                            # depends on the batch's shape) and one compiled program serves every table size
+
+
+def rows_per_call(count: int) -> int:
+    """Observed rows per compiled sampler call for ``count`` draws a row (:data:`SAMPLE_BLOCK`)."""
+    return int(min(SAMPLE_ROWS, max(1, SAMPLE_BLOCK // max(1, count))))
 
 
 def require_jax():
-    """The jax, equinox and flowjax modules, or a ConfigError saying how to install them."""
+    """The jax, equinox and flowjax modules, or a ConfigError saying how to install them; JAX's persistent
+    compilation cache turned on as :mod:`analysis.calibration.jax_cache` says (before any compile)."""
     os.environ.setdefault("JAX_PLATFORMS", "cpu")   # no accelerator probing: CPU, deterministic
     try:
         import equinox
@@ -70,7 +87,18 @@ def require_jax():
     except ImportError:
         raise ConfigError("method.kind", "npe needs the sbi extra (JAX and flowjax, about 100 MB): "
                                          "pip install -e '.[sbi]'") from None
+    enable_cache(jax)
     return jax, equinox
+
+
+def support_of(prior=None, bounds=None):
+    """(S, d) -> (S,) inside the prior's bounds (or the given (d, 2) bounds): the support the samplers
+    redraw into."""
+    bounds = np.asarray(prior.bounds if prior is not None else bounds, dtype=float)
+
+    def inside(theta):
+        return np.all((theta >= bounds[:, 0]) & (theta <= bounds[:, 1]), axis=1)
+    return inside
 
 
 class OutsideSupport(ValueError):
@@ -115,14 +143,17 @@ _SAMPLER = []
 
 
 def _sampler():
-    """One compiled vectorised sampler (flow, conditions (m, k), keys (m,), count) -> (m, count, d), kept
-    for the process: equinox's filter_jit compiles once per flow architecture, shape and count."""
+    """One compiled vectorised sampler (flow, conditions (r, k), key, rows (r,), count) -> (r, count, d), kept
+    for the process: row j draws with the key ``fold_in(key, rows[j])``, so a row's draws depend on its
+    own index and not on the others in the call; equinox's filter_jit compiles once per flow architecture,
+    r and count (the callers give r = SAMPLE_ROWS: one program for every table size)."""
     if not _SAMPLER:
         _, eqx = require_jax()
         import jax
 
-        def sample(flow, conditions, keys, count):
-            return jax.vmap(lambda c, key: flow.sample(key, (count,), condition=c))(conditions, keys)
+        def sample(flow, conditions, key, rows, count):
+            return jax.vmap(lambda c, row: flow.sample(jax.random.fold_in(key, row), (count,), condition=c))(
+                conditions, rows)
         _SAMPLER.append(eqx.filter_jit(sample))
     return _SAMPLER[0]
 
@@ -155,7 +186,7 @@ class Estimator:
     x_mean: np.ndarray
     x_sd: np.ndarray
     losses: dict = field(default_factory=dict)
-    leakage: list = field(default_factory=lambda: [0.0])
+    leakage: list = field(default_factory=lambda: [0.0, np.zeros(0)])   # the last call's: pooled, per row
 
     @property
     def d(self) -> int:
@@ -170,56 +201,78 @@ class Estimator:
         """Share of the last call's raw draws that fell outside the support (redrawn)."""
         return self.leakage[0]
 
+    @property
+    def last_row_leakage(self) -> np.ndarray:
+        """(m,): each observed row's share of the last call's raw draws outside the support."""
+        return self.leakage[1]
+
     def _condition(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)
         if x.shape[-1] != self.k:
             raise ValueError(f"observed rows need {self.k} statistics, got shape {x.shape}")
         return ((x - self.x_mean) / self.x_sd).astype(np.float32)
 
-    def _raw(self, conditions: np.ndarray, count: int, seed: int) -> np.ndarray:
+    def _raw(self, conditions: np.ndarray, count: int, seed: int, rows=None) -> np.ndarray:
+        """(m, count, d) raw draws at the m standardised ``conditions``; ``rows``: their row numbers (the
+        key of row i is ``fold_in(key(seed), rows[i])``; default 0..m-1), :func:`rows_per_call` rows a call."""
         import jax
         import jax.numpy as jnp
 
-        keys = jax.random.split(jax.random.key(int(seed)), len(conditions))
-        draws = np.asarray(_sampler()(self.flow, jnp.asarray(conditions), keys, int(count)), dtype=float)
+        rows = np.arange(len(conditions)) if rows is None else np.asarray(rows)
+        chunk = rows_per_call(count)
+        key = jax.random.key(int(seed))
+        calls = []   # dispatched before any is read: JAX runs them on its CPU threads as they come
+        for start in range(0, len(conditions), chunk):
+            pad = chunk - len(rows[start:start + chunk])
+            calls.append(_sampler()(self.flow, jnp.asarray(np.pad(conditions[start:start + chunk], ((0, pad), (0, 0)),
+                                                                  mode="edge")),
+                                    key, jnp.asarray(np.pad(rows[start:start + chunk], (0, pad), mode="edge"),
+                                                     dtype=jnp.uint32), int(count)))
+        draws = np.concatenate([np.asarray(values, dtype=float) for values in calls])[:len(conditions)]
         return draws * self.theta_sd + self.theta_mean
 
-    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise") -> np.ndarray:
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None) -> np.ndarray:
         """(m, count, d): ``count`` posterior draws for each of the m observed rows; a row the support
-        holds too little of (module docstring) raises, or with ``short = "nan"`` is all NaN."""
+        holds too little of (module docstring) raises, or with ``short = "nan"`` is all NaN. Row i's draws
+        depend only on its statistics, ``seed``, ``count`` and its row number ``rows[i]`` (default i), not on
+        the other rows: one row sampled alone with its row number gets the draws it gets among many."""
         conditions = np.atleast_2d(self._condition(x))
-        draws = self._raw(conditions, count, seed)
+        rows = np.arange(len(conditions)) if rows is None else np.asarray(rows, dtype=np.int64)
+        if rows.shape != (len(conditions),) or (rows < 0).any() or (rows >= 2**31).any():
+            raise ValueError(f"rows: expected {len(conditions)} row numbers in [0, 2^31), got {rows!r:.80}")
+        draws = self._raw(conditions, count, seed, rows)
         if support is None:
-            self.leakage[0] = 0.0
+            self.leakage[:] = [0.0, np.zeros(len(draws))]
             return draws
         inside = support(draws.reshape(-1, self.d)).reshape(draws.shape[:2])
-        self.leakage[0] = float(1.0 - inside.mean())
+        self.leakage[:] = [float(1.0 - inside.mean()), 1.0 - inside.mean(axis=1)]
         for attempt in range(1, MAX_REDRAWS + 1):
-            if inside.all():
+            lacking = np.flatnonzero(~inside.all(axis=1))
+            if not len(lacking):
                 return draws
-            more = self._raw(conditions, count, seed + 7919 * attempt)
+            more = self._raw(conditions[lacking], count, seed + 7919 * attempt, rows[lacking])
             more_inside = support(more.reshape(-1, self.d)).reshape(more.shape[:2])
-            for i in np.flatnonzero(~inside.all(axis=1)):
-                pool = np.concatenate([draws[i][inside[i]], more[i][more_inside[i]]])[:count]
+            for j, i in enumerate(lacking):
+                pool = np.concatenate([draws[i][inside[i]], more[j][more_inside[j]]])[:count]
                 draws[i, :len(pool)] = pool
                 inside[i] = np.arange(count) < len(pool)
         if inside.all():
             return draws
         for i in np.flatnonzero(~inside.all(axis=1)):
             try:
-                draws[i] = self._fill(conditions[i], draws[i][inside[i]], count, seed, support)
+                draws[i] = self._fill(conditions[i], rows[i], draws[i][inside[i]], count, seed, support)
             except OutsideSupport:
                 if short != "nan":
                     raise
                 draws[i] = np.nan
         return draws
 
-    def _fill(self, condition, have, count: int, seed: int, support) -> np.ndarray:
+    def _fill(self, condition, row: int, have, count: int, seed: int, support) -> np.ndarray:
         """(count, d) draws for one row whose support holds too little of its mass for the redraws above
         (e.g. a posterior near the edge of a truncation region): batches of WIDE_BATCH x count."""
         pool, found = [have], len(have)
         for attempt in range(1, MAX_WIDE + 1):
-            more = self._raw(condition[None, :], WIDE_BATCH * count, seed + 7919 * (MAX_REDRAWS + attempt))[0]
+            more = self._raw(condition[None, :], WIDE_BATCH * count, seed + 7919 * (MAX_REDRAWS + attempt), [row])[0]
             keep = more[support(more)]
             pool.append(keep)
             found += len(keep)
@@ -275,7 +328,7 @@ class Ensemble:
     """An equally weighted mixture of trained estimators (module docstring)."""
 
     members: tuple
-    leakage: list = field(default_factory=lambda: [0.0])
+    leakage: list = field(default_factory=lambda: [0.0, np.zeros(0)])   # the last call's: pooled, per row
 
     @property
     def d(self) -> int:
@@ -289,20 +342,30 @@ class Ensemble:
     def last_leakage(self) -> float:
         return self.leakage[0]
 
-    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise") -> np.ndarray:
-        """(m, count, d) draws of the mixture for each of the m observed rows (``short``: as
+    @property
+    def last_row_leakage(self) -> np.ndarray:
+        return self.leakage[1]
+
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None) -> np.ndarray:
+        """(m, count, d) draws of the mixture for each of the m observed rows (``short``, ``rows``: as
         :meth:`Estimator.sample_many`; a row any member cannot fill is all NaN)."""
         size = len(self.members)
         shares = [count // size + (i < count % size) for i in range(size)]
-        parts, leaks = [], []
-        for i, (member, share) in enumerate(zip(self.members, shares)):
-            if share:
-                parts.append(member.sample_many(x, share, seed + MEMBER_SEED_STEP * i, support, short))
-                leaks.append(member.last_leakage * share)
-        self.leakage[0] = float(sum(leaks) / count)
+        jobs = [(member, share, seed + MEMBER_SEED_STEP * i) for i, (member, share) in enumerate(zip(self.members, shares))
+                if share]
+        _sampler()   # made before the threads start: one compiled sampler for all
+        # the members sample in two threads (JAX releases the GIL while a compiled call runs): each
+        # member's draws are its own calls' whatever the threads, so the mixture is bit for bit the same
+        with ThreadPoolExecutor(max_workers=min(SAMPLE_THREADS, len(jobs))) as threads:
+            parts = list(threads.map(lambda job: job[0].sample_many(x, job[1], job[2], support, short, rows), jobs))
+        leaks = [member.last_leakage * share for member, share, _ in jobs]
+        row_leaks = [member.last_row_leakage * share for member, share, _ in jobs]
+        self.leakage[:] = [float(sum(leaks) / count), sum(row_leaks) / count]
         draws = np.concatenate(parts, axis=1)
         draws[np.isnan(draws).any(axis=(1, 2))] = np.nan
-        order = np.random.default_rng(seed).permuted(np.broadcast_to(np.arange(count), draws.shape[:2]), axis=1)
+        rows = np.arange(len(draws)) if rows is None else np.asarray(rows, dtype=np.int64)
+        order = np.stack([np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(int(row),))).permutation(count)
+                          for row in rows])
         return np.take_along_axis(draws, order[:, :, None], axis=1)
 
     def sample(self, x, count: int, seed: int, support=None) -> np.ndarray:
@@ -400,9 +463,20 @@ def load_estimator(folder):
         raise DamagedEstimator(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
                                "with flocksweep calibrate FILE --method npe")
     settings, arrays = _checked_record(folder / FLOW_RECORD, record, DamagedEstimator, retrain_hint())
-    skeleton = _build(settings, record["d"], record["k"], jax.random.key(0))
+    architecture = (settings, record["d"], record["k"])
+    if architecture not in _SKELETONS:
+        _SKELETONS[architecture] = _build(settings, record["d"], record["k"], jax.random.key(0))
+    skeleton = _SKELETONS[architecture]
     flow = _read_weights(folder / FLOW_WEIGHTS, skeleton, DamagedEstimator, retrain_hint())
-    return Estimator(flow, settings, *arrays)
+    static = eqx.partition(skeleton, eqx.is_array)[1]
+    return Estimator(eqx.combine(eqx.partition(flow, eqx.is_array)[0], static), settings, *arrays)
+
+
+_SKELETONS = {}   # (settings, d, k) -> a flow of that architecture (built once per process; its weights are
+                  # replaced): every flow loaded with that architecture shares its static structure, so the
+                  # compiled sampler and density programs traced for one serve all (members, estimators loaded
+                  # again). (A flow of shapes only, eqx.filter_eval_shape, would cost no compile but flowjax's
+                  # spline constructor keeps a closure over the trace's values.)
 
 
 def _checked_record(path: Path, record: dict, damaged, hint: str):

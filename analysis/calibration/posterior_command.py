@@ -6,10 +6,12 @@ command's work, ``run(args)``, for its declaration in ``flocksweep/commands/post
 table's rows (one observed flock or flight each: the estimator's statistic columns, e.g. the per-flight rows
 ``flocksweep measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids)
 -> one row per flock with, per parameter, the posterior mean, sd, median and 5% / 95% quantiles, ``leakage``
-(the share of raw draws outside the prior) and ``credible`` (False when the estimator failed its coverage
-check and ``force`` gave the posteriors anyway). All flocks are sampled in one vectorised call; flock i's
-draws depend only on ``seed`` and i. ``notes``: the plain lines the command prints (the estimator's
-coverage verdict first).
+(that flock's share of raw draws outside the prior, redrawn) and ``credible`` (False when the estimator failed
+its coverage check and ``force`` gave the posteriors anyway). The flocks are sampled in vectorised calls of
+several flocks each, by one compiled program whatever the table's size; flock i's draws depend only on its
+statistics, ``draws``, ``seed`` and i (bit for bit, in a table of any size). ``notes``: the plain lines the
+command prints (the estimator's coverage verdict first; the flocks whose leakage exceeds
+:data:`LEAKAGE_WARN`, named).
 
 Refused (a :class:`~simcore.schema.ConfigError` naming what to do):
 
@@ -42,6 +44,8 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TOLERANCE = 1e-6        # relative: two intervals this close are the same
+LEAKAGE_WARN = 0.1      # a flock whose share of draws outside the prior exceeds this is named in the notes
+MAX_NAMED = 10          # flocks named in a note at most
 
 
 MAX_TABLE = 256 << 20   # bytes of a --targets table (a row per flock: a few kB as a rule)
@@ -101,8 +105,7 @@ def _identity(estimator_dir: Path) -> dict:
 def coverage_verdict(estimator_dir: Path) -> dict | None:
     """The estimator's held-out coverage check as stored beside it (``coverage.json``), or None; one that
     is not a verdict flocksweep writes is DamagedEstimator."""
-    from .estimator_folder import DamagedEstimator, read_json, retrain_hint
-    from .npe import COVERAGE_FILE
+    from .estimator_folder import COVERAGE_FILE, DamagedEstimator, read_json, retrain_hint
 
     path = Path(estimator_dir) / COVERAGE_FILE
     verdict = read_json(path, missing=True)
@@ -197,8 +200,7 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     import numpy as np
     import pandas as pd
 
-    from .npe import support_of
-    from .npe_flow import load_estimator
+    from .npe_flow import load_estimator, support_of
     from .transforms import Transforms
 
     estimator_dir = Path(estimator_dir)
@@ -260,7 +262,15 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         out[f"{name}_median"] = np.median(values, axis=1)
         out[f"{name}_q5"] = np.quantile(values, 0.05, axis=1)
         out[f"{name}_q95"] = np.quantile(values, 0.95, axis=1)
-    out["leakage"] = estimator.last_leakage
+    out["leakage"] = estimator.last_row_leakage
+    leaky = np.flatnonzero(out["leakage"].to_numpy() > LEAKAGE_WARN)
+    if len(leaky):
+        label = out[ids[0]].astype(str) if ids else [f"row {i}" for i in range(len(out))]
+        named = ", ".join(f"{label[i]} ({out['leakage'].iloc[i]:.0%})" for i in leaky[:MAX_NAMED])
+        more = f" and {len(leaky) - MAX_NAMED} more" if len(leaky) > MAX_NAMED else ""
+        notes.append(f"{len(leaky)} of {len(out)} flock(s) had more than {LEAKAGE_WARN:.0%} of the estimator's draws "
+                     f"outside the prior (redrawn; column leakage): {named}{more}; their statistics lie near or past "
+                     "the edge of what the training simulations cover: check them, or train on a wider prior")
     outside = np.isnan(samples).any(axis=(1, 2))
     out["credible"] = credible & ~outside
     if outside.any():
