@@ -166,6 +166,11 @@ def _sandbox() -> Sandbox:
     return box
 
 
+def has_sandbox() -> bool:
+    """Whether this thread has a sandbox process running (a caller that starts one closes it after)."""
+    return getattr(_SANDBOXES, "box", None) is not None
+
+
 def close_sandbox() -> None:
     """End this thread's sandbox process, if it has one (the runner, after an in-process sweep)."""
     box = getattr(_SANDBOXES, "box", None)

@@ -34,7 +34,7 @@ from flocksweep.simcore.params import canonical_key
 from flocksweep.simcore.schema import parse_value
 from flocksweep.sweeps.design import stored_spec
 from flocksweep.sweeps.store import ResultsStore
-from flocksweep.sweeps.worker import execute_run
+from flocksweep.sweeps.worker import close_sandbox, execute_run, has_sandbox
 
 from .observables import record_metrics
 
@@ -161,7 +161,12 @@ def reproduce(results_dir, row: dict, record_step: int = 1) -> Reproduction:
     """Re-simulate a stored run and check it (see the module docstring)."""
     root = Path(results_dir)
     spec = _spec(root, row)
-    fresh, series = execute_run(spec)
+    had_sandbox = has_sandbox()
+    try:
+        fresh, series = execute_run(spec)
+    finally:   # a contained run's sandbox started here ends here: a report or view leaves no process behind
+        if not had_sandbox:
+            close_sandbox()
     if fresh["status"] != "ok":
         raise NotReproduced(f"run {row['run_id']}: the re-simulation failed: {fresh['error']}")
     columns = [c for c in fresh if c not in NOT_METRICS and c not in dict(spec.columns) and c in row]

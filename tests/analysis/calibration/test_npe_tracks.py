@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from flocksweep.analysis.calibration.config import load_calibration
+from flocksweep.analysis.calibration.estimator_folder import seal
 from flocksweep.analysis.calibration.npe import NPEStream, estimator_identity, training_design
 from flocksweep.analysis.calibration.simulator import summary_simulator
 from flocksweep.cli import main
@@ -101,6 +102,7 @@ def test_posterior_checks_how_a_table_was_measured_and_the_estimator_coverage(fi
     coverage = json.loads((estimator / "coverage.json").read_text())
     # the tiny estimator's own verdict may go either way on 10 held-out sets: first as a good one's
     (estimator / "coverage.json").write_text(json.dumps({**coverage, "passed": True, "messages": ["coverage: ok"]}))
+    seal(estimator, ["coverage.json"])          # (the folder is sealed: a verdict edited by hand is resealed)
     # the tracks measured as the estimator needs (its interval, velocities, group radius): one row per flock
     assert main(["posterior", str(estimator), "--tracks", str(fitted / "tracks.parquet"), "--draws", "100",
                  "--out", str(fitted / "post.csv")]) == 0
@@ -127,6 +129,7 @@ def test_posterior_checks_how_a_table_was_measured_and_the_estimator_coverage(fi
     # an estimator that failed its coverage check: refused, or with --force every row marked
     (estimator / "coverage.json").write_text(json.dumps({**coverage, "passed": False, "messages": [
         "coverage FAILED: ...", "separation: 90% intervals cover 40.0% of 10 held-out truths"]}))
+    seal(estimator, ["coverage.json"])
     with pytest.raises(ConfigError, match="FAILED its held-out coverage check.*--force"):
         main_or_raise(["posterior", str(estimator), "--tracks", str(fitted / "tracks.parquet")])
     assert main(["posterior", str(estimator), "--tracks", str(fitted / "tracks.parquet"), "--force", "--draws", "100",
