@@ -12,6 +12,9 @@ the caller's and a fresh child for the next task:
   code cannot be interrupted any other way);
 * an interrupt (KeyboardInterrupt, SIGTERM as one) while waiting: the child is killed, the interrupt raised.
 
+A child that ended while idle, between tasks (killed from outside), ran none of them: the next call starts
+a new one instead of blaming that task.
+
 The child is a new interpreter (``python -m flocksweep.sweeps.sandbox``, not a fork: the caller may run
 threaded compiled kernels), started with the caller's ``sys.path`` (a plug-in module the caller imports, the
 child imports) and numba thread count, stdin closed, stdout and stderr the caller's. It ignores SIGINT and
@@ -113,6 +116,8 @@ class Sandbox:
 
     def call(self, fn, *args, timeout: float | None = None):
         """``fn(*args)`` in the child, within ``timeout`` seconds (None: no limit); see the module docstring."""
+        if self._process is not None and self._process.poll() is not None:   # ended while idle (killed from
+            self.close(kill=True)                                             # outside): no task of ours died
         if self._process is None:
             self._start()
         try:

@@ -96,3 +96,16 @@ def test_an_interrupt_while_waiting_ends_the_child():
             assert gone(pid) and box.pid is None
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_a_child_killed_while_idle_is_replaced_not_blamed_on_the_next_task():
+    """A sandbox killed from outside between tasks (a tidy-up, the OOM killer) has run none of them: the
+    next call starts a new child instead of reporting that task as crashed."""
+    import signal
+
+    with Sandbox() as box:
+        first = box.call(os.getpid)
+        os.kill(first, signal.SIGKILL)
+        box._process.wait()                 # surely dead before the next call (no race with a sleep)
+        second = box.call(os.getpid)
+        assert second != first and gone(first)
