@@ -1,5 +1,7 @@
-"""``flocksweep sbc``: simulation-based calibration (Talts et al. 2018) of a calibration file's emcee posterior,
-the command's work, ``run(args)``, for its declaration in ``flocksweep/commands/sbc.py``. The work itself is :func:`analysis.calibration.sbc.run_sbc`.
+"""``flocksweep sbc``: simulation-based calibration (Talts et al. 2018) of a calibration file's method (emcee's
+BSL posterior, npe's amortised estimator: the methods whose object has ``sbc = True``), the command's work,
+``run(args)``, for its declaration in ``flocksweep/commands/sbc.py``. The work itself is
+:func:`analysis.calibration.sbc.run_sbc`, which runs the method object's ``run_sbc``.
 """
 from __future__ import annotations
 
