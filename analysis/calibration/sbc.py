@@ -9,10 +9,9 @@ overconfident posterior, a hump an overdispersed one, a slope a biased one.
 Contract
 --------
 ``run_sbc(config, datasets=50, draws=49, out_dir=None, progress=True, *, steps=None, walkers=None,
-bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``: the check of the config's method,
-through its method object's ``run_sbc`` (the methods with ``sbc = True``: emcee runs
-``run_bsl_sbc`` below, npe :func:`analysis.calibration.sbc_npe.run_npe_sbc`; any other is a ConfigError
-naming the allowed ones). The rest of this contract is BSL's, ``run_bsl_sbc`` with the same arguments:
+bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict`` (BSL's; the check of any calibration
+by its own method is :func:`analysis.calibration.methods.run_sbc`, which runs this one for emcee and
+:func:`analysis.calibration.sbc_npe.run_npe_sbc` for npe)
 
 * ``config`` is a :class:`~analysis.calibration.config.CalibrationConfig` with method ``emcee`` (or an
   :class:`SBCProblem`, e.g. a cheap toy model in tests). ``steps`` / ``walkers`` override the config's.
@@ -126,24 +125,11 @@ class SBCProblem:
 
 # ------------------------------------------------------------------------------------------ the problem
 
-def check_sbc_method(config) -> None:
-    """ConfigError at ``method.kind`` unless SBC checks the config's method (its ``sbc`` flag)."""
-    from .methods import method_of, sbc_kinds
-
-    if not method_of(config.method.kind).sbc:
-        raise ConfigError("method.kind", f"got {config.method.kind!r}, which has no SBC check yet; allowed: "
-                                         f"{', '.join(sbc_kinds())} (SBC re-fits many synthetic datasets drawn "
-                                         "from the prior; --set method.kind=... to check another method)")
-
-
 def problem_from_config(config, steps: int | None = None, walkers: int | None = None) -> SBCProblem:
     """The SBC problem of an emcee calibration config (optionally with other steps / walkers)."""
-    from .settings import EmceeSettings
-
-    check_sbc_method(config)
-    if not isinstance(config.method, EmceeSettings):
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; this is the BSL (emcee) problem: run_sbc "
-                                         "runs each method's own SBC")
+    if not all(hasattr(config.method, key) for key in ("walkers", "steps", "n_sim", "likelihood")):
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; this is the problem of a BSL chain (walkers, "
+                                         "steps, n_sim); methods.run_sbc runs each method's own SBC")
     settings = config.method
     rows = int(np.asarray(config.targets.observed).shape[0])
     observer = summary_simulator(config, n_sim=rows)
@@ -309,23 +295,6 @@ def run_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress:
             steps: int | None = None, walkers: int | None = None, bins: int | None = None,
             workers: int = 1, order: Sequence[int] | None = None, resume: bool = True,
             alpha: float = 0.05) -> dict:
-    """Simulation-based calibration of a calibration config by its method's own check (its method
-    object's ``run_sbc``: BSL's is :func:`run_bsl_sbc`, npe's :func:`analysis.calibration.sbc_npe.run_npe_sbc`),
-    or of an :class:`SBCProblem` by BSL; a ConfigError for a method without one."""
-    options = dict(datasets=datasets, draws=draws, out_dir=out_dir, progress=progress, steps=steps, walkers=walkers,
-                   bins=bins, workers=workers, order=order, resume=resume, alpha=alpha)
-    if isinstance(config, SBCProblem):
-        return run_bsl_sbc(config, **options)
-    from .methods import method_of
-
-    check_sbc_method(config)
-    return method_of(config.method.kind).run_sbc(config, **options)
-
-
-def run_bsl_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progress: bool = True, *,
-                steps: int | None = None, walkers: int | None = None, bins: int | None = None,
-                workers: int = 1, order: Sequence[int] | None = None, resume: bool = True,
-                alpha: float = 0.05) -> dict:
     """Simulation-based calibration of the config's BSL posterior; see the module docstring."""
     problem = _as_problem(config, steps, walkers)
     datasets, draws = integer(datasets, "datasets", 1), integer(draws, "draws", 1)

@@ -9,7 +9,7 @@ Contract
 --------
 ``run_npe_sbc(config, datasets=50, draws=49, out_dir=None, progress=True, *, bins=None, workers=1,
 order=None, resume=True, alpha=0.05) -> dict`` (the same return value as
-:func:`analysis.calibration.sbc.run_sbc`).
+:func:`analysis.calibration.sbc.run_sbc`), through :func:`analysis.calibration.methods.run_sbc`.
 
 * ``config``: a calibration of method ``npe`` with one round (``rounds > 1`` truncates the prior to the
   targets' region, so its estimator is not meant to hold across the prior: a ConfigError at

@@ -110,7 +110,6 @@ class CalibrationMethod:
         writes it): the result of :func:`analysis.calibration.sbc_report.write_report` plus ``wall_s``.
         ``options``: datasets, draws, out_dir, progress, bins, workers, order, resume, alpha, and the
         chain's steps / walkers (None when not given)."""
-        from ..sbc import check_sbc_method
+        from flocksweep.simcore.schema import ConfigError
 
-        check_sbc_method(config)
-        raise NotImplementedError(f"method {self.kind!r}: run_sbc is not written")
+        raise ConfigError("method.kind", f"got {self.kind!r}, which has no SBC check (flocksweep sbc)")

@@ -118,6 +118,6 @@ class Emcee(ChainMethod):
         return write_posterior(job, result)
 
     def run_sbc(self, config, **options) -> dict:
-        from ..sbc import run_bsl_sbc
+        from ..sbc import run_sbc
 
-        return run_bsl_sbc(config, **options)
+        return run_sbc(config, **options)

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
 
-from flocksweep.analysis.calibration import sbc  # noqa: E402
+from flocksweep.analysis.calibration import methods, sbc  # noqa: E402
 from flocksweep.analysis.calibration.config import load_calibration  # noqa: E402
 from flocksweep.analysis.calibration.sbc_npe import draw_seed  # noqa: E402
 from flocksweep.cli import main  # noqa: E402
@@ -63,7 +63,7 @@ def test_npe_sbc_trains_once_ranks_deterministically_and_resumes(tmp_path, capsy
     assert first["ranks"] == [below]                                 # no ties among continuous draws
 
     # the same file and seed, another folder, datasets in reverse order: identical records (training again)
-    again = sbc.run_sbc(config, datasets=DATASETS, draws=DRAWS, out_dir=tmp_path / "again", progress=False,
+    again = methods.run_sbc(config, datasets=DATASETS, draws=DRAWS, out_dir=tmp_path / "again", progress=False,
                         order=list(range(DATASETS))[::-1])
     assert not again["estimator"]["reused"] and again["estimator"]["simulations"]["training"] == 60
     assert records(out) == records(tmp_path / "again")
@@ -72,7 +72,7 @@ def test_npe_sbc_trains_once_ranks_deterministically_and_resumes(tmp_path, capsy
     kept = records(out)
     (out / "datasets" / "000005.json").unlink()
     shutil.rmtree(out / "training")                                  # the reused estimator needs no training run
-    resumed = sbc.run_sbc(config, datasets=DATASETS, draws=DRAWS, out_dir=out, progress=False)
+    resumed = methods.run_sbc(config, datasets=DATASETS, draws=DRAWS, out_dir=out, progress=False)
     assert resumed["estimator"]["reused"] and "training" not in resumed["estimator"]["simulations"]
     assert records(out) == kept
     pd.testing.assert_frame_equal(ranks.drop(columns="wall_s"),
