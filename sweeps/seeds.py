@@ -92,7 +92,7 @@ class SBCStream(IntEnum):
 
     THETA = 0       # the parameters drawn from the prior
     OBSERVED = 1    # the observed data simulated at them
-    BSL = 2         # the integer seed of the dataset's BSL run
+    BSL = 2         # the integer seed of the dataset's BSL run (npe: the JAX seed of its estimator draws)
     SELECT = 3      # which thinned posterior draws are kept
     TIES = 4        # tie-breaking in the ranks
 

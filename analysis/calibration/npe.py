@@ -52,6 +52,10 @@ from the training set's) is left out and counted (``excluded``); more than :data
 fails the check. A failed check makes the calibration's verdict "NOT converged" and the fit not credible;
 the verdict is stored beside the estimator (``coverage.json``) for ``flocksweep posterior``.
 
+``trained_estimator(config, folder, pool, executor, phases, cost) -> (estimator, (theta, x) held out, info,
+where)``: the one-round estimator trained or reused (what ``run_npe`` starts with; SBC,
+:mod:`analysis.calibration.sbc_npe`, uses it alone).
+
 ``run_npe(config, folder, pool, executor, phases, cost) -> NpeResult``: the method as ``flocksweep
 calibrate`` runs it (:mod:`analysis.calibration.methods.npe` writes the common outputs). An observed row
 the estimator puts almost no mass inside the prior at raises
@@ -317,6 +321,15 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
     if settings.rounds > 1:
         return _with_training_pool(pool, executor, lambda training: _run_rounds(config, folder, training, phases,
                                                                                  cost))
+    estimator, heldout, info, where = trained_estimator(config, folder, pool, executor, phases, cost)
+    return _checked_posterior(config, estimator, *heldout, support_of(config.prior), phases, info, where)
+
+
+def trained_estimator(config, folder, pool: Executor, executor: tuple, phases, cost):
+    """The one-round estimator of ``config``, trained into ``<folder>/estimator`` (or ``method.estimator``)
+    or reused when its identity matches; ``(estimator, (held-out theta, held-out x), info, where)``.
+    Used by :func:`run_npe` and by SBC (:mod:`analysis.calibration.sbc_npe`)."""
+    settings = config.method
     identity = estimator_identity(config)
     where = Path(settings.estimator) if settings.estimator is not None else folder.path("estimator")
     found = stored_identity(where)
@@ -348,7 +361,7 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
     info = {"estimator": str(where), "identity": digest(identity), "reused": bool(reused),
             "training_simulations": n, "replicates": replicates(config), "runs_found": design.reused_runs,
             **_failure_info(design.failed)}
-    return _checked_posterior(config, estimator, *heldout, support_of(config.prior), phases, info, where)
+    return estimator, heldout, info, where
 
 
 def _trusted(folder, where: Path, external: bool) -> bool:

@@ -9,7 +9,9 @@ overconfident posterior, a hump an overdispersed one, a slope a biased one.
 Contract
 --------
 ``run_sbc(config, datasets=50, draws=49, out_dir=None, progress=True, *, steps=None, walkers=None,
-bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict``
+bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict`` (BSL's; the check of any calibration
+by its own method is :func:`analysis.calibration.methods.run_sbc`, which runs this one for emcee and
+:func:`analysis.calibration.sbc_npe.run_npe_sbc` for npe)
 
 * ``config`` is a :class:`~analysis.calibration.config.CalibrationConfig` with method ``emcee`` (or an
   :class:`SBCProblem`, e.g. a cheap toy model in tests). ``steps`` / ``walkers`` override the config's.
@@ -123,18 +125,11 @@ class SBCProblem:
 
 # ------------------------------------------------------------------------------------------ the problem
 
-def check_sbc_method(config) -> None:
-    """ConfigError at ``method.kind`` unless SBC checks the config's method (its ``sbc`` flag)."""
-    from .methods import method_of, sbc_kinds
-
-    if not method_of(config.method.kind).sbc:
-        raise ConfigError("method.kind", f"got {config.method.kind!r}; SBC checks the posterior of "
-                                         f"{', '.join(sbc_kinds())} (BSL), re-run on many synthetic datasets")
-
-
 def problem_from_config(config, steps: int | None = None, walkers: int | None = None) -> SBCProblem:
     """The SBC problem of an emcee calibration config (optionally with other steps / walkers)."""
-    check_sbc_method(config)
+    if not all(hasattr(config.method, key) for key in ("walkers", "steps", "n_sim", "likelihood")):
+        raise ConfigError("method.kind", f"got {config.method.kind!r}; this is the problem of a BSL chain (walkers, "
+                                         "steps, n_sim); methods.run_sbc runs each method's own SBC")
     settings = config.method
     rows = int(np.asarray(config.targets.observed).shape[0])
     observer = summary_simulator(config, n_sim=rows)

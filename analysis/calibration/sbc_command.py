@@ -1,5 +1,7 @@
-"""``flocksweep sbc``: simulation-based calibration (Talts et al. 2018) of a calibration file's emcee posterior,
-the command's work, ``run(args)``, for its declaration in ``flocksweep/commands/sbc.py``. The work itself is :func:`analysis.calibration.sbc.run_sbc`.
+"""``flocksweep sbc``: simulation-based calibration (Talts et al. 2018) of a calibration file's method (emcee's
+BSL posterior, npe's amortised estimator: the methods whose object has ``sbc = True``), the command's work,
+``run(args)``, for its declaration in ``flocksweep/commands/sbc.py``. The work itself is
+:func:`analysis.calibration.methods.run_sbc`, which runs the method object's ``run_sbc``.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from flocksweep.sweeps.progress import next_steps
 def run(args) -> int:
     """Run the SBC check the arguments describe; prints the rank table and the verdict."""
     from .config import load_calibration
-    from .sbc import check_sbc_method, run_sbc
+    from .methods import check_sbc, run_sbc
 
     for flag, value in (("--datasets", args.datasets), ("--draws", args.draws), ("--steps", args.steps)):
         check_count(flag, value, 1)
@@ -20,7 +22,7 @@ def run(args) -> int:
     check_count("--walkers", args.walkers, 2)
     check_out("--out", args.out)
     config = load_calibration(args.config, args.overrides)
-    check_sbc_method(config)
+    check_sbc(config)
     out = args.out or Path("results") / "calibration" / config.name / "sbc"
     args.on_interrupt = lambda: (f"saved: {len(list((out / 'datasets').glob('*.json')))} datasets in {out}; "
                                  "run the same command again to resume")

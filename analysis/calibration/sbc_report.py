@@ -35,6 +35,9 @@ BAND_TRIALS = 4000          # uniform rank sets simulated for the ECDF band and 
 MIN_EXPECTED_PER_BIN = 5    # default bins keep at least this many expected ranks per bin
 
 
+CHAIN_FIELDS = ("tau_max", "thin", "short", "acceptance", "steps", "walkers")   # BSL's records only
+
+
 def dataset_path(out: Path, j: int) -> Path:
     return Path(out) / "datasets" / f"{int(j):06d}.json"
 
@@ -56,7 +59,7 @@ def collect(out: Path, datasets: int) -> list[dict]:
 
 def ranks_frame(records: list[dict], names: Sequence[str], columns: Sequence[str] | None = None) -> pd.DataFrame:
     """One row per dataset: theta, rank, posterior mean and sd per parameter, the observed summaries
-    (``y_<column>``, or ``y<i>_<column>`` for several observed rows), tau, thinning, acceptance."""
+    (``y_<column>``, or ``y<i>_<column>`` for several observed rows), and the records' own figures: tau, thinning, acceptance (BSL), outside_support (npe)."""
     rows = []
     for r in records:
         row = {"dataset": r["dataset"]}
@@ -68,7 +71,7 @@ def ranks_frame(records: list[dict], names: Sequence[str], columns: Sequence[str
         for i, values in enumerate(observed):
             prefix = "y" if len(observed) == 1 else f"y{i}"
             row.update({f"{prefix}_{label}": value for label, value in zip(labels, values)})
-        row.update({k: r[k] for k in ("tau_max", "thin", "short", "acceptance", "steps", "walkers", "wall_s")})
+        row.update({k: r[k] for k in CHAIN_FIELDS + ("outside_support", "wall_s") if k in r})
         rows.append(row)
     return pd.DataFrame(rows).set_index("dataset")
 
@@ -132,6 +135,18 @@ def verdict(table: pd.DataFrame, alpha: float) -> tuple[bool, str]:
     return True, f"no significant miscalibration at {where}; {pvals}"
 
 
+def _chain_summary(frame: pd.DataFrame) -> dict:
+    """The chains' figures of BSL datasets; the estimator's support misses of npe datasets."""
+    out = {}
+    if "tau_max" in frame:
+        out.update({"short_datasets": int(frame["short"].sum()), "tau_max_median": float(frame["tau_max"].median()),
+                    "tau_max_max": float(frame["tau_max"].max()),
+                    "acceptance_median": float(frame["acceptance"].median())})
+    if "outside_support" in frame:
+        out["outside_support_datasets"] = int(frame["outside_support"].sum())
+    return out
+
+
 def write_report(out, names: Sequence[str], datasets: int, draws: int, bins: int | None = None,
                  alpha: float = 0.05, seed: int = 0, columns: Sequence[str] | None = None) -> dict:
     """Ranks table, uniformity tests, figures and summary.json from the stored datasets 0..datasets-1."""
@@ -154,9 +169,7 @@ def write_report(out, names: Sequence[str], datasets: int, draws: int, bins: int
     ecdf_figure(ranks, draws, names, band, paths["ecdf"], level=1 - alpha)
     summary = {"datasets": datasets, "draws": draws, "bins": bins, "alpha": alpha, "calibrated": calibrated,
                "verdict": sentence, "table": table.reset_index().to_dict(orient="records"),
-               "short_datasets": int(frame["short"].sum()), "tau_max_median": float(frame["tau_max"].median()),
-               "tau_max_max": float(frame["tau_max"].max()), "acceptance_median":
-               float(frame["acceptance"].median()), "dataset_wall_s_median": float(frame["wall_s"].median()),
+               **_chain_summary(frame), "dataset_wall_s_median": float(frame["wall_s"].median()),
                "dataset_wall_s_total": float(frame["wall_s"].sum()),
                "simulations": total_simulations(r["simulations"] for r in records if "simulations" in r),
                "datasets_without_count": sum("simulations" not in r for r in records)}

@@ -10,7 +10,10 @@ already is a ValueError unless ``replace``). ``unregister(kind)`` removes one (t
 ``method_of(kind) -> CalibrationMethod`` (a :class:`~simcore.schema.ConfigError` at ``method.kind`` naming
 the registered kinds for an unknown one); ``kinds() -> tuple`` in registration order (the built-ins:
 emcee, optimize, npe, emulator); ``settings_classes() -> {kind: settings class}``; ``sbc_kinds()``: the
-methods simulation-based calibration checks (``flocksweep sbc``).
+methods simulation-based calibration checks (``flocksweep sbc``: their ``sbc`` flag);
+``check_sbc(config)``: a ConfigError at ``method.kind`` naming those for any other method;
+``run_sbc(config, **options) -> dict``: the config's method object's ``run_sbc`` (emcee: BSL's,
+:func:`analysis.calibration.sbc.run_sbc`; npe: :func:`analysis.calibration.sbc_npe.run_npe_sbc`).
 
 ``methods_table() -> str``: the Markdown table of the methods (what each does, its cost, when to use it),
 the table at the top of docs/calibration.md (a test keeps the two equal).
@@ -33,7 +36,7 @@ from .emulator import Emulator
 from .npe import Npe
 from .optimize import Optimize
 
-__all__ = ["CalibrationMethod", "Job", "register", "unregister", "method_of", "kinds", "sbc_kinds",
+__all__ = ["CalibrationMethod", "Job", "register", "unregister", "method_of", "kinds", "sbc_kinds", "check_sbc", "run_sbc",
            "settings_classes", "methods_table"]
 
 _REGISTERED: dict[str, CalibrationMethod] = {}
@@ -74,6 +77,20 @@ def method_of(kind: str) -> CalibrationMethod:
 def sbc_kinds() -> tuple[str, ...]:
     """The methods simulation-based calibration checks (their ``sbc`` flag)."""
     return tuple(kind for kind, method in _REGISTERED.items() if method.sbc)
+
+
+def check_sbc(config) -> None:
+    """ConfigError at ``method.kind`` unless the config's method has an SBC check (its ``sbc`` flag)."""
+    if not method_of(config.method.kind).sbc:
+        raise ConfigError("method.kind", f"got {config.method.kind!r}, which has no SBC check yet; allowed: "
+                                         f"{', '.join(sbc_kinds())} (SBC re-fits many synthetic datasets drawn "
+                                         "from the prior; --set method.kind=... to check another method)")
+
+
+def run_sbc(config, **options) -> dict:
+    """Simulation-based calibration of ``config`` by its method's own check (module docstring)."""
+    check_sbc(config)
+    return method_of(config.method.kind).run_sbc(config, **options)
 
 
 def settings_classes() -> dict:

@@ -104,3 +104,12 @@ class CalibrationMethod:
 
     def resume_hint(self, command: str, out_dir) -> str:
         return f"run the same command again: flocksweep calibrate {command} --out {out_dir}"
+
+    def run_sbc(self, config, **options) -> dict:
+        """Simulation-based calibration of this method (``flocksweep sbc``; a method with ``sbc = True``
+        writes it): the result of :func:`analysis.calibration.sbc_report.write_report` plus ``wall_s``.
+        ``options``: datasets, draws, out_dir, progress, bins, workers, order, resume, alpha, and the
+        chain's steps / walkers (None when not given)."""
+        from flocksweep.simcore.schema import ConfigError
+
+        raise ConfigError("method.kind", f"got {self.kind!r}, which has no SBC check (flocksweep sbc)")

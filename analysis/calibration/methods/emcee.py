@@ -116,3 +116,8 @@ class Emcee(ChainMethod):
         if resumed_from:
             job.cost_extra["resumed_from"] = resumed_from
         return write_posterior(job, result)
+
+    def run_sbc(self, config, **options) -> dict:
+        from ..sbc import run_sbc
+
+        return run_sbc(config, **options)

@@ -12,6 +12,7 @@ from .base import CalibrationMethod, Job
 class Npe(CalibrationMethod):
     kind = "npe"
     settings = NpeSettings
+    sbc = True
     what = ("neural posterior estimation: a conditional normalising flow q(theta given statistics) trained on "
             "prior draws run through the calibration's own simulator (measured through the `[observation]` block "
             "like the tracks), its coverage checked on held-out simulations; amortised (new targets cost no "
@@ -65,6 +66,17 @@ class Npe(CalibrationMethod):
         if result.info["runs_found"]:
             job.cost_extra["training_runs_reused"] = result.info["runs_found"]
         return outcome
+
+    def run_sbc(self, config, steps=None, walkers=None, **options) -> dict:
+        from flocksweep.simcore.schema import ConfigError
+
+        from ..sbc_npe import run_npe_sbc
+
+        for flag, value in (("--steps", steps), ("--walkers", walkers)):
+            if value is not None:
+                raise ConfigError(flag, f"got {value}; npe's SBC runs no chain (the steps and walkers of a chain "
+                                        "apply to emcee): leave it out")
+        return run_npe_sbc(config, **options)
 
     def report_blocks(self, config, outcome, folder) -> list:
         from ..calibration_report import npe_blocks
