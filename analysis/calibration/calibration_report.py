@@ -245,6 +245,7 @@ def calibration_report(config, outcome, folder, method_blocks=()) -> dict:
                    Table(flock.reset_index().rename(columns={"index": "statistic"}),
                          "Every flock statistic of the posterior predictive runs, targets or not, against the observed "
                          "flock where known (flock_check.csv; disagrees: outside the central 95% of the runs)")]
+    blocks += _tracks_blocks(report.get("tracks"))
     blocks += _cost_blocks(report.get("accounting"))
     blocks += [Heading("Settings")] + _settings_tables(config)
     provenance = pd.DataFrame([{"item": "git revision", "value": report.get("git_revision")},
@@ -260,3 +261,18 @@ def calibration_report(config, outcome, folder, method_blocks=()) -> dict:
     written = {"md": folder.write_text("report.md", to_markdown(blocks, folder.root)),
                "html": folder.write_text("report.html", to_html(blocks, f"flocksweep calibration: {config.name}"))}
     return written
+
+
+def _tracks_blocks(record: dict | None) -> list:
+    """The tracks the targets were measured from: file, format, flocks, checks, and every unit and scale
+    with its source (convergence.json's ``tracks``)."""
+    if not record:
+        return []
+    scales = pd.DataFrame([{"unit or scale": name, "value": entry.get("value"), "from": entry.get("from")}
+                           for name, entry in record.get("scales", {}).items()])
+    checks = record.get("checks", {})
+    return [Heading("The tracks"),
+            Para(f"Targets measured from `{record.get('file')}` ({record.get('format')}, {record.get('dims')}-D, "
+                 f"{len(record.get('flocks', []))} flocks); the checks found {checks.get('errors', 0)} errors and "
+                 f"{checks.get('warnings', 0)} warnings (`flocksweep measure {record.get('file')}` lists them)."),
+            Table(scales, "Every unit and scale used, and where it came from")]

@@ -139,7 +139,7 @@ from .method_table import chosen_kind, method_settings
 from .methods import method_of
 from .settings import MethodSettings
 from .tracks_targets import (check_observation, check_tank_parameters, fixed_group_radius, read_target_tracks,
-                             shared_tank, tracks_targets)
+                             shared_tank, tracks_record, tracks_targets)
 from .transforms import Transforms, transforms_from
 
 RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES   # per-run: no _mean / _final
@@ -231,6 +231,8 @@ class Targets:
     flock_tracks: tuple = field(default=(), repr=False)   # from_tracks: the measured flocks (ObservedFlock), for the viewer
     tracks_warmup: float = 0.0          # from_tracks: seconds skipped at the start of each measured flock
     tank: Any = None                    # from_tracks: the tank the tracks declare (simcore.arena.Arena, their coordinates)
+    tracks_record: dict | None = None   # from_tracks: the file, its format, every unit and scale used with its
+                                        # source, and what the checks found (convergence.json's "tracks")
 
     @property
     def k(self) -> int:
@@ -601,7 +603,7 @@ def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters,
                           flocks=found.flocks, per_flock=_readonly(found.per_flock),
                           flock_runs=found.measurement.runs, flock_tracks=tuple(found.measurement.flocks),
                           tracks_warmup=float(found.measurement.table.source.warmup),
-                          tank=found.measurement.table.source.tank())
+                          tank=found.measurement.table.source.tank(), tracks_record=tracks_record(found))
     targets = dataclasses.replace(targets, flock=check_flock_table(table.targets.flock, targets.summary,
                                                                     targets.columns))
     return targets, metrics

@@ -189,6 +189,8 @@ def run_calibration(config: CalibrationConfig, out_dir=None, resume: bool = Fals
             phases.save("interrupted" if isinstance(err, KeyboardInterrupt) else "failed", err)
             raise
         outcome.report.update(fit_verdicts(config, outcome))
+        if config.targets.tracks_record is not None:   # the tracks' units and scales, with their sources
+            outcome.report["tracks"] = config.targets.tracks_record
         outcome.report["accounting"] = json_ready(job.cost.block(**job.cost_extra))
         outcome.report["wall_s"] = time.time() - job.started
         folder.write_json(method.report_file, outcome.report)

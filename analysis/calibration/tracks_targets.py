@@ -349,3 +349,15 @@ def tracks_block(config) -> str:
                   "# mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
                   "# cov = [" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in r) + "]" for r in cov) + "]"]
     return "\n".join(lines) + "\n"
+
+
+def tracks_record(found: TrackTargets) -> dict:
+    """What a calibration records of the tracks its targets came from: the file (its name, not the
+    machine's path), format, flocks, every unit and scale used with where it came from (file, sidecar, given,
+    default: :meth:`~observables.tracks.TrackSource.scales`), and how many warnings and errors the checks
+    found (``flocksweep measure`` lists them)."""
+    table = found.measurement.table
+    levels = [getattr(issue, "level", "") for issue in found.measurement.issues]
+    return {"file": Path(found.path).name, "format": table.source.format, "flocks": list(found.flocks),
+            "dims": int(table.dims), "scales": table.source.scales(),
+            "checks": {"warnings": levels.count("warning"), "errors": levels.count("error")}}

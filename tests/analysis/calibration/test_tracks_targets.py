@@ -2,6 +2,8 @@
 (analysis.calibration.tracks_targets, config, simulator)."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -242,6 +244,13 @@ def test_a_calibration_from_tracks_runs_end_to_end_through_the_cli(tracks, tmp_p
     assert list(posterior["parameter"]) == ["separation", "alignment"]
     predictive = pd.read_csv(out / "predictive.csv")
     assert len(predictive) == 3 and (out / "chain.h5").exists()
+    # the tracks it was fitted to are recorded: file (not the machine's path), units and scales with their source
+    record = json.loads((out / "convergence.json").read_text())["tracks"]
+    assert record["file"] == tracks.name and record["dims"] in (2, 3) and record["flocks"]
+    assert record["scales"]["length unit"]["from"] and "analysis length unit" in record["scales"]
+    assert set(record["checks"]) == {"warnings", "errors"}
+    report = (out / "report.md").read_text()
+    assert "## The tracks" in report and "Every unit and scale used" in report
 
 
 DCD_STATS = '["polarization", "dcd_corr_mean", "dcd_delay_mean", "dcd_leader_delay"]'
