@@ -68,6 +68,8 @@ def console() -> None:
     if isinstance(code, str) or any(not thread.daemon for thread in threading.enumerate()
                                     if thread is not threading.main_thread()):
         sys.exit(code)
+    for sig in NAMES:   # the command is done: a late Ctrl-C cannot cut its exit handlers short with a traceback
+        signal.signal(sig, signal.SIG_IGN)
     atexit._run_exitfuncs()
     os._exit(_flushed(code or 0))
 

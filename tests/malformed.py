@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from faults import FAULTY_PRESET   # the fault battery's plug-in preset (tests/faults.py)
 from paths import ROOT
 
 HOLLAND = str(ROOT / "configs" / "models" / "holland.toml")
@@ -697,18 +698,6 @@ QUICK = ("run: not UTF-8", "run: date value", "run: NUL in name", "run: run.n 9e
 
 # -- runs and plug-ins (issue 42): a plug-in that does not compile, a bad run.timeout_s ------------------
 # (tests/broken_plugin.py: its steer names an attribute that does not exist, on line 15; tests/ is on the path)
-PLUGIN_PRESET = """name = "p"
-dynamics = "{module}"
-[perception]
-kind = "sphere"
-radius = 9.0
-[init]
-n = 6
-[run]
-dt = 0.05
-duration = 1.0
-record_interval = 0.5
-"""
 PLUGIN_SWEEP = """name = "p"
 [model]
 preset = "{d}/p.toml"
@@ -718,7 +707,7 @@ warmup = 0.5
 key = "init.radius"
 values = [5.0, 6.0]
 """
-BROKEN = {"p.toml": PLUGIN_PRESET.format(module="broken_plugin"), "s.toml": PLUGIN_SWEEP}
+BROKEN = {"p.toml": FAULTY_PRESET.format(module="broken_plugin"), "s.toml": PLUGIN_SWEEP}
 RUNS_AND_PLUGINS = [
     Case("run: a plug-in whose steer does not compile", RUN, BROKEN, 2,
          "broken_plugin.py, line 15 (return (nbrs.nonexistent[0], 0.0, 0.0)): Unknown attribute 'nonexistent'"),

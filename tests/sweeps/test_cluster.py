@@ -218,8 +218,7 @@ def test_loading_dask_jobqueue_keeps_the_processs_ctrl_c():
 
     import importlib.util
 
-    if importlib.util.find_spec("dask_jobqueue") is None:   # (importorskip would import it unguarded)
-        pytest.skip("dask-jobqueue is not installed")
+    assert importlib.util.find_spec("dask_jobqueue") is not None   # the test extra installs it (flocksweep[hpc])
     from flocksweep.sweeps.cluster import _jobqueue_class
 
     before = signal.getsignal(signal.SIGINT)

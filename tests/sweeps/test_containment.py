@@ -13,41 +13,19 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from faults import FAULTY_PRESET, FAULTY_SWEEP   # the fault battery's plug-in files (tests/faults.py)
 from paths import ROOT
 from flocksweep.cli import main
 from flocksweep.sweeps.config import load_sweep
 from flocksweep.sweeps.design import expand
 
 HOLLAND = ROOT / "configs" / "models" / "holland.toml"
-PRESET = """name = "faulty"
-dynamics = "{module}"
-[perception]
-kind = "sphere"
-radius = 9.0
-[init]
-n = 6
-[run]
-dt = 0.05
-duration = 1.0
-record_interval = 0.5
-"""
-SWEEP = """name = "contained"
-seed = 2
-[model]
-preset = "faulty.toml"
-[run]
-warmup = 0.5
-{run}
-[[axes]]
-key = "{key}"
-values = {faults}
-"""
 
 
 def write(folder, module="faulty_plugin", faults="[0, 1, 2, 3]", run="timeout_s = 3", key="plugin.fault"):
-    (folder / "faulty.toml").write_text(PRESET.format(module=module))
+    (folder / "faulty.toml").write_text(FAULTY_PRESET.format(module=module))
     path = folder / "contained.toml"
-    path.write_text(SWEEP.format(faults=faults, run=run, key=key))
+    path.write_text(FAULTY_SWEEP.format(values=faults, run=run, key=key))
     return path
 
 
@@ -66,7 +44,7 @@ def test_a_plugin_that_does_not_compile_is_one_message_naming_its_line(tmp_path,
            "(return (nbrs.nonexistent[0], 0.0, 0.0)): Unknown attribute 'nonexistent' of type Neighbours(...)" in err
     assert "compiling the simulation kernels" not in err   # refused before the run loop's compile
     assert not out.exists()
-    (tmp_path / "one.toml").write_text(PRESET.format(module="broken_plugin"))
+    (tmp_path / "one.toml").write_text(FAULTY_PRESET.format(module="broken_plugin"))
     assert main(["simulate", str(tmp_path / "one.toml")]) == 2
     assert "broken_plugin.py, line 15" in capsys.readouterr().err
 

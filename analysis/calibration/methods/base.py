@@ -33,6 +33,7 @@ folder and its lock, the executor, the progress lines, the report, the accountin
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -67,8 +68,8 @@ class Job:
         return ("local" if kind == "serial" else kind), workers, scheduler
 
 
-class CalibrationMethod:
-    """Base class of a calibration method (see the module docstring)."""
+class CalibrationMethod(ABC):
+    """Base class of a calibration method (see the module docstring); a subclass must define ``run``."""
 
     kind: ClassVar[str] = ""
     settings: ClassVar[type] = MethodSettings
@@ -94,8 +95,9 @@ class CalibrationMethod:
     def continues(self, config, folder) -> bool:
         return False
 
+    @abstractmethod
     def run(self, job: Job):
-        raise NotImplementedError(f"method {self.kind!r}: run(job) is not written")
+        """The method itself (module docstring): its outputs in ``job.folder``, a CalibrationRun."""
 
     def report_blocks(self, config, outcome, folder) -> list:
         from ..calibration_report import draws_blocks

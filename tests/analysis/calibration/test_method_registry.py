@@ -137,3 +137,14 @@ def test_the_calibrate_command_names_no_method_itself():
     strings = [node.value for node in ast.walk(ast.parse(source)) if isinstance(node, ast.Constant)
                and isinstance(node.value, str)]
     assert not [s for s in strings if re.search(r"\bemcee\|optimize", s)]
+
+
+def test_a_method_without_run_cannot_be_made():
+    """The base class states run as abstract: a method that forgets it fails when made, not mid-calibration."""
+    from flocksweep.analysis.calibration.methods.base import CalibrationMethod
+
+    class Forgetful(CalibrationMethod):
+        kind = "forgetful"
+
+    with pytest.raises(TypeError, match="abstract method.*run"):
+        Forgetful()
