@@ -30,6 +30,23 @@ Column = IntEnum("Column", [(name, index) for index, name in enumerate(COLUMNS)]
 
 
 @njit(cache=True)
+def masked_mean(values, mask, mean):
+    """mean[:] = the mean of the rows of ``values`` (N, 3) where ``mask`` is true (0 when none); their count."""
+    count = 0
+    for k in range(3):
+        mean[k] = 0.0
+    for i in range(values.shape[0]):
+        if mask[i]:
+            count += 1
+            for k in range(3):
+                mean[k] += values[i, k]
+    if count > 0:
+        for k in range(3):
+            mean[k] /= count
+    return count
+
+
+@njit(cache=True)
 def fold(d, box):
     """Minimum-image offset (box <= 0: unchanged)."""
     if box > 0.0:
@@ -252,17 +269,10 @@ def shape_frame(points, vel, mask):
     with m the top eigenvalue of P G P (the largest second moment across h); nan below 3 boids, without
     a heading, or when m <= TINY h^T G h."""
     n = points.shape[0]
-    count = 0
-    c = np.zeros(3)
-    for i in range(n):
-        if mask[i]:
-            count += 1
-            for k in range(3):
-                c[k] += points[i, k]
+    c = np.empty(3)
+    count = masked_mean(points, mask, c)
     if count == 0:
         return np.nan, np.nan, np.nan, np.nan
-    for k in range(3):
-        c[k] /= count
     x = np.empty((n, 3))
     g = np.zeros((3, 3))
     for i in range(n):
@@ -543,17 +553,10 @@ def correlation_length_frame(points, vel, mask, dist, prod):
     first zero of the correlation function C(r) (Cavagna et al. 2010). nan below 2 boids or when the
     fluctuations vanish (sum |dv|^2 <= TINY^2 sum |v|^2). Scratch: dist, prod (N (N - 1) / 2,)."""
     n = points.shape[0]
-    count = 0
-    mean = np.zeros(3)
-    for i in range(n):
-        if mask[i]:
-            count += 1
-            for c in range(3):
-                mean[c] += vel[i, c]
+    mean = np.empty(3)
+    count = masked_mean(vel, mask, mean)
     if count < 2:
         return np.nan
-    for c in range(3):
-        mean[c] /= count
     total = 0.0
     scale = 0.0
     for i in range(n):
@@ -609,17 +612,10 @@ def spacing_profile_frame(points, vel, mask, nn, key):
     the m most behind; ranks by a stable sort (ties: lower index first). nan below 4 boids, when the
     denominator is 0, and (front) without a heading. Scratch: key (N,)."""
     n = points.shape[0]
-    count = 0
-    c = np.zeros(3)
-    for i in range(n):
-        if mask[i]:
-            count += 1
-            for a in range(3):
-                c[a] += points[i, a]
+    c = np.empty(3)
+    count = masked_mean(points, mask, c)
     if count < 4:
         return np.nan, np.nan
-    for a in range(3):
-        c[a] /= count
     members = np.empty(count, np.int64)
     m = 0
     for i in range(n):
