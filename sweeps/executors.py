@@ -343,11 +343,25 @@ def _local_cluster(workers: int):
 
 
 def connect(address: str):
-    """A dask Client at ``address``; :class:`SchedulerUnreachable` when the address is malformed or no
-    scheduler answers within :data:`CONNECT_TIMEOUT` seconds."""
-    from dask.distributed import Client
+    """A dask Client at ``address``; :class:`SchedulerUnreachable` when the address is malformed, no
+    scheduler answers within :data:`CONNECT_TIMEOUT` seconds or what answers does not speak dask. dask's
+    global ``scheduler`` setting is left as it was when no client starts (a failed client has set it)."""
+    import dask
 
+    before = dask.config.get("scheduler", None)
     try:
+        return _client(address)
+    except BaseException:
+        _restore_dask_scheduler(before)
+        raise
+
+
+def _client(address: str):
+    from dask.distributed import Client
+    from distributed.comm.addressing import get_address_host_port
+
+    try:   # the address's form first: a Client refused at once would wait 20 s as it is collected
+        get_address_host_port(address)
         return Client(address, timeout=CONNECT_TIMEOUT)
     except (ValueError, TypeError) as err:
         raise SchedulerUnreachable(f"--scheduler: got {address!r}, not a dask address ({err}); expected "
@@ -356,6 +370,9 @@ def connect(address: str):
         raise SchedulerUnreachable(f"--scheduler: no dask scheduler answered at {address!r} within "
                                    f"{CONNECT_TIMEOUT:g} s ({type(err).__name__}: {err}); start one (dask "
                                    "scheduler) or check the address") from None
+    except MemoryError:   # something answered with bytes that are not dask's frames (read as a huge length)
+        raise SchedulerUnreachable(f"--scheduler: what answers at {address!r} is not a dask scheduler (its "
+                                   "reply is not dask's protocol); check the address and port") from None
 
 
 def _restore_dask_scheduler(before) -> None:
@@ -454,25 +471,33 @@ class Executor:
         """Stop the pool or cluster; ``wait=False`` (after an error or an interrupt) kills the workers
         instead of waiting for their tasks."""
         mend_resource_tracker()
+        try:
+            self._close_parts(wait)
+        finally:   # even when closing raised (a cluster that would not stop in time)
+            if "_immune" in vars(self):   # the cluster is gone: spawn starts Python directly again
+                vars(self).pop("_immune").__exit__(None, None, None)
+            if "_dask_scheduler" in vars(self):   # set when a client was started
+                _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
+
+    def _close_parts(self, wait: bool) -> None:
         if self._pool is not None:
             self._stop_pool(wait)
-        for name in ("_client", "_cluster"):
+        failure = None
+        for name in ("_client", "_cluster"):   # the cluster is closed even when the client would not close
             part, timeout = getattr(self, name), None if wait else 5
             setattr(self, name, None)
             if part is None:
                 continue
-            if wait:
-                part.close(timeout=timeout)
-                continue
-            try:   # after an error or an interrupt: best effort, the original exception is what matters
-                with _quiet_distributed():
+            try:
+                if wait:
                     part.close(timeout=timeout)
-            except Exception:  # noqa: BLE001 - dask may complain about workers still starting
-                pass
-        if "_immune" in vars(self):   # the cluster is gone: spawn starts Python directly again
-            vars(self).pop("_immune").__exit__(None, None, None)
-        if "_dask_scheduler" in vars(self):   # set when a client was started
-            _restore_dask_scheduler(vars(self).pop("_dask_scheduler"))
+                    continue
+                with _quiet_distributed():   # after an error or an interrupt: best effort, the original
+                    part.close(timeout=timeout)   # exception is what matters
+            except Exception as err:  # noqa: BLE001 - dask may complain about workers still starting
+                failure = failure or (err if wait else None)
+        if failure is not None:
+            raise failure
 
     def _stop_pool(self, wait: bool, settle: bool = False) -> list[int]:
         """Stop the pool; returns the exit statuses of the workers that had died before it was stopped

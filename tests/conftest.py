@@ -232,9 +232,12 @@ def _leftover_children(before: set[int]) -> dict[int, str]:
 
 @pytest.fixture(autouse=True)
 def closes_what_it_opens(request):
-    """Fails the test (an error at its teardown) that leaves a matplotlib figure open or a child process
-    running, then closes or kills what it left, so that no other test inherits it (a figure left open by one
-    module used to fail another's teardown when the suite ran in one process)."""
+    """Fails the test (an error at its teardown) that leaves a matplotlib figure open, a child process
+    running or dask's global scheduler set, then closes, kills or resets what it left, so that no other test
+    inherits it (a figure left open by one module used to fail another's teardown when the suite ran in one
+    process; a dask scheduler left set by a client that failed to start failed every later calibration's
+    posterior.nc in that worker)."""
+    dask_scheduler_before = _dask_scheduler()
     plt = sys.modules.get("matplotlib.pyplot")
     figures_before = set(plt.get_fignums()) if plt is not None else set()
     children_before = set(_child_processes())
@@ -256,5 +259,16 @@ def closes_what_it_opens(request):
     if left_running:
         problems.append("left child processes running: " + "; ".join(f"{pid} {command[:120]}"
                                                                        for pid, command in left_running.items()))
+    dask_scheduler = _dask_scheduler()
+    if dask_scheduler != dask_scheduler_before:
+        sys.modules["dask"].config.config.pop("scheduler", None)
+        problems.append(f"left dask's global scheduler set to {dask_scheduler!r} (close the client it made)")
     if problems:
         pytest.fail(f"{request.node.nodeid}: " + " and ".join(problems), pytrace=False)
+
+
+def _dask_scheduler():
+    """dask's global ``scheduler`` setting, None when unset or dask not imported."""
+    dask = sys.modules.get("dask")
+    config = getattr(dask, "config", None)
+    return config.get("scheduler", None) if config is not None else None

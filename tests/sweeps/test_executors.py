@@ -344,3 +344,62 @@ def test_the_sweep_workers_preparation_compiles_nothing():
     with event.install_listener("numba:compile", Count()):
         worker.prepare()
     assert not compiled
+
+
+class _Part:
+    """A stand-in for dask's Client or cluster: records its close, raises when told to."""
+
+    def __init__(self, error=None):
+        self.error, self.closed = error, False
+
+    def close(self, timeout=None):
+        self.closed = True
+        if self.error is not None:
+            raise self.error
+
+
+def test_a_client_that_will_not_close_still_closes_the_cluster_and_gives_dask_its_scheduler_back():
+    dask = pytest.importorskip("dask")
+    executor = Executor("dask", workers=1)
+    executor._client, executor._cluster = _Part(TimeoutError("close timed out")), _Part()
+    executor._dask_scheduler = None   # as _start_dask records it: no scheduler set before the client
+    cluster = executor._cluster
+    with dask.config.set(scheduler="dask.distributed"):   # what a client made dask's default leaves
+        with pytest.raises(TimeoutError, match="close timed out"):
+            executor.close(wait=True)
+        assert cluster.closed
+        assert dask.config.get("scheduler", None) is None   # else xarray's to_netcdf fails later
+
+
+def test_an_address_that_is_not_dask_is_refused_and_leaves_dasks_scheduler_as_it_was():
+    """A client that fails to start has made itself dask's default; connect() puts the setting back."""
+    import socket
+    import threading
+
+    dask = pytest.importorskip("dask.distributed") and pytest.importorskip("dask")
+    from flocksweep.sweeps.executors import SchedulerUnreachable, connect
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+
+    def answer_in_http():   # a web server where the scheduler was expected: bytes that are not dask frames
+        while True:
+            try:
+                peer, _ = server.accept()
+            except OSError:
+                return
+            peer.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+            peer.close()
+
+    threading.Thread(target=answer_in_http, daemon=True).start()
+    try:
+        before = dask.config.get("scheduler", None)
+        with pytest.raises(SchedulerUnreachable, match="not a dask address"):
+            connect("nonsense")
+        assert dask.config.get("scheduler", None) == before
+        with pytest.raises(SchedulerUnreachable, match="is not a dask scheduler"):
+            connect(f"tcp://127.0.0.1:{server.getsockname()[1]}")
+        assert dask.config.get("scheduler", None) == before
+    finally:
+        server.close()
