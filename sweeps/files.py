@@ -16,6 +16,10 @@ that is not valid JSON.
 numbers and lists, other unknown objects (paths, ...) their ``str``, and NaN and +-inf become ``None``
 (JSON has no such numbers), everywhere and at any depth. ``write_json`` writes ``json_ready(data)``
 with sorted keys, so a file never fails to write because a statistic is undefined.
+
+``user_cache(environ=None)`` is flocksweep's one cache folder for what is remembered across runs and
+never part of results (status counts, JAX's compiled programs): ``$FLOCKSWEEP_CACHE_DIR``, else
+``$XDG_CACHE_HOME/flocksweep``, else ``~/.cache/flocksweep``.
 """
 from __future__ import annotations
 
@@ -28,6 +32,14 @@ from contextlib import contextmanager
 from pathlib import Path
 
 TEMPORARY = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp(\.\w+)?$")   # what atomic_path's mkstemp names look like
+
+
+def user_cache(environ=None) -> Path:
+    """flocksweep's cache folder (module docstring), decided from ``environ`` (default ``os.environ``)."""
+    environ = os.environ if environ is None else environ
+    if environ.get("FLOCKSWEEP_CACHE_DIR"):
+        return Path(environ["FLOCKSWEEP_CACHE_DIR"])
+    return Path(environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flocksweep"
 
 
 class WriteFailed(OSError):

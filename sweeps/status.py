@@ -26,7 +26,7 @@ import json
 import os
 from pathlib import Path
 
-from .files import read_json, write_json
+from .files import read_json, user_cache, write_json
 from .lock import holder
 
 CACHE_FORMAT = 1
@@ -97,11 +97,8 @@ def _fingerprint(root: Path) -> dict:
 def cache_path(root: Path) -> Path:
     """Where the remembered counts of the folder ``root`` live: the user's cache (``$FLOCKSWEEP_CACHE_DIR``,
     else ``$XDG_CACHE_HOME/flocksweep``, else ``~/.cache/flocksweep``), never the folder itself."""
-    base = os.environ.get("FLOCKSWEEP_CACHE_DIR")
-    if not base:
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flocksweep"
     key = hashlib.sha256(str(Path(root).resolve()).encode()).hexdigest()[:32]
-    return Path(base) / "status" / f"{key}.json"
+    return user_cache() / "status" / f"{key}.json"
 
 
 def _remembered(root: Path, fingerprint: dict) -> dict | None:

@@ -42,6 +42,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from flocksweep.sweeps.files import user_cache
+
 SWITCH = "FLOCKSWEEP_JAX_CACHE"
 JAX_OWN = "JAX_COMPILATION_CACHE_DIR"
 OFF = ("0", "off", "false", "no")
@@ -61,15 +63,6 @@ class CacheSetting:
         if self.source == JAX_OWN:
             return f"{self.folder} (your {JAX_OWN})"
         return f"{self.folder}" + ("" if self.folder else " (off: the cache folder could not be used)")
-
-
-def user_cache(environ=None) -> Path:
-    """flocksweep's cache folder: ``$FLOCKSWEEP_CACHE_DIR``, else ``$XDG_CACHE_HOME/flocksweep``, else
-    ``~/.cache/flocksweep``."""
-    environ = os.environ if environ is None else environ
-    if environ.get("FLOCKSWEEP_CACHE_DIR"):
-        return Path(environ["FLOCKSWEEP_CACHE_DIR"])
-    return Path(environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "flocksweep"
 
 
 def version_folder() -> str:
