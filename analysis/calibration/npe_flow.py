@@ -293,7 +293,8 @@ class Estimator:
         import jax.numpy as jnp
 
         theta = ((np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd).astype(np.float32)
-        conditions = np.broadcast_to(self._condition(x), (len(theta), self.k))
+        condition = self._condition(x)
+        conditions = np.broadcast_to(condition, (len(theta), condition.shape[-1]))
         out = np.empty(len(theta))
         for start in range(0, len(theta), DENSITY_CHUNK):
             rows = slice(start, start + DENSITY_CHUNK)
@@ -404,11 +405,18 @@ def _one_structure(members) -> tuple:
                  for m in members)
 
 
-def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1, progress: bool = False):
+def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1, progress: bool = False,
+                   learned=None):
     """``members`` flows on the same simulations, seeds seed, seed + 1, ... (module docstring);
-    ``progress``: flowjax's bar of epochs for each."""
+    ``progress``: flowjax's bar of epochs for each; ``learned``: (SummarySettings, Layout) of a learned
+    summary trained with each flow (:func:`analysis.calibration.learned_summary.train_learned`), or None."""
     check_at_least("ensemble", members, 1)
-    trained = tuple(train_flow(theta, x, settings, seed + i, progress) for i in range(members))
+    if learned is not None:
+        from .learned_summary import train_learned
+
+        trained = tuple(train_learned(theta, x, settings, *learned, seed + i, progress) for i in range(members))
+    else:
+        trained = tuple(train_flow(theta, x, settings, seed + i, progress) for i in range(members))
     return trained[0] if members == 1 else Ensemble(_one_structure(trained))
 
 
@@ -462,6 +470,10 @@ def load_estimator(folder):
     if not record or not (folder / FLOW_WEIGHTS).is_file():
         raise DamagedEstimator(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
                                "with flocksweep calibrate FILE --method npe")
+    if "layout" in record:      # a learned summary beside the flow (analysis.calibration.learned_summary)
+        from .learned_summary import load_learned
+
+        return load_learned(folder, record)
     settings, arrays = _checked_record(folder / FLOW_RECORD, record, DamagedEstimator, retrain_hint())
     architecture = (settings, record["d"], record["k"])
     if architecture not in _SKELETONS:
