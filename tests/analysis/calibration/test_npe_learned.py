@@ -239,3 +239,60 @@ def test_a_learned_summary_calibration_from_tracks_and_its_stored_estimator(fitt
     from test_npe_tracks import main_or_raise
     with pytest.raises(ConfigError, match="--tracks"):
         main_or_raise(["posterior", str(out / "estimator"), "--targets", str(fitted / "m" / "runs.parquet")])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# recovery: heading noise from the individuals' turning, which the hand-picked statistic does not carry
+
+RECOVERY = f'''
+name = "vicsek_noise"
+seed = 2
+[model]
+preset = "{ROOT / 'configs/models/vicsek.toml'}"
+[run]
+n = 10
+duration = 20.0
+record_interval = 1.0
+warmup = 5.0
+[parameters.noise]
+key = "vicsek.noise"
+prior = {{ dist = "uniform", low = 0.2, high = 3.0 }}
+[targets]
+stats = ["speed_mean"]
+mean = [0.03]
+sd = [0.001]
+truth = {{ noise = 1.0 }}
+[method]
+kind = "npe"
+simulations = 200
+heldout = 30
+draws = 500
+flow = {{ width = 16, layers = 2, max_epochs = 60, patience = 10, learning_rate = 3e-3 }}
+[method.npe.summary]
+kind = "learned"
+series = ["polarization"]
+series_length = 5
+width = 16
+size = 4
+observed_seed = 11
+'''
+
+
+@pytest.mark.slow
+def test_a_learned_summary_recovers_heading_noise_that_the_mean_statistic_cannot(tmp_path):
+    # Vicsek particles move at one constant speed: speed_mean is the same number whatever the noise (checked
+    # below on every training run), so no estimator of it alone can learn the noise (its posterior is the
+    # prior: 90% of the prior's width). The learned summary sees each individual's turning rate and the
+    # polarization series. Measured (seed 2, 200 training runs): 90% interval [0.64, 1.04] around the truth
+    # 1.0 (mean 0.88, sd 0.13), 14% of the prior's width 2.8. Tolerance: within a quarter of the prior's width, the truth
+    # within 3 posterior sd of the mean.
+    pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
+    (tmp_path / "cal.toml").write_text(RECOVERY)
+    assert main(["calibrate", str(tmp_path / "cal.toml"), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    (stored,) = (tmp_path / "out" / "training").glob("*.npz")
+    with np.load(stored) as data:
+        speeds = data["rows"][:, 0]
+    assert np.ptp(speeds) <= 1e-9 * speeds.mean()       # the hand-picked statistic carries nothing about noise
+    posterior = pd.read_csv(tmp_path / "out" / "posterior.csv").set_index("parameter").loc["noise"]
+    assert posterior["q95"] - posterior["q5"] < 0.25 * (3.0 - 0.2)
+    assert abs(posterior["mean"] - 1.0) < 3 * posterior["sd"]
