@@ -13,7 +13,8 @@ conditioned on the targets' statistics alone, exactly as before the table existe
 tracker measures: :data:`SERIES_ALLOWED`), ``series_length`` L (bins of the window), ``max_individuals`` M
 (None: the preset's ``init.n``), ``width`` (hidden units of the embedding's networks), ``size`` (numbers the
 embedding gives the flow), ``observed_seed`` (targets not measured from tracks: the observed raw inputs are
-those of one run at ``[targets] truth`` with this seed, a recovery study's device). Each bad value is a
+those of one run at ``[targets] truth`` with the seed ``flocksweep targets --truth ... --seed observed_seed``
+gives it, a recovery study's device). Each bad value is a
 ConfigError naming the key, the value and what is allowed.
 
 :class:`Layout` (``layout(settings, max_individuals)``): how the raw inputs pack into one flat row of
@@ -38,7 +39,8 @@ identity adds the layout. ``learned_simulator(config)`` builds it (one run per t
 external command), one observed flock (m = 1), ``rounds = 1``; ConfigError naming the key otherwise.
 
 ``observed_raw(config) -> (length,)``: the observed flock's raw inputs: the ``from_tracks`` flock measured with
-the tracks' metric settings, or one run at ``[targets] truth`` with ``observed_seed``.
+the tracks' metric settings, or one run at ``[targets] truth`` with the run seed of ``common_seeds(observed_seed,
+1)`` (the run ``flocksweep targets --seed observed_seed`` simulates the targets with).
 """
 from __future__ import annotations
 
@@ -52,6 +54,7 @@ from flocksweep.observables.columns import PERCEPTION_SERIES, SERIES
 from flocksweep.observables.individuals import INDIVIDUAL_FEATURES, individual_features, window_series
 from flocksweep.observables.summary import measure_run, record_interval
 from flocksweep.simcore.schema import ConfigError, suggest
+from flocksweep.sweeps.seeds import common_seeds
 
 from .simulator import SummarySimulator
 
@@ -272,7 +275,8 @@ def observed_raw(config) -> np.ndarray:
             raise ConfigError(f"{KEY}", f"the tracks' raw inputs cannot be measured: {err}") from None
     else:
         truth = np.array([config.targets.truth[name] for name in config.names], dtype=float)
-        row = simulator.simulate(truth, [int(config.method.summary.observed_seed)])[0, len(config.targets.columns):]
+        seeds = common_seeds(int(config.method.summary.observed_seed), 1)   # as `flocksweep targets --seed`
+        row = simulator.simulate(truth, seeds)[0, len(config.targets.columns):]
     if not np.isfinite(row).all():
         raise ConfigError(f"{KEY}", "the observed flock's raw inputs are not finite (no individual with every "
                                     "feature, or a series with an empty bin): choose other features or series")

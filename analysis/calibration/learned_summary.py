@@ -26,6 +26,10 @@ statistics followed by the raw inputs (``k`` is their whole length); its flow's 
 statistics and the embedding. ``save(folder)`` writes ``flow.eqx``, ``embedding.eqx`` (equinox's
 serialisation) and ``flow.json`` (the settings, dimensions, standardisations and layout: never pickle);
 ``load_learned(folder, record)`` rebuilds it (each weight's shape and dtype checked, as the flow's).
+
+``load_any(folder) -> estimator``: whatever npe stored in ``folder`` (a flow, an ensemble, either with a learned
+summary): what ``calibrate`` and ``posterior`` load. ``learned_trainer(summary, plan)``: the trainer
+:func:`~analysis.calibration.npe_flow.train_ensemble` takes for a learned summary.
 """
 from __future__ import annotations
 
@@ -231,6 +235,23 @@ def train_learned(theta, x, settings: FlowSettings, summary: SummarySettings, pl
     flow, embedding = eqx.combine(best, static)
     return LearnedEstimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses, embedding=embedding,
                             summary=summary, plan=plan, raw_scale=raw_scale)
+
+
+def learned_trainer(summary: SummarySettings, plan: Layout):
+    """``(theta, x, settings, seed, progress) -> LearnedEstimator`` for :func:`~analysis.calibration.npe_flow.
+    train_ensemble`."""
+    def train(theta, x, settings, seed, progress=False):
+        return train_learned(theta, x, settings, summary, plan, seed, progress)
+    return train
+
+
+def load_any(folder, record: dict | None = None):
+    """The estimator stored in ``folder``, a learned summary's or not (module docstring)."""
+    from .npe_flow import load_estimator
+
+    if record is not None:      # called back by load_estimator with a learned summary's record
+        return load_learned(Path(folder), record)
+    return load_estimator(folder, load_any)
 
 
 _SKELETONS = {}

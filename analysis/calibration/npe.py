@@ -91,7 +91,8 @@ from flocksweep.sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
 from .estimator_folder import COVERAGE_FILE, IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
-from .npe_flow import Estimator, FlowSettings, OutsideSupport, load_estimator, support_of, train_ensemble
+from .learned_summary import learned_trainer, load_any as load_estimator
+from .npe_flow import Estimator, FlowSettings, OutsideSupport, support_of, train_ensemble
 from .npe_rounds import truncated_prior_draws, truncation_region
 from .outcome import NoPosterior
 from .simulator import summary_simulator
@@ -203,7 +204,8 @@ def estimator_identity(config) -> dict:
                        "replicates": replicates(config),
                        "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
                        "flow": asdict(flow_settings(config)),
-                       **({"summary": asdict(settings.summary)} if learned(config) else {}),
+                       **({"summary": {key: value for key, value in asdict(settings.summary).items()
+                                       if key != "observed_seed"}} if learned(config) else {}),   # not the observed
                        **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {}),
                        **({"rounds": settings.rounds, "observed": observed_row(config).tolist()}
                           if settings.rounds > 1 else {})})
@@ -317,13 +319,13 @@ def _fit(config, theta, rows, seed: int, phases, label: str = ""):
     flows = f"{settings.ensemble} flows" if settings.ensemble > 1 else "the flow"
     phases.start(f"training {flows}{label} on {len(theta)} simulations (at most "
                  f"{flow_settings(config).max_epochs} epochs each)")
-    plan = None
+    trainer = None
     if learned(config):
         from .learned_inputs import layout, max_individuals
 
-        plan = (settings.summary, layout(settings.summary, max_individuals(config)))
+        trainer = learned_trainer(settings.summary, layout(settings.summary, max_individuals(config)))
     return train_ensemble(theta, rows, flow_settings(config), seed, settings.ensemble, progress=phases.enabled,
-                          learned=plan)
+                          trainer=trainer)
 
 
 def _keys(config, n: int, r: int = 1) -> list[tuple]:
@@ -354,6 +356,8 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
     """Train or reuse the estimator, check its coverage, draw the posterior at the targets; ``phases``
     (:class:`sweeps.progress.Phases`) shows each step on stderr."""
     settings = config.method
+    if learned(config):
+        observed_row(config)     # the observed flock's raw inputs measured (or refused) before any training run
     if settings.rounds > 1:
         return _with_training_pool(pool, executor, lambda training: _run_rounds(config, folder, training, phases,
                                                                                  cost))

@@ -204,7 +204,8 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     import numpy as np
     import pandas as pd
 
-    from .npe_flow import load_estimator, support_of
+    from .learned_summary import load_any as load_estimator
+    from .npe_flow import support_of
     from .transforms import Transforms
 
     estimator_dir = Path(estimator_dir)

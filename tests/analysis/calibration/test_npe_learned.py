@@ -100,6 +100,18 @@ def test_the_default_summary_leaves_the_estimator_identity_as_it_was(tmp_path):
         estimator_identity(learned)
 
 
+def test_the_observed_seed_is_no_part_of_the_estimator_identity(tmp_path):
+    # the estimator does not depend on which flock it is conditioned on: another observed_seed reuses it
+    data = _with_summary(_table(CALIBRATION), kind="learned", observed_seed=3)
+    data["targets"] = {"stats": ["polarization"], "mean": [0.9], "sd": [0.05], "truth": {"separation": 10.0}}
+    first = estimator_identity(calibration_from_dict(data, tmp_path))
+    data["method"]["npe"]["summary"]["observed_seed"] = 4
+    assert estimator_identity(calibration_from_dict(data, tmp_path)) == first
+    assert first["summary"]["kind"] == "learned" and "observed_seed" not in first["summary"]
+    data["method"]["npe"]["summary"]["size"] = 5
+    assert estimator_identity(calibration_from_dict(data, tmp_path)) != first
+
+
 def test_learned_summaries_refuse_several_flocks_and_rounds(tmp_path):
     data = _with_summary(_table(CALIBRATION), kind="learned", observed_seed=3)
     data["targets"] = {"stats": ["polarization"], "mean": [0.9], "sd": [0.05], "truth": {"separation": 10.0}}
@@ -146,8 +158,30 @@ def small():
     return train_learned(theta, x, settings, summary, plan, seed=5), x, (settings, summary, plan, theta)
 
 
-def test_the_embedding_ignores_the_order_of_individuals_and_the_padding(small):
-    estimator, x, _ = small
+@pytest.fixture(scope="module")
+def untrained():
+    """A learned estimator with freshly drawn weights (the properties below hold for any weights): its
+    condition is what the flow would see."""
+    pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
+    import jax
+
+    from flocksweep.analysis.calibration.learned_summary import LearnedEstimator, Standardise, _new_embedding
+    from flocksweep.analysis.calibration.npe_flow import FlowSettings
+
+    rng = np.random.default_rng(0)
+    summary = SummarySettings(kind="learned", features=("speed", "turn_rate"), series=("polarization",),
+                              series_length=3, width=8, size=3)
+    plan = layout(summary, 6)
+    individuals, series = _raw_rows(rng, 8, plan, rng.integers(2, 7, 8))
+    x = np.concatenate([rng.normal(size=(8, 1)), individuals.reshape(8, -1), series.reshape(8, -1)], axis=1)
+    estimator = LearnedEstimator(None, FlowSettings(), np.zeros(1), np.ones(1), np.zeros(1), np.ones(1),
+                                 embedding=_new_embedding(summary, plan, jax.random.key(1)), summary=summary,
+                                 plan=plan, raw_scale=Standardise.fit(individuals, series))
+    return estimator, x
+
+
+def test_the_embedding_ignores_the_order_of_individuals_and_the_padding(untrained):
+    estimator, x = untrained
     plan = estimator.plan
     base = estimator._condition(x[:4])
     stats, individuals, series = plan.split(x[:4], 1)
@@ -170,7 +204,7 @@ def test_the_embedding_ignores_the_order_of_individuals_and_the_padding(small):
 @pytest.mark.slow
 def test_training_is_deterministic_and_the_stored_estimator_rebuilds(small, tmp_path):
     from flocksweep.analysis.calibration.learned_summary import train_learned
-    from flocksweep.analysis.calibration.npe_flow import load_estimator
+    from flocksweep.analysis.calibration.learned_summary import load_any as load_estimator
 
     estimator, x, (settings, summary, plan, theta) = small
     again = train_learned(theta, x, settings, summary, plan, seed=5)
@@ -217,6 +251,9 @@ def test_a_learned_summary_calibration_from_tracks_and_its_stored_estimator(fitt
     report = json.loads((out / "convergence.json").read_text())
     assert report["npe"]["flow"]["summary"]["kind"] == "learned"
     assert "coverage" in report["npe"] and (out / "coverage.csv").is_file()
+    from flocksweep.commands.calibrate import after_calibrate
+    hint = after_calibrate(type("Result", (), {"out": out, "paths": {"html": out / "report.html"}})(), config)
+    assert any("--tracks TRACKS" in step for step in hint)        # a table of statistics would be refused
     identity = json.loads((out / "estimator" / "identity.json").read_text())
     assert identity == json.loads(json.dumps(estimator_identity(config)))
     assert identity["simulator"]["learned_inputs"]["max_individuals"] == 8
