@@ -290,7 +290,8 @@ def measured_raw(flocks, identity: dict) -> np.ndarray:
 
     plan = layout_from_record(identity["simulator"]["learned_inputs"])
     wanted, metrics = identity["measurement"], identity["simulator"]["metrics"]
-    motion = {key: metrics[key] for key in ("k_nearest", "pairwise_metrics", "state_high", "state_low") if key in metrics}
+    motion = {key: metrics[key] for key in ("k_nearest", "pairwise_metrics", "state_high", "state_low")
+              if key in metrics}
     settings = dataclasses.replace(track_settings(wanted["group_radius"], wanted.get("warmup", 0.0),
                                                   wanted["fragmentation_cohesion"], wanted["dcd_max_delay"]), **motion)
     rows = []

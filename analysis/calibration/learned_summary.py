@@ -204,7 +204,8 @@ def train_learned(theta, x, settings: FlowSettings, summary: SummarySettings, pl
     data = [jnp.asarray((theta - theta_mean) / theta_sd, dtype=jnp.float32),
             jnp.asarray((stats - x_mean) / x_sd, dtype=jnp.float32), jnp.asarray(individuals), jnp.asarray(series)]
     optimizer = optax.adam(settings.learning_rate)
-    params, static = eqx.partition(model, eqx.is_inexact_array, is_leaf=lambda leaf: isinstance(leaf, paramax.NonTrainable))
+    params, static = eqx.partition(model, eqx.is_inexact_array,
+                                   is_leaf=lambda leaf: isinstance(leaf, paramax.NonTrainable))
     best, state = params, optimizer.init(params)
     key, split = jax.random.split(train_key)
     train, val = train_val_split(split, data, val_prop=settings.validation)
