@@ -250,6 +250,7 @@ def test_a_learned_summary_calibration_from_tracks_and_its_stored_estimator(fitt
     out = fitted / "out"
     report = json.loads((out / "convergence.json").read_text())
     assert report["npe"]["flow"]["summary"]["kind"] == "learned"
+    assert "summary of 3 numbers it learned" in (out / "report.html").read_text()
     assert "coverage" in report["npe"] and (out / "coverage.csv").is_file()
     from flocksweep.commands.calibrate import after_calibrate
     hint = after_calibrate(type("Result", (), {"out": out, "paths": {"html": out / "report.html"}})(), config)
