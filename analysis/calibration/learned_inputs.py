@@ -20,16 +20,17 @@ ConfigError naming the key, the value and what is allowed.
 :class:`Layout` (``layout(settings, max_individuals)``): how the raw inputs pack into one flat row of
 ``length = M (F + 1) + L S`` numbers, after the k statistics: an (M, F + 1) block, row i individual i's
 features and a last column 1 (present) or 0 (a padding row: features 0), then the (L, S) series. An
-individual counts (mask 1) when it has every feature (it was seen moving at two consecutive records with a
-neighbour present); the others are padding. ``layout.split(rows (m, k + length))`` gives the statistics, the
+individual counts when it has every feature (it was seen moving at two consecutive records with a neighbour
+present); the counted ones fill the first rows in index order (ids never or barely seen in the window, e.g. a
+tracker's short tracklets, take no slot), the rest is padding. ``layout.split(rows (m, k + length))`` gives the statistics, the
 (m, M, F + 1) individuals and the (m, L, S) series.
 
 ``raw_row(obs, settings (resolved MetricSettings), layout, series=None) -> (length,)``: the raw inputs of one
 run or flock (``obs``: a simulator's observations or an :class:`~observables.observed.ObservedFlock`), from
 :func:`observables.individuals.individual_features` and :func:`observables.individuals.window_series` of its
 :func:`observables.summary.measure_run` series (``series``: already measured). The window is the
-``settings.warmup`` one of the statistics. A flock with more than M individuals raises ValueError (as does a
-window shorter than L records); a flock whose individuals all lack a feature gives a row of NaN.
+``settings.warmup`` one of the statistics. A flock with more than M counted individuals raises ValueError (as
+does a window shorter than L records); a flock whose individuals all lack a feature gives a row of NaN.
 
 :class:`LearnedSimulator`: the calibration's :class:`~analysis.calibration.simulator.SummarySimulator` whose
 row is the k statistics followed by :func:`raw_row` of the same run (``row_width = k + length``); its
@@ -153,16 +154,16 @@ def raw_row(obs, settings, plan: Layout, series: dict | None = None) -> np.ndarr
     if series is None:
         series = measure_run(obs, settings).series
     features = individual_features(obs, settings.warmup, _interval(obs), settings.box)
-    if len(features) > plan.max_individuals:
-        raise ValueError(f"the flock has {len(features)} individuals, more than max_individuals = "
-                         f"{plan.max_individuals} of the learned summary")
     picked = features[:, [INDIVIDUAL_FEATURES.index(f) for f in plan.features]]
-    counted = np.isfinite(picked).all(axis=1)
+    counted = picked[np.isfinite(picked).all(axis=1)]          # in index order; the others are not packed
+    if len(counted) > plan.max_individuals:
+        raise ValueError(f"{len(counted)} individuals have every feature, more than max_individuals = "
+                         f"{plan.max_individuals} of the learned summary (method.npe.summary.max_individuals)")
     block = np.zeros((plan.max_individuals, len(plan.features) + 1))
-    block[:len(picked)][counted, :-1] = picked[counted]
-    block[:len(picked), -1] = counted
+    block[:len(counted), :-1] = counted
+    block[:len(counted), -1] = 1.0
     binned = window_series(series, plan.series, obs.times, settings.warmup, plan.series_length)
-    if not counted.any():
+    if not len(counted):
         return np.full(plan.length, np.nan)
     return np.concatenate([block.ravel(), binned.ravel()])
 

@@ -124,6 +124,38 @@ def test_learned_summaries_refuse_several_flocks_and_rounds(tmp_path):
         estimator_identity(calibration_from_dict(data, tmp_path))
 
 
+def test_raw_inputs_pack_the_individuals_seen_and_refuse_more_than_the_slots():
+    from flocksweep.analysis.calibration.learned_inputs import raw_row
+    from flocksweep.observables.measured import track_settings
+    from flocksweep.observables.observed import ObservedFlock
+
+    rng = np.random.default_rng(4)
+    records, n = 12, 9
+    pos = np.cumsum(rng.normal(0, 0.3, (records, n, 3)), axis=0) + rng.uniform(-3, 3, (1, n, 3))
+    vel = np.diff(pos, axis=0, prepend=pos[:1]) / 0.5 + np.array([1.0, 0, 0])
+    pos[..., 2] = vel[..., 2] = 0.0
+    present = rng.random((records, n)) > 0.15
+    present[:, 6:] = False
+    present[11:, 6] = True                      # id 6 appears at the last record only: no turn in the window
+    flock = ObservedFlock("f", np.arange(n), np.arange(records) * 0.5, np.where(present[..., None], pos, np.nan),
+                          np.where(present[..., None], vel, np.nan), present, dims=2, interval=0.5)
+    settings = track_settings(5.0, warmup=1.0)
+    plan = layout(SummarySettings(kind="learned", series_length=4), 6)
+    row = raw_row(flock, settings, plan)
+    individuals = row[:plan.block].reshape(6, 5)
+    assert np.isfinite(row).all() and individuals[:, -1].tolist() == [1, 1, 1, 1, 1, 1]
+    # shuffling the ids gives the same set of packed individuals
+    order = rng.permutation(n)
+    shuffled = ObservedFlock("f", np.arange(n), flock.times, flock.pos[:, order], flock.vel[:, order],
+                             present[:, order], dims=2, interval=0.5)
+    again = raw_row(shuffled, settings, plan)
+    np.testing.assert_allclose(np.sort(again[:plan.block].reshape(6, 5), axis=0), np.sort(individuals, axis=0),
+                               rtol=1e-12)
+    np.testing.assert_allclose(again[plan.block:], row[plan.block:], rtol=1e-12)     # sums in another order
+    with pytest.raises(ValueError, match="more than max_individuals = 5"):
+        raw_row(flock, settings, layout(SummarySettings(kind="learned", series_length=4), 5))
+
+
 # ----------------------------------------------------------------------------------------------------------
 # the embedding: a function of the set of individuals
 
