@@ -99,13 +99,22 @@ def _lagged_means(a: np.ndarray, lags: int) -> np.ndarray:
     return out
 
 
-def turning_rates(heading: np.ndarray, interval: float) -> np.ndarray:
-    """Every turning rate (degrees/s) between consecutive records of unit headings (R, N, 3), nan unknown."""
+def turning_rate_grid(heading: np.ndarray, interval: float) -> np.ndarray:
+    """(R - 1, N): the turning rate (degrees/s) of each individual between records r and r + 1 of unit
+    headings (R, N, 3), nan where a heading is unknown at either."""
     a, b = heading[:-1], heading[1:]
     along = np.sum(a * b, axis=-1)
     across = np.linalg.norm(np.cross(a, b), axis=-1)
     known = np.isfinite(along) & np.isfinite(across)
-    return np.degrees(np.arctan2(across[known], along[known])) / interval
+    out = np.full(along.shape, np.nan)
+    out[known] = np.degrees(np.arctan2(across[known], along[known])) / interval
+    return out
+
+
+def turning_rates(heading: np.ndarray, interval: float) -> np.ndarray:
+    """Every turning rate (degrees/s) between consecutive records of unit headings (R, N, 3), nan unknown."""
+    grid = turning_rate_grid(heading, interval)
+    return grid[np.isfinite(grid)]
 
 
 def motion_metrics(vel: np.ndarray, times: np.ndarray, interval: float, warmup: float,
@@ -130,7 +139,7 @@ def motion_metrics(vel: np.ndarray, times: np.ndarray, interval: float, warmup: 
     out["turn_rate_q10"], out["turn_rate_q50"], out["turn_rate_q90"] = _quantiles(turns, (0.1, 0.5, 0.9))
 
     seen = speed[np.isfinite(speed)]
-    fluct = speed - _individual_means(speed)
+    fluct = speed - individual_means(speed)
     square = fluct[np.isfinite(fluct)] ** 2
     mean_speed = seen.mean() if seen.size else math.nan
     if square.size and square.mean() > (TINY * mean_speed) ** 2:
@@ -145,7 +154,7 @@ def motion_metrics(vel: np.ndarray, times: np.ndarray, interval: float, warmup: 
     return out
 
 
-def _individual_means(speed: np.ndarray) -> np.ndarray:
+def individual_means(speed: np.ndarray) -> np.ndarray:
     """(N,) each individual's mean speed over its seen records (nan when never seen)."""
     known = np.isfinite(speed)
     count = known.sum(axis=0)

@@ -178,7 +178,8 @@ def npe_blocks(outcome, folder) -> list:
     blocks = [Heading("Posterior"),
               Para(f"{outcome.report.get('draws')} independent draws of the neural posterior estimator at the targets "
                    f"(split into 4 chains for ArviZ's r_hat and ESS); the estimator was {trained} (identity "
-                   f"{info['identity']}, {info['training_simulations']} training simulations)."),
+                   f"{info['identity']}, {info['training_simulations']} training simulations)."
+                   f"{_learned_text(info.get('flow') or {})}"),
               Table(outcome.summary.reset_index(), "Posterior summary (posterior.csv)")]
     blocks += _figure(folder, "corner.png", CORNER_CAPTION)
     blocks += [Heading("Coverage on held-out simulations"),
@@ -187,6 +188,17 @@ def npe_blocks(outcome, folder) -> list:
     blocks += _figure(folder, "coverage_ranks.png", "SBC ranks of the held-out truths among 199 posterior draws: "
                                                     "flat when calibrated, U-shaped when over-confident.")
     return blocks
+
+
+def _learned_text(flow: dict) -> str:
+    """A sentence on npe's learned summary, when it has one (docs/calibration.md, "Learned summaries")."""
+    summary, plan = flow.get("summary"), flow.get("layout")
+    if not summary or summary.get("kind") != "learned" or not plan:
+        return ""
+    return (f" The flow is conditioned on the statistics and on a summary of {summary['size']} numbers it learned "
+            f"jointly: a permutation-invariant embedding of every individual's {', '.join(plan['features'])} (up to "
+            f"{plan['max_individuals']} individuals) and of the series {', '.join(plan['series'])} in "
+            f"{plan['series_length']} bins of the window.")
 
 
 def chain_blocks(outcome, folder) -> list:

@@ -91,7 +91,8 @@ from flocksweep.sweeps.seeds import NPEStream, Tag, generator
 
 from .diagnostics import sbc_ranks
 from .estimator_folder import COVERAGE_FILE, IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
-from .npe_flow import Estimator, FlowSettings, OutsideSupport, load_estimator, support_of, train_ensemble
+from .learned_summary import learned_trainer, load_any as load_estimator
+from .npe_flow import Estimator, FlowSettings, OutsideSupport, support_of, train_ensemble
 from .npe_rounds import truncated_prior_draws, truncation_region
 from .outcome import NoPosterior
 from .simulator import summary_simulator
@@ -116,13 +117,39 @@ def replicates(config) -> int:
 
 
 def observed_row(config) -> np.ndarray:
-    """(k,): the row the estimator is conditioned on: the mean of the observed rows."""
-    return np.asarray(config.targets.observed, dtype=float).mean(axis=0)
+    """(k,): the row the estimator is conditioned on: the mean of the observed rows (a learned summary: then
+    the observed flock's raw inputs, :func:`analysis.calibration.learned_inputs.observed_raw`)."""
+    row = np.asarray(config.targets.observed, dtype=float).mean(axis=0)
+    if learned(config):
+        from .learned_inputs import observed_raw
+
+        return np.concatenate([row, observed_raw(config)])
+    return row
+
+
+def learned(config) -> bool:
+    """Whether the estimator learns its own summary (``[method.npe.summary] kind = "learned"``)."""
+    return config.method.summary.learned
 
 
 def npe_simulator(config):
-    """The calibration's simulator, ``replicates(config)`` runs per call, its target columns."""
+    """The calibration's simulator, ``replicates(config)`` runs per call, its target columns (a learned
+    summary: each row followed by the run's raw inputs, :class:`~analysis.calibration.learned_inputs.
+    LearnedSimulator`)."""
+    if learned(config):
+        from .learned_inputs import check_learned, learned_simulator
+
+        check_learned(config)
+        return learned_simulator(config)
     return summary_simulator(config, n_sim=replicates(config))
+
+
+def transformed(config, rows: np.ndarray) -> np.ndarray:
+    """Rows (m, k [+ raw]) with the statistics' transforms applied to their first k columns (the raw inputs
+    of a learned summary are standardised by its embedding, not transformed)."""
+    k = len(config.targets.columns)
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    return np.concatenate([config.transforms.apply(rows[:, :k], clip=True), rows[:, k:]], axis=1)
 
 
 def training_design(config) -> np.ndarray:
@@ -157,7 +184,10 @@ def _with_noise(config, rows: np.ndarray, noise: np.random.Generator) -> np.ndar
     cov = noise_covariance(config)
     if cov is None:
         return rows
-    return rows + noise.multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
+    added = noise.multivariate_normal(np.zeros(len(cov)), cov, size=len(rows))
+    if rows.shape[1] == len(cov):
+        return rows + added
+    return np.concatenate([rows[:, :len(cov)] + added, rows[:, len(cov):]], axis=1)   # a learned summary's raw inputs
 
 
 def flow_settings(config) -> FlowSettings:
@@ -174,6 +204,8 @@ def estimator_identity(config) -> dict:
                        "replicates": replicates(config),
                        "seed": int(config.seed), "simulations": settings.simulations, "heldout": settings.heldout,
                        "flow": asdict(flow_settings(config)),
+                       **({"summary": {key: value for key, value in asdict(settings.summary).items()
+                                       if key != "observed_seed"}} if learned(config) else {}),   # not the observed
                        **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {}),
                        **({"rounds": settings.rounds, "observed": observed_row(config).tolist()}
                           if settings.rounds > 1 else {})})
@@ -271,7 +303,7 @@ def _run_design(config, theta, keys, folder, training: tuple, phases, cost, trai
     new = result.new
     cost.add("training", int(new[:trained].sum()) * replicates(config))
     cost.add("heldout", int(new[trained:].sum()) * replicates(config))
-    rows = config.transforms.apply(_with_noise(config, result.rows, noise), clip=True)
+    rows = transformed(config, _with_noise(config, result.rows, noise))
     outside = ~np.isfinite(rows).all(axis=1) & result.usable
     failed = dict(result.failed)
     for i in np.flatnonzero(outside):
@@ -287,7 +319,13 @@ def _fit(config, theta, rows, seed: int, phases, label: str = ""):
     flows = f"{settings.ensemble} flows" if settings.ensemble > 1 else "the flow"
     phases.start(f"training {flows}{label} on {len(theta)} simulations (at most "
                  f"{flow_settings(config).max_epochs} epochs each)")
-    return train_ensemble(theta, rows, flow_settings(config), seed, settings.ensemble, progress=phases.enabled)
+    trainer = None
+    if learned(config):
+        from .learned_inputs import layout, max_individuals
+
+        trainer = learned_trainer(settings.summary, layout(settings.summary, max_individuals(config)))
+    return train_ensemble(theta, rows, flow_settings(config), seed, settings.ensemble, progress=phases.enabled,
+                          trainer=trainer)
 
 
 def _keys(config, n: int, r: int = 1) -> list[tuple]:
@@ -318,6 +356,8 @@ def run_npe(config, folder, pool: Executor, executor: tuple, phases, cost) -> Np
     """Train or reuse the estimator, check its coverage, draw the posterior at the targets; ``phases``
     (:class:`sweeps.progress.Phases`) shows each step on stderr."""
     settings = config.method
+    if learned(config):
+        observed_row(config)     # the observed flock's raw inputs measured (or refused) before any training run
     if settings.rounds > 1:
         return _with_training_pool(pool, executor, lambda training: _run_rounds(config, folder, training, phases,
                                                                                  cost))
@@ -420,7 +460,7 @@ def _checked_posterior(config, estimator, heldout_theta, heldout_x, support, pha
         with atomic_path(Path(where) / COVERAGE_FILE) as tmp:
             Path(tmp).write_text(json.dumps(json_ready(verdict), indent=1))
         seal(where, [COVERAGE_FILE])
-    observed = config.transforms.apply(observed_row(config)[None, :], clip=True)[0]
+    observed = transformed(config, observed_row(config)[None, :])[0]
     try:
         if not np.isfinite(observed).all():
             raise OutsideSupport("the observed statistics lie outside the range their transforms are defined on")

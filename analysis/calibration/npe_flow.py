@@ -293,7 +293,8 @@ class Estimator:
         import jax.numpy as jnp
 
         theta = ((np.atleast_2d(np.asarray(theta, dtype=float)) - self.theta_mean) / self.theta_sd).astype(np.float32)
-        conditions = np.broadcast_to(self._condition(x), (len(theta), self.k))
+        condition = self._condition(x)
+        conditions = np.broadcast_to(condition, (len(theta), condition.shape[-1]))
         out = np.empty(len(theta))
         for start in range(0, len(theta), DENSITY_CHUNK):
             rows = slice(start, start + DENSITY_CHUNK)
@@ -378,7 +379,8 @@ class Ensemble:
 
     def record(self) -> dict:
         members = [member.record() for member in self.members]
-        return {"members": len(members), "settings": members[0]["settings"], "d": self.d, "k": self.k,
+        learned = {key: members[0][key] for key in ("summary", "layout") if key in members[0]}   # a learned summary's
+        return {"members": len(members), "settings": members[0]["settings"], "d": self.d, "k": self.k, **learned,
                 "epochs": [m["epochs"] for m in members],
                 "best_validation_loss": [m["best_validation_loss"] for m in members]}
 
@@ -404,11 +406,15 @@ def _one_structure(members) -> tuple:
                  for m in members)
 
 
-def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1, progress: bool = False):
+def train_ensemble(theta, x, settings: FlowSettings, seed: int, members: int = 1, progress: bool = False,
+                   trainer=None):
     """``members`` flows on the same simulations, seeds seed, seed + 1, ... (module docstring);
-    ``progress``: flowjax's bar of epochs for each."""
+    ``progress``: flowjax's bar of epochs for each; ``trainer``: ``(theta, x, settings, seed, progress) ->
+    estimator`` in place of :func:`train_flow` (a learned summary's,
+    :func:`analysis.calibration.learned_summary.learned_trainer`)."""
     check_at_least("ensemble", members, 1)
-    trained = tuple(train_flow(theta, x, settings, seed + i, progress) for i in range(members))
+    train = train_flow if trainer is None else trainer
+    trained = tuple(train(theta, x, settings, seed + i, progress) for i in range(members))
     return trained[0] if members == 1 else Ensemble(_one_structure(trained))
 
 
@@ -441,11 +447,13 @@ def train_flow(theta, x, settings: FlowSettings, seed: int, progress: bool = Fal
 MAX_MEMBERS = 256            # an ensemble's flow.json naming more members is not one flocksweep wrote
 
 
-def load_estimator(folder):
+def load_estimator(folder, load_other=None):
     """The estimator (or ensemble) stored by ``save`` in ``folder``: its records' types and the weights'
     shapes checked against the flow they describe (:class:`~analysis.calibration.estimator_folder.
     DamagedEstimator` naming the file otherwise; the folder's checksums are the caller's:
-    ``estimator_folder.verify``)."""
+    ``estimator_folder.verify``). ``load_other(folder, record)``: the loader of a record that is not a bare
+    flow's (a learned summary's, :func:`analysis.calibration.learned_summary.load_any`), also for an
+    ensemble's members."""
     from .estimator_folder import DamagedEstimator, read_json, retrain_hint
 
     jax, eqx = require_jax()
@@ -458,10 +466,15 @@ def load_estimator(folder):
         if not (isinstance(members, int) and not isinstance(members, bool) and 1 <= members <= MAX_MEMBERS):
             raise DamagedEstimator(f"{folder / FLOW_RECORD}: members: got {members!r:.40}; expected an integer from 1 "
                                    f"to {MAX_MEMBERS}; {retrain_hint()}")
-        return Ensemble(_one_structure([load_estimator(folder / f"member{i}") for i in range(members)]))
+        return Ensemble(_one_structure([load_estimator(folder / f"member{i}", load_other) for i in range(members)]))
     if not record or not (folder / FLOW_WEIGHTS).is_file():
         raise DamagedEstimator(f"{folder}: no trained estimator ({FLOW_RECORD} and {FLOW_WEIGHTS}); train one "
                                "with flocksweep calibrate FILE --method npe")
+    if "layout" in record:      # a learned summary beside the flow (analysis.calibration.learned_summary)
+        if load_other is None:
+            raise DamagedEstimator(f"{folder}: an estimator with a learned summary; load it with "
+                                   "analysis.calibration.learned_summary.load_any")
+        return load_other(folder, record)
     settings, arrays = _checked_record(folder / FLOW_RECORD, record, DamagedEstimator, retrain_hint())
     architecture = (settings, record["d"], record["k"])
     if architecture not in _SKELETONS:

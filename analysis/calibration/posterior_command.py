@@ -2,7 +2,7 @@
 observed flock from a trained ``npe`` estimator (:mod:`analysis.calibration.npe`), without a simulation; the
 command's work, ``run(args)``, for its declaration in ``flocksweep/commands/posterior.py``.
 
-``posteriors(estimator_dir, table, draws=4000, seed=0, force=False, measured=None) -> (DataFrame, notes)``: the
+``posteriors(estimator_dir, table, draws=4000, seed=0, force=False, measured=None, raw=None) -> (DataFrame, notes)``: the
 table's rows (one observed flock or flight each: the estimator's statistic columns, e.g. the per-flight rows
 ``flocksweep measure`` writes in ``runs.parquet``; its non-numeric columns, e.g. ``flock``, are kept as ids)
 -> one row per flock with, per parameter, the posterior mean, sd, median and 5% / 95% quantiles, ``leakage``
@@ -16,6 +16,9 @@ command prints (the estimator's coverage verdict first; the flocks whose leakage
 Refused (a :class:`~simcore.schema.ConfigError` naming what to do):
 
 * an estimator of sequential rounds (``rounds > 1``): it serves one flock only;
+* an estimator with a learned summary (``[method.npe.summary] kind = "learned"``) given a table: it needs each
+  flock's individuals and series (``raw`` (m, length), :func:`analysis.calibration.learned_inputs.measured_raw`),
+  which ``--tracks`` measures;
 * an estimator whose held-out coverage check failed (``coverage.json`` beside it), unless ``force``: then
   every row is marked ``credible = False``;
 * a table measured otherwise than the estimator's training runs (:func:`check_measurement`): its ``interval``,
@@ -24,9 +27,10 @@ Refused (a :class:`~simcore.schema.ConfigError` naming what to do):
   against the estimator's ``measurement`` settings; the message names the setting. A table that does not say
   how it was measured (no such column) is taken with a note.
 
-``measure_for(estimator_dir, tracks) -> DataFrame``: the tracks measured as the estimator's settings say
-(interval, velocity interval, gap limit, group radius, fragmentation threshold, warm-up; the file read as its
-sidecar JSON says), the table ``--tracks`` gives to :func:`posteriors`.
+``measure_for(estimator_dir, tracks) -> (DataFrame, raw or None)``: the tracks measured as the estimator's settings
+say (interval, velocity interval, gap limit, group radius, fragmentation threshold, warm-up; the file read as
+its sidecar JSON says), the table ``--tracks`` gives to :func:`posteriors`, and for a learned summary each
+flock's raw inputs (else None).
 """
 from __future__ import annotations
 
@@ -195,12 +199,13 @@ def _say(velocity) -> str:
 
 
 def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int = 0, force: bool = False,
-               measured: dict | None = None):
+               measured: dict | None = None, raw=None):
     """One posterior summary per row of ``table``, and the notes (module docstring)."""
     import numpy as np
     import pandas as pd
 
-    from .npe_flow import load_estimator, support_of
+    from .learned_summary import load_any as load_estimator
+    from .npe_flow import support_of
     from .transforms import Transforms
 
     estimator_dir = Path(estimator_dir)
@@ -209,6 +214,11 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         raise ConfigError("ESTIMATOR", f"{estimator_dir} was trained in {identity['rounds']} sequential rounds, "
                                        "truncated to one flock's posterior region: it is not amortised; train "
                                        "with rounds = 1 for many flocks")
+    learned = "learned_inputs" in (identity.get("simulator") or {})
+    if learned and raw is None:
+        raise ConfigError("--targets", f"{estimator_dir} learned its own summary of each flock from its individuals and "
+                                       "series (method.npe.summary kind = \"learned\"), which a table of statistics "
+                                       "does not hold: give the tracks with --tracks FILE")
     verdict = coverage_verdict(estimator_dir)
     notes = []
     credible = True
@@ -237,21 +247,24 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         raise ConfigError("--targets", f"column {text[0]!r}: row {row} holds {column.iloc[row]!r:.40}, not a number; "
                                        "every statistic must be a number")
     x = table[columns].to_numpy(dtype=float)
+    if learned:
+        x = np.concatenate([x, np.asarray(raw, dtype=float).reshape(len(x), -1)], axis=1)
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         raise ConfigError("--targets", f"row {int(np.flatnonzero(bad)[0])} has a missing or non-finite statistic")
     try:
         transforms = Transforms.from_record(identity.get("transforms") or {}, columns)
-        transforms.apply(x[:1])
+        transforms.apply(x[:1, :len(columns)])
     except (KeyError, TypeError, ValueError) as err:
         from .estimator_folder import DamagedEstimator, retrain_hint
         raise DamagedEstimator(f"{estimator_dir}/identity.json: transforms: {err}; {retrain_hint()}") from None
     estimator = load_estimator(estimator_dir)
-    if estimator.d != len(names) or estimator.k != len(columns):
+    if estimator.d != len(names) or estimator.k != x.shape[1]:
         from .estimator_folder import DamagedEstimator, retrain_hint
         raise DamagedEstimator(f"{estimator_dir}: its flow has {estimator.d} parameters and {estimator.k} statistics, "
                                f"its identity.json {len(names)} and {len(columns)}; {retrain_hint()}")
-    samples = estimator.sample_many(transforms.apply(x), draws, seed, support_of(bounds=identity["bounds"]), short="nan")
+    x = np.concatenate([transforms.apply(x[:, :len(columns)]), x[:, len(columns):]], axis=1)
+    samples = estimator.sample_many(x, draws, seed, support_of(bounds=identity["bounds"]), short="nan")
 
     ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
     out = table[ids].reset_index(drop=True).copy()
@@ -310,7 +323,14 @@ def measure_for(estimator_dir, tracks: Path):
     except TrackError as err:
         raise ConfigError("--tracks", str(err)) from None
     runs = measurement.runs
-    return runs[runs["status"] == "ok"].reset_index(drop=True)
+    ok = runs[runs["status"] == "ok"].reset_index(drop=True)
+    if "learned_inputs" in (identity.get("simulator") or {}):   # a learned summary: each flock's raw inputs too
+        from .learned_inputs import measured_raw
+
+        names = list(ok["flock"])
+        flocks = [next(f for f in measurement.flocks if f.name == name) for name in names]
+        return ok, measured_raw(flocks, identity)
+    return ok, None
 
 
 def run(args) -> int:
@@ -321,12 +341,13 @@ def run(args) -> int:
                                        "here as the estimator needs), one of them")
     started = time.time()
     if args.tracks is not None:
-        table, measured = measure_for(args.estimator, args.tracks), None
+        (table, raw), measured = measure_for(args.estimator, args.tracks), None
     else:
         _identity(args.estimator)          # a damaged estimator is named before the table is read
-        table = _read_table(args.targets)
+        table, raw = _read_table(args.targets), None
         measured = _measure_json(Path(args.targets).parent / "measure.json")
-    result, notes = posteriors(args.estimator, table, args.draws, args.seed, force=args.force, measured=measured)
+    result, notes = posteriors(args.estimator, table, args.draws, args.seed, force=args.force, measured=measured,
+                               raw=raw)
     for note in notes:
         print(note)
     if args.out:

@@ -119,6 +119,10 @@ def run_npe_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progr
         raise ConfigError("method.rounds", f"got {config.method.rounds}; SBC checks an amortised estimator across "
                                            "the prior, and sequential rounds truncate it to the targets' region: "
                                            "run it with --set method.rounds=1")
+    if config.method.summary.learned:
+        raise ConfigError("method.npe.summary.kind", 'got "learned"; SBC of an estimator with a learned summary is not '
+                                                     "built yet (its held-out coverage check in flocksweep calibrate "
+                                                     'applies): run SBC with kind = "statistics"')
     datasets, draws = integer(datasets, "datasets", 1), integer(draws, "draws", 1)
     workers = integer(workers, "workers", 1)
     out_dir = Path("results") / "calibration" / config.name / "sbc" if out_dir is None else Path(out_dir)

@@ -14,6 +14,7 @@ from typing import ClassVar, Literal
 
 from flocksweep.simcore.schema import ConfigError, check_at_least
 
+from .learned_inputs import SummarySettings
 from .npe_flow import FlowSettings
 
 
@@ -124,7 +125,9 @@ class NpeSettings(MethodSettings):
     (analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``rounds``: R > 1
     runs R truncated sequential rounds of ``simulations`` each (analysis.calibration.npe_rounds).
     ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's folder); by
-    default the output folder's ``estimator/``. ``n_sim`` and ``likelihood`` are unused."""
+    default the output folder's ``estimator/``. ``summary``: ``[method.npe.summary]``, the flow conditioned on the
+    statistics alone (default) or also on a summary it learns (analysis.calibration.learned_inputs). ``n_sim`` and
+    ``likelihood`` are unused."""
 
     kind: ClassVar[str] = "npe"
     simulations: int = 1000
@@ -132,6 +135,7 @@ class NpeSettings(MethodSettings):
     draws: int = 4000
     coverage_tolerance: float = 0.05
     flow: FlowSettings = field(default_factory=FlowSettings)   # [method.npe] flow = {width = 50, ...}
+    summary: SummarySettings = field(default_factory=SummarySettings)   # [method.npe.summary]: learned or not
     ensemble: int = 1
     rounds: int = 1
     estimator: Path | None = None

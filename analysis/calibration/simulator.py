@@ -144,6 +144,11 @@ class SummarySimulator:
         self.integer_keys = tuple(integer_keys)
 
     @property
+    def row_width(self) -> int:
+        """Numbers in a row: the columns (a subclass may add more after them)."""
+        return len(self.columns)
+
+    @property
     def warmup(self) -> float:
         return self.metrics.warmup
 
@@ -192,7 +197,7 @@ class SummarySimulator:
         if len(seeds) != self.n_sim:
             raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
         runs, settings = self._runs(theta, seeds)
-        out = np.empty((self.n_sim, len(self.columns)))
+        out = np.empty((self.n_sim, self.row_width))
         for i, obs in enumerate(runs):
             out[i] = self._row(obs, settings, seeds[i])
         return out

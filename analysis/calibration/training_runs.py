@@ -136,7 +136,7 @@ def design_rows(simulator, theta: np.ndarray, keys, folder, pool: Executor, tick
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path_npz, path_json = folder / f"{digest}.npz", folder / f"{digest}.json"
-    k = len(simulator.columns)
+    k = getattr(simulator, "row_width", len(simulator.columns))
     rows, done, failed = _load(path_npz, path_json, len(theta), k)
     wanted = np.ones(len(theta), dtype=bool) if subset is None else np.zeros(len(theta), dtype=bool)
     if subset is not None:

@@ -80,7 +80,9 @@ def after_calibrate(result, config) -> list[str]:
     if predictive.exists():
         steps.append(f"open {predictive} in a browser (the measured flock beside a posterior predictive run)")
     if (out / "estimator").is_dir():
-        steps.append(f"flocksweep posterior {out / 'estimator'} --targets FLOCKS.csv   (the same estimator on other "
+        summary = getattr(getattr(config, "method", None), "summary", None)
+        given = "--tracks TRACKS" if getattr(summary, "learned", False) else "--targets FLOCKS.csv"
+        steps.append(f"flocksweep posterior {out / 'estimator'} {given}   (the same estimator on other "
                      f"flocks, no new simulation)")
     return steps
 
