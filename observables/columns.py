@@ -13,11 +13,13 @@ without loading the kernels. Each metric's home module takes its names from here
   neighbours, correlation length), nan when ``MetricSettings.pairwise`` is off;
 * ``MOTION_METRIC_NAMES``: the per-run scalars of collective motion of every row (:mod:`~observables.motion`:
   autocorrelation times, turning-rate and speed distributions, state occupancy);
+* ``WALL_METRIC_NAMES``: a tank's wall scalars (:mod:`~observables.walls`), in the rows of runs and tracks
+  with one;
 * ``RUN_COLUMNS``: the run scalars of every row; ``LEADERSHIP_METRIC_NAMES`` (:mod:`~observables.leadership`),
   ``DCD_METRIC_NAMES`` (:mod:`~observables.directional_correlation`), ``MIGRATION_METRIC_NAMES``
   (:mod:`~observables.migration`);
 * the encounter families (:mod:`~observables.encounters`): ``FAMILIES`` {family: (series, scalars)};
-* ``encounter_columns(families)`` and ``summary_columns(leadership, migration, encounters, dcd)``: the row
+* ``encounter_columns(families)`` and ``summary_columns(leadership, migration, encounters, dcd, walls)``: the row
   columns in order; ``EVERY_METRIC_COLUMN``: the columns any run's row may hold (a sweep's metric columns).
 """
 from __future__ import annotations
@@ -40,6 +42,7 @@ LEADERSHIP_METRIC_NAMES = ("trigger_rate", "leader_time_fraction", "leaders_mean
                            "escape_gain")
 DCD_METRIC_NAMES = ("dcd_corr_mean", "dcd_delay_mean", "dcd_edges", "dcd_leader_delay")
 MIGRATION_METRIC_NAMES = ("migratory_progress", "migratory_efficiency")
+WALL_METRIC_NAMES = ("wall_distance_mean", "wall_distance_q10", "wall_distance_q50", "wall_facing_near")
 
 OBSTACLE_SERIES = ("collisions", "collision_fraction", "clearance")
 OBSTACLE_SCALARS = ("collided_boids", "collision_events", "clearance_min")
@@ -64,10 +67,11 @@ def encounter_columns(families=("obstacles", "predator", "prey")) -> tuple[str, 
 
 
 def summary_columns(leadership: bool = True, migration: bool = False,
-                    encounters: tuple[str, ...] = (), dcd: bool = False) -> tuple[str, ...]:
+                    encounters: tuple[str, ...] = (), dcd: bool = False, walls: bool = False) -> tuple[str, ...]:
     """The columns :func:`~observables.summary.summarize_run`'s row may hold, in order: every series' mean and
     final value, the motion scalars, the fragmentation columns, then with or without the
-    leadership scalars, the directional correlation delays, the migration scalars, then the columns of the
+    leadership scalars, the directional correlation delays, the migration scalars, the tank's wall scalars
+    (a run in an arena, tracks that declare theirs: :mod:`~observables.walls`), then the columns of the
     given encounter families (all of ``FAMILIES`` for all; a row has a family's columns only when its run
     has obstacles, a predator or prey, see :mod:`observables.encounters`)."""
     columns = tuple(f"{name}_{kind}" for name in SERIES for kind in ("mean", "final")) + MOTION_METRIC_NAMES
@@ -75,7 +79,9 @@ def summary_columns(leadership: bool = True, migration: bool = False,
     columns += LEADERSHIP_METRIC_NAMES if leadership else ()
     columns += DCD_METRIC_NAMES if dcd else ()
     columns += MIGRATION_METRIC_NAMES if migration else ()
+    columns += WALL_METRIC_NAMES if walls else ()
     return columns + encounter_columns(encounters)
 
 
-EVERY_METRIC_COLUMN = frozenset(summary_columns(leadership=True, migration=True, encounters=tuple(FAMILIES)))
+EVERY_METRIC_COLUMN = frozenset(summary_columns(leadership=True, migration=True, encounters=tuple(FAMILIES),
+                                                walls=True))

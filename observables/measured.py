@@ -21,7 +21,8 @@ or "failed" with the reason in ``error``: a flock too short for the velocity int
 ``records``, ``dims``, ``t_start`` (the file's clock at t = 0 of its records), ``duration``,
 ``interval``, ``clock`` (how the interval was found), ``velocity_interval``, ``length_unit`` ("BL" or "m"), then the summary columns of
 :func:`~observables.summary.summary_columns` (without leadership) and ``tracked_mean`` /
-``tracked_final``, and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
+``tracked_final``, the tank's wall scalars when the tracks declare their tank
+(:data:`~observables.columns.WALL_METRIC_NAMES`, :mod:`~observables.walls`), and the directional correlation delays of Nagy et al. 2010 (``dcd_corr_mean``,
 ``dcd_delay_mean``, ``dcd_edges``, ``dcd_leader_delay``: :mod:`~observables.directional_correlation`,
 delays up to ``settings.dcd_max_delay`` s, over the individuals present and the records at or after the
 warm-up, by :func:`~observables.summary.measure_run` as for a simulated run). ``Measurement.timeseries`` has run_id, t and one column per metric plus ``tracked``.
@@ -36,6 +37,7 @@ Steps 0-1 are :func:`prepare_flocks` (-> :class:`Prepared` flocks and the issues
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from dataclasses import dataclass
@@ -53,6 +55,7 @@ from .summary import MetricSettings, measure_run, summary_columns
 from .tracks import TrackTable, raw_flocks
 from .trimming import drop_padding, parse_trim, trim_flock
 from .validation import BurstRule, Issue, TrackError, check_flock, check_tank
+from .walls import tank_walls
 
 def track_settings(group_radius: float, warmup: float = 0.0,
                    fragmentation_cohesion: float = FRAGMENTATION_COHESION,
@@ -215,6 +218,9 @@ def observe_tracks(table: TrackTable, interval: float | None = None, max_gap: fl
 
 def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progress) -> Measurement:
     checked, issues = prepare_flocks(table, interval, max_gap)
+    walls = tank_walls(table.source.tank())   # the tank the tracks declare: their wall scalars
+    if walls is not None:
+        settings = dataclasses.replace(settings, walls=walls)
     rows, frames, flocks = [], [], []
     for ready in tqdm(checked, desc="flocks", unit="flock", disable=not progress, file=sys.stderr, mininterval=0.5):
         raw, step, gap = ready.raw, ready.interval, ready.max_gap
@@ -243,7 +249,8 @@ def _measure_tracks(table, settings, interval, max_gap, velocity_interval, progr
         raise TrackError(failed or [Issue("error", "not measured", empty)], table.path, table.line_offset)
     issues += failed
     runs = pd.DataFrame(rows)
-    for column in summary_columns(leadership=False) + ("tracked_mean", "tracked_final") + DCD_METRIC_NAMES:
+    for column in (summary_columns(leadership=False, walls=walls is not None) + ("tracked_mean", "tracked_final")
+                   + DCD_METRIC_NAMES):
         if column not in runs:
             runs[column] = np.nan
     timeseries = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["run_id", "t"])

@@ -20,7 +20,9 @@ correlation delays of Nagy et al. 2010 (:data:`~observables.directional_correlat
 ``settings.dcd_max_delay``; they need only velocities, so measured flocks and observed runs have them
 too), then, when the model has a migratory
 urge (``settings.migration``, its direction), the migration scalars
-(:data:`~observables.migration.MIGRATION_METRIC_NAMES`), then the obstacle, predator and prey
+(:data:`~observables.migration.MIGRATION_METRIC_NAMES`), then, when the run has a tank (``settings.walls``:
+the model's arena, or the tank a tracks file declares), its wall scalars
+(:data:`~observables.columns.WALL_METRIC_NAMES`, :mod:`~observables.walls`), then the obstacle, predator and prey
 columns of the families the run has (obstacles in the model, ``predator`` / ``prey`` positions in the
 observations); :func:`summary_columns` lists them in that order. ``measure_run(obs, settings)`` gives the
 row together with the per-record series (plus ``leaders``, the number of leaders per record, with
@@ -57,6 +59,7 @@ from .migration import MIGRATION_METRIC_NAMES, migration_metrics
 from .metrics import FRAGMENTATION_COHESION, K_NEAREST, METRIC_NAMES, WARMUP_S, frame_metrics, summarize
 from .motion import STATE_HIGH, STATE_LOW, motion_metrics
 from .observed import present_metrics
+from .walls import Walls, tank_walls, wall_metrics
 
 ENCOUNTER_FAMILIES = tuple(FAMILIES)  # "obstacles", "predator", "prey"
 # the settings of the obstacle, predator and prey metrics (keys of [run]), with their defaults
@@ -91,6 +94,7 @@ class MetricSettings:
     pairwise_metrics: bool = True              # False: the PAIRWISE_SERIES (knn_*, corr_length) are nan
     state_high: float = STATE_HIGH             # Tunstrom et al. 2013's thresholds of the state fractions
     state_low: float = STATE_LOW
+    walls: Walls | None = None                 # the tank's side walls (set by resolve; tracks: their own tank)
 
     def __post_init__(self):
         for key in ENCOUNTER_SETTINGS:
@@ -120,7 +124,16 @@ class MetricSettings:
                                    escape_duration=float(model.leadership.duration),
                                    obstacles=tuple(model.world.obstacles),
                                    body_radius=model_body_radius(model),
-                                   migration=migration_direction(model))
+                                   migration=migration_direction(model),
+                                   walls=tank_walls(model.arena))
+
+    def identity(self) -> dict:
+        """These settings as data for an identity (a calibration's training runs): every field, but
+        ``walls`` only when set, so identities recorded before the wall scalars existed stay valid."""
+        record = dataclasses.asdict(self)
+        if record["walls"] is None:
+            del record["walls"]
+        return record
 
     @property
     def resolved(self) -> bool:
@@ -186,6 +199,8 @@ def measure_run(obs, settings: MetricSettings) -> RunMetrics:
         row.update(dcd_scalars(run_directional_correlation(obs, settings)))
     if settings.migration is not None:
         row.update(migration_metrics(obs.pos, obs.vel, obs.times, settings.migration, settings.warmup))
+    if settings.walls is not None:
+        row.update(run_wall_metrics(obs, settings))
     if getattr(obs, "present", None) is None:
         extra_series, extra_row = encounter_metrics(obs, settings, series)
         series.update(extra_series)
@@ -201,6 +216,15 @@ def run_motion_metrics(obs, settings: MetricSettings, series: dict) -> dict:
     vel = obs.vel if present is None else np.where(present[..., None], obs.vel, np.nan)
     return motion_metrics(vel, obs.times, observed_interval(obs), settings.warmup, series["polarization"],
                           series["milling"], settings.state_high, settings.state_low)
+
+
+def run_wall_metrics(obs, settings: MetricSettings) -> dict:
+    """The tank's wall scalars (:mod:`~observables.walls`) of a run or an observed flock (positions and
+    velocities nan where an individual is not present), over the records at or after ``settings.warmup``."""
+    present = getattr(obs, "present", None)
+    pos = obs.pos if present is None else np.where(present[..., None], obs.pos, np.nan)
+    vel = obs.vel if present is None else np.where(present[..., None], obs.vel, np.nan)
+    return wall_metrics(pos, vel, obs.times, settings.warmup, settings.walls)
 
 
 def observed_interval(obs) -> float:

@@ -123,7 +123,8 @@ def sweep_columns(axes, sample, leadership: bool, dcd: bool = False) -> Columns:
                 row.update({name: values[level] for name, values in columns})
             rows.append(row)
         design = pd.DataFrame(rows) if rows else None
-    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES, migration=True, dcd=dcd))
+    metrics = frozenset(summary_columns(leadership=leadership, encounters=ENCOUNTER_FAMILIES, migration=True, dcd=dcd,
+                                        walls=True))
     off = {} if leadership else {m: "leadership metrics are computed only with run.leadership_metrics = true "
                                     "(or leadership.x swept)" for m in LEADERSHIP_METRIC_NAMES}
     off |= {} if dcd else {m: "directional correlation delays are computed only with run.dcd_metrics = true"

@@ -99,7 +99,7 @@ def swept_columns(design: pd.DataFrame, sweep: dict) -> list[str]:
 
 def metric_columns(runs: pd.DataFrame) -> list[str]:
     """The summary columns (observables.summary.summary_columns) the runs table holds."""
-    known = set(summary_columns(leadership=True, encounters=tuple(FAMILIES), migration=True, dcd=True))
+    known = set(summary_columns(leadership=True, encounters=tuple(FAMILIES), migration=True, dcd=True, walls=True))
     return [c for c in runs.columns if c in known]
 
 

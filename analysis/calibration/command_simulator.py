@@ -75,7 +75,7 @@ class CommandSimulator:
 
         return json_ready({"command": self.command.identity, "defaults": self.command.values({}),
                            "keys": list(self.keys), "columns": list(self.columns), "n_sim": self.n_sim,
-                           "metrics": dataclasses.asdict(self.metrics),
+                           "metrics": self.metrics.identity(),
                            "observation": None if self.observation is None else dataclasses.asdict(self.observation)})
 
     def with_replicates(self, n_sim: int) -> "CommandSimulator":

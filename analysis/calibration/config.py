@@ -118,7 +118,7 @@ from typing import Any, Literal
 import numpy as np
 import pandas as pd
 
-from flocksweep.observables.columns import MOTION_METRIC_NAMES, PAIRWISE_SERIES
+from flocksweep.observables.columns import MOTION_METRIC_NAMES, PAIRWISE_SERIES, WALL_METRIC_NAMES
 from flocksweep.observables.directional_correlation import DCD_METRIC_NAMES
 from flocksweep.observables.leadership import LEADERSHIP_METRIC_NAMES
 from flocksweep.observables.metrics import METRIC_NAMES
@@ -142,7 +142,8 @@ from .tracks_targets import (check_observation, check_tank_parameters, fixed_gro
                              shared_tank, tracks_record, tracks_targets)
 from .transforms import Transforms, transforms_from
 
-RUN_SCALARS = tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES   # per-run: no _mean / _final
+RUN_SCALARS = (tuple(LEADERSHIP_METRIC_NAMES) + DCD_METRIC_NAMES + MOTION_METRIC_NAMES
+               + WALL_METRIC_NAMES)   # per-run: no _mean / _final
 STAT_NAMES = tuple(METRIC_NAMES) + RUN_SCALARS
 
 
@@ -588,6 +589,11 @@ def _observed_targets(table: CalibrationFile, preset: Preset | None, parameters,
     if off:
         raise ConfigError("targets.stats", f"{off[0]!r} is computed only with run.pairwise_metrics = true (it ranks "
                                            "every pair of every record): remove it or the setting")
+    walls = [s for s in stats if s in WALL_METRIC_NAMES]
+    if walls and preset is not None and preset.model.arena.kind == "none":
+        raise ConfigError("targets.stats", f"{walls[0]!r} measures where the flock keeps from its tank's walls, and "
+                                           "the model has no tank: give the preset an [arena] (or model.set "
+                                           "arena.kind = ...), or remove the statistic")
     if table.observation is not None:
         check_observation(table.observation, preset, table.run, stats)
     if table.targets.from_tracks is None:

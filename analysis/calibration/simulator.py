@@ -77,7 +77,7 @@ from flocksweep.sweeps.seeds import seeds_for
 
 from .checks import integer
 
-ALL_COLUMNS = summary_columns(leadership=True, dcd=True)
+ALL_COLUMNS = summary_columns(leadership=True, dcd=True, walls=True)
 
 
 def _fresh_seed(seed):
@@ -174,7 +174,7 @@ class SummarySimulator:
 
         return json_ready({"preset": self.base_preset.to_dict(), "model_version": MODEL_VERSION,
                            "keys": list(self.keys), "columns": list(self.columns), "n_sim": int(self.n_sim),
-                           "metrics": dataclasses.asdict(self.metrics),
+                           "metrics": self.metrics.identity(),
                            "observation": None if self.observation is None else dataclasses.asdict(self.observation)})
 
     def preset(self, theta) -> Preset:

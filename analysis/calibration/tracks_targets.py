@@ -305,6 +305,11 @@ def tracks_targets(targets, observation: Observation | None, metrics: MetricSett
     if len(failed):
         raise ConfigError("targets.from_tracks", f"flock {failed['flock'].iloc[0]!r} could not be measured: "
                                                  f"{failed['error'].iloc[0]}")
+    unmeasured = [c for c in columns if c not in runs]
+    if unmeasured:   # the wall statistics: measured only on tracks that declare their tank
+        raise ConfigError("targets.stats", f"{unmeasured[0]!r} is not measured on these tracks: it needs the tank "
+                                           "they were filmed in; declare it with the tracks (arena = { kind, "
+                                           "centre, radius or size }, docs/measured.md) or remove the statistic")
     per_flock = runs[list(columns)].to_numpy(dtype=np.float64)
     bad = ~np.isfinite(per_flock)
     if bad.any():

@@ -77,6 +77,9 @@ RANGES = {
     "turn_rate_q90": (0.0, INF, False), "speed_q10": (0.0, INF, False), "speed_q50": (0.0, INF, False),
     "speed_q90": (0.0, INF, False), "speed_cv_pooled": (0.0, INF, False),
     "swarming_fraction": (0.0, 1.0, True), "polarized_fraction": (0.0, 1.0, True), "milling_fraction": (0.0, 1.0, True),
+    # the tank's walls (a distance is negative outside the tank: no bound)
+    "wall_distance_mean": (-INF, INF, False), "wall_distance_q10": (-INF, INF, False),
+    "wall_distance_q50": (-INF, INF, False), "wall_facing_near": (0.0, 1.0, False),
 }
 
 

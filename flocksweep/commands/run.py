@@ -216,7 +216,7 @@ def parse_until_ci(text: str) -> tuple[str, float]:
     if not metric or not (0 < target < float("inf")):
         raise ConfigError("--until-ci", f"got {text!r}; expected METRIC=HALFWIDTH with a finite HALFWIDTH > 0, "
                                         "e.g. cohesion_mean=0.05")
-    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES, dcd=True)
+    columns = summary_columns(leadership=True, migration=True, encounters=ENCOUNTER_FAMILIES, dcd=True, walls=True)
     column = metric if metric in columns else f"{metric}_mean"
     if column not in columns:
         raise ConfigError("--until-ci", f"unknown metric {metric!r}{suggest(metric, columns)}; expected a summary "

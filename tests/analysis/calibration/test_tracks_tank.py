@@ -39,7 +39,7 @@ duration = 4.0
 
 def calibration(tmp_path, arena: str = "", projection: str = "xy", init_radius: float = 3.0, units: str = "",
                 parameter: str = "vicsek.noise", prior: str = "low = 0.1, high = 1.0", scale: float = 1.0,
-                sidecar_arena="default") -> object:
+                sidecar_arena="default", stats: str = '["polarization", "nn_distance"]') -> object:
     """A calibration of a tiny 2-D Vicsek model to the pixel tracks of fish in a round tank (radius 10 BL)."""
     kwargs = {} if sidecar_arena == "default" else {"arena": sidecar_arena}
     write_tank_tracks(tmp_path, **kwargs)
@@ -67,7 +67,7 @@ prior = {{ dist = "uniform", {prior} }}
 
 [targets]
 summary = "mean"
-stats = ["polarization", "nn_distance"]
+stats = {stats}
 from_tracks = "tank.csv"
 
 [method]
@@ -160,3 +160,19 @@ def test_compares_training_sweep_runs_in_the_tracks_tank(tmp_path):
     sweep = training_sweep(config, np.array([[0.3], [0.6]]))
     arena = base_preset(sweep).model.arena
     assert arena.kind == "cylinder" and arena.radius == pytest.approx(10.0)
+
+
+def test_the_walls_are_targets_measured_alike_on_the_tracks_and_on_the_runs_in_their_tank(tmp_path):
+    stats = '["wall_distance_mean", "wall_facing_near"]'
+    config = calibration(tmp_path, stats=stats)
+    assert config.targets.columns == ("wall_distance_mean", "wall_facing_near")
+    observed = config.targets.per_flock   # flock A: fish 3.0 .. 7.0 BL from the wall, swimming along it
+    assert observed[0, 0] == pytest.approx(5.0, abs=0.01) and observed[0, 1] < 0.03
+    obs, row = summary_simulator(config).run(np.array([0.5]), 7)
+    assert np.isfinite(row).all() and 0.0 < row[0] < 10.0 and 0.0 <= row[1] <= 1.0
+    with pytest.raises(ConfigError) as err:                                    # tracks without their tank
+        calibration(tmp_path, stats=stats, sidecar_arena=None, arena='[arena]\nkind = "cylinder"\nradius = 10.0\n')
+    assert err.value.key == "targets.stats" and "not measured on these tracks" in err.value.detail
+    with pytest.raises(ConfigError) as err:                                    # and a model left in the open
+        calibration(tmp_path, stats=stats, sidecar_arena=None)
+    assert err.value.key == "targets.stats" and "the model has no tank" in err.value.detail
