@@ -3,6 +3,7 @@ leave the heading noise and the perception radius open and the observables of co
 
     python bench/bench_recover_noise_ranges.py statistics [--points 200] [--out docs/calibration]
     python bench/bench_recover_noise_ranges.py marginals HANDPICKED_OUT OBSERVABLES_OUT [--out docs/calibration]
+    python bench/bench_recover_noise_ranges.py flocks ESTIMATOR [--flocks 20] [--set run.duration=40 ...]
 
 ``statistics``: ``--points`` prior draws of the shipped file (one run each, seeds 5000 + i; the file's run
 settings), every statistic of the file's 17 and of the hand-picked four measured; prints per parameter the
@@ -11,6 +12,11 @@ explained by the parameter, and draws recover_noise_ranges_statistics.png: per p
 statistic that follows it best beside the best new observable. ``marginals``: the posteriors of two
 finished calibrations of the file (e.g. ``flocksweep calibrate ... --out A --set targets.stats=[four]`` and
 the file as shipped ``--out B``) against the prior and the truth: recover_noise_ranges_marginals.png.
+``flocks``: ``--flocks`` more flocks simulated at the truth (seeds 12, 13, ...; the file's settings with
+``--set``'s overrides, which must be those the estimator was trained with), each given to the trained
+``ESTIMATOR`` (amortised: no training simulation): per parameter the median, smallest and largest 90 %
+width over the flocks as a fraction of the prior's, how many exceed half, and how many intervals hold
+the truth. The one flock of the file is one draw of this distribution.
 """
 from __future__ import annotations
 
@@ -88,17 +94,43 @@ def marginals(folders: list[Path], out: Path) -> None:
     print(f"wrote {out / 'recover_noise_ranges_marginals.png'}")
 
 
+def flocks(estimator: Path, count: int, sets: list[str]) -> None:
+    from flocksweep.analysis.calibration.posterior_command import posteriors
+    from flocksweep.analysis.calibration.synthetic import synthetic_observation
+
+    config = load_calibration(FILE, sets)
+    truth = config.targets.truth
+    rows = [synthetic_observation(config, truth, seed=12 + i)[0] for i in range(count)]
+    table = pd.DataFrame(rows, columns=config.targets.columns)
+    table.insert(0, "flock", [f"seed{12 + i}" for i in range(count)])
+    polarization = table["polarization_mean"]
+    print(f"{count} flocks at the truth: polarization median {polarization.median():.4f}, "
+          f"{(polarization > 0.99).sum()} above 0.99, smallest {polarization.min():.4f}")
+    result, _ = posteriors(estimator, table, draws=4000, seed=1)
+    for parameter in config.parameters:
+        low, high = parameter.bounds
+        name = parameter.name
+        width = (result[f"{name}_q95"] - result[f"{name}_q5"]) / (high - low)
+        inside = ((result[f"{name}_q5"] <= truth[name]) & (truth[name] <= result[f"{name}_q95"])).sum()
+        print(f"{name:11s} 90% width / prior width: median {width.median():.2f}, {width.min():.2f}-{width.max():.2f}, "
+              f"above 0.5 in {(width > 0.5).sum()} of {count}; truth inside {inside} of {count}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("what", choices=["statistics", "marginals"])
+    parser.add_argument("what", choices=["statistics", "marginals", "flocks"])
     parser.add_argument("folders", nargs="*", type=Path)
     parser.add_argument("--points", type=int, default=200)
     parser.add_argument("--out", type=Path, default=Path("docs/calibration"))
+    parser.add_argument("--flocks", type=int, default=20)
+    parser.add_argument("--set", action="append", default=[], dest="sets", help="KEY=VALUE override of the file")
     args = parser.parse_args()
     if args.what == "statistics":
         statistics(args.points, args.out)
-    else:
+    elif args.what == "marginals":
         marginals(args.folders, args.out)
+    else:
+        flocks(args.folders[0], args.flocks, args.sets)
 
 
 if __name__ == "__main__":
