@@ -10,8 +10,9 @@ Contract
 --------
 ``run_sbc(config, datasets=50, draws=49, out_dir=None, progress=True, *, steps=None, walkers=None,
 bins=None, workers=1, order=None, resume=True, alpha=0.05) -> dict`` (BSL's; the check of any calibration
-by its own method is :func:`analysis.calibration.methods.run_sbc`, which runs this one for emcee and
-:func:`analysis.calibration.sbc_npe.run_npe_sbc` for npe)
+by its own method is :func:`analysis.calibration.methods.run_sbc`, which runs this one for emcee, this one
+on :func:`analysis.calibration.sbc_emulator.emulator_problem` for the emulator (its chain on the
+surrogate in place of BSL's) and :func:`analysis.calibration.sbc_npe.run_npe_sbc` for npe)
 
 * ``config`` is a :class:`~analysis.calibration.config.CalibrationConfig` with method ``emcee`` (or an
   :class:`SBCProblem`, e.g. a cheap toy model in tests). ``steps`` / ``walkers`` override the config's.
@@ -103,7 +104,9 @@ class SBCProblem:
     ``simulate_fn(theta, rng) -> (n_sim, k)`` is what the synthetic likelihood fits (as in run_bsl);
     ``observe_fn(theta, rng) -> (m, k)`` draws one observed dataset from the generative model. For a
     calibrated posterior both must describe the same model. ``meta`` (JSON-ready) identifies the
-    problem in ``settings.json``."""
+    problem in ``settings.json``. ``posterior_fn(y, seed) -> ChainResult``, when given, is the chain of
+    another method on dataset ``y`` in place of BSL's (the emulator's chain on its surrogate:
+    :mod:`analysis.calibration.sbc_emulator`); ``simulate_fn`` is then unused."""
 
     prior: object
     simulate_fn: Callable
@@ -117,6 +120,7 @@ class SBCProblem:
     reevaluate_every: int = 0
     moves: str = "stretch"
     meta: dict = dataclasses.field(default_factory=dict, compare=False)
+    posterior_fn: Callable | None = dataclasses.field(default=None, compare=False)
 
     @property
     def dim(self) -> int:
@@ -221,9 +225,12 @@ def sbc_dataset(problem: SBCProblem, j: int, draws: int) -> dict:
     theta = draw_theta(problem, j)
     y = draw_observed(problem, theta, j)
     cost.add("observed", len(y))
-    result = run_bsl(problem.simulate_fn, y, problem.prior, walkers=problem.walkers, steps=problem.steps,
-                     seed=bsl_seed(problem.seed, j), likelihood=problem.likelihood,
-                     reevaluate_every=problem.reevaluate_every, moves=problem.moves, count=cost.add)
+    if problem.posterior_fn is not None:   # another method's chain (it simulates nothing)
+        result = problem.posterior_fn(y, bsl_seed(problem.seed, j))
+    else:
+        result = run_bsl(problem.simulate_fn, y, problem.prior, walkers=problem.walkers, steps=problem.steps,
+                         seed=bsl_seed(problem.seed, j), likelihood=problem.likelihood,
+                         reevaluate_every=problem.reevaluate_every, moves=problem.moves, count=cost.add)
     sample, info = posterior_draws(result.chain, draws, generator(problem.seed, j, SBCStream.SELECT))
     ranks = sbc_ranks(theta[None, :], [sample], rng=generator(problem.seed, j, SBCStream.TIES))[0]
     return {"dataset": int(j), "theta": theta.tolist(), "observed": y.tolist(), "ranks": ranks.tolist(),

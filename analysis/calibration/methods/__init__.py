@@ -13,7 +13,9 @@ emcee, optimize, npe, emulator); ``settings_classes() -> {kind: settings class}`
 methods simulation-based calibration checks (``flocksweep sbc``: their ``sbc`` flag);
 ``check_sbc(config)``: a ConfigError at ``method.kind`` naming those for any other method;
 ``run_sbc(config, **options) -> dict``: the config's method object's ``run_sbc`` (emcee: BSL's,
-:func:`analysis.calibration.sbc.run_sbc`; npe: :func:`analysis.calibration.sbc_npe.run_npe_sbc`).
+:func:`analysis.calibration.sbc.run_sbc`; emulator: the same on
+:func:`analysis.calibration.sbc_emulator.emulator_problem`, its chain on the surrogate; npe:
+:func:`analysis.calibration.sbc_npe.run_npe_sbc`). optimize has none: it gives a point, not a posterior.
 
 ``methods_table() -> str``: the Markdown table of the methods (what each does, its cost, when to use it),
 the table at the top of docs/calibration.md (a test keeps the two equal).

@@ -21,6 +21,7 @@ class Emulator(ChainMethod):
             "the posterior is until the confirmation passes")
     cost = "the sweep you already ran + a few hundred runs"
     use_when = "you already have a sweep (e.g. the 648-cell grid) over the free parameters"
+    sbc = True   # its chain on the surrogate, on many simulated datasets (analysis.calibration.sbc_emulator)
 
     def resolve(self, settings, where, base, dim: int, k: int):
         import dataclasses
@@ -48,6 +49,15 @@ class Emulator(ChainMethod):
     def phase_count(self, config) -> int:
         settings = config.method          # (fit and chain) or refinement rounds, predictive, confirmation
         return (1 if settings.refine.rounds else 2) + 1 + bool(settings.confirm and not settings.refine.rounds)
+
+    def run_sbc(self, config, steps=None, walkers=None, out_dir=None, **options) -> dict:
+        from pathlib import Path
+
+        from ..sbc import run_sbc
+        from ..sbc_emulator import emulator_problem
+
+        out_dir = Path("results") / "calibration" / config.name / "sbc" if out_dir is None else out_dir
+        return run_sbc(emulator_problem(config, steps, walkers), out_dir=out_dir, **options)
 
     def run(self, job: Job):
         from ..emulated import confirm, posterior_median

@@ -93,7 +93,7 @@ def test_methods_without_sbc_and_a_chains_options_are_refused_naming_what_is_all
     optimize.write_text(CALIBRATION.split("[method]")[0] + '[method]\nkind = "optimize"\n')
     assert main(["sbc", str(optimize), "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
-    assert "method.kind" in err and "'optimize'" in err and "allowed: emcee, npe" in err
+    assert "method.kind" in err and "'optimize'" in err and "allowed: emcee, npe, emulator" in err
     assert main(["sbc", str(path), "--steps", "10", "--out", str(tmp_path / "y")]) == 2
     assert "--steps" in capsys.readouterr().err
     assert main(["sbc", str(path), "--set", "method.rounds=2", "--out", str(tmp_path / "z")]) == 2
