@@ -126,6 +126,7 @@ except OSError as err:
 """
 
 
+@pytest.mark.slow   # seconds of JAX/HDF5 work: out of the quick loop (CI runs it)
 def test_a_full_disk_while_writing_posterior_nc_is_one_write_failure_and_no_crash(tmp_path):
     """issue 42: HDF5 wrote the file itself; on a full disk its close failed, the half-closed file retried its
     writes while the interpreter exited (Exception ignored in h5py's dealloc) and the process died of

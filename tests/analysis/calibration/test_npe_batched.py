@@ -71,6 +71,7 @@ def test_a_table_of_any_size_gives_each_flock_the_same_draws(ensemble, monkeypat
     assert not np.array_equal(full[0], full[6])                      # the same flock at two rows: two streams
 
 
+@pytest.mark.slow   # seconds of JAX/HDF5 work: out of the quick loop (CI runs it)
 def test_leakage_is_each_flocks_own_and_pools_to_the_calls_share(ensemble):
     draws = ensemble.sample_many(ROWS, COUNT, 2, SUPPORT, short="nan")
     assert np.isnan(draws[-1]).all() and not np.isnan(draws[:-1]).any()     # the last row: no posterior
