@@ -208,6 +208,7 @@ def test_a_learned_summary_of_two_tracked_flocks_and_its_posterior_from_tracks(f
     assert json.loads((out / "estimator" / "flow.json").read_text())["flocks"] == 2
     report = json.loads((out / "convergence.json").read_text())
     assert report["npe"]["replicates"] == 2 and "coverage" in report["npe"]
+    assert "of each of the 2 observed flocks, their summaries pooled" in (out / "report.html").read_text()
     length = 8 * 5 + 4 * 2                    # 8 x (4 features + mask) individual slots, 4 x 2 series bins
     (stored,) = (out / "training").glob("*.npz")
     with np.load(stored) as data:
