@@ -1,7 +1,7 @@
 """npe's learned summaries given several observed flocks (analysis.calibration.learned_inputs, learned_summary;
 docs/calibration.md "Learned summaries (npe)", "Several flocks"): a training row of f runs (their mean
 statistics, each one's raw inputs), the embedding pooled over the flocks whatever their order, training
-deterministic and stored with its flock count, an end-to-end calibration from messy tracks of two flocks with
+deterministic (the same file trains a bit-identical estimator), an end-to-end calibration from messy tracks of two flocks with
 `flocksweep posterior --tracks` (one posterior given both; another number of flocks refused), and
 `aggregate = "mean"` over tracked flocks refused."""
 from __future__ import annotations
@@ -96,31 +96,6 @@ def test_the_pooled_embedding_ignores_the_order_of_the_flocks_and_each_flock_cou
         estimator._condition(np.concatenate([stats, raw[:, :2].reshape(4, -1)], axis=1))
 
 
-@pytest.mark.slow
-def test_training_on_several_flocks_is_deterministic_and_the_stored_estimator_rebuilds(tmp_path):
-    pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
-    from flocksweep.analysis.calibration.learned_summary import load_any, train_learned
-    from flocksweep.analysis.calibration.npe_flow import FlowSettings
-
-    rng = np.random.default_rng(1)
-    plan = layout(SUMMARY, 6)
-    raw = _raw_rows(rng, 2 * 80, plan).reshape(80, 2 * plan.length)
-    _, individuals, _ = plan.split(raw, 0, flocks=2)
-    theta = individuals[..., 0].sum(axis=(1, 2))[:, None] / np.maximum(individuals[..., -1].sum(axis=(1, 2)), 1)[:, None]
-    x = np.concatenate([rng.normal(size=(80, 1)), raw], axis=1)
-    settings = FlowSettings(width=8, layers=1, max_epochs=3, patience=3)
-    first = train_learned(theta, x, settings, SUMMARY, plan, seed=5, flocks=2)
-    again = train_learned(theta, x, settings, SUMMARY, plan, seed=5, flocks=2)
-    assert first.flocks == 2 and first.k == 1 + 2 * plan.length and again.losses == first.losses
-    assert np.array_equal(again.sample_many(x[:3], 50, seed=2), first.sample_many(x[:3], 50, seed=2))
-    first.save(tmp_path / "est")
-    record = json.loads((tmp_path / "est" / "flow.json").read_text())
-    assert record["flocks"] == 2 and record["k"] == 1 + 2 * plan.length
-    loaded = load_any(tmp_path / "est")
-    assert loaded.flocks == 2
-    assert np.array_equal(loaded.sample_many(x[:3], 50, seed=2), first.sample_many(x[:3], 50, seed=2))
-
-
 # ----------------------------------------------------------------------------------------------------------
 # end to end: two tracked flocks with missed detections -> calibrate -> posterior --tracks
 
@@ -209,6 +184,9 @@ def test_a_learned_summary_of_two_tracked_flocks_and_its_posterior_from_tracks(f
     report = json.loads((out / "convergence.json").read_text())
     assert report["npe"]["replicates"] == 2 and "coverage" in report["npe"]
     assert "of each of the 2 observed flocks, their summaries pooled" in (out / "report.html").read_text()
+    from flocksweep.commands.calibrate import after_calibrate
+    hint = after_calibrate(type("Result", (), {"out": out, "paths": {"html": out / "report.html"}})(), config)
+    assert any("--tracks TRACKS" in step and "another 2 flocks in one file" in step for step in hint)
     length = 8 * 5 + 4 * 2                    # 8 x (4 features + mask) individual slots, 4 x 2 series bins
     (stored,) = (out / "training").glob("*.npz")
     with np.load(stored) as data:
@@ -269,3 +247,17 @@ def test_sbc_of_a_learned_summary_estimator_of_two_flocks(fitted, tmp_path):
         return {p.name: {k: v for k, v in json.loads(p.read_text()).items() if k != "wall_s"}
                 for p in sorted((folder / "datasets").glob("*.json"))}
     assert records(out) == records(tmp_path / "again")
+
+
+@pytest.mark.slow
+def test_the_same_file_trains_a_bit_identical_estimator_of_two_flocks(fitted, tmp_path):
+    # the stored training runs are found (no simulation); the flow and the embedding are trained again
+    import shutil
+
+    shutil.copytree(fitted / "out" / "training", tmp_path / "out" / "training")
+    assert main(["calibrate", str(fitted / "cal.toml"), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    again = json.loads((tmp_path / "out" / "convergence.json").read_text())["npe"]
+    assert not again["reused"] and again["runs_found"] == 2 * 34          # 24 + 10 simulations of two runs each
+    for name in ("flow.eqx", "embedding.eqx", "flow.json", "identity.json", "coverage.json"):
+        assert (tmp_path / "out" / "estimator" / name).read_bytes() == (fitted / "out" / "estimator" / name).read_bytes()
+    assert (tmp_path / "out" / "posterior.csv").read_bytes() == (fitted / "out" / "posterior.csv").read_bytes()
