@@ -49,8 +49,8 @@ with the flocks' individuals would mix two designs); ConfigError naming the key 
 
 ``observed_raw(config) -> (f length,)``: the observed flocks' raw inputs, flock after flock: the ``from_tracks``
 flocks measured with the tracks' metric settings, or f runs at ``[targets] truth`` with the run seeds of
-``common_seeds(observed_seed, f)`` (the runs ``flocksweep targets --seed observed_seed`` simulates the targets
-with).
+``common_seeds(observed_seed, f)`` (the runs ``flocksweep targets --seed observed_seed --replicates f`` simulates
+the targets with, one row each from :func:`analysis.calibration.synthetic.synthetic_observation`).
 """
 from __future__ import annotations
 
