@@ -198,7 +198,9 @@ def _learned_text(flow: dict) -> str:
     return (f" The flow is conditioned on the statistics and on a summary of {summary['size']} numbers it learned "
             f"jointly: a permutation-invariant embedding of every individual's {', '.join(plan['features'])} (up to "
             f"{plan['max_individuals']} individuals) and of the series {', '.join(plan['series'])} in "
-            f"{plan['series_length']} bins of the window.")
+            f"{plan['series_length']} bins of the window"
+            + (f", of each of the {flow['flocks']} observed flocks, their summaries pooled by their mean (the same "
+               "whatever the flocks' order)." if flow.get("flocks", 1) > 1 else "."))
 
 
 def chain_blocks(outcome, folder) -> list:

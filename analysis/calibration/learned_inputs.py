@@ -23,7 +23,8 @@ features and a last column 1 (present) or 0 (a padding row: features 0), then th
 individual counts when it has every feature (it was seen moving at two consecutive records with a neighbour
 present); the counted ones fill the first rows in index order (ids never or barely seen in the window, e.g. a
 tracker's short tracklets, take no slot), the rest is padding. ``layout.split(rows (m, k + length))`` gives the statistics, the
-(m, M, F + 1) individuals and the (m, L, S) series.
+(m, M, F + 1) individuals and the (m, L, S) series; ``layout.split(rows (m, k + f length), k, flocks=f)`` with
+f > 1 flocks per row the (m, f, M, F + 1) individuals and the (m, f, L, S) series.
 
 ``raw_row(obs, settings (resolved MetricSettings), layout, series=None) -> (length,)``: the raw inputs of one
 run or flock (``obs``: a simulator's observations or an :class:`~observables.observed.ObservedFlock`), from
@@ -33,15 +34,23 @@ run or flock (``obs``: a simulator's observations or an :class:`~observables.obs
 does a window shorter than L records); a flock whose individuals all lack a feature gives a row of NaN.
 
 :class:`LearnedSimulator`: the calibration's :class:`~analysis.calibration.simulator.SummarySimulator` whose
-row is the k statistics followed by :func:`raw_row` of the same run (``row_width = k + length``); its
-identity adds the layout. ``learned_simulator(config)`` builds it (one run per training simulation).
+``simulate`` gives each of its ``n_sim`` = f runs' k statistics followed by :func:`raw_row` of the same run
+(``run_width = k + length``); ``pool(runs (f, run_width)) -> (row_width,)`` makes one training simulation's
+row of them: the f runs' mean statistics (as the statistics path's mean of f runs), then each run's raw inputs
+in seed order (``row_width = k + f length``; with f = 1 the one run's row, bit for bit). Its identity adds the
+layout. ``learned_simulator(config)`` builds it with f = :func:`flocks` runs per training simulation.
+
+``flocks(config) -> f``: the observed flocks a learned summary is conditioned on at once: the ``from_tracks``
+flocks (each a sample: ``aggregate = "samples"``), or the rows of ``samples`` / mean targets.
 
 ``check_learned(config)``: the calibration may use a learned summary: a built-in or plug-in model (not an
-external command), one observed flock (m = 1), ``rounds = 1``; ConfigError naming the key otherwise.
+external command), ``rounds = 1``, and not ``aggregate = "mean"`` over several tracked flocks (one mean row
+with the flocks' individuals would mix two designs); ConfigError naming the key otherwise.
 
-``observed_raw(config) -> (length,)``: the observed flock's raw inputs: the ``from_tracks`` flock measured with
-the tracks' metric settings, or one run at ``[targets] truth`` with the run seed of ``common_seeds(observed_seed,
-1)`` (the run ``flocksweep targets --seed observed_seed`` simulates the targets with).
+``observed_raw(config) -> (f length,)``: the observed flocks' raw inputs, flock after flock: the ``from_tracks``
+flocks measured with the tracks' metric settings, or f runs at ``[targets] truth`` with the run seeds of
+``common_seeds(observed_seed, f)`` (the runs ``flocksweep targets --seed observed_seed --replicates f`` simulates
+the targets with, one row each from :func:`analysis.calibration.synthetic.synthetic_observation`).
 """
 from __future__ import annotations
 
@@ -125,13 +134,20 @@ class Layout:
         return {"features": list(self.features), "series": list(self.series), "series_length": self.series_length,
                 "max_individuals": self.max_individuals}
 
-    def split(self, rows: np.ndarray, k: int):
-        """(statistics (m, k), individuals (m, M, F + 1), series (m, L, S)) of rows (m, k + length)."""
+    def split(self, rows: np.ndarray, k: int, flocks: int = 1):
+        """(statistics (m, k), individuals (m, M, F + 1), series (m, L, S)) of rows (m, k + length); with
+        ``flocks`` = f > 1, rows (m, k + f length) give individuals (m, f, M, F + 1) and series (m, f, L, S)."""
         rows = np.atleast_2d(rows)
-        if rows.shape[-1] != k + self.length:
-            raise ValueError(f"rows need {k} statistics and {self.length} raw inputs, got shape {rows.shape}")
-        individuals = rows[:, k:k + self.block].reshape(len(rows), self.max_individuals, len(self.features) + 1)
-        series = rows[:, k + self.block:].reshape(len(rows), self.series_length, len(self.series))
+        if rows.shape[-1] != k + flocks * self.length:
+            raise ValueError(f"rows need {k} statistics and {flocks} x {self.length} raw inputs, got shape "
+                             f"{rows.shape}")
+        if flocks == 1:
+            individuals = rows[:, k:k + self.block].reshape(len(rows), self.max_individuals, len(self.features) + 1)
+            series = rows[:, k + self.block:].reshape(len(rows), self.series_length, len(self.series))
+            return rows[:, :k], individuals, series
+        raw = rows[:, k:].reshape(len(rows), flocks, self.length)
+        individuals = raw[:, :, :self.block].reshape(len(rows), flocks, self.max_individuals, len(self.features) + 1)
+        series = raw[:, :, self.block:].reshape(len(rows), flocks, self.series_length, len(self.series))
         return rows[:, :k], individuals, series
 
 
@@ -176,13 +192,39 @@ class LearnedSimulator(SummarySimulator):
         self.plan = plan
 
     @property
-    def row_width(self) -> int:
+    def run_width(self) -> int:
+        """Numbers of one run's row: its statistics and raw inputs."""
         return len(self.columns) + self.plan.length
+
+    @property
+    def row_width(self) -> int:
+        """Numbers of one training simulation's row (:meth:`pool`)."""
+        return len(self.columns) + self.n_sim * self.plan.length
 
     def with_replicates(self, n_sim: int):
         if n_sim != self.n_sim:
-            raise ValueError("a learned summary takes one run per training simulation")
+            raise ValueError(f"a learned summary takes {self.n_sim} run(s) per training simulation (the observed "
+                             "flocks)")
         return self
+
+    def simulate(self, theta, seeds) -> np.ndarray:
+        """(n_sim, run_width): run i's statistics and raw inputs (seed i)."""
+        seeds = list(seeds)
+        if len(seeds) != self.n_sim:
+            raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
+        runs, settings = self._runs(theta, seeds)
+        out = np.empty((self.n_sim, self.run_width))
+        for i, obs in enumerate(runs):
+            out[i] = self._row(obs, settings, seeds[i])
+        return out
+
+    def pool(self, runs: np.ndarray) -> np.ndarray:
+        """(row_width,) one training simulation's row of its runs (module docstring)."""
+        runs = np.asarray(runs, dtype=float).reshape(self.n_sim, self.run_width)
+        if self.n_sim == 1:
+            return runs[0]
+        k = len(self.columns)
+        return np.concatenate([runs[:, :k].mean(axis=0), runs[:, k:].ravel()])
 
     def identity(self) -> dict:
         return {**super().identity(), "learned_inputs": self.plan.record()}
@@ -193,7 +235,7 @@ class LearnedSimulator(SummarySimulator):
 
         from .simulator import _fresh_seed
 
-        nan_row = np.full(self.row_width, np.nan)
+        nan_row = np.full(self.run_width, np.nan)
         try:
             check_finite(obs)
         except NonFiniteState:
@@ -220,17 +262,22 @@ def max_individuals(config) -> int:
     return int(config.preset.init.n)
 
 
+def flocks(config) -> int:
+    """The observed flocks a learned summary is conditioned on at once (module docstring)."""
+    return int(len(config.targets.observed))
+
+
 def check_learned(config) -> None:
     """The calibration may use a learned summary (module docstring)."""
     if getattr(config, "command", None) is not None:
         raise ConfigError(f"{KEY}.kind", 'got "learned" with an external command model; a learned summary needs the '
                                          "runs' trajectories in this process: a built-in or plug-in model")
-    observed = len(config.targets.observed)
-    if observed != 1:
-        raise ConfigError(f"{KEY}.kind", f'got "learned" with {observed} observed flocks; a learned summary is '
-                                         "conditioned on one flock (its individuals and series): give one flock "
-                                         "(from_tracks with one flock, or mean/sd targets), or use "
-                                         'kind = "statistics"')
+    tracked = len(config.targets.flock_tracks)
+    if tracked and tracked != flocks(config):
+        raise ConfigError("targets.aggregate", f'got "mean" over {tracked} tracked flocks with a learned summary, '
+                                               "which embeds each flock's individuals and series: use aggregate = "
+                                               '"samples" (the default: the posterior given all the flocks), or '
+                                               'kind = "statistics"')
     if config.method.rounds != 1:
         raise ConfigError(f"{KEY}.kind", f'got "learned" with rounds = {config.method.rounds}; learned summaries '
                                          "are trained in one round: rounds = 1")
@@ -251,7 +298,7 @@ def learned_simulator(config) -> LearnedSimulator:
 
     m = config.metrics
     plan = layout(config.method.summary, max_individuals(config))
-    return LearnedSimulator(config.preset_data, config.keys, tuple(config.targets.columns), 1, m.warmup,
+    return LearnedSimulator(config.preset_data, config.keys, tuple(config.targets.columns), flocks(config), m.warmup,
                             m.group_radius, m.fragmentation_cohesion, config.observation, m.dcd_max_delay,
                             motion_settings(m), plan=plan)
 
@@ -266,21 +313,25 @@ def _track_settings(config):
 
 
 def observed_raw(config) -> np.ndarray:
-    """(length,) the observed flock's raw inputs (module docstring)."""
+    """(f length,) the observed flocks' raw inputs, flock after flock (module docstring)."""
     check_learned(config)
     simulator = learned_simulator(config)
     if config.targets.flock_tracks:
-        try:
-            row = raw_row(config.targets.flock_tracks[0], _track_settings(config), simulator.plan)
-        except ValueError as err:
-            raise ConfigError(f"{KEY}", f"the tracks' raw inputs cannot be measured: {err}") from None
+        rows = []
+        for flock in config.targets.flock_tracks:
+            try:
+                rows.append(raw_row(flock, _track_settings(config), simulator.plan))
+            except ValueError as err:
+                raise ConfigError(f"{KEY}", f"the raw inputs of the tracks' flock {flock.name!r} cannot be measured: "
+                                            f"{err}") from None
+        row = np.concatenate(rows)
     else:
         truth = np.array([config.targets.truth[name] for name in config.names], dtype=float)
-        seeds = common_seeds(int(config.method.summary.observed_seed), 1)   # as `flocksweep targets --seed`
-        row = simulator.simulate(truth, seeds)[0, len(config.targets.columns):]
+        seeds = common_seeds(int(config.method.summary.observed_seed), simulator.n_sim)  # as `flocksweep targets --seed`
+        row = simulator.simulate(truth, seeds)[:, len(config.targets.columns):].ravel()
     if not np.isfinite(row).all():
-        raise ConfigError(f"{KEY}", "the observed flock's raw inputs are not finite (no individual with every "
-                                    "feature, or a series with an empty bin): choose other features or series")
+        raise ConfigError(f"{KEY}", "the observed flocks' raw inputs are not finite (a flock with no individual with "
+                                    "every feature, or a series with an empty bin): choose other features or series")
     return row
 
 

@@ -3,7 +3,7 @@
 extra, as the flow).
 
 Shapes: N training simulations, d parameters, k statistics, M individuals of F features (+ a mask), L bins of
-S series, E = ``size`` numbers of the embedding, W = ``width``.
+S series, E = ``size`` numbers of the embedding, W = ``width``, f observed flocks per row.
 
 Contract
 --------
@@ -15,20 +15,26 @@ rho (2 W + W + 1 -> W -> E, ReLU) maps the pooled individuals, the series' outpu
 slots that count to the summary. Standardisation: each feature by its mean and sd over the counted
 individuals of the training set, each (bin, series) by its mean and sd over the training set (sd 0 -> 1).
 
-``train_learned(theta (N, d), x (N, k + length), settings (FlowSettings), summary (SummarySettings), plan
-(Layout), seed, progress=False) -> LearnedEstimator``: one loss, -log q(theta | standardised statistics,
+*Several flocks* (f > 1: the calibration observed f flocks, each training simulation is f runs): a row holds
+the f runs' (flocks') mean statistics and each one's raw inputs; the same embedding summarises every flock and
+the f summaries are pooled by their mean (E numbers, whatever the order of the flocks) before the flow; the
+standardisation is fitted over all flocks of the training set. f = 1 is the one-flock estimator, bit for bit.
+
+``train_learned(theta (N, d), x (N, k + f length), settings (FlowSettings), summary (SummarySettings), plan
+(Layout), seed, progress=False, flocks=f) -> LearnedEstimator``: one loss, -log q(theta | standardised statistics,
 embedding(raw)), minimised over the flow's and the embedding's weights together (Adam, the flow's learning
 rate, batches, validation share and early stopping: flowjax's training steps and split, the best validation
 epoch's weights kept). A deterministic function of its inputs and ``seed`` on CPU (tested bit for bit).
 
 :class:`LearnedEstimator`: an :class:`~analysis.calibration.npe_flow.Estimator` whose rows are the k
-statistics followed by the raw inputs (``k`` is their whole length); its flow's condition is the standardised
-statistics and the embedding. ``save(folder)`` writes ``flow.eqx``, ``embedding.eqx`` (equinox's
-serialisation) and ``flow.json`` (the settings, dimensions, standardisations and layout: never pickle);
+statistics followed by the raw inputs of its ``flocks`` flocks (``k`` is their whole length); its flow's
+condition is the standardised statistics and the (pooled) embedding. ``save(folder)`` writes ``flow.eqx``,
+``embedding.eqx`` (equinox's serialisation) and ``flow.json`` (the settings, dimensions, standardisations,
+layout and, when f > 1, ``flocks``: never pickle);
 ``load_learned(folder, record)`` rebuilds it (each weight's shape and dtype checked, as the flow's).
 
 ``load_any(folder) -> estimator``: whatever npe stored in ``folder`` (a flow, an ensemble, either with a learned
-summary): what ``calibrate`` and ``posterior`` load. ``learned_trainer(summary, plan)``: the trainer
+summary): what ``calibrate`` and ``posterior`` load. ``learned_trainer(summary, plan, flocks=1)``: the trainer
 :func:`~analysis.calibration.npe_flow.train_ensemble` takes for a learned summary.
 """
 from __future__ import annotations
@@ -116,12 +122,21 @@ _EMBED = []
 
 
 def _embed():
-    """One compiled (embedding, individuals (m, M, F + 1), series (m, L, S)) -> (m, E), kept for the process."""
+    """One compiled (embedding, individuals (m, M, F + 1), series (m, L, S)) -> (m, E), kept for the process;
+    given (m, f, M, F + 1) and (m, f, L, S), each row's f embeddings pooled by their mean (:func:`_embedded`)."""
     if not _EMBED:
         _, eqx = require_jax()
-        import jax
-        _EMBED.append(eqx.filter_jit(lambda net, ind, ser: jax.vmap(net)(ind, ser)))
+        _EMBED.append(eqx.filter_jit(_embedded))
     return _EMBED[0]
+
+
+def _embedded(net, individuals, series):
+    """(m, E): the embedding of each row, of its one flock (individuals 3-D) or the mean of its f flocks' (4-D)."""
+    import jax
+
+    if individuals.ndim == 3:
+        return jax.vmap(net)(individuals, series)
+    return jax.vmap(lambda ind, ser: jax.vmap(net)(ind, ser).mean(axis=0))(individuals, series)
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,19 +147,20 @@ class LearnedEstimator(Estimator):
     summary: SummarySettings = field(default_factory=SummarySettings)
     plan: Layout | None = None
     raw_scale: Standardise | None = None
+    flocks: int = 1
 
     @property
     def k(self) -> int:
-        return len(self.x_mean) + self.plan.length
+        return len(self.x_mean) + self.flocks * self.plan.length
 
     def _condition(self, x) -> np.ndarray:
         import jax.numpy as jnp
 
         x = np.asarray(x, dtype=float)
         if x.shape[-1] != self.k:
-            raise ValueError(f"observed rows need {len(self.x_mean)} statistics and {self.plan.length} raw inputs "
-                             f"({self.k} numbers), got shape {x.shape}")
-        stats, individuals, series = self.plan.split(np.atleast_2d(x), len(self.x_mean))
+            raise ValueError(f"observed rows need {len(self.x_mean)} statistics and {self.flocks} x "
+                             f"{self.plan.length} raw inputs ({self.k} numbers), got shape {x.shape}")
+        stats, individuals, series = self.plan.split(np.atleast_2d(x), len(self.x_mean), self.flocks)
         individuals, series = self.raw_scale.apply(individuals, series)
         embedded = np.asarray(_embed()(self.embedding, jnp.asarray(individuals), jnp.asarray(series)), dtype=np.float32)
         out = np.concatenate([((stats - self.x_mean) / self.x_sd).astype(np.float32), embedded], axis=1)
@@ -152,7 +168,7 @@ class LearnedEstimator(Estimator):
 
     def record(self) -> dict:
         return {**super().record(), "summary": asdict(self.summary), "layout": self.plan.record(),
-                "raw_scale": self.raw_scale.record()}
+                "raw_scale": self.raw_scale.record(), **({"flocks": self.flocks} if self.flocks > 1 else {})}
 
     def save(self, folder) -> Path:
         """flow.eqx, embedding.eqx (weights) and flow.json (the rest), each written atomically."""
@@ -170,17 +186,16 @@ def _new_embedding(summary: SummarySettings, plan: Layout, key):
 
 def _loss(params, static, theta, stats, individuals, series, key=None):
     import equinox as eqx
-    import jax
     import jax.numpy as jnp
     import paramax
 
     flow, embedding = paramax.unwrap(eqx.combine(params, static))
-    condition = jnp.concatenate([stats, jax.vmap(embedding)(individuals, series)], axis=1)
+    condition = jnp.concatenate([stats, _embedded(embedding, individuals, series)], axis=1)
     return -flow.log_prob(theta, condition).mean()
 
 
 def train_learned(theta, x, settings: FlowSettings, summary: SummarySettings, plan: Layout, seed: int,
-                  progress: bool = False) -> LearnedEstimator:
+                  progress: bool = False, flocks: int = 1) -> LearnedEstimator:
     """Fit the flow and the embedding together (module docstring)."""
     jax, eqx = require_jax()
     import jax.numpy as jnp
@@ -193,11 +208,11 @@ def train_learned(theta, x, settings: FlowSettings, summary: SummarySettings, pl
         raise ValueError(f"theta must be (N, d) and x (N, k + raw) with the same N, got {theta.shape} and {x.shape}")
     if not (np.isfinite(theta).all() and np.isfinite(x).all()):
         raise ValueError("training simulations must be finite (drop the failed ones first)")
-    k = x.shape[1] - plan.length
-    stats, individuals, series = plan.split(x, k)
+    k = x.shape[1] - flocks * plan.length
+    stats, individuals, series = plan.split(x, k, flocks)
     theta_mean, theta_sd = _scale(theta)
     x_mean, x_sd = _scale(stats)
-    raw_scale = Standardise.fit(individuals, series)
+    raw_scale = Standardise.fit(individuals.reshape(-1, *individuals.shape[-2:]), series.reshape(-1, *series.shape[-2:]))
     individuals, series = raw_scale.apply(individuals, series)
     build_key, embed_key, train_key = jax.random.split(jax.random.key(int(seed)), 3)
     model = (_build(settings, theta.shape[1], k + summary.size, build_key), _new_embedding(summary, plan, embed_key))
@@ -235,14 +250,14 @@ def train_learned(theta, x, settings: FlowSettings, summary: SummarySettings, pl
                 break
     flow, embedding = eqx.combine(best, static)
     return LearnedEstimator(flow, settings, theta_mean, theta_sd, x_mean, x_sd, losses, embedding=embedding,
-                            summary=summary, plan=plan, raw_scale=raw_scale)
+                            summary=summary, plan=plan, raw_scale=raw_scale, flocks=int(flocks))
 
 
-def learned_trainer(summary: SummarySettings, plan: Layout):
+def learned_trainer(summary: SummarySettings, plan: Layout, flocks: int = 1):
     """``(theta, x, settings, seed, progress) -> LearnedEstimator`` for :func:`~analysis.calibration.npe_flow.
-    train_ensemble`."""
+    train_ensemble` (rows of ``flocks`` flocks each)."""
     def train(theta, x, settings, seed, progress=False):
-        return train_learned(theta, x, settings, summary, plan, seed, progress)
+        return train_learned(theta, x, settings, summary, plan, seed, progress, flocks)
     return train
 
 
@@ -274,6 +289,9 @@ def load_learned(folder: Path, record: dict) -> LearnedEstimator:
         summary = SummarySettings(**{key: tuple(v) if isinstance(v, list) else v
                                      for key, v in record["summary"].items()})
         plan = layout_from_record(record["layout"])
+        flocks = record.get("flocks", 1)
+        if not (isinstance(flocks, int) and not isinstance(flocks, bool) and 1 <= flocks <= 100_000):
+            raise ValueError(f"flocks: got {flocks!r:.20}; expected an integer >= 1")
         scale = record["raw_scale"]
         raw_scale = Standardise(*(np.asarray(scale[name], dtype=float) for name in ("feature_mean", "feature_sd",
                                                                                    "series_mean", "series_sd")))
@@ -286,8 +304,9 @@ def load_learned(folder: Path, record: dict) -> LearnedEstimator:
             or not all(np.isfinite(getattr(raw_scale, n)).all() for n in ("feature_mean", "feature_sd", "series_mean",
                                                                          "series_sd"))):
         raise refuse("raw_scale: shapes or values do not fit the layout")
-    if record.get("k") != stat_count + plan.length:
-        raise refuse(f"k: got {record.get('k')!r:.20}; expected {stat_count} statistics + {plan.length} raw inputs")
+    if record.get("k") != stat_count + flocks * plan.length:
+        raise refuse(f"k: got {record.get('k')!r:.20}; expected {stat_count} statistics + {flocks} x {plan.length} "
+                     "raw inputs")
     settings, arrays = _checked_record(path, {**record, "k": stat_count}, DamagedEstimator, hint)
     architecture = (settings, summary, plan, record["d"], stat_count)
     if architecture not in _SKELETONS:
@@ -298,5 +317,5 @@ def load_learned(folder: Path, record: dict) -> LearnedEstimator:
     embedding = _read_weights(folder / EMBEDDING_WEIGHTS, skeleton_embedding, DamagedEstimator, hint)
     static = eqx.partition(skeleton_flow, eqx.is_array)[1]
     return LearnedEstimator(eqx.combine(eqx.partition(flow, eqx.is_array)[0], static), settings, *arrays,
-                            embedding=embedding, summary=summary, plan=plan, raw_scale=raw_scale)
+                            embedding=embedding, summary=summary, plan=plan, raw_scale=raw_scale, flocks=flocks)
 

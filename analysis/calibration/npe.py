@@ -13,7 +13,9 @@ plug-in or external command) measured through the ``[observation]`` block exactl
 same runs every other method simulates. With m observed rows (targets given as ``samples`` or several
 flocks ``from_tracks``) a training simulation is the mean statistics of m runs at its parameters and the
 estimator is conditioned on the mean of the m observed rows (the flocks are independent replicates of the
-model); with one row it is one run. Measurement noise of mean/sd targets (or ``from_tracks`` with ``sd``)
+model; a learned summary's row is the m runs' mean statistics followed by each run's raw inputs, and the
+estimator embeds each flock alike and pools the m embeddings: :mod:`analysis.calibration.learned_summary`); with
+one row it is one run. Measurement noise of mean/sd targets (or ``from_tracks`` with ``sd``)
 N(0, cov / m) is added to every training row from ``[seed, Tag.NPE, NPEStream.NOISE]`` (round r >= 2:
 ``ROUND_NOISE, r``), as the other methods add it. The statistics the flow sees are transformed
 (:mod:`analysis.calibration.transforms`, ``config.transforms``), the observed row likewise.
@@ -118,7 +120,7 @@ def replicates(config) -> int:
 
 def observed_row(config) -> np.ndarray:
     """(k,): the row the estimator is conditioned on: the mean of the observed rows (a learned summary: then
-    the observed flock's raw inputs, :func:`analysis.calibration.learned_inputs.observed_raw`)."""
+    each observed flock's raw inputs, :func:`analysis.calibration.learned_inputs.observed_raw`)."""
     row = np.asarray(config.targets.observed, dtype=float).mean(axis=0)
     if learned(config):
         from .learned_inputs import observed_raw
@@ -323,7 +325,8 @@ def _fit(config, theta, rows, seed: int, phases, label: str = ""):
     if learned(config):
         from .learned_inputs import layout, max_individuals
 
-        trainer = learned_trainer(settings.summary, layout(settings.summary, max_individuals(config)))
+        trainer = learned_trainer(settings.summary, layout(settings.summary, max_individuals(config)),
+                                  replicates(config))
     return train_ensemble(theta, rows, flow_settings(config), seed, settings.ensemble, progress=phases.enabled,
                           trainer=trainer)
 

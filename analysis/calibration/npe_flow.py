@@ -379,7 +379,7 @@ class Ensemble:
 
     def record(self) -> dict:
         members = [member.record() for member in self.members]
-        learned = {key: members[0][key] for key in ("summary", "layout") if key in members[0]}   # a learned summary's
+        learned = {key: members[0][key] for key in ("summary", "layout", "flocks") if key in members[0]}  # a learned summary's
         return {"members": len(members), "settings": members[0]["settings"], "d": self.d, "k": self.k, **learned,
                 "epochs": [m["epochs"] for m in members],
                 "best_validation_loss": [m["best_validation_loss"] for m in members]}

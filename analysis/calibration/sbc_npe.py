@@ -21,7 +21,10 @@ order=None, resume=True, alpha=0.05) -> dict`` (the same return value as
   ``theta_j`` from stream THETA, the observed rows ``y_j`` (m, k) from stream OBSERVED through the
   calibration's own simulator, ``[observation]`` block and measurement noise (what BSL's SBC observes),
   the rank ties from stream TIES. The estimator is conditioned on the transformed mean of the m rows, as
-  at the targets; its S draws are restricted to the prior's support and use the JAX seed drawn from
+  at the targets (a learned summary, ``[method.npe.summary] kind = "learned"``: the m runs are its own
+  simulator's, :func:`analysis.calibration.npe.npe_simulator`, the same runs and statistics, each with its
+  raw inputs, and the estimator is conditioned on their mean statistics and every run's raw inputs, as at
+  the observed flocks; the dataset records keep the statistics); its S draws are restricted to the prior's support and use the JAX seed drawn from
   stream BSL with row number j, so a dataset's draws depend on the file, j and S only (not on the order,
   the other datasets, the workers or a resume). A dataset the estimator puts almost no mass inside the
   prior at is ranked among the unrestricted draws and flagged ``outside_support`` (counted in
@@ -54,7 +57,6 @@ from .data_model import simulate_fn
 from .diagnostics import sbc_ranks
 from .sbc import _bar, _check_settings, _digest, _prepare_out, draw_observed, draw_theta, generator, stream
 from .sbc_report import dataset_path, write_report
-from .simulator import summary_simulator
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,7 +85,12 @@ def draw_seed(seed: int, j: int) -> int:
 def npe_dataset(config, estimator, support, j: int, theta, y, draws: int, wall_s: float = 0.0) -> dict:
     """The record of dataset j: the estimator's ``draws`` posterior draws at y_j and the ranks of theta_j."""
     started = time.time()
-    x = config.transforms.apply(np.asarray(y, dtype=float).mean(axis=0)[None, :], clip=True)
+    y = np.asarray(y, dtype=float)
+    k = len(config.targets.columns)
+    x = config.transforms.apply(y[:, :k].mean(axis=0)[None, :], clip=True)
+    if y.shape[1] > k:          # a learned summary: every run's raw inputs after the mean statistics
+        x = np.concatenate([x, y[:, k:].reshape(1, -1)], axis=1)
+    y = y[:, :k]
     seed = draw_seed(config.seed, j)
     outside = not np.isfinite(x).all()
     sample = np.full((draws, len(theta)), np.nan)
@@ -112,17 +119,13 @@ def run_npe_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progr
                 bins: int | None = None, workers: int = 1, order: Sequence[int] | None = None,
                 resume: bool = True, alpha: float = 0.05) -> dict:
     """SBC of the config's npe estimator; see the module docstring."""
-    from .npe import digest, estimator_identity, trained_estimator
+    from .npe import digest, estimator_identity, npe_simulator, trained_estimator
     from .npe_flow import support_of
 
     if config.method.rounds > 1:
         raise ConfigError("method.rounds", f"got {config.method.rounds}; SBC checks an amortised estimator across "
                                            "the prior, and sequential rounds truncate it to the targets' region: "
                                            "run it with --set method.rounds=1")
-    if config.method.summary.learned:
-        raise ConfigError("method.npe.summary.kind", 'got "learned"; SBC of an estimator with a learned summary is not '
-                                                     "built yet (its held-out coverage check in flocksweep calibrate "
-                                                     'applies): run SBC with kind = "statistics"')
     datasets, draws = integer(datasets, "datasets", 1), integer(draws, "draws", 1)
     workers = integer(workers, "workers", 1)
     out_dir = Path("results") / "calibration" / config.name / "sbc" if out_dir is None else Path(out_dir)
@@ -143,8 +146,7 @@ def run_npe_sbc(config, datasets: int = 50, draws: int = 49, out_dir=None, progr
         todo = [j for j in order if not dataset_path(folder.root, j).exists()]
         phases.start(f"{len(todo)} of {datasets} datasets: one simulated flock and {draws} draws of the estimator "
                      f"each ({datasets - len(todo)} stored)")
-        data = NpeData(config.prior, simulate_fn(config, summary_simulator(config, n_sim=len(config.targets.observed))),
-                       int(config.seed))
+        data = NpeData(config.prior, simulate_fn(config, npe_simulator(config)), int(config.seed))
         support = support_of(config.prior)
         bar = _bar(datasets, datasets - len(todo), config.name, progress)
         try:

@@ -11,7 +11,8 @@ Contract
 --------
 ``design_rows(simulator, theta (N, d), keys, folder, pool, tick=None, save_every=10.0) -> DesignRows``:
 row i is the bare statistics (no measurement noise) of the simulator's ``n_sim`` runs at ``theta[i]``
-(their mean; one run with ``n_sim = 1``), the run seeds drawn from ``generator(*keys[i])``
+(their mean; one run with ``n_sim = 1``; a simulator with a ``pool(runs) -> row`` method, a learned summary's
+:class:`~analysis.calibration.learned_inputs.LearnedSimulator`, makes the row of its runs itself), the run seeds drawn from ``generator(*keys[i])``
 (:func:`analysis.calibration.bsl.simulate_keyed`): a deterministic function of the row, whatever the
 executor ``pool`` or the finishing order. The rows are
 stored in ``folder`` under the design's digest (:func:`design_digest`: the simulator's identity, theta and
@@ -79,6 +80,9 @@ def _one_row(simulator, task) -> np.ndarray:
     (NaN when any failed); a failure's reason, when the simulator gives one, is raised for the caller to
     record."""
     reasons = getattr(simulator, "rows_and_reasons", None)
+    pool = getattr(simulator, "pool", None)       # a learned summary's simulator pools its runs its own way
+    if pool is not None:
+        return pool(simulate_keyed(simulator, task))
     if reasons is None:
         return simulate_keyed(simulator, task).mean(axis=0)
     theta, key = task

@@ -82,8 +82,10 @@ def after_calibrate(result, config) -> list[str]:
     if (out / "estimator").is_dir():
         summary = getattr(getattr(config, "method", None), "summary", None)
         given = "--tracks TRACKS" if getattr(summary, "learned", False) else "--targets FLOCKS.csv"
-        steps.append(f"flocksweep posterior {out / 'estimator'} {given}   (the same estimator on other "
-                     f"flocks, no new simulation)")
+        flocks = len(config.targets.observed) if getattr(summary, "learned", False) else 1
+        other = f"another {flocks} flocks in one file: one posterior given all of them" if flocks > 1 else "other flocks"
+        steps.append(f"flocksweep posterior {out / 'estimator'} {given}   (the same estimator on {other}, no new "
+                     "simulation)")
     return steps
 
 
