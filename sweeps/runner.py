@@ -69,6 +69,7 @@ PART_RUNS = 20_000    # a part holds at most this many runs ...
 PART_SERIES_ROWS = 400_000   # ... and time series rows (its memory: about 200 bytes a row)
 BATCHES_PER_WORKER = 32      # a batch holds about 1 / (workers x this) of the sweep's cost
 MAX_BATCH_RUNS = 4096        # and at most this many runs
+MAX_BATCH_COST = 5e8         # and at most this cost (steps x N^2): 4,096 runs of 20 boids for 5 s, seconds of work
 MAX_COMMAND_BATCH = 16       # or this many runs of a command (their cost is unknown)
 
 
@@ -130,7 +131,7 @@ def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = Non
     ordered = sorted(todo, key=lambda s: (-s.cost, s.index))
     if batch_size:
         return [ordered[k:k + batch_size] for k in range(0, len(ordered), batch_size)]
-    share = sum(s.cost for s in ordered) / (max(workers, 1) * BATCHES_PER_WORKER)
+    share = min(MAX_BATCH_COST, sum(s.cost for s in ordered) / (max(workers, 1) * BATCHES_PER_WORKER))
     batches: list[list[RunSpec]] = []
     cost = 0.0
     for spec in ordered:

@@ -123,6 +123,10 @@ def test_batches_hold_a_share_of_the_cost_dearest_first_every_run_once(tmp_path,
     assert [len(b) for b in make_batches(specs, 2, batch_size=7)] == [7] * 8 + [4]
     monkeypatch.setattr(runner, "MAX_BATCH_RUNS", 3)
     assert max(len(b) for b in make_batches(specs, workers=1)) == 3
+    monkeypatch.setattr(runner, "MAX_BATCH_RUNS", 4096)
+    monkeypatch.setattr(runner, "MAX_BATCH_COST", 2.5 * specs[0].cost)   # seconds of work at most, any sweep size
+    small = make_batches([s for s in specs if s.preset.init.n == 6] * 10, workers=1)   # a share of 6.25 runs
+    assert [len(b) for b in small] == [2] * 100
 
 
 def test_command_runs_travel_at_most_max_command_batch_to_a_batch(tmp_path):
