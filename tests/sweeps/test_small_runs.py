@@ -257,3 +257,18 @@ def test_a_group_whose_simulation_raises_runs_each_alone(tmp_path, monkeypatch):
     assert got.loc[1, "error"] == "RuntimeError: boom: this seed"
     keep = [0, 2, 3, 4, 5]
     assert_frame_equal(got.drop(columns=TIMING).loc[keep], results(tmp_path / "clean").loc[keep], check_exact=True)
+
+
+def test_runs_starting_from_a_state_file_group_and_match_their_runs_alone(monkeypatch):
+    """couzin2002_hysteresis's replicates start from a stored state (init.from_file), 100 boids, 1 s here."""
+    monkeypatch.chdir(ROOT)   # its states are named relative to the repository root
+    config = load_sweep(ROOT / "configs" / "sweeps" / "couzin2002_hysteresis.toml", ["run.duration=1.0",
+                                                                                      "run.warmup=0.2"], 3)
+    specs = [s for s in expand(config) if s.point_index == 0]
+    assert specs[0].preset.init.from_file and [len(g) for g in worker.replicate_groups(specs)] == [3]
+    rows, timeseries = worker.execute_batch(specs)
+    alone = [worker.execute_run(spec) for spec in specs]
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    assert_frame_equal(pd.DataFrame(rows).drop(columns=["sim_s", "wall_s"]),
+                       pd.DataFrame([row for row, _ in alone]).drop(columns=["sim_s", "wall_s"]), check_exact=True)
+    assert_frame_equal(timeseries, pd.concat([ts for _, ts in alone], ignore_index=True), check_exact=True)
