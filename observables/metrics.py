@@ -237,8 +237,11 @@ def check_k_nearest(k) -> int:
 
 
 def _nanmean(values: np.ndarray) -> float:
+    """The mean of the values that are not nan (nan when none is): ``values.mean()``'s own sum and division
+    (numpy's mean is ``add.reduce`` divided by the count), without its per-call overhead (a sweep of small
+    runs calls this 27 times a run)."""
     values = values[~np.isnan(values)]
-    return float(values.mean()) if values.size else float("nan")
+    return float(np.add.reduce(values) / values.size) if values.size else float("nan")
 
 
 def summarize(series: dict, times: np.ndarray, warmup: float = WARMUP_S,

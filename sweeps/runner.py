@@ -65,6 +65,12 @@ from .warmup import warm_up_all
 
 FLUSH_SECONDS = 5.0   # finished runs wait at most this long (plus HEARTBEAT) before they are written
 HEARTBEAT = 0.5       # seconds between the executor's heartbeats while nothing finishes
+PART_RUNS = 20_000    # a part holds at most this many runs ...
+PART_SERIES_ROWS = 400_000   # ... and time series rows (its memory: about 200 bytes a row)
+BATCHES_PER_WORKER = 32      # a batch holds about 1 / (workers x this) of the sweep's cost
+MAX_BATCH_RUNS = 4096        # and at most this many runs
+MAX_BATCH_COST = 5e8         # and at most this cost (steps x N^2): 4,096 runs of 20 boids for 5 s, seconds of work
+MAX_COMMAND_BATCH = 16       # or this many runs of a command (their cost is unknown)
 
 
 @dataclass
@@ -113,12 +119,29 @@ def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_fail
 
 
 def make_batches(todo: list[RunSpec], workers: int, batch_size: int | None = None) -> list[list[RunSpec]]:
-    """Batches of similar cost, most expensive first (longest-processing-time scheduling)."""
+    """Batches of similar cost, most expensive first (longest-processing-time scheduling): ``batch_size``
+    runs each when given, else runs in cost order until a batch holds a share 1 / (``workers`` x
+    :data:`BATCHES_PER_WORKER`) of the whole cost (at most :data:`MAX_BATCH_RUNS` runs; at most
+    :data:`MAX_COMMAND_BATCH` runs of a command, whose cost is unknown). Many small runs then travel
+    together (a task's overhead is paid once for them, and a design point's replicates, next to each other
+    in this order, are simulated together: :func:`sweeps.worker.execute_batch`), a dear run goes alone,
+    and the pool ends on batches small enough to keep every worker busy until the end."""
     if not todo:
         return []
-    size = batch_size or max(1, min(16, math.ceil(len(todo) / (max(workers, 1) * 8))))
     ordered = sorted(todo, key=lambda s: (-s.cost, s.index))
-    return [ordered[k:k + size] for k in range(0, len(ordered), size)]
+    if batch_size:
+        return [ordered[k:k + batch_size] for k in range(0, len(ordered), batch_size)]
+    share = min(MAX_BATCH_COST, sum(s.cost for s in ordered) / (max(workers, 1) * BATCHES_PER_WORKER))
+    batches: list[list[RunSpec]] = []
+    cost = 0.0
+    for spec in ordered:
+        limit = MAX_COMMAND_BATCH if spec.command is not None else MAX_BATCH_RUNS
+        if not batches or cost + spec.cost > share * (1 + 1e-9) or len(batches[-1]) >= limit:
+            batches.append([])
+            cost = 0.0
+        batches[-1].append(spec)
+        cost += spec.cost
+    return batches
 
 
 def estimate(todo: list[RunSpec], workers: int, pilot_seconds: float = 1.0, pool: bool = False) -> dict:
@@ -256,16 +279,20 @@ def stamp_hash(config: SweepConfig) -> str:
 
 
 class PartWriter:
-    """Buffers finished batches and writes them as one part when ``max_runs`` rows have accumulated or
-    the oldest has waited ``max_seconds`` (checked when a batch arrives and on every ``tick``), and on
-    exit, also after an error or an interrupt, but not after a failed write (nothing more can be
-    saved then): few files, bounded memory, finished work saved on time."""
+    """Buffers finished batches and writes them as one part when ``max_runs`` rows or
+    ``max_series_rows`` time series rows have accumulated or the oldest has waited ``max_seconds``
+    (checked when a batch arrives and on every ``tick``), and on exit, also after an error or an
+    interrupt, but not after a failed write (nothing more can be saved then): few files (a sweep of
+    small runs writes one part every ``max_seconds``, whatever its runs), bounded memory, finished work
+    saved on time."""
 
-    def __init__(self, store: ResultsStore, max_runs: int = 64, max_seconds: float | None = None):
-        self.store, self.max_runs = store, max_runs
+    def __init__(self, store: ResultsStore, max_runs: int = PART_RUNS, max_seconds: float | None = None,
+                 max_series_rows: int = PART_SERIES_ROWS):
+        self.store, self.max_runs, self.max_series_rows = store, max_runs, max_series_rows
         self.max_seconds = FLUSH_SECONDS if max_seconds is None else max_seconds
         self.rows: list[dict] = []
         self.frames: list[pd.DataFrame] = []
+        self.series_rows = 0
         self.since = time.monotonic()
 
     def add(self, rows: list[dict], timeseries: pd.DataFrame | None) -> None:
@@ -274,7 +301,8 @@ class PartWriter:
         self.rows += rows
         if timeseries is not None:
             self.frames.append(timeseries)
-        if len(self.rows) >= self.max_runs:
+            self.series_rows += len(timeseries)
+        if len(self.rows) >= self.max_runs or self.series_rows >= self.max_series_rows:
             self.flush()
         else:
             self.tick()
@@ -289,7 +317,7 @@ class PartWriter:
         if self.rows:
             ts = pd.concat(self.frames, ignore_index=True) if self.frames else None
             self.store.write_part(self.store.next_part(), self.rows, ts)
-        self.rows, self.frames, self.since = [], [], time.monotonic()
+        self.rows, self.frames, self.series_rows, self.since = [], [], 0, time.monotonic()
 
     def __enter__(self):
         return self

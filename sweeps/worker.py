@@ -19,7 +19,14 @@ loads the run's kernels with no step simulated and no limit (:func:`prepare_cont
 counts the run itself. A command model's run gets ``run.timeout_s`` as its command's limit when it is the
 shorter (:mod:`sweeps.external`). A built-in run without a limit runs in the worker itself, as before.
 ``execute_batch(specs, out_dir)`` runs several in a row (a worker's unit of work) and returns
-``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric).
+``(rows, timeseries)`` with ``timeseries`` a DataFrame (run_id, t, one column per metric). Consecutive
+runs of a batch that differ only in their seed (a design point's replicates: :func:`replicate_groups`;
+built-in models only, in this process, under ``THREADED_MIN_N`` boids, at most ``GROUP_BYTES`` of records
+together) are simulated by one :func:`simcore.simulate_batch` call on this thread (:func:`execute_group`),
+each run bit-identical to its :func:`simcore.simulate`, then checked, stored and measured one by one as
+a run alone is: a run that fails there is that run's failure, the others are kept; a group whose
+simulation raises is executed again run by run. A grouped run's ``sim_s`` is its equal share of the
+group's simulation seconds.
 
 A row is the run's identity and swept parameters, then ``status``, ``error``, ``sim_s``, ``wall_s``,
 then its summary (:func:`observables.summary.measure_run` of the records at the run's record
@@ -34,6 +41,7 @@ do (about 0.3 s, while the runner is still reading the sweep).
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import threading
@@ -41,21 +49,25 @@ import time
 import traceback
 from pathlib import Path
 
-import pandas as pd
-
+import numba
 import numpy as np
+import pandas as pd
 
 from flocksweep.observables.observed import ObservedFlock
 from flocksweep.observables.summary import every_nth, measure_run
-from flocksweep.simcore import placeholder_observations, simulate
+from flocksweep.simcore import placeholder_observations, simulate, simulate_batch
 from flocksweep.simcore.registry import is_builtin
+from flocksweep.simcore.simulate import THREADED_MIN_N
 
+from .budget import run_bytes
 from .design import RunSpec
 from .external import run_external
 from .files import WriteFailed
 from .non_finite import check_finite_run
 from .sandbox import Sandbox, TaskCrashed, TaskTimedOut
 from .trajectory import write_trajectory
+
+GROUP_BYTES = 64 * 2 ** 20   # a group of replicates simulated together holds at most this much (one run at least)
 
 
 def prepare() -> None:
@@ -67,14 +79,19 @@ def prepare() -> None:
     cpu_target.target_context.refresh()
 
 
-def _simulate(spec: RunSpec):
-    """Simulate; returns the observations, recorded every gcd(record_every, trajectory_every) steps
-    when trajectories are kept, else every record_every steps."""
-    run = spec.preset.run
-    step = run.record_every
+def _record_step(spec: RunSpec) -> int:
+    """Steps between the records a run is simulated with: gcd(record_every, trajectory_every) when
+    trajectories are kept, else record_every."""
+    step = spec.preset.run.record_every
     if spec.storage.keep == "trajectories":
         step = math.gcd(step, spec.storage.trajectory_every)
-    return simulate(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, step)
+    return step
+
+
+def _simulate(spec: RunSpec):
+    """Simulate; returns the observations, recorded every :func:`_record_step` steps."""
+    run = spec.preset.run
+    return simulate(spec.preset.model, spec.preset.init, spec.seed, run.duration, run.dt, _record_step(spec))
 
 
 def _save_trajectory(spec: RunSpec, obs, out_dir: Path) -> None:
@@ -116,6 +133,12 @@ def _simulated(spec: RunSpec, out_dir, start: float, row: dict) -> tuple:
     """(record times, series, summary row) of a run of a preset; its simulation seconds go in ``row``."""
     obs = _simulate(spec)
     row["sim_s"] = time.perf_counter() - start
+    return _measured(spec, obs, out_dir)
+
+
+def _measured(spec: RunSpec, obs, out_dir) -> tuple:
+    """(record times, series, summary row) of a simulated run: its state checked finite, its trajectory
+    saved (``keep = "trajectories"``), its records measured."""
     check_finite_run(spec.preset, spec.seed, obs)
     if spec.storage.keep == "trajectories" and out_dir is not None:
         _save_trajectory(spec, obs, out_dir)
@@ -139,12 +162,24 @@ def execute_here(spec: RunSpec, out_dir) -> tuple[dict, dict | None]:
     """:func:`_execute` in this process."""
     row = base_row(spec)
     start = time.perf_counter()
-    try:
+
+    def work():
         if spec.command is None:
-            times, series, summary = _simulated(spec, out_dir, start, row)
-        else:   # an external command: its output measured as tracks (sim_s: the command's seconds)
-            times, series, summary, row["sim_s"] = run_external(spec.command, spec.seed, spec.metrics, spec.run_id,
-                                                                spec.timeout_s)
+            return _simulated(spec, out_dir, start, row)
+        # an external command: its output measured as tracks (sim_s: the command's seconds)
+        times, series, summary, row["sim_s"] = run_external(spec.command, spec.seed, spec.metrics, spec.run_id,
+                                                            spec.timeout_s)
+        return times, series, summary
+
+    return _recorded(spec, row, start, work)
+
+
+def _recorded(spec: RunSpec, row: dict, start: float, work) -> tuple[dict, dict | None]:
+    """The run's row (``row`` completed) and its series from ``work() -> (times, series, summary)``: ok,
+    or failed with the reason when ``work`` raises (a failed write is raised: the disk's fault, not the
+    run's); ``wall_s`` counted from ``start``."""
+    try:
+        times, series, summary = work()
         row.update(summary)
         row.update(status="ok", error="", wall_s=time.perf_counter() - start)
         return row, {"run_id": np.full(len(times), spec.run_id, dtype=object), "t": times, **series}
@@ -279,13 +314,85 @@ def _tiny_flock() -> ObservedFlock:
 
 
 def execute_batch(specs: list[RunSpec], out_dir=None) -> tuple[list[dict], pd.DataFrame | None]:
+    """The rows and series of ``specs``, in their order: the replicates of a design point that follow each
+    other (:func:`replicate_groups`) simulated together (:func:`execute_group`), any other run alone."""
     rows, parts = [], []
-    for spec in specs:
-        row, columns = _execute(spec, out_dir)
-        rows.append(row)
-        if columns is not None:
-            parts.append(columns)
+    for group in replicate_groups(specs):
+        for row, columns in (execute_group(group, out_dir) if len(group) > 1 else [_execute(group[0], out_dir)]):
+            rows.append(row)
+            if columns is not None:
+                parts.append(columns)
     return rows, _series_table(parts)
+
+
+def groupable(spec: RunSpec) -> bool:
+    """Whether a run may be simulated in a group: a built-in model's run in this process (not a command's,
+    nor a contained run: a plug-in's or one with a time limit), small enough to run on one thread (from
+    :data:`simcore.simulate.THREADED_MIN_N` boids a run splits its steps over threads)."""
+    return spec.command is None and not contained(spec) and spec.preset.init.n < THREADED_MIN_N
+
+
+def _group_bytes(spec: RunSpec) -> float:
+    """Memory of one run of a group while the group is simulated (:func:`sweeps.budget.run_bytes`)."""
+    return run_bytes(spec.preset.init.n, spec.preset.run.n_steps, _record_step(spec))
+
+
+def replicate_groups(specs: list[RunSpec]) -> list[list[RunSpec]]:
+    """``specs`` cut into runs of consecutive specs that differ only in their seed (the same preset, metric
+    and storage settings: the replicates of one design point), in order, each group holding at most
+    :data:`GROUP_BYTES` of runs' memory (one run at least); a run that cannot be grouped
+    (:func:`groupable`) is a group of its own."""
+    groups: list[list[RunSpec]] = []
+    for spec in specs:
+        last = groups[-1][-1] if groups else None
+        if (last is not None and groupable(spec) and groupable(last)
+                and (spec.preset is last.preset or spec.preset == last.preset)
+                and spec.metrics == last.metrics and spec.storage == last.storage
+                and (len(groups[-1]) + 1) * _group_bytes(spec) <= GROUP_BYTES):
+            groups[-1].append(spec)
+        else:
+            groups.append([spec])
+    return groups
+
+
+def execute_group(specs: list[RunSpec], out_dir=None) -> list[tuple[dict, dict | None]]:
+    """Rows and series of runs that differ only in their seed (:func:`replicate_groups`), simulated by one
+    :func:`simcore.simulate_batch` call on this thread (the model packed and its run loop looked up once,
+    not per run; each run bit-identical to its :func:`simcore.simulate`), then each checked, stored and
+    measured as :func:`execute_here` does it. ``sim_s`` of each is the group's simulation seconds shared
+    equally. When the simulation raises, every run is executed alone, so that a failure is the failing
+    run's own."""
+    first = specs[0]
+    run = first.preset.run
+    start = time.perf_counter()
+    try:
+        with _one_thread():
+            simulated = simulate_batch(first.preset.model, first.preset.init, [s.seed for s in specs],
+                                       run.duration, run.dt, _record_step(first))
+    except Exception:  # noqa: BLE001 - each run again alone: its failure recorded as its own
+        return [execute_here(spec, out_dir) for spec in specs]
+    share = (time.perf_counter() - start) / len(specs)
+    out = []
+    for spec, obs in zip(specs, simulated):
+        row = base_row(spec)
+        row["sim_s"] = share
+        out.append(_recorded(spec, row, time.perf_counter() - share,
+                             lambda spec=spec, obs=obs: _measured(spec, obs, out_dir)))
+    return out
+
+
+@contextlib.contextmanager
+def _one_thread():
+    """numba's thread count of this thread set to 1 while inside (restored after): a group's runs one after
+    the other, as the runs alone would be (a worker process of a pool uses the cores its share gives it)."""
+    threads = numba.get_num_threads()
+    if threads != 1:
+        numba.set_num_threads(1)
+    try:
+        yield
+    finally:
+        if threads != 1:
+            numba.set_num_threads(threads)
 
 
 def _series_table(parts: list[dict]) -> pd.DataFrame | None:

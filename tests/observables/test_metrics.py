@@ -380,6 +380,24 @@ def test_groups_and_nearest_neighbours_match_a_brute_force_reference():
             assert (graph.degree[f] == (dist < 4.0).sum(axis=1)).all()
 
 
+def test_summarize_means_are_numpys_nan_skipping_mean_bit_for_bit():
+    """The row's means are ``values[~isnan].mean()`` exactly (summarize skips mean's per-call overhead)."""
+    rng = np.random.default_rng(43)
+    times = None
+    for size in [1, 2, 5, 7, 8, 9, 16, 127, 128, 129, 300, 1000]:
+        times = np.arange(float(size))
+        values = rng.normal(size=size) * 10.0 ** rng.integers(-8, 9, size=size)
+        values[rng.random(size) < 0.2] = np.nan
+        values[rng.random(size) < 0.05] = -0.0
+        kept = values[~np.isnan(values)]
+        got = summarize({"cohesion": values}, times, warmup=0.0)["cohesion_mean"]
+        if kept.size:
+            assert got == float(kept.mean()) and np.signbit(got) == np.signbit(kept.mean()), size
+        else:
+            assert math.isnan(got)
+    assert summarize({"cohesion": np.array([np.inf, 1.0])}, np.arange(2.0), 0.0)["cohesion_mean"] == np.inf
+
+
 def test_summarize_means_after_warmup_final_and_fragmentation():
     times = np.arange(10.0)
     cohesion = np.array([1.0, 0.3, 1, 1, 0.8, 0.5, 0.4, 0.45, 0.7, 0.3])
