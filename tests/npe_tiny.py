@@ -61,3 +61,47 @@ def fake_estimator(where, width: int = 8, passed: bool = True):
                                                                   "field: 50% intervals cover 10%"]}))
     seal(where, calibration="c.toml", out=str(where.parent))
     return where
+
+# the tiny calibration of a learned summary from tracks (tests of analysis.calibration.learned_*): one
+# parameter, 24 + 10 simulations, a flow of 4 epochs; learned_calibration(name) names it
+LEARNED_CALIBRATION = f'''
+name = "npe_learned"
+seed = 4
+[model]
+preset = "{ROOT / 'configs/models/holland.toml'}"
+set = {{ "init.radius" = 6.0 }}
+[run]
+n = 8
+duration = 3.0
+warmup = 1.0
+group_radius = 20.0
+[observation]
+interval = 0.2
+detection_probability = 0.9
+position_sd = 0.05
+[parameters.separation]
+key = "steering.separation_weight"
+prior = {{ dist = "uniform", low = 6, high = 18 }}
+[targets]
+stats = ["polarization"]
+from_tracks = "tracks.parquet"
+[targets.tracks]
+warmup = 1.0
+[method]
+kind = "npe"
+simulations = 24
+heldout = 10
+draws = 200
+flow = {{ width = 8, layers = 1, max_epochs = 4, patience = 2 }}
+[method.npe.summary]
+kind = "learned"
+series = ["polarization", "nn_distance"]
+series_length = 4
+width = 8
+size = 3
+'''
+
+
+def learned_calibration(name: str) -> str:
+    """:data:`LEARNED_CALIBRATION` named ``name``."""
+    return LEARNED_CALIBRATION.replace('name = "npe_learned"', f'name = "{name}"', 1)

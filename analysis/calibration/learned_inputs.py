@@ -207,17 +207,6 @@ class LearnedSimulator(SummarySimulator):
                              "flocks)")
         return self
 
-    def simulate(self, theta, seeds) -> np.ndarray:
-        """(n_sim, run_width): run i's statistics and raw inputs (seed i)."""
-        seeds = list(seeds)
-        if len(seeds) != self.n_sim:
-            raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
-        runs, settings = self._runs(theta, seeds)
-        out = np.empty((self.n_sim, self.run_width))
-        for i, obs in enumerate(runs):
-            out[i] = self._row(obs, settings, seeds[i])
-        return out
-
     def pool(self, runs: np.ndarray) -> np.ndarray:
         """(row_width,) one training simulation's row of its runs (module docstring)."""
         runs = np.asarray(runs, dtype=float).reshape(self.n_sim, self.run_width)

@@ -149,6 +149,11 @@ class SummarySimulator:
         return len(self.columns)
 
     @property
+    def run_width(self) -> int:
+        """Numbers in one run's row of :meth:`simulate` (a subclass may pool several runs into a wider row)."""
+        return self.row_width
+
+    @property
     def warmup(self) -> float:
         return self.metrics.warmup
 
@@ -197,7 +202,7 @@ class SummarySimulator:
         if len(seeds) != self.n_sim:
             raise ValueError(f"seeds: expected {self.n_sim} seeds (n_sim), got {len(seeds)}")
         runs, settings = self._runs(theta, seeds)
-        out = np.empty((self.n_sim, self.row_width))
+        out = np.empty((self.n_sim, self.run_width))
         for i, obs in enumerate(runs):
             out[i] = self._row(obs, settings, seeds[i])
         return out

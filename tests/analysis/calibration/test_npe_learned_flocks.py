@@ -18,6 +18,7 @@ from flocksweep.cli import main
 from flocksweep.observables.tracks import tracks_frame
 from flocksweep.simcore import load_preset, simulate
 from flocksweep.simcore.schema import ConfigError
+from npe_tiny import learned_calibration
 from paths import ROOT
 
 PRESET = ROOT / "configs/models/holland.toml"
@@ -99,42 +100,7 @@ def test_the_pooled_embedding_ignores_the_order_of_the_flocks_and_each_flock_cou
 # ----------------------------------------------------------------------------------------------------------
 # end to end: two tracked flocks with missed detections -> calibrate -> posterior --tracks
 
-CALIBRATION = f'''
-name = "npe_learned_flocks"
-seed = 4
-[model]
-preset = "{PRESET}"
-set = {{ "init.radius" = 6.0 }}
-[run]
-n = 8
-duration = 3.0
-warmup = 1.0
-group_radius = 20.0
-[observation]
-interval = 0.2
-detection_probability = 0.9
-position_sd = 0.05
-[parameters.separation]
-key = "steering.separation_weight"
-prior = {{ dist = "uniform", low = 6, high = 18 }}
-[targets]
-stats = ["polarization"]
-from_tracks = "tracks.parquet"
-[targets.tracks]
-warmup = 1.0
-[method]
-kind = "npe"
-simulations = 24
-heldout = 10
-draws = 200
-flow = {{ width = 8, layers = 1, max_epochs = 4, patience = 2 }}
-[method.npe.summary]
-kind = "learned"
-series = ["polarization", "nn_distance"]
-series_length = 4
-width = 8
-size = 3
-'''
+CALIBRATION = learned_calibration("npe_learned_flocks")
 
 
 def _tracks(folder, seeds_and_names, reverse=False):
