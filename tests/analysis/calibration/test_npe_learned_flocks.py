@@ -69,6 +69,7 @@ def _raw_rows(rng, n_rows: int, plan):
     return np.concatenate([individuals.reshape(n_rows, -1), series.reshape(n_rows, -1)], axis=1)
 
 
+@pytest.mark.slow   # compiles an embedding in JAX: seconds, out of the quick loop (CI runs it)
 def test_the_pooled_embedding_ignores_the_order_of_the_flocks_and_each_flock_counts():
     pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
     import jax
