@@ -219,18 +219,10 @@ class LearnedSimulator(SummarySimulator):
         return {**super().identity(), "learned_inputs": self.plan.record()}
 
     def _row(self, obs, settings, seed) -> np.ndarray:
-        from flocksweep.observables.observation import observe_run
-        from flocksweep.observables.summary import NonFiniteState, check_finite
-
-        from .simulator import _fresh_seed
-
         nan_row = np.full(self.run_width, np.nan)
-        try:
-            check_finite(obs)
-        except NonFiniteState:
+        obs = self._observed(obs, seed)
+        if obs is None:
             return nan_row
-        if self.observation is not None:
-            obs = observe_run(obs, self.observation, _fresh_seed(seed))
         measured = measure_run(obs, settings)
         stats = np.array([measured.row[c] for c in self.columns], dtype=np.float64)
         try:

@@ -226,14 +226,20 @@ class SummarySimulator:
         """``simulate(theta, seeds_for(rng, n_sim))``: fresh replicates at every call."""
         return self.simulate(theta, seeds_for(rng, self.n_sim))
 
-    def _row(self, obs, settings: MetricSettings, seed) -> np.ndarray:
-        nan_row = np.full(len(self.columns), np.nan)
+    def _observed(self, obs, seed):
+        """The run as the statistics see it (through the ``[observation]`` block when there is one), or
+        None when its state went non-finite (its row is then all nan)."""
         try:
             check_finite(obs)
         except NonFiniteState:
+            return None
+        return obs if self.observation is None else observe_run(obs, self.observation, _fresh_seed(seed))
+
+    def _row(self, obs, settings: MetricSettings, seed) -> np.ndarray:
+        nan_row = np.full(len(self.columns), np.nan)
+        obs = self._observed(obs, seed)
+        if obs is None:
             return nan_row
-        if self.observation is not None:
-            obs = observe_run(obs, self.observation, _fresh_seed(seed))
         values = summarize_run(obs, settings)
         row = np.array([values[c] for c in self.columns], dtype=np.float64)
         strict = len(row) if self.strict is None else self.strict
