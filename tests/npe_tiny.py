@@ -36,10 +36,11 @@ MEASUREMENT = {"interval": 0.5, "velocity_interval": 0.5, "max_gap": None, "dims
                "group_radius": 5.0, "fragmentation_cohesion": 0.5, "dcd_max_delay": 1.0, "warmup": 0.0}
 
 
-def fake_estimator(where, width: int = 8, passed: bool = True):
+def fake_estimator(where, width: int = 8, passed: bool = True, replicates: int | None = None):
     """An estimator folder as calibrate writes it, for the reading tests: an untrained flow of one parameter
     (field, 60 to 300) given the two statistics of CALIBRATION, its identity, a coverage verdict, and the
-    manifest sealing them (no training: a flow's weights as built)."""
+    manifest sealing them (no training: a flow's weights as built). ``replicates``: the identity of an estimator
+    trained on that many flocks at a time."""
     import json
     from pathlib import Path
 
@@ -55,6 +56,8 @@ def fake_estimator(where, width: int = 8, passed: bool = True):
     Estimator(flow, settings, np.array([180.0]), np.array([60.0]), np.array([3.0, 0.2]), np.array([1.0, 0.1])).save(where)
     identity = {"parameters": [["field", "perception.field_deg"]], "bounds": [[60.0, 300.0]], "columns": COLUMNS,
                 "transforms": {}, "measurement": MEASUREMENT, "seed": 3, "simulations": 60, "heldout": 20}
+    if replicates is not None:
+        identity["replicates"] = replicates
     (where / "identity.json").write_text(json.dumps(identity))
     (where / "coverage.json").write_text(json.dumps({"passed": passed, "heldout": 20, "excluded": 0,
                                                      "messages": ["coverage: fine" if passed else "coverage FAILED",

@@ -19,9 +19,11 @@ Refused (a :class:`~simcore.schema.ConfigError` naming what to do):
 * an estimator with a learned summary (``[method.npe.summary] kind = "learned"``) given a table: it needs each
   flock's individuals and series (``raw`` (m, length), :func:`analysis.calibration.learned_inputs.measured_raw`),
   which ``--tracks`` measures;
-* an estimator with a learned summary of f > 1 flocks at a time (its calibration's ``from_tracks`` held f
-  flocks; ``replicates`` in its identity) given other than f flocks: with f it gives ONE posterior, given all of
-  them (their mean statistics and each one's raw inputs, the flocks' names joined by "+" in its id columns);
+* an estimator of f > 1 flocks at a time (its calibration's targets held f rows, ``samples`` or several flocks
+  ``from_tracks``; ``replicates`` in its identity: each training simulation is the mean of f runs) given other
+  than f flocks: with f it gives ONE posterior, given all of them (their mean statistics and, for a learned
+  summary, each one's raw inputs; the flocks' names joined by "+" in its id columns). Each flock alone would
+  be read as a mean of f: a posterior about sqrt(f) times too narrow;
 * an estimator whose held-out coverage check failed (``coverage.json`` beside it), unless ``force``: then
   every row is marked ``credible = False``;
 * a table measured otherwise than the estimator's training runs (:func:`check_measurement`): its ``interval``,
@@ -252,9 +254,9 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     x = table[columns].to_numpy(dtype=float)
     if learned:
         x = np.concatenate([x, np.asarray(raw, dtype=float).reshape(len(x), -1)], axis=1)
-        flocks = int(identity.get("replicates", 1))
-        if flocks > 1:
-            table, x = _all_flocks(table, x, columns, flocks, estimator_dir)
+    flocks = int(identity.get("replicates", 1))
+    if flocks > 1:
+        table, x = _all_flocks(table, x, columns, flocks, estimator_dir, "--tracks" if raw is not None else "--targets")
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         raise ConfigError("--targets", f"row {int(np.flatnonzero(bad)[0])} has a missing or non-finite statistic")
@@ -298,17 +300,19 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     return out, notes
 
 
-def _all_flocks(table, x, columns, flocks: int, estimator_dir):
-    """(one-row table, (1, k + f length) row) of the f measured flocks an estimator of f flocks is conditioned
-    on at once: their mean statistics and each one's raw inputs; its id columns name every flock."""
+def _all_flocks(table, x, columns, flocks: int, estimator_dir, key: str):
+    """(one-row table, (1, k [+ f length]) row) of the f measured flocks an estimator of f flocks is conditioned
+    on at once: their mean statistics (and, for a learned summary, each one's raw inputs); its id columns name
+    every flock. One row alone would be read as the mean of f flocks: a posterior f times too sure."""
     import numpy as np
     import pandas as pd
 
     if len(table) != flocks:
-        raise ConfigError("--tracks", f"{len(table)} flock(s) measured; {estimator_dir} learned its summary from "
-                                      f"{flocks} flocks at a time (its calibration's from_tracks held {flocks}) and "
-                                      f"gives the posterior given all of them: give exactly {flocks} flocks (one "
-                                      "posterior), or calibrate an estimator on as many flocks as you have")
+        raise ConfigError(key, f"{len(table)} flock(s) given; {estimator_dir} was trained on {flocks} flocks at a "
+                               f"time (its calibration's targets held {flocks} rows: each training simulation is "
+                               f"the mean of {flocks} runs) and gives the posterior given all of them: give exactly "
+                               f"{flocks} flocks (one posterior), or calibrate an estimator on as many flocks as "
+                               "you have (one flock each: targets of one row)")
     ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
     one = pd.DataFrame({**{c: ["+".join(map(str, table[c]))] for c in ids},
                         **{c: [float(v)] for c, v in zip(columns, x[:, :len(columns)].mean(axis=0))}})

@@ -109,3 +109,23 @@ def test_posterior_gives_each_flock_its_leakage_and_names_the_leaky_ones(tmp_pat
     part, _ = posteriors(est, table.iloc[:3], draws=COUNT // 2, seed=4)
     pd.testing.assert_frame_equal(part, out.iloc[:3].reset_index(drop=True))
     assert json.loads((est / "identity.json").read_text())["columns"] == COLUMNS
+
+
+def test_an_estimator_of_several_flocks_gives_one_posterior_given_all_of_them(tmp_path):
+    """Trained on the mean of 3 runs per simulation, it is conditioned on the mean of 3 flocks: a table of 3
+    rows gives ONE posterior (named by all three, equal to that of their mean row given as one flock to an
+    estimator of one); 2 rows, or each row alone, are refused (each would be read as a mean of 3)."""
+    from flocksweep.simcore.schema import ConfigError
+
+    three = fake_estimator(tmp_path / "three", replicates=3)
+    one = fake_estimator(tmp_path / "one")
+    table = pd.DataFrame({"flock": ["a", "b", "c"], "visible_mean": [3.0, 3.5, 5.0], "binocular_share": [0.2, 0.3, 0.2]})
+    out, _ = posteriors(three, table, draws=40, seed=1)
+    assert len(out) == 1 and out["flock"].iloc[0] == "a+b+c"
+    mean_row = pd.DataFrame({"flock": ["m"], "visible_mean": [table["visible_mean"].mean()],
+                             "binocular_share": [table["binocular_share"].mean()]})
+    alone, _ = posteriors(one, mean_row, draws=40, seed=1)
+    np.testing.assert_array_equal(out["field_median"].to_numpy(), alone["field_median"].to_numpy())
+    with pytest.raises(ConfigError, match=r"2 flock\(s\) given.*trained on 3 flocks at a time.*exactly 3") as err:
+        posteriors(three, table.iloc[:2], draws=40, seed=1)
+    assert err.value.key == "--targets"
