@@ -12,7 +12,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -232,50 +231,48 @@ def test_executors_give_bit_identical_results(executor, tmp_path):
 
 # -- resume --------------------------------------------------------------------------------------------
 
-def duration_for(seconds: float, folder: Path, n: int) -> int:
-    """Whole simulated seconds that make one sweep run of ``n`` boids take about ``seconds`` here
-    (timed on a 10 s probe run, best of three, so that a busy moment does not shorten the runs). Capped at
-    600 s: a cap of 60 s let a faster simulator finish every run before the kill."""
-    probe = write_sweep(folder, "", name="probe", n=n, duration=10.0)
-    spec = expand(load_sweep(probe))[0]
-    worker.execute_run(spec)  # compile or load the kernels first
-    best = float("inf")
-    for _ in range(3):
-        start = time.perf_counter()
-        worker.execute_run(spec)
-        best = min(best, time.perf_counter() - start)
-    return int(min(600, max(15, round(seconds * 10.0 / best))))
+# The runner killed by SIGKILL at a known point: a part written after every run (FLUSH_SECONDS = 0, one run a
+# batch), and the process killing itself right after its KILL_AFTER-th part is on disk. A real runner process
+# and a real SIGKILL, at the same point whatever the machine's speed (racing a timer against the runs'
+# speed, as before, sometimes found every run done at the kill on a busy machine).
+KILL_AFTER = 10
+KILLED_RUNNER = """
+import os, signal, sys
+from flocksweep.cli import main
+from flocksweep.sweeps import runner, store
+
+runner.FLUSH_SECONDS = 0.0
+write_part, written = store.ResultsStore.write_part, []
+
+def write_part_then_die(self, *args, **kwargs):
+    write_part(self, *args, **kwargs)
+    written.append(1)
+    if len(written) == {kill_after}:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+store.ResultsStore.write_part = write_part_then_die
+sys.exit(main(sys.argv[1:]))
+"""
 
 
 @pytest.mark.slow
 def test_resume_after_sigkill_finishes_without_recomputing_or_duplicating(tmp_path, capsys):
-    # 32 runs of about 0.3 s each: the serial runner writes its first part after 5 s of
-    # work (PartWriter's max_seconds) and is killed then, with about a third of the runs left
     axes = '[[axes]]\nkey = "perception.field_deg"\nvalues = [60, 90, 120, 150, 180, 210, 240, 270]\n'
-    duration = duration_for(0.3, tmp_path, n=100)
-    sweep = write_sweep(tmp_path, axes, name="killed", n=100, duration=float(duration), replicates=4)
+    sweep = write_sweep(tmp_path, axes, name="killed", n=12, duration=2.0, replicates=4)
     total = 32
     out = tmp_path / "killed"
+    script = tmp_path / "killed_runner.py"
+    script.write_text(KILLED_RUNNER.format(kill_after=KILL_AFTER))
     with open(tmp_path / "runner.log", "w") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "flocksweep.cli", "run", str(sweep), "--out", str(out),
-                                 "--executor", "serial", "--batch-size", "1", "--no-progress"],
-                                cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT)
-        try:
-            deadline = time.monotonic() + 120
-            while not part_files(out):
-                assert proc.poll() is None, "the runner ended before writing a part"
-                assert time.monotonic() < deadline, "no part written within 120 s"
-                time.sleep(0.05)
-            os.kill(proc.pid, signal.SIGKILL)
-        finally:
-            proc.kill()
-            proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
-    assert not (out / "runs.parquet").exists(), f"killed too late: the sweep had finished ({duration} s runs)"
+        proc = subprocess.run([sys.executable, str(script), "run", str(sweep), "--out", str(out),
+                               "--executor", "serial", "--batch-size", "1", "--no-progress"],
+                              cwd=tmp_path, stdout=log, stderr=subprocess.STDOUT, timeout=600)
+    assert proc.returncode == -signal.SIGKILL, (tmp_path / "runner.log").read_text()[-2000:]
+    assert not (out / "runs.parquet").exists()
 
     before = pd.concat([pd.read_parquet(out / "runs" / name) for name in part_files(out)], ignore_index=True)
+    assert len(part_files(out)) == KILL_AFTER and len(before) == KILL_AFTER
     done = len(before)
-    assert 0 < done < total, f"{done} of {total} runs were done at the kill ({duration} s runs)"
 
     assert main(["run", str(sweep), "--out", str(out), "--executor", "local", "--workers", "2",
                  "--no-progress"]) == 0
