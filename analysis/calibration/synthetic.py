@@ -10,7 +10,8 @@ what the likelihood models (observation noise is NOT added: the targets' sd is t
 the user states).
 
 ``targets_block(config, rows, sd, truth=None)`` formats them as a ``[targets]`` TOML block for the
-calibration file (one replicate: its values; several: their means, with the replicate sd in a comment;
+calibration file (one replicate: its values; several: their means, with the replicate sd in a comment, or
+with ``samples`` the path of the CSV of the rows, one observed flock each: ``flocksweep targets --samples``;
 with ``truth``, the ``truth = { ... }`` line that draws it in the corner plot and checks it in the report;
 with ``flock``, the ``flock = { ... }`` line of the same runs' other statistics, which the predictive runs
 are checked against: :mod:`~analysis.calibration.flock_check`).
@@ -20,6 +21,8 @@ file's targets measured from its ``from_tracks`` file (or from ``tracks`` instea
 targets), one row per flock, as :func:`~analysis.calibration.tracks_targets.tracks_block` prints them.
 """
 from __future__ import annotations
+
+import json
 
 import numpy as np
 
@@ -66,16 +69,20 @@ def synthetic_observation(config: CalibrationConfig, truth, seed: int, replicate
     return (rows[:, :k], rows[:, k:]) if flock else rows
 
 
-def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None, flock=None) -> str:
-    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error, the
-    ``truth`` (a dict or (d,) vector) they were simulated at as ``truth = { name = value, ... }``, and
-    the same runs' ``flock`` statistics (replicates, f) as ``flock = { stat = mean, ... }``."""
+def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None, flock=None, samples=None) -> str:
+    """A ``[targets]`` TOML block: observed = the rows' mean, with ``sd`` (k,) as measurement error (or,
+    with ``samples``, the path of a CSV holding the rows, one observed flock each), the ``truth`` (a dict or
+    (d,) vector) they were simulated at as ``truth = { name = value, ... }``, and the same runs' ``flock``
+    statistics (replicates, f) as ``flock = { stat = mean, ... }``."""
     rows = np.atleast_2d(rows)
     mean = rows.mean(axis=0)
     lines = ["[targets]", f'summary = "{config.targets.summary}"',
-             "stats = [" + ", ".join(f'"{s}"' for s in config.targets.stats) + "]",
-             "mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
-             "sd = [" + ", ".join(f"{v:.6g}" for v in np.broadcast_to(sd, mean.shape)) + "]"]
+             "stats = [" + ", ".join(f'"{s}"' for s in config.targets.stats) + "]"]
+    if samples is not None:
+        lines.append(f"samples = {json.dumps(str(samples))}   # {len(rows)} rows: one observed flock each")
+    else:
+        lines += ["mean = [" + ", ".join(f"{v:.6g}" for v in mean) + "]",
+                  "sd = [" + ", ".join(f"{v:.6g}" for v in np.broadcast_to(sd, mean.shape)) + "]"]
     if truth is not None:
         values = truth_vector(config, truth)
         lines.append("truth = { " + ", ".join(f"{n} = {v:.6g}" for n, v in zip(config.names, values)) + " }")
@@ -86,7 +93,8 @@ def targets_block(config: CalibrationConfig, rows: np.ndarray, sd, truth=None, f
                      "   # the same runs' other statistics: checked, not fitted")
     if len(rows) > 1:
         spread = rows.std(axis=0, ddof=1)
-        lines.append(f"# means of {len(rows)} runs; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))
+        what = f"{len(rows)} runs" if samples is not None else f"means of {len(rows)} runs"
+        lines.append(f"# {what}; run-to-run sd " + ", ".join(f"{v:.4g}" for v in spread))
     return "\n".join(lines) + "\n"
 
 

@@ -20,8 +20,12 @@ def arguments(p) -> None:
                    help="value of a free parameter (repeat for each), e.g. --truth field=150")
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic runs (default 0)")
     p.add_argument("--replicates", type=int, default=1,
-                   help="runs to average (default 1: one flock's statistics, as the likelihood assumes)")
+                   help="flocks to simulate (default 1: one flock's statistics); several are averaged, or with "
+                        "--samples written one row each")
     p.add_argument("--sd", help="measurement sd per stat, comma-separated (default: the file's sd)")
+    p.add_argument("--samples", metavar="CSV",
+                   help="instead of averaging the --replicates runs: write each run's statistics as a row of CSV "
+                        "(one observed flock each) and print a [targets] table that reads them (samples = CSV)")
     p.add_argument("--from-tracks", nargs="?", const="", metavar="TRACKS",
                    help="instead: print the targets measured from tracks (the file's from_tracks, or TRACKS), "
                         "one row per flock, with the file's [observation] block")
@@ -49,7 +53,12 @@ def handler(args) -> int:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value or abs(value) == float("inf"):
             raise ConfigError("--truth", f"got {item!r}; the value of {name} must be a finite number")
         truth[name] = value
-    if args.sd:
+    if args.samples is not None:
+        if args.sd:
+            raise ConfigError("--sd", "not with --samples: the rows carry their own spread (the flocks' run-to-run "
+                                      "variation); drop --sd, or drop --samples for mean and sd targets")
+        sd = None
+    elif args.sd:
         sd = parse_numbers("--sd", args.sd)
         if len(sd) != config.targets.k:
             raise ConfigError("--sd", f"got {len(sd)} values; expected {config.targets.k}, one per stat")
@@ -61,11 +70,36 @@ def handler(args) -> int:
     if not np.isfinite(rows).all():
         raise ConfigError("--truth", "some runs gave undefined statistics at this truth; choose other stats")
     truth_text = ", ".join(f"{k} = {v}" for k, v in truth.items())
+    samples = None if args.samples is None else write_samples(config, rows, args.samples, args.config)
     print(f"# synthetic targets: {truth_text}; flocksweep targets --seed {args.seed} "
-          f"--replicates {args.replicates}")
-    print(targets_block(config, rows, sd, truth, flock if np.isfinite(flock).all() else None), end="")
+          f"--replicates {args.replicates}" + (f" --samples {args.samples}" if samples else ""))
+    print(targets_block(config, rows, sd, truth, flock if np.isfinite(flock).all() else None, samples=samples), end="")
     print(next_lines(args.config))
     return 0
+
+
+def write_samples(config, rows, path, config_path) -> str:
+    """Write ``rows`` (replicates, k) as CSV at ``path`` (atomically; one column per stat, named as
+    ``targets.samples`` reads them) and return the path as the calibration file names it: relative to
+    the file's folder when it lies under it, else absolute."""
+    import os
+    from pathlib import Path
+
+    import pandas as pd
+
+    from flocksweep.sweeps.files import atomic_path
+
+    where = Path(path)
+    if where.suffix.lower() != ".csv":
+        raise ConfigError("--samples", f"got {path!r}; expected a .csv file to write the runs' rows to")
+    if where.is_dir():
+        raise ConfigError("--samples", f"{path} is a folder; give a .csv file to write")
+    where.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(where) as tmp:
+        pd.DataFrame(rows, columns=list(config.targets.stats)).to_csv(tmp, index=False, float_format="%.17g")
+    base = Path(config_path).resolve().parent
+    absolute = where.resolve()
+    return os.path.relpath(absolute, base) if absolute.is_relative_to(base) else str(absolute)
 
 
 def next_lines(config) -> str:

@@ -35,3 +35,36 @@ def test_bad_truths_are_refused_with_their_key(truth, key, words):
     with pytest.raises(ConfigError, match=words) as err:
         calibration_from_dict(data(truth), ROOT)
     assert err.value.key == key
+
+
+def test_targets_samples_writes_each_run_as_a_flock_and_the_block_reads_them_back(tmp_path, capsys):
+    """``flocksweep targets --replicates 3 --samples F.csv``: F holds the 3 runs' statistics (not their mean),
+    the printed block names F relative to the calibration file, and that block, pasted, gives the calibration
+    those 3 rows bit for bit as its observed data; --sd with --samples is refused, naming --sd."""
+    import tomllib
+
+    import numpy as np
+
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.synthetic import synthetic_observation
+    from flocksweep.cli import main
+    from malformed import calibration_text
+
+    HOLLAND = str(ROOT / "configs/models/holland.toml")
+    config = tmp_path / "c.toml"
+    config.write_text(calibration_text().replace("{holland}", HOLLAND))
+    argv = ["targets", str(config), "--truth", "field=150", "--replicates", "3", "--seed", "5"]
+    assert main(argv + ["--samples", str(tmp_path / "obs" / "flocks.csv")]) == 0
+    block = tomllib.loads(capsys.readouterr().out)["targets"]
+    assert block["samples"] == "obs/flocks.csv" and "mean" not in block and "sd" not in block
+    rows = synthetic_observation(load_calibration(config), {"field": 150}, 5, 3)
+    assert rows.shape[0] == 3 and not np.all(rows[0] == rows[1])        # three flocks, not one mean
+    text = config.read_text()
+    start = text.index("[targets]")
+    end = text.index("\n[", start + 1)
+    config.write_text(text[:start] + "[targets]\n" + "\n".join(f"{k} = {v!r}".replace("'", '"') for k, v in block.items()
+                                                              if k in ("stats", "samples")) + text[end:])
+    loaded = load_calibration(config)
+    np.testing.assert_array_equal(loaded.targets.observed, rows)
+    assert main(argv + ["--samples", str(tmp_path / "f.csv"), "--sd", "0.1"]) == 2
+    assert "--sd" in capsys.readouterr().err
