@@ -36,6 +36,10 @@ when p < alpha and the direction is the claimed one. The same draws serve every 
 random numbers), so the power curve is monotone up to the clipping of probabilities. ``spread`` is the
 sd of the simulated values around their planted means. A ``zero`` sign test is a check and has no power.
 
+The replicates needed are searched from the normal approximation's guess (:func:`_predicted`) by doubling
+steps, then bisection (:func:`_fewest`); r replicates draw their data sets from their own stream ``[base,
+r]``, so whether r is enough is a function of r, not of the search's order.
+
 The simulated data sets are tested in batches of at most :data:`CHUNK` values; a power evaluation's
 batches run on up to :data:`THREADS` threads (numpy sorts without holding the GIL) and only their
 hit counts are summed, so the answer is the same on one thread or two.
@@ -46,6 +50,7 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -208,20 +213,61 @@ def _smallest_effect(sim: _Simulation, alpha: float, target: float, start: float
     return high_effect
 
 
-def _replicates_needed(test, m: _Model, effect, alpha, target, simulations, cap, rng) -> int | None:
+def _replicates_needed(test, m: _Model, effect, alpha, target, simulations, cap, rng, power_now: float) -> int | None:
     """The fewest replicates per design point (above the median now, at most ``cap``) with power >=
-    target at ``effect``; None when even ``cap`` falls short."""
+    target at ``effect``; None when even ``cap`` falls short. Each layout's simulated data sets come from
+    its own stream (``[base, r]``), so "enough at r" is a function of r alone and the answer does not
+    depend on the order the search tries them in (:func:`_fewest`)."""
+    base = int(rng.integers(2 ** 63))
+
     def enough(r: int) -> bool:
         counts = np.full(m.counts.size, r)
-        return _Simulation(test, m, counts, simulations, rng).power(effect, alpha) >= target
+        sim = _Simulation(test, m, counts, simulations, np.random.default_rng([base, r]))
+        return sim.power(effect, alpha) >= target
 
     low = int(np.median(m.counts))           # not enough now (the caller only asks then)
-    if cap <= low or not enough(cap):
+    if cap <= low:
         return None
-    high = cap
+    return _fewest(enough, low, cap, _predicted(low, power_now, alpha, target))
+
+
+def _predicted(now: int, power_now: float, alpha: float, target: float) -> int:
+    """The replicates the normal approximation asks for: power = Phi(delta sqrt(n) - z_alpha), so n grows
+    with the square of (z_target + z_alpha) / (z_now + z_alpha); twice the replicates now when the power
+    now is too low to scale from. Only the search's first guess: :func:`_fewest` checks it."""
+    normal = NormalDist()
+    z_alpha = normal.inv_cdf(1.0 - min(max(alpha, 1e-12), 0.5))
+    z_now = normal.inv_cdf(min(max(power_now, 1e-9), 1.0 - 1e-9)) + z_alpha
+    if z_now <= 0.25:
+        return 2 * max(now, 1)
+    return int(math.ceil(max(now, 1) * ((normal.inv_cdf(target) + z_alpha) / z_now) ** 2))
+
+
+def _fewest(enough, low: int, cap: int, guess: int) -> int | None:
+    """The smallest r in (low, cap] with ``enough(r)``, for a predicate false at ``low`` that turns true
+    once and stays true (None when false at ``cap``): from ``guess``, steps doubling down (or up) until
+    the answer is bracketed, then bisection. A good guess costs a few calls near it, not calls at ``cap``."""
+    guess = min(max(guess, low + 1), cap)
+    if enough(guess):
+        high, step = guess, 1
+        while high - low > 1:
+            probe = max(high - step, low + 1)
+            if not enough(probe):
+                low = probe
+                break
+            high, step = probe, 2 * step
+    else:
+        low, step = guess, max(1, guess // 2)
+        while True:
+            if low >= cap:
+                return None
+            probe = min(low + step, cap)
+            if enough(probe):
+                high = probe
+                break
+            low, step = probe, 2 * step
     while high - low > 1:
-        middle = int(round(math.sqrt(max(low, 1) * high))) if high > 2 * max(low, 1) else (low + high) // 2
-        middle = min(max(middle, low + 1), high - 1)
+        middle = (low + high) // 2
         if enough(middle):
             high = middle
         else:
@@ -247,6 +293,6 @@ def analyse(test, data: LeafData, alpha: float, target: float, effect: float | N
     mde = _smallest_effect(now, alpha, target, 0.25 * (spread or effect))
     replicates = None
     if power < target:  # how many would it take? (enough now: no search)
-        replicates = _replicates_needed(test, m, effect, alpha, target, simulations, max_replicates, rng)
+        replicates = _replicates_needed(test, m, effect, alpha, target, simulations, max_replicates, rng, power)
     return Power(effect, source, power, mde, replicates, float(np.median(m.counts)), int(m.counts.size), spread,
                  m.model, alpha, target)
