@@ -51,6 +51,7 @@ from flocksweep.sweeps.store import ResultsStore
 
 from . import figures, stats
 from .document import Figure, Heading, Para, Table, to_html, to_markdown
+from .drawing import Figures
 from .labels import metric_label, metric_unit, metric_words, parameter_label
 from .plain_words import disagreement_note, plain_findings
 from .sensitivity import continuous_design, design_runs
@@ -106,6 +107,7 @@ class Context:
     tables: dict
     continuous: list = None  # the continuous factors (a [design] or [sample] block's keys)
     cells: list = None       # the runs shown as time series, 3-D traces and viewer pages
+    figures: Figures = None  # where _figure's figures are drawn (beside the other sections' work)
 
 
 def _shown_runs(ctx: Context) -> None:
@@ -141,7 +143,8 @@ def _figure(ctx: Context, name: str, draw, caption: str, svg: bool = True) -> No
     beside the Markdown)."""
     png = ctx.fig_dir / f"{name}.png"
     svg_path = ctx.fig_dir / f"{name}.svg" if svg else None
-    draw([png, svg_path] if svg_path else png)   # one figure, laid out once, written in both formats
+    # one figure, laid out once, written in both formats; drawn in a child process while the report goes on
+    ctx.figures.submit(draw, [png, svg_path] if svg_path else png)
     ctx.blocks.append(Figure(png, caption, svg_path))
 
 
@@ -492,10 +495,13 @@ def build_report(results_dir, out_dir=None, metrics=None, by=None, formats=("htm
     for folder in (ctx.fig_dir, ctx.table_dir):
         folder.mkdir(parents=True, exist_ok=True)
     steps = _sections(ctx, continuous, declared)
-    phases = Phases("report", len(steps) + 1, progress)
-    for name, step in steps:
-        phases.start(name)
-        step(ctx)
+    phases = Phases("report", len(steps) + 2, progress)
+    with Figures() as ctx.figures:
+        for name, step in steps:
+            phases.start(name)
+            step(ctx)
+        phases.start("the last figures")
+        ctx.figures.wait()
     phases.start("writing " + " and ".join(formats))
     written = {}
     if "md" in formats:

@@ -12,13 +12,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from flocksweep.analysis.reports import layout, plotting
+from flocksweep.analysis.reports import drawing, layout, plotting
 from paths import ROOT
 
 
 @pytest.fixture
 def captured(monkeypatch):
-    """Every figure saved: (file name, the problems found in it as saved)."""
+    """Every figure saved: (file name, the problems found in it as saved); the report's figures drawn in
+    this process (analysis.reports.drawing's children would see them instead)."""
+    monkeypatch.setattr(drawing, "WORKERS", 1)
     seen = []
     real = plotting._finish
 
