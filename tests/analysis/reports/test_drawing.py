@@ -16,7 +16,7 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fi
 def line_figure(seed: int):
     def draw(target):
         plt = plotting.pyplot()
-        fig, ax = plt.subplots(figsize=(4, 3))
+        fig, ax = plt.subplots(figsize=(3, 2))
         ax.plot(np.random.default_rng(seed).normal(size=50), label=f"seed {seed}")
         ax.legend(loc="upper left")
         plotting.save(fig, target)
@@ -28,17 +28,17 @@ def test_figures_drawn_in_children_are_the_files_drawn_inline(tmp_path, monkeypa
     (tmp_path / "forked").mkdir()
     (tmp_path / "inline").mkdir()
     with Figures(workers=2) as figures:
-        for seed in range(5):
+        for seed in range(3):
             figures.submit(line_figure(seed), tmp_path / "forked" / f"f{seed}.png")
         assert len(figures.running) == 2                     # at most two at a time, the rest waited for
         figures.wait()
     with Figures(workers=1) as figures:
-        for seed in range(5):
+        for seed in range(3):
             figures.submit(line_figure(seed), tmp_path / "inline" / f"f{seed}.png")
-    for seed in range(5):
+    for seed in range(3):
         forked, inline = (tmp_path / where / f"f{seed}.png" for where in ("forked", "inline"))
         assert forked.read_bytes() == inline.read_bytes()
-    assert len({(tmp_path / "forked" / f"f{seed}.png").read_bytes() for seed in range(5)}) == 5
+    assert len({(tmp_path / "forked" / f"f{seed}.png").read_bytes() for seed in range(3)}) == 3
 
 
 def test_a_failing_figure_raises_with_the_childs_traceback(tmp_path, monkeypatch):
