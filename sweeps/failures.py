@@ -23,6 +23,7 @@ Anything else is a bug in flocksweep and keeps Python's traceback.
 Helpers for the command line's own values: ``check_count(flag, value, minimum, maximum=None)``,
 ``check_out(flag, path)`` (a folder we may create: not an existing file, not below one, not a symbolic link that
 leads nowhere or in a loop, no NUL character),
+``check_out_file(flag, path)`` (a file we may write or overwrite: not a folder, not below a file, no NUL character),
 ``check_workers(value, executor)`` (at most :data:`WORKERS_PER_CORE` local processes per core),
 ``parse_numbers(flag, text)`` (comma-separated finite numbers > 0), and
 ``show_warnings()``, which prints the ``flocksweep`` logger's warnings (damaged files moved aside,
@@ -131,6 +132,23 @@ def check_out(flag: str, path) -> None:
         if parent.exists():
             if not parent.is_dir():
                 raise ConfigError(flag, f"{parent} is a file, so {path} cannot be a folder")
+            break
+
+
+def check_out_file(flag: str, path) -> None:
+    """An output file (written again when it exists): not a folder, not below a file, no NUL character."""
+    if path is None:
+        return
+    text = str(path)
+    if "\0" in text:
+        raise ConfigError(flag, f"got {text!r}; a path cannot contain a NUL character")
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(flag, f"{path} is a folder; expected a file to write (e.g. {path / 'posteriors.csv'})")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ConfigError(flag, f"{parent} is a file, so {path} cannot be written below it")
             break
 
 

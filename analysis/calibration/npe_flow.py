@@ -59,7 +59,8 @@ from .jax_cache import enable_cache
 
 FLOW_WEIGHTS = "flow.eqx"
 FLOW_RECORD = "flow.json"
-MAX_REDRAWS = 50            # redraws of every row lacking draws inside the support, count each ...
+POSTERIOR_MARGIN = 4        # flocksweep posterior's first pass draws count + count / this a row (``margin``) ...
+MAX_REDRAWS = 50            # ... then redraws of every row lacking draws inside the support, as many each ...
 WIDE_BATCH, MAX_WIDE = 64, 20   # ... then of each row still lacking, WIDE_BATCH x count at a time
 MEMBER_SEED_STEP = 104729   # member i of an ensemble samples with seed + i x this
 DENSITY_CHUNK = 4096        # log_prob runs compiled on chunks of this many rows (the last one padded)
@@ -231,26 +232,38 @@ class Estimator:
         draws = np.concatenate([np.asarray(values, dtype=float) for values in calls])[:len(conditions)]
         return draws * self.theta_sd + self.theta_mean
 
-    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None) -> np.ndarray:
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None,
+                    margin: int | None = None) -> np.ndarray:
         """(m, count, d): ``count`` posterior draws for each of the m observed rows; a row the support
         holds too little of (module docstring) raises, or with ``short = "nan"`` is all NaN. Row i's draws
-        depend only on its statistics, ``seed``, ``count`` and its row number ``rows[i]`` (default i), not on
-        the other rows: one row sampled alone with its row number gets the draws it gets among many."""
+        depend only on its statistics, ``seed``, ``count``, ``margin`` and its row number ``rows[i]`` (default
+        i), not on the other rows: one row sampled alone with its row number gets the draws it gets among
+        many. ``margin`` M (with a support): every pass draws count + ceil(count / M) a row and a row keeps
+        its first ``count`` draws inside, so that a row leaking under about 1 / (M + 1) of its mass needs no
+        redraw pass (many flocks at once: nearly every flock leaks a little)."""
         conditions = np.atleast_2d(self._condition(x))
         rows = np.arange(len(conditions)) if rows is None else np.asarray(rows, dtype=np.int64)
         if rows.shape != (len(conditions),) or (rows < 0).any() or (rows >= 2**31).any():
             raise ValueError(f"rows: expected {len(conditions)} row numbers in [0, 2^31), got {rows!r:.80}")
-        draws = self._raw(conditions, count, seed, rows)
+        wide = count if support is None or not margin else count + -(-count // margin)   # one compiled shape a call
+        raw = self._raw(conditions, wide, seed, rows)
         if support is None:
-            self.leakage[:] = [0.0, np.zeros(len(draws))]
-            return draws
-        inside = support(draws.reshape(-1, self.d)).reshape(draws.shape[:2])
-        self.leakage[:] = [float(1.0 - inside.mean()), 1.0 - inside.mean(axis=1)]
+            self.leakage[:] = [0.0, np.zeros(len(raw))]
+            return raw
+        raw_inside = support(raw.reshape(-1, self.d)).reshape(raw.shape[:2])
+        self.leakage[:] = [float(1.0 - raw_inside.mean()), 1.0 - raw_inside.mean(axis=1)]
+        if wide == count:
+            draws, inside = raw, raw_inside
+        else:           # each row's first count draws inside the support, in order
+            draws, inside = np.full((len(raw), count, self.d), np.nan), np.zeros((len(raw), count), dtype=bool)
+            for i in range(len(raw)):
+                kept = raw[i][raw_inside[i]][:count]
+                draws[i, :len(kept)], inside[i, :len(kept)] = kept, True
         for attempt in range(1, MAX_REDRAWS + 1):
             lacking = np.flatnonzero(~inside.all(axis=1))
             if not len(lacking):
                 return draws
-            more = self._raw(conditions[lacking], count, seed + 7919 * attempt, rows[lacking])
+            more = self._raw(conditions[lacking], wide, seed + 7919 * attempt, rows[lacking])
             more_inside = support(more.reshape(-1, self.d)).reshape(more.shape[:2])
             for j, i in enumerate(lacking):
                 pool = np.concatenate([draws[i][inside[i]], more[j][more_inside[j]]])[:count]
@@ -347,9 +360,10 @@ class Ensemble:
     def last_row_leakage(self) -> np.ndarray:
         return self.leakage[1]
 
-    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None) -> np.ndarray:
-        """(m, count, d) draws of the mixture for each of the m observed rows (``short``, ``rows``: as
-        :meth:`Estimator.sample_many`; a row any member cannot fill is all NaN)."""
+    def sample_many(self, x, count: int, seed: int, support=None, short: str = "raise", rows=None,
+                    margin: int | None = None) -> np.ndarray:
+        """(m, count, d) draws of the mixture for each of the m observed rows (``short``, ``rows``, ``margin``:
+        as :meth:`Estimator.sample_many`; a row any member cannot fill is all NaN)."""
         size = len(self.members)
         shares = [count // size + (i < count % size) for i in range(size)]
         jobs = [(member, share, seed + MEMBER_SEED_STEP * i) for i, (member, share) in enumerate(zip(self.members, shares))
@@ -358,7 +372,8 @@ class Ensemble:
         # the members sample in two threads (JAX releases the GIL while a compiled call runs): each
         # member's draws are its own calls' whatever the threads, so the mixture is bit for bit the same
         with ThreadPoolExecutor(max_workers=min(SAMPLE_THREADS, len(jobs))) as threads:
-            parts = list(threads.map(lambda job: job[0].sample_many(x, job[1], job[2], support, short, rows), jobs))
+            parts = list(threads.map(lambda job: job[0].sample_many(x, job[1], job[2], support, short, rows, margin),
+                                     jobs))
         leaks = [member.last_leakage * share for member, share, _ in jobs]
         row_leaks = [member.last_row_leakage * share for member, share, _ in jobs]
         self.leakage[:] = [float(sum(leaks) / count), sum(row_leaks) / count]

@@ -46,7 +46,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from flocksweep.simcore.schema import ConfigError
-from flocksweep.sweeps.failures import check_count, check_out
+from flocksweep.sweeps.failures import check_count, check_out_file
+from flocksweep.sweeps.files import atomic_path
 from flocksweep.sweeps.progress import next_steps
 
 if TYPE_CHECKING:
@@ -210,7 +211,7 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
     import pandas as pd
 
     from .learned_summary import load_any as load_estimator
-    from .npe_flow import support_of
+    from .npe_flow import POSTERIOR_MARGIN, support_of
     from .transforms import Transforms
 
     estimator_dir = Path(estimator_dir)
@@ -272,7 +273,8 @@ def posteriors(estimator_dir, table: pd.DataFrame, draws: int = 4000, seed: int 
         raise DamagedEstimator(f"{estimator_dir}: its flow has {estimator.d} parameters and {estimator.k} statistics, "
                                f"its identity.json {len(names)} and {len(columns)}; {retrain_hint()}")
     x = np.concatenate([transforms.apply(x[:, :len(columns)]), x[:, len(columns):]], axis=1)
-    samples = estimator.sample_many(x, draws, seed, support_of(bounds=identity["bounds"]), short="nan")
+    samples = estimator.sample_many(x, draws, seed, support_of(bounds=identity["bounds"]), short="nan",
+                                    margin=POSTERIOR_MARGIN)
 
     ids = [c for c in table.columns if c not in columns and not pd.api.types.is_numeric_dtype(table[c])]
     out = table[ids].reset_index(drop=True).copy()
@@ -362,7 +364,7 @@ def measure_for(estimator_dir, tracks: Path):
 
 def run(args) -> int:
     check_count("--draws", args.draws, 10)
-    check_out("--out", args.out)
+    check_out_file("--out", args.out)
     if (args.targets is None) == (args.tracks is None):
         raise ConfigError("--targets", "give either --targets TABLE (measured statistics) or --tracks FILE (measured "
                                        "here as the estimator needs), one of them")
@@ -378,7 +380,9 @@ def run(args) -> int:
     for note in notes:
         print(note)
     if args.out:
-        result.to_csv(args.out, index=False)
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(args.out) as tmp:     # a table read while it is written again is whole, old or new
+            result.to_csv(tmp, index=False)
         print(f"wrote {args.out}: {len(result)} posteriors in {time.time() - started:.1f} s")
         next_steps(f'pandas.read_csv("{args.out}")   (one posterior per row: mean, sd, median, 5% and 95% quantiles)')
     else:

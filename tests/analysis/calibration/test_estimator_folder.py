@@ -35,6 +35,17 @@ def test_an_intact_estimator_gives_its_posteriors(tmp_path, capsys):
                  "--out", str(tmp_path / "post.csv")]) == 0
     assert "coverage: passed" in capsys.readouterr().out
     verify(tmp_path / "est")
+    # the same command again writes the table again (it was refused: "a file; expected a folder"); a folder
+    # given as the table is refused, naming --out, and nothing is written
+    first = (tmp_path / "post.csv").read_bytes()
+    assert main(["posterior", str(tmp_path / "est"), "--targets", str(tmp_path / "flocks.csv"), "--draws", "50",
+                 "--out", str(tmp_path / "post.csv")]) == 0
+    assert (tmp_path / "post.csv").read_bytes() == first
+    capsys.readouterr()
+    (tmp_path / "folder").mkdir()
+    assert main(["posterior", str(tmp_path / "est"), "--targets", str(tmp_path / "flocks.csv"),
+                 "--out", str(tmp_path / "folder")]) == 2
+    assert "--out" in capsys.readouterr().err and not any((tmp_path / "folder").iterdir())
 
 
 def test_seal_records_only_what_its_writer_names_and_keeps_what_still_holds(tmp_path):

@@ -129,3 +129,24 @@ def test_an_estimator_of_several_flocks_gives_one_posterior_given_all_of_them(tm
     with pytest.raises(ConfigError, match=r"2 flock\(s\) given.*trained on 3 flocks at a time.*exactly 3") as err:
         posteriors(three, table.iloc[:2], draws=40, seed=1)
     assert err.value.key == "--targets"
+
+
+@pytest.mark.slow   # seconds of JAX work: out of the quick loop (CI runs it)
+def test_with_a_margin_a_flock_keeps_its_first_draws_inside_and_gets_them_alone_or_among_many(ensemble):
+    """posterior's margin: each row draws count + count / 4 at first and keeps its first count draws inside
+    the prior (fewer redraw passes); still one posterior per row whatever the table, every draw inside."""
+    member = ensemble.members[0]
+    count, seed = 40, 3
+    together = member.sample_many(ROWS[:-1], count, seed, SUPPORT, margin=4)
+    assert together.shape == (len(ROWS) - 1, count, 1) and ((together >= 60) & (together <= 300)).all()
+    leakage = member.last_row_leakage.copy()
+    raw = member._raw(np.atleast_2d(member._condition(ROWS[:-1])), count + count // 4, seed, np.arange(len(ROWS) - 1))
+    for i in range(len(ROWS) - 1):
+        kept = raw[i][SUPPORT(raw[i])]
+        assert leakage[i] == 1.0 - len(kept) / len(raw[i])
+        if len(kept) >= count:                                    # no redraw: the first count inside, in order
+            np.testing.assert_array_equal(together[i], kept[:count])
+        alone = member.sample_many(ROWS[i:i + 1], count, seed, SUPPORT, rows=[i], margin=4)
+        np.testing.assert_array_equal(alone[0], together[i])
+    mixture = ensemble.sample_many(ROWS[:-1], COUNT, seed, SUPPORT, margin=4)
+    assert ((mixture >= 60) & (mixture <= 300)).all()
