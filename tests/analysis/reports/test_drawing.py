@@ -1,74 +1,46 @@
 """analysis.reports.drawing: figures drawn in forked children are the files drawn inline, byte for byte; a
-failing figure stops the report with the child's traceback; an error elsewhere stops the children."""
+failing figure stops the report with the child's traceback; an error elsewhere stops the children; with JAX
+loaded (or one worker) figures are drawn inline. The forking checks run in a fresh interpreter
+(tests/figure_children.py): this process may have loaded JAX."""
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 
-import numpy as np
 import pytest
 
-from flocksweep.analysis.reports import drawing, plotting
-from flocksweep.analysis.reports.drawing import FigureFailed, Figures
+from flocksweep.analysis.reports import drawing
+from flocksweep.analysis.reports.drawing import Figures
+from paths import ROOT
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="figures fork on Linux only")
-
-
-def line_figure(seed: int):
-    def draw(target):
-        plt = plotting.pyplot()
-        fig, ax = plt.subplots(figsize=(3, 2))
-        ax.plot(np.random.default_rng(seed).normal(size=50), label=f"seed {seed}")
-        ax.legend(loc="upper left")
-        plotting.save(fig, target)
-    return draw
+linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="figures fork on Linux only")
 
 
-def test_figures_drawn_in_children_are_the_files_drawn_inline(tmp_path, monkeypatch):
-    monkeypatch.setattr(drawing, "forking_is_safe", lambda: True)    # (JAX may be loaded by other tests)
-    (tmp_path / "forked").mkdir()
-    (tmp_path / "inline").mkdir()
-    with Figures(workers=2) as figures:
-        for seed in range(3):
-            figures.submit(line_figure(seed), tmp_path / "forked" / f"f{seed}.png")
-        assert len(figures.running) == 2                     # at most two at a time, the rest waited for
-        figures.wait()
-    with Figures(workers=1) as figures:
-        for seed in range(3):
-            figures.submit(line_figure(seed), tmp_path / "inline" / f"f{seed}.png")
-    for seed in range(3):
-        forked, inline = (tmp_path / where / f"f{seed}.png" for where in ("forked", "inline"))
-        assert forked.read_bytes() == inline.read_bytes()
-    assert len({(tmp_path / "forked" / f"f{seed}.png").read_bytes() for seed in range(3)}) == 3
+def fresh(check: str, folder) -> None:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", f"import figure_children as f; f.{check}({str(folder)!r})"],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "RuntimeWarning" not in done.stderr, done.stderr
 
 
-def test_a_failing_figure_raises_with_the_childs_traceback(tmp_path, monkeypatch):
-    monkeypatch.setattr(drawing, "forking_is_safe", lambda: True)
-
-    def broken(target):
-        raise ValueError("no cells to draw")
-    with Figures(workers=2) as figures:
-        figures.submit(broken, tmp_path / "x.png")
-        with pytest.raises(FigureFailed, match=r"(?s)could not be drawn.*ValueError: no cells to draw"):
-            figures.wait()
-
-
-def test_an_error_elsewhere_stops_the_children(tmp_path, monkeypatch):
-    monkeypatch.setattr(drawing, "forking_is_safe", lambda: True)
-    import time
-
-    def slow(target):
-        time.sleep(600)
-    with pytest.raises(KeyError):
-        with Figures(workers=2) as figures:
-            figures.submit(slow, tmp_path / "x.png")
-            (process, _), = figures.running
-            raise KeyError("elsewhere")
-    assert not process.is_alive() and figures.running == []
+@linux
+@pytest.mark.parametrize("check", ["same_files", "failure_raised", "children_stopped"])
+def test_figures_in_forked_children(check, tmp_path):
+    fresh(check, tmp_path)
 
 
 def test_with_jax_loaded_or_one_worker_figures_are_drawn_inline(tmp_path, monkeypatch):
+    from figure_children import line_figure
+
     monkeypatch.setitem(sys.modules, "jax", sys.modules.get("jax", object()))
     assert not drawing.forking_is_safe()
     with Figures(workers=2) as figures:
         figures.submit(line_figure(1), tmp_path / "a.png")
         assert figures.running == [] and (tmp_path / "a.png").is_file()
+    monkeypatch.delitem(sys.modules, "jax")
+    monkeypatch.setattr(drawing, "forking_is_safe", lambda: True)
+    with Figures(workers=1) as figures:
+        figures.submit(line_figure(2), tmp_path / "b.png")
+        assert figures.running == [] and (tmp_path / "b.png").is_file()
