@@ -177,7 +177,7 @@ def test_a_learned_summary_of_two_tracked_flocks_and_its_posterior_from_tracks(f
     # another number of flocks is refused, naming how many the estimator takes
     from test_npe_tracks import main_or_raise
     one = _tracks(tmp_path / "one", [(41, "flock0")])
-    with pytest.raises(ConfigError, match="1 flock\\(s\\) measured.*exactly 2 flocks"):
+    with pytest.raises(ConfigError, match="1 flock\\(s\\) given.*exactly 2 flocks"):
         main_or_raise(["posterior", str(out / "estimator"), "--tracks", str(one), *force])
 
 
