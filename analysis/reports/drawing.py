@@ -7,7 +7,8 @@ function writing its files at ``target``) in a child forked from this process, w
 its data as they are (nothing is pickled: the child is a copy of this process); ``wait()`` returns when
 every submitted figure is written, and raises :class:`FigureFailed` with the child's traceback when one
 failed (the report stops as an inline failure would). Leaving the context without ``wait`` (an error
-elsewhere) stops the children still drawing.
+elsewhere, Ctrl-C) stops the children still drawing; the children ignore Ctrl-C themselves, so an
+interrupt is the report's, never a figure's failure.
 
 The same figure function drawing the same data gives the same files in a child as inline (tested byte for
 byte on PNGs). Figures are drawn inline, in submission order, when forking is not safe or not wanted:
@@ -17,6 +18,7 @@ libraries do not survive a fork), or JAX is loaded (it runs threads that a fork 
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import traceback
 
@@ -28,6 +30,7 @@ class FigureFailed(RuntimeError):
 
 
 def _child(draw, target, send) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the report's to handle: it stops its children
     try:
         draw(target)
         send.send("")
