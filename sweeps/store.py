@@ -140,8 +140,8 @@ class ResultsStore(OutputFolder):
         self._distrust: str | None = None   # why the manifest vouches for nothing ('' once known to vouch)
         # runs parts read and checked already: path -> (its stat, design columns checked against, frame);
         # one is parsed and verified again only when its stat changed (a runner reads each part once)
-        self._parts_read: dict[Path, tuple[tuple, frozenset | None, pd.DataFrame]] = {}
-        self._design_read: tuple[tuple, pd.DataFrame] | None = None   # design.parquet: (its stat, frame)
+        self._parts_read: dict[tuple, tuple[tuple, frozenset | None, pd.DataFrame]] = {}   # by (path, columns)
+        self._design_read: dict[tuple | None, tuple[tuple, pd.DataFrame]] = {}   # design.parquet by columns
         self._consolidated: str | None = None   # the consolidation_source runs.parquet was built from
         self._consolidated_loaded = False
 
@@ -241,32 +241,36 @@ class ResultsStore(OutputFolder):
         """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
         return self.read_json("model.json", {})
 
-    def design(self) -> pd.DataFrame | None:
+    def design(self, columns: tuple[str, ...] | None = None) -> pd.DataFrame | None:
         """``design.parquet`` (None when missing; Unreadable when it cannot be read or changed since it
-        was written), read once while its size, times and inode stay those it had."""
+        was written), or only its ``columns``; read once while its size, times and inode stay those it
+        had."""
         path = self.root / "design.parquet"
         if not path.exists():
             return None
         signature = _signature(path)
-        if self._design_read is not None and self._design_read[0] == signature:
-            return self._design_read[1]
+        known = self._design_read.get(columns)
+        if known is not None and known[0] == signature:
+            return known[1]
         rerun = f"running the sweep again (flocksweep run SWEEP.toml --out {self.root}) writes it anew"
         try:
-            design = pd.read_parquet(path)
+            design = pd.read_parquet(path, columns=None if columns is None else list(columns))
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"{path} cannot be read ({_why(err)}); {rerun}") from None
         if self.changed(path):
             raise Unreadable(f"{path} {CHANGED}; {rerun}")
-        self._design_read = (signature, design)
+        self._design_read[columns] = (signature, design)
         return design
 
     def _design_columns(self) -> set | None:
         """The design's columns (None when there is no readable design)."""
+        path = self.root / "design.parquet"
         try:
-            design = self.design()
-        except (Unreadable, OSError):
+            if not path.exists() or self.changed(path):
+                return None
+            return set(_schema(path).names)
+        except Exception:  # noqa: BLE001 - an unreadable design has no columns
             return None
-        return None if design is None else set(design.columns)
 
     # -- parts -----------------------------------------------------------------------------------
     def _parts(self, kind: str) -> list[Path]:
@@ -298,29 +302,42 @@ class ResultsStore(OutputFolder):
             self._record_as(runs, runs_tmp)
             self._save_checksums()   # the manifest vouches for both; then the series, then the runs, get their names
 
-    def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
+    def _runs_part(self, path: Path, design_columns: set | None = None,
+                   columns: tuple[str, ...] | None = None) -> pd.DataFrame:
         """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
-        docstring). A part this store has read and checked already (against the same design columns) is
-        not read again while its size, times and inode are those it had."""
-        columns = None if design_columns is None else frozenset(design_columns)
+        docstring); with ``columns``, only those of its columns (and ``RUNS_COLUMNS``) are read, its
+        schema checked on the file's. A part this store has read and checked already (against the same
+        design columns) is not read again while its size, times and inode are those it had."""
+        design_key = None if design_columns is None else frozenset(design_columns)
         signature = _signature(path)
-        known = self._parts_read.get(path)
-        if known is not None and known[0] == signature and known[1] == columns:
-            return known[2]
-        frame = self._checked_runs_part(path, design_columns)
-        self._parts_read[path] = (signature, columns, frame)
+        for read in (columns, None) if columns is not None else (None,):   # the whole part serves any columns
+            known = self._parts_read.get((path, read))
+            if known is not None and known[0] == signature and known[1] == design_key:
+                return known[2] if read == columns else known[2][[c for c in known[2].columns
+                                                                  if c in (*RUNS_COLUMNS, *columns)]]
+        frame = self._checked_runs_part(path, design_columns, columns)
+        self._parts_read[(path, columns)] = (signature, design_key, frame)
         return frame
 
-    def _checked_runs_part(self, path: Path, design_columns: set | None) -> pd.DataFrame:
+    def _checked_runs_part(self, path: Path, design_columns: set | None,
+                           columns: tuple[str, ...] | None = None) -> pd.DataFrame:
         """:meth:`_runs_part`, read and checked now."""
         try:
-            frame = pd.read_parquet(path)
+            if columns is None:
+                frame = pd.read_parquet(path)
+                names, numeric = list(frame.columns), None
+            else:
+                schema = _schema(path)
+                names = schema.names
+                numeric = {name: _numeric_type(schema.field(name).type) for name in names}
+                frame = pd.read_parquet(path, columns=[c for c in dict.fromkeys((*RUNS_COLUMNS, *columns))
+                                                       if c in names])
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"cannot be read ({_why(err)})") from None
         problem = self.unverified(path)
         if problem:
             raise Unreadable(problem)
-        missing = [c for c in RUNS_COLUMNS if c not in frame.columns]
+        missing = [c for c in RUNS_COLUMNS if c not in names]
         if missing:
             raise Unreadable(f"is not a part of a sweep (no column {', '.join(map(repr, missing))})")
         if not len(frame):
@@ -328,14 +345,16 @@ class ResultsStore(OutputFolder):
         number = int(PART.search(path.name).group(1))
         if not (pd.to_numeric(frame["part"], errors="coerce") == number).all():
             raise Unreadable(f"holds rows of another part (its 'part' column is not {number} throughout)")
-        if not frame["status"].isin(STATUSES).all() or not all(isinstance(r, str) for r in frame["run_id"]):
+        if not frame["status"].isin(STATUSES).all() or pd.api.types.infer_dtype(frame["run_id"], skipna=False) != "string":
             raise Unreadable("is not a part of a sweep (run_id must be text, status 'ok' or 'failed')")
-        for column in sorted(EVERY_METRIC_COLUMN & set(frame.columns)):
-            values = frame[column]
+        for column in sorted(EVERY_METRIC_COLUMN & set(names)):
+            if numeric is not None and numeric[column]:
+                continue   # numbers (or nothing) by the file's own schema
+            values = frame[column] if column in frame else pd.read_parquet(path, columns=[column])[column]
             if not (pd.api.types.is_numeric_dtype(values) or values.isna().all()):
                 raise Unreadable(f"holds non-numbers in its metric column {column!r}")
         known = set(RESERVED_COLUMNS) | EVERY_METRIC_COLUMN | (design_columns or set())
-        foreign = sorted(set(frame.columns) - known) if design_columns is not None else []
+        foreign = sorted(set(names) - known) if design_columns is not None else []
         if foreign:
             raise Unreadable(f"holds a column flocksweep never writes ({', '.join(map(repr, foreign))}): a foreign "
                              "or edited table")
@@ -356,10 +375,11 @@ class ResultsStore(OutputFolder):
             warn("%s %s; skipped (the next 'flocksweep run' moves it aside and computes its runs again)",
                  path.relative_to(self.root), reason)
 
-    def all_rows(self, repair: bool = False) -> pd.DataFrame:
+    def all_rows(self, repair: bool = False, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
         """Every stored row of every readable, verified part (latest part last); damaged parts are skipped
         with a warning, or quarantined with ``repair``. When the manifest vouches for nothing
-        (:meth:`trust`) every part is damaged, and one warning says so for all of them."""
+        (:meth:`trust`) every part is damaged, and one warning says so for all of them. ``columns``: only
+        these (and ``RUNS_COLUMNS``) are read, every part checked as fully (:meth:`_runs_part`)."""
         frames = []
         parts = self._parts("runs")
         if parts and self.trust():
@@ -368,7 +388,7 @@ class ResultsStore(OutputFolder):
         design_columns = self._design_columns() if parts else None
         for path in parts:
             try:
-                frame = self._runs_part(path, design_columns)
+                frame = self._runs_part(path, design_columns, columns)
             except Unreadable as err:
                 self._damaged(path, str(err), repair, self.root / "timeseries" / path.name)
                 continue
@@ -396,14 +416,14 @@ class ResultsStore(OutputFolder):
             warn("%s, so %s cannot be verified: skipped as damaged (their runs count as missing; the next "
                  "'flocksweep run' moves them aside and computes the runs again)", why, _stored_parts(parts))
 
-    def latest(self) -> pd.DataFrame:
-        """The latest row per run id (indexed by run_id)."""
-        rows = self.all_rows()
+    def latest(self, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+        """The latest row per run id (indexed by run_id); ``columns``: only those (and ``RUNS_COLUMNS``)."""
+        rows = self.all_rows(columns=columns)
         return rows.drop_duplicates("run_id", keep="last").set_index("run_id", drop=False)
 
     def statuses(self) -> dict[str, str]:
         """{run id: its latest status} of the readable, verified parts (what a plan needs)."""
-        rows = self.all_rows()
+        rows = self.all_rows(columns=("run_id", "status"))
         if not len(rows):
             return {}
         return dict(zip(rows["run_id"].tolist(), rows["status"].tolist()))   # later parts overwrite earlier
@@ -594,6 +614,21 @@ class ResultsStore(OutputFolder):
         record = json_ready({**data, CHECKSUMS: dict(sorted(self.checksums().items())),
                              **({CONSOLIDATED: consolidated} if consolidated else {})})
         write_json(self.root / "manifest.json", {**record, SELF_CHECKSUM: content_checksum(record)})
+
+
+def _schema(path: Path):
+    """The Arrow schema of a Parquet file (its footer only)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_schema(path)
+
+
+def _numeric_type(kind) -> bool:
+    """Whether an Arrow type reads as a numeric pandas column (integers, floats, booleans) or holds nothing
+    at all (the null type): a metric column's allowed types."""
+    import pyarrow as pa
+
+    return pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind) or pa.types.is_null(kind)
 
 
 def _signature(path: Path) -> tuple:
