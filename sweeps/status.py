@@ -68,7 +68,8 @@ def _full_check(root: Path) -> tuple[dict, bool]:
     latest = store.latest(columns=("run_id", "status", "error"))   # every part verified; its metrics not read
     manifest = store.manifest()
     ids = design["run_id"]
-    states = ids.map(dict(zip(latest["run_id"].tolist(), latest["status"].tolist()))).fillna("missing")
+    states = ids.map(dict(zip(latest["run_id"].tolist(), latest["status"].tolist()))).astype(object)
+    states[states.isna()] = "missing"
     failed = ids[states == "failed"].tolist()
     error_of = dict(zip(latest["run_id"].tolist(), latest["error"].tolist()))
     tally = states.value_counts()

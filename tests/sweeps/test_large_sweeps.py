@@ -60,7 +60,7 @@ def test_a_rerun_with_nothing_to_compute_reads_the_stored_design_and_each_part_o
     reads = []
     original = ResultsStore._checked_runs_part
     monkeypatch.setattr(ResultsStore, "_checked_runs_part",
-                        lambda self, part, columns: reads.append(part.name) or original(self, part, columns))
+                        lambda self, part, *args: reads.append(part.name) or original(self, part, *args))
     again = run(path, out)
     assert not again.plan.todo and all(isinstance(r, StoredRun) for r in again.plan.specs)
     assert [r.run_id for r in again.plan.done] == [s.run_id for s in first.plan.specs]
@@ -174,3 +174,27 @@ def test_resolved_values_and_to_dict_equal_their_plain_twins_on_every_key(name):
     values = ResolvedValues(preset)
     for key in [*leaves(full), "no_such_table", "perception.no_such_key", "init.n.deeper"]:
         assert values(key) == get_dotted(full, key), key
+
+
+# -- status reads what it counts ------------------------------------------------------------------------------
+
+def test_status_reads_only_ids_statuses_and_errors_and_still_checks_every_part(finished, monkeypatch):
+    from flocksweep.sweeps.status import status
+
+    path, out, first = finished
+    reads = []
+    original = pd.read_parquet
+    monkeypatch.setattr(pd, "read_parquet", lambda file, *a, **k: reads.append((file, k.get("columns"))) or
+                        original(file, *a, **k))
+    info = status(out)
+    assert (info["runs"], info["ok"], info["failed"], info["missing"]) == (4, 4, 0, 0)
+    assert not any("timeseries" in str(file) for file, _ in reads)
+    assert reads and all(columns is not None and "polarization_mean" not in columns for _, columns in reads)
+    # a part written through the store (its checksum recorded) holding text in a metric column is damaged
+    store = ResultsStore(out)
+    store.write_part(store.next_part(), [{"run_id": first.plan.specs[0].run_id, "status": "ok", "error": "",
+                                          "polarization_mean": "high"}], None)
+    info = status(out)
+    assert info["ok"] == 4   # the bad part skipped (with a warning), the counts those of the good ones
+    with pytest.raises(Exception, match="non-numbers in its metric column 'polarization_mean'"):
+        ResultsStore(out)._runs_part(sorted((out / "runs").iterdir())[-1], None, ("run_id", "status"))
