@@ -269,7 +269,7 @@ def smoother(x, y, grid: int = 60, bins: int = 80):
     return at, spline(at)
 
 
-MAX_FIT_POINTS = 4000   # the boosted trees of partial_dependence are fitted to at most this many points
+MAX_FIT_POINTS = 2000   # the boosted trees of partial_dependence are fitted to at most this many points
 
 
 def subsample(n: int, most: int, seed: int) -> np.ndarray:

@@ -32,7 +32,7 @@ from .sensitivity import (MAX_FIT_POINTS, ContinuousDesign, correlations, morris
                           partial_dependence, point_means, sample_outputs, smoother, sobol_indices, subsample)
 
 MAX_STRATA_FIGURES = 4
-MAX_SCATTER_POINTS = 5000   # a scatter figure draws at most this many design points (drawn at random)
+MAX_SCATTER_POINTS = 3000   # a scatter figure draws at most this many design points (drawn at random)
 
 
 def _strata(runs: pd.DataFrame, grid: list[str]):
