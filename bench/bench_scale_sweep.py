@@ -55,12 +55,16 @@ def simulated(spec):
     return simulate(spec.preset.model, spec.preset.init, spec.seed, r.duration, r.dt, r.record_every)
 def measured(spec):
     measure_run(every_nth(simulated(spec), 1), spec.metrics)
+from flocksweep.sweeps.worker import execute_batch
 measured(specs[0])
 out = {"runs": len(specs)}
-for name, work in (("cpu_per_run", simulated), ("measured_cpu_per_run", measured)) * 2:
+for name, work in (("cpu_per_run", simulated), ("measured_cpu_per_run", measured), ("worker_cpu_per_run", None)) * 2:
     start = time.process_time()
-    for spec in specs:
-        work(spec)
+    if work is None:   # what a worker does with them: one batch (rows, series table)
+        execute_batch(specs)
+    else:
+        for spec in specs:
+            work(spec)
     out[name] = (time.process_time() - start) / len(specs)   # the second pass counts (warm)
 print(json.dumps(out))
 """
@@ -71,7 +75,9 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _tree_rss(proc: psutil.Process) -> int:
+def _tree(proc: psutil.Process, cpu: dict) -> int:
+    """The resident memory of ``proc`` and its descendants now; each one's CPU seconds so far go into
+    ``cpu`` (by pid: the last sample of a process that has ended stays)."""
     total = 0
     try:
         members = [proc] + proc.children(recursive=True)
@@ -79,26 +85,31 @@ def _tree_rss(proc: psutil.Process) -> int:
         return 0
     for p in members:
         try:
-            total += p.memory_info().rss
+            with p.oneshot():
+                total += p.memory_info().rss
+                times = p.cpu_times()
+                cpu[p.pid] = times.user + times.system
         except psutil.Error:
             pass
     return total
 
 
 def timed(cmd: list[str], env: dict) -> dict:
-    """Wall seconds, CPU seconds of the process tree and its peak resident memory."""
+    """Wall seconds, CPU seconds of the process tree (and of the command's own process alone, sampled) and
+    its peak resident memory."""
     cpu, start = _children_cpu(), time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=env["BENCH_CWD"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    watcher, peak = psutil.Process(proc.pid), 0
+    proc = subprocess.Popen(cmd, cwd=env["BENCH_CWD"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    watcher, peak, seen = psutil.Process(proc.pid), 0, {}
     while proc.poll() is None:
-        peak = max(peak, _tree_rss(watcher))
+        peak = max(peak, _tree(watcher, seen))
         time.sleep(0.05)
     out, err = proc.communicate()
     wall = time.perf_counter() - start
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited with {proc.returncode}:\n{err[-3000:]}")
-    return {"wall": wall, "cpu": _children_cpu() - cpu, "peak_mib": peak / 2**20, "stdout": out[-2000:],
-            "stderr": err[-2000:]}
+    return {"wall": wall, "cpu": _children_cpu() - cpu, "command_cpu": seen.get(proc.pid, 0.0),
+            "peak_mib": peak / 2**20, "stdout": out[-2000:], "stderr": err[-2000:]}
 
 
 def main() -> int:
@@ -143,8 +154,8 @@ def main() -> int:
         record = {key: v for key, v in got.items() if key not in ("stdout", "stderr")}
         record["load"] = os.getloadavg()[0]
         results.setdefault(step, []).append(record)
-        print(f"  {step}: {got['wall']:.2f} s wall, {got['cpu']:.1f} s CPU, peak {got['peak_mib']:.0f} MiB "
-              f"(load {record['load']:.1f})", flush=True)
+        print(f"  {step}: {got['wall']:.2f} s wall, {got['cpu']:.1f} s CPU (the command's own process "
+              f"{got['command_cpu']:.1f} s), peak {got['peak_mib']:.0f} MiB (load {record['load']:.1f})", flush=True)
         if step == "status" and len(results[step]) == 1:
             print("    " + got["stdout"].strip().replace("\n", "\n    ")[:600])
     for step in [s for s in STEPS if s in results]:
@@ -177,6 +188,13 @@ def main() -> int:
             runner = (results["run"]["cpu"] - runs * sim["measured_cpu_per_run"]) / runs
             results["overhead_cpu_ms"] = overhead * 1e3
             results["runner_overhead_cpu_ms"] = runner * 1e3
+            parts = (results["run"]["command_cpu"] / runs + sim["worker_cpu_per_run"] - sim["measured_cpu_per_run"])
+            results["runner_parts_cpu_ms"] = parts * 1e3
+            print(f"  by its parts: the runner process {results['run']['command_cpu'] / runs * 1e3:.3f} ms CPU per run "
+                  f"(design, batches, parts, checksums, table, start-up) + a worker's own beyond simulation and "
+                  f"metrics {(sim['worker_cpu_per_run'] - sim['measured_cpu_per_run']) * 1e3:.3f} ms (rows, series "
+                  f"table; measured in one process, {sim['worker_cpu_per_run'] * 1e3:.3f} ms a run in a batch) = "
+                  f"{parts * 1e3:.3f} ms per run")
             print(f"  simulation alone: {sim['cpu_per_run'] * 1e3:.3f} ms CPU per run, simulated and measured "
                   f"(measure_run): {sim['measured_cpu_per_run'] * 1e3:.3f} ms ({sim['runs']} runs); the run's CPU "
                   f"beyond the simulation: {overhead * 1e3:.3f} ms per run, beyond simulation and metrics (the "
