@@ -83,6 +83,7 @@ RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has 
 # the runs table's own columns: no axis may be named like one (sweeps.config)
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
+LIGHT = ("run_id", "status")   # what repair, plans and status read of a verified part (with RUNS_COLUMNS)
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
 
@@ -423,7 +424,7 @@ class ResultsStore(OutputFolder):
 
     def statuses(self) -> dict[str, str]:
         """{run id: its latest status} of the readable, verified parts (what a plan needs)."""
-        rows = self.all_rows(columns=("run_id", "status"))
+        rows = self.all_rows(columns=LIGHT)
         if not len(rows):
             return {}
         return dict(zip(rows["run_id"].tolist(), rows["status"].tolist()))   # later parts overwrite earlier
@@ -461,10 +462,10 @@ class ResultsStore(OutputFolder):
         before = set(self._quarantined())
         self.trust()   # decided on the manifest as found, before it is moved aside
         self.manifest(repair=True)
-        self.all_rows(repair=True)
+        self.all_rows(repair=True, columns=LIGHT)   # every part verified in full; its metrics not read
         design_columns = self._design_columns()
         for path in self._parts("runs"):
-            frame = self._runs_part(path, design_columns)
+            frame = self._runs_part(path, design_columns, LIGHT)
             ok_ids = set(frame.loc[frame["status"] == "ok", "run_id"])
             series = self.root / "timeseries" / path.name
             problem = self._series_problem(series, ok_ids) if ok_ids else None
