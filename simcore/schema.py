@@ -285,10 +285,25 @@ def replace_fields(obj, changes, path: str = ""):
         raise within(err, path) from None
 
 
+_FIELD_NAMES: dict[type, tuple[str, ...] | None] = {}   # a type's dataclass field names (None: not one)
+
+
+def _field_names(cls: type) -> tuple[str, ...] | None:
+    """The field names of the dataclass ``cls`` in order, None when it is not one (looked up once a type:
+    a sweep's design converts every point's preset, thousands of dataclasses each)."""
+    try:
+        return _FIELD_NAMES[cls]
+    except KeyError:
+        names = tuple(f.name for f in dataclasses.fields(cls)) if dataclasses.is_dataclass(cls) else None
+        _FIELD_NAMES[cls] = names
+        return names
+
+
 def to_dict(obj) -> Any:
-    """Plain nested dict/list representation of a (nested) dataclass."""
-    if dataclasses.is_dataclass(obj):
-        return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    """Plain nested dict/list representation of a (nested) dataclass instance."""
+    names = _field_names(type(obj))
+    if names is not None:
+        return {name: to_dict(getattr(obj, name)) for name in names}
     if isinstance(obj, tuple):
         return [to_dict(v) for v in obj]
     if isinstance(obj, dict):

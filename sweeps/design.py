@@ -26,14 +26,17 @@ order runs finish in.
 from __future__ import annotations
 
 import copy
+import dataclasses
+import functools
 import itertools
 import json
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from flocksweep.observables.directional_correlation import DCD_MAX_DELAY
 from flocksweep.observables.summary import ENCOUNTER_SETTINGS, MOTION_SETTINGS, MetricSettings
-from flocksweep.simcore.params import Preset, preset_from_dict
-from flocksweep.simcore.schema import ConfigError, get_dotted
+from flocksweep.simcore.params import ModelParams, Preset, preset_from_dict
+from flocksweep.simcore.schema import ConfigError, get_dotted, to_dict
 
 from .config import Storage, SweepConfig, check_window
 from .external import ExternalRun
@@ -62,6 +65,23 @@ class RunSpec:
         if self.preset is None:
             return 1.0
         return self.preset.run.n_steps * float(self.preset.init.n) ** 2
+
+
+class StoredRun(NamedTuple):
+    """A run of a stored design known by its row of ``design.parquet`` alone (nothing resolved or built):
+    what the plan of a rerun lists when it reuses the stored design and has nothing to compute
+    (:mod:`sweeps.design_key`; a named tuple: 100,000 of them are made in a tenth of a second)."""
+    run_id: str
+    index: int
+    point_index: int
+    replicate: int
+    seed: int
+
+
+def stored_runs(design) -> list[StoredRun]:
+    """The :class:`StoredRun` of every row of a design table, in its order."""
+    columns = [design[name].tolist() for name in ("run_id", "index", "point_index", "replicate", "seed")]
+    return [StoredRun(str(r), int(i), int(p), int(k), int(s)) for r, i, p, k, s in zip(*columns)]
 
 
 def base_preset(config: SweepConfig) -> Preset | None:
@@ -117,10 +137,41 @@ def factor_levels(config: SweepConfig, base: Preset) -> list[tuple[tuple[str, ..
     return factors
 
 
-def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, object]]:
+class ResolvedValues:
+    """``get_dotted(preset.full_dict(), key)`` for any key (a swept value read back resolved, even from a
+    table the run id leaves out; None when the preset has no such key), converting only the tables asked
+    for, each once: a design reads a few keys of every point's preset, and the whole preset as a dict
+    costs as much as the rest of the point."""
+
+    def __init__(self, preset: Preset):
+        self.preset = preset
+        self.tables: dict[str, object] = {}
+
+    def _table(self, name: str):
+        if name not in self.tables:
+            preset, value = self.preset, None
+            if name in ("init", "run"):
+                value = to_dict(getattr(preset, name))
+            elif name in _MODEL_TABLES:
+                value = to_dict(getattr(preset.model, name))
+                if name == "perception":
+                    value["eye_position_deg"] = preset.model.perception.eye_deg
+            self.tables[name] = value
+        return self.tables[name]
+
+    def __call__(self, key: str):
+        head, _, rest = key.partition(".")
+        value = self._table(head)
+        return value if not rest else get_dotted(value, rest)
+
+
+_MODEL_TABLES = frozenset(f.name for f in dataclasses.fields(ModelParams))
+
+
+def _columns(config: SweepConfig, combo, resolved) -> list[tuple[str, object]]:
     """Swept parameters as table columns: an axis' name (label, joined zipped values, or the value when
-    renamed) and then every swept key with its resolved value. ``combo``: per axis the level index, or
-    (an explicit point) the tuple of the point's values."""
+    renamed) and then every swept key with its resolved value (``resolved(key)``). ``combo``: per axis the
+    level index, or (an explicit point) the tuple of the point's values."""
     cols = []
     for axis, level in zip(config.axes, combo):
         values = level if isinstance(level, tuple) else axis.points[level]
@@ -129,9 +180,9 @@ def _columns(config: SweepConfig, combo, resolved: dict) -> list[tuple[str, obje
         elif len(axis.keys) > 1:
             cols.append((axis.name, "|".join(map(str, values))))
         elif axis.name != axis.keys[0]:
-            cols.append((axis.name, get_dotted(resolved, axis.keys[0])))
-        cols += [(key, _cell(get_dotted(resolved, key))) for key in axis.keys]
-    cols += [(key, get_dotted(resolved, key)) for key in config.block_keys]
+            cols.append((axis.name, resolved(axis.keys[0])))
+        cols += [(key, _cell(resolved(key))) for key in axis.keys]
+    cols += [(key, resolved(key)) for key in config.block_keys]
     return cols
 
 
@@ -214,14 +265,15 @@ def expand(config: SweepConfig) -> list[RunSpec]:
             preset = _point_preset(base, overrides, where)
             check_window(config.metrics.warmup, preset.run, f" (at design point {where})" if overrides else "")
             resolved = preset.to_dict()
-            values = preset.full_dict()  # swept values read back resolved, even from tables the id leaves out
+            values = ResolvedValues(preset)  # swept values read back resolved, even from tables the id leaves out
             metrics, command = config.metrics.resolve(preset.model), None
         else:   # a command model: its declared parameters, each value checked before it is ever substituted
-            values = config.command.values(dict(overrides), where if overrides else "")
+            parameters = config.command.values(dict(overrides), where if overrides else "")
+            values = functools.partial(get_dotted, parameters)
             preset, metrics = None, config.metrics
-            resolved = {"command": config.command.identity, "parameters": values}
-            command = ExternalRun(config.command, tuple(values.items()))
-        point = point_key({k: get_dotted(values, k) for k, _ in overrides})
+            resolved = {"command": config.command.identity, "parameters": parameters}
+            command = ExternalRun(config.command, tuple(parameters.items()))
+        point = point_key({k: values(k) for k, _ in overrides})
         if point in seen:
             raise ConfigError(origin, f"design points {seen[point]} and {where} are the same parameters "
                                       "(values that resolve equal, e.g. 60 and 60.0); list each level once")

@@ -50,7 +50,8 @@ from .budget import check_sweep
 from .claims import with_claims
 from .confidence import ci_halfwidth
 from .config import SweepConfig, describe
-from .design import RunSpec, base_preset, expand
+from .design import RunSpec, StoredRun, base_preset, expand, stored_runs
+from .design_key import KEY as DESIGN_KEY, design_key, reusable_design
 from .executors import Executor, WorkerLost, check_scheduler
 from .files import WriteFailed
 from . import main_guard
@@ -75,9 +76,12 @@ MAX_COMMAND_BATCH = 16       # or this many runs of a command (their cost is unk
 
 @dataclass
 class Plan:
-    specs: list[RunSpec]
-    done: list[RunSpec] = field(default_factory=list)
-    failed: list[RunSpec] = field(default_factory=list)
+    """The runs of a sweep (``specs``) in three lists: ``done`` (ok), ``failed`` (kept) and ``todo``. A rerun
+    that reused the stored design and found nothing to compute lists :class:`~sweeps.design.StoredRun` s
+    (identity and position only) instead of :class:`~sweeps.design.RunSpec` s."""
+    specs: list[RunSpec | StoredRun]
+    done: list[RunSpec | StoredRun] = field(default_factory=list)
+    failed: list[RunSpec | StoredRun] = field(default_factory=list)
     todo: list[RunSpec] = field(default_factory=list)
 
 
@@ -104,8 +108,7 @@ def model_record(config: SweepConfig, folder=None) -> dict:
 
 
 def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_failed: bool) -> Plan:
-    latest = store.latest()
-    status = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
+    status = store.statuses()
     plan = Plan(specs=specs)
     for spec in specs:
         state = status.get(spec.run_id)
@@ -115,6 +118,20 @@ def make_plan(specs: list[RunSpec], store: ResultsStore, force: bool, retry_fail
             plan.failed.append(spec)
         else:
             plan.todo.append(spec)
+    return plan
+
+
+def stored_plan(design: pd.DataFrame, store: ResultsStore, retry_failed: bool) -> Plan | None:
+    """The plan of a rerun on the stored ``design`` (:mod:`sweeps.design_key`), its runs known by their
+    rows (:class:`~sweeps.design.StoredRun`), when it has nothing to compute (every run ok, or failed and
+    kept); None when it has: then the design is built and planned as always."""
+    status = store.statuses()
+    states = design["run_id"].map(status)
+    if states.isna().any() or (retry_failed and (states == "failed").any()):
+        return None
+    plan = Plan(specs=stored_runs(design))
+    for run, state in zip(plan.specs, states.tolist()):
+        (plan.done if state == "ok" else plan.failed).append(run)
     return plan
 
 
@@ -250,7 +267,7 @@ def _progress(total: int, name: str, enabled: bool):
 
 
 def _manifest(config: SweepConfig, store: ResultsStore, plan: Plan, executor: str, workers: int,
-              started: float, finished: float | None, table: pd.DataFrame | None) -> dict:
+              started: float, finished: float | None, table: pd.DataFrame | None, key: str | None = None) -> dict:
     counts = {"runs": len(plan.specs)}
     if table is not None:
         counts.update(ok=int((table["status"] == "ok").sum()), failed=int((table["status"] == "failed").sum()))
@@ -271,7 +288,7 @@ def _manifest(config: SweepConfig, store: ResultsStore, plan: Plan, executor: st
             "common_random_numbers": config.common_random_numbers, "design": describe(config),
             "executor": executor, "workers": workers, "computed_this_invocation": len(plan.todo),
             "started": this["started"], "finished": this["finished"], "invocations": history,
-            "counts": counts, **provenance}
+            "counts": counts, **provenance, **({DESIGN_KEY: key} if key else {})}
 
 
 def stamp_hash(config: SweepConfig) -> str:
@@ -357,32 +374,46 @@ def run_sweep(config: SweepConfig, sweep_text: str | None, out_dir, executor: st
     workers = cluster_workers(config) if executor == "cluster" else workers or os.cpu_count() or 1
     if not dry_run and ((executor == "local" and workers > 1) or (executor == "dask" and not scheduler)):
         main_guard.check_caller_guarded()   # before anything is written: UnguardedScript
+    store = ResultsStore(out_dir)
+    key, stored = None, None
     if specs is None:
         base_preset(config)   # the base model must be valid: ConfigError naming the key
         check_sweep(config, 1 if executor == "serial" else workers, yes)   # counts and sizes, builds nothing
-        specs = expand(config)  # validates every run before anything is written
-    check_specs(specs)   # a plug-in's steer compiled alone: one message naming its line (sweeps.plugin_check)
-    store = ResultsStore(out_dir)
+        key = design_key(config)
+        # this sweep's design, stored already (its key says so): read instead of built when the rerun has
+        # nothing to compute, which is decided under the lock (where the design is read again); a design
+        # with that key was validated when it was built, so building it there cannot fail on the config
+        stored = reusable_design(ResultsStore(out_dir), key) if not force else None
+        if stored is None:
+            specs = expand(config)  # validates every run before anything is written
+    if specs is not None:
+        check_specs(specs)   # a plug-in's steer compiled alone: one message naming its line (sweeps.plugin_check)
     if executor == "dask" and scheduler and not dry_run:
         check_scheduler(scheduler)   # before anything is written
     if dry_run:
-        plan = make_plan(specs, store, force, retry_failed)
+        plan = stored_plan(stored, store, retry_failed) if stored is not None else None
+        if plan is None:
+            plan = make_plan(specs if specs is not None else expand(config), store, force, retry_failed)
         return SweepResult(Path(out_dir), plan, None, time.time() - started,
                            estimate(plan.todo, 1 if executor == "serial" else workers,
                                     pool=executor != "serial" and workers > 1))
     with store.lock():
         quarantined = store.repair()
-        plan = make_plan(specs, store, force, retry_failed)
+        stored = reusable_design(store, key) if stored is not None else None
+        plan = stored_plan(stored, store, retry_failed) if stored is not None else None
+        if plan is None:   # runs to compute: every run resolved and validated (the stored design is not enough)
+            specs = specs if specs is not None else expand(config)
+            plan, stored = make_plan(specs, store, force, retry_failed), None
         effective = with_claims({**config.source, "replicates": config.replicates}, config.claims)
-        design = design_table(specs)
+        design = design_table(specs) if stored is None else stored
         stored_text = (relocated(sweep_text, config.preset_path, out_dir) if config.command is None
                        else relocated_workdir(sweep_text, config.command.workdir, out_dir))
-        store.write_inputs(stored_text, effective, model_record(config, out_dir), design)
-        store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None))
+        store.write_inputs(stored_text, effective, model_record(config, out_dir), None if stored is not None else design)
+        store.write_manifest(_manifest(config, store, plan, executor, workers, started, None, None, key))
         lost, reasons = (_compute(config, store, plan, executor, workers, scheduler, progress, batch_size, pool)
                          if plan.todo else ([], []))
         table = store.consolidate(design)
-        store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table))
+        store.write_manifest(_manifest(config, store, plan, executor, workers, started, time.time(), table, key))
     return SweepResult(Path(out_dir), plan, table, time.time() - started, lost=lost, lost_reasons=reasons,
                        quarantined=quarantined)
 

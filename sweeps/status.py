@@ -6,8 +6,9 @@ design, the failures' reasons, the manifest and the runner holding the folder no
 files only; imports neither the simulator nor numba, so ``flocksweep status`` starts fast.
 
 Unchanged folders are not checked twice (``remember=True``, what ``flocksweep status`` does): a full
-check reads the design and every runs part with pandas and verifies their checksums and schemas
-(:class:`sweeps.store.ResultsStore`). When it finds nothing damaged, its counts are remembered in the
+check verifies the checksums and schemas of the design and of every runs part, reading of their contents
+only the run ids, statuses and errors (:class:`sweeps.store.ResultsStore`; never the metrics, nor any
+time series). When it finds nothing damaged, its counts are remembered in the
 user's cache (:func:`cache_path`: ``$FLOCKSWEEP_CACHE_DIR/status/``, else
 ``$XDG_CACHE_HOME/flocksweep/status/``, else ``~/.cache/flocksweep/status/``; never in the results folder,
 which ``status`` only reads) together with the folder's *fingerprint*: size, modification and
@@ -61,17 +62,19 @@ def _full_check(root: Path) -> tuple[dict, bool]:
     from .store import ResultsStore
 
     store = ResultsStore(root)
-    design = store.design()
+    design = store.design(columns=("run_id",))
     if design is None:
         raise FileNotFoundError(f"{root}: no sweep stored here (design.parquet missing)")
-    latest = store.latest()
+    latest = store.latest(columns=("run_id", "status", "error"))   # every part verified; its metrics not read
     manifest = store.manifest()
-    status_of = dict(zip(latest["run_id"], latest["status"])) if len(latest) else {}
-    error_of = dict(zip(latest["run_id"], latest["error"])) if len(latest) else {}
-    states = [status_of.get(r, "missing") for r in design["run_id"]]
-    failures = [(r, str(error_of[r])) for r, s in zip(design["run_id"], states) if s == "failed"]
-    counts = {"runs": len(design), "ok": states.count("ok"), "failed": states.count("failed"),
-              "missing": states.count("missing"), "failures": failures, "manifest": manifest}
+    ids = design["run_id"]
+    states = ids.map(dict(zip(latest["run_id"].tolist(), latest["status"].tolist()))).astype(object)
+    states[states.isna()] = "missing"
+    failed = ids[states == "failed"].tolist()
+    error_of = dict(zip(latest["run_id"].tolist(), latest["error"].tolist()))
+    tally = states.value_counts()
+    counts = {"runs": len(design), **{state: int(tally.get(state, 0)) for state in ("ok", "failed", "missing")},
+              "failures": [(r, str(error_of[r])) for r in failed], "manifest": manifest}
     return counts, not store.damage_reported
 
 

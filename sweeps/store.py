@@ -57,6 +57,9 @@ writes (neither a design column, nor a run's identity, status or timing, nor a s
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
+import os
 import re
 from contextlib import contextmanager
 from pathlib import Path
@@ -73,12 +76,14 @@ from .lock import StoreLocked, hold, holder
 from .provenance import stamp
 from .quarantine import FOLDER as QUARANTINE, quarantine, warn
 
+CONSOLIDATED = "consolidated_from"   # manifest.json: what runs.parquet was built from (consolidation_source)
 PART = re.compile(r"part-(\d{6})\.parquet$")
 NUMBERED = re.compile(r"part-(\d{6})\.parquet")          # also quarantined parts (with a time suffix)
 RUNS_COLUMNS = ("run_id", "status", "error", "part")      # every runs part has these
 # the runs table's own columns: no axis may be named like one (sweeps.config)
 RESERVED_COLUMNS = ("run_id", "index", "point_index", "replicate", "seed", "status", "error", "sim_s", "wall_s",
                     "part", "n", "steps")
+LIGHT = ("run_id", "status")   # what repair, plans and status read of a verified part (with RUNS_COLUMNS)
 SERIES_COLUMNS = ("run_id", "t")                          # every time series part has these
 STATUSES = ("ok", "failed")
 
@@ -134,6 +139,12 @@ class ResultsStore(OutputFolder):
         self._sums: dict[str, str] | None = None   # checksums recorded in the manifest (loaded once)
         self._latest_manifest: dict | None = None   # what write_manifest wrote last (rewritten with new sums)
         self._distrust: str | None = None   # why the manifest vouches for nothing ('' once known to vouch)
+        # runs parts read and checked already: path -> (its stat, design columns checked against, frame);
+        # one is parsed and verified again only when its stat changed (a runner reads each part once)
+        self._parts_read: dict[tuple, tuple[tuple, frozenset | None, pd.DataFrame]] = {}   # by (path, columns)
+        self._design_read: dict[tuple | None, tuple[tuple, pd.DataFrame]] = {}   # design.parquet by columns
+        self._consolidated: str | None = None   # the consolidation_source runs.parquet was built from
+        self._consolidated_loaded = False
 
     @property
     def damage_reported(self) -> bool:
@@ -218,36 +229,49 @@ class ResultsStore(OutputFolder):
             self._save_checksums()
 
     # -- inputs ----------------------------------------------------------------------------------
-    def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame) -> None:
+    def write_inputs(self, sweep_text: str, effective: dict, model: dict, design: pd.DataFrame | None) -> None:
+        """The sweep's files and its design (``design`` None: the stored design is kept as it is, a rerun
+        that found it to be this sweep's: :mod:`sweeps.design_key`)."""
         write_text(self.root / "sweep.toml", sweep_text)
         write_json(self.root / "sweep.effective.json", effective)
         write_json(self.root / "model.json", model)
-        self._write_vouched(self.root / "design.parquet", design)
+        if design is not None:
+            self._write_vouched(self.root / "design.parquet", design)
 
     def model(self) -> dict:
         """The base preset (after the sweep's model.set and run overrides), swept keys and analysis."""
         return self.read_json("model.json", {})
 
-    def design(self) -> pd.DataFrame | None:
+    def design(self, columns: tuple[str, ...] | None = None) -> pd.DataFrame | None:
+        """``design.parquet`` (None when missing; Unreadable when it cannot be read or changed since it
+        was written), or only its ``columns``; read once while its size, times and inode stay those it
+        had."""
         path = self.root / "design.parquet"
         if not path.exists():
             return None
+        signature = _signature(path)
+        known = self._design_read.get(columns)
+        if known is not None and known[0] == signature:
+            return known[1]
         rerun = f"running the sweep again (flocksweep run SWEEP.toml --out {self.root}) writes it anew"
         try:
-            design = pd.read_parquet(path)
+            design = pd.read_parquet(path, columns=None if columns is None else list(columns))
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"{path} cannot be read ({_why(err)}); {rerun}") from None
         if self.changed(path):
             raise Unreadable(f"{path} {CHANGED}; {rerun}")
+        self._design_read[columns] = (signature, design)
         return design
 
     def _design_columns(self) -> set | None:
         """The design's columns (None when there is no readable design)."""
+        path = self.root / "design.parquet"
         try:
-            design = self.design()
-        except (Unreadable, OSError):
+            if not path.exists() or self.changed(path):
+                return None
+            return set(_schema(path).names)
+        except Exception:  # noqa: BLE001 - an unreadable design has no columns
             return None
-        return None if design is None else set(design.columns)
 
     # -- parts -----------------------------------------------------------------------------------
     def _parts(self, kind: str) -> list[Path]:
@@ -279,17 +303,42 @@ class ResultsStore(OutputFolder):
             self._record_as(runs, runs_tmp)
             self._save_checksums()   # the manifest vouches for both; then the series, then the runs, get their names
 
-    def _runs_part(self, path: Path, design_columns: set | None = None) -> pd.DataFrame:
+    def _runs_part(self, path: Path, design_columns: set | None = None,
+                   columns: tuple[str, ...] | None = None) -> pd.DataFrame:
         """A runs part, its checksum and schema checked (Unreadable saying what is wrong; see the module
-        docstring)."""
+        docstring); with ``columns``, only those of its columns (and ``RUNS_COLUMNS``) are read, its
+        schema checked on the file's. A part this store has read and checked already (against the same
+        design columns) is not read again while its size, times and inode are those it had."""
+        design_key = None if design_columns is None else frozenset(design_columns)
+        signature = _signature(path)
+        for read in (columns, None) if columns is not None else (None,):   # the whole part serves any columns
+            known = self._parts_read.get((path, read))
+            if known is not None and known[0] == signature and known[1] == design_key:
+                return known[2] if read == columns else known[2][[c for c in known[2].columns
+                                                                  if c in (*RUNS_COLUMNS, *columns)]]
+        frame = self._checked_runs_part(path, design_columns, columns)
+        self._parts_read[(path, columns)] = (signature, design_key, frame)
+        return frame
+
+    def _checked_runs_part(self, path: Path, design_columns: set | None,
+                           columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+        """:meth:`_runs_part`, read and checked now."""
         try:
-            frame = pd.read_parquet(path)
+            if columns is None:
+                frame = pd.read_parquet(path)
+                names, numeric = list(frame.columns), None
+            else:
+                schema = _schema(path)
+                names = schema.names
+                numeric = {name: _numeric_type(schema.field(name).type) for name in names}
+                frame = pd.read_parquet(path, columns=[c for c in dict.fromkeys((*RUNS_COLUMNS, *columns))
+                                                       if c in names])
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             raise Unreadable(f"cannot be read ({_why(err)})") from None
         problem = self.unverified(path)
         if problem:
             raise Unreadable(problem)
-        missing = [c for c in RUNS_COLUMNS if c not in frame.columns]
+        missing = [c for c in RUNS_COLUMNS if c not in names]
         if missing:
             raise Unreadable(f"is not a part of a sweep (no column {', '.join(map(repr, missing))})")
         if not len(frame):
@@ -297,14 +346,16 @@ class ResultsStore(OutputFolder):
         number = int(PART.search(path.name).group(1))
         if not (pd.to_numeric(frame["part"], errors="coerce") == number).all():
             raise Unreadable(f"holds rows of another part (its 'part' column is not {number} throughout)")
-        if not frame["status"].isin(STATUSES).all() or not all(isinstance(r, str) for r in frame["run_id"]):
+        if not frame["status"].isin(STATUSES).all() or pd.api.types.infer_dtype(frame["run_id"], skipna=False) != "string":
             raise Unreadable("is not a part of a sweep (run_id must be text, status 'ok' or 'failed')")
-        for column in sorted(EVERY_METRIC_COLUMN & set(frame.columns)):
-            values = frame[column]
+        for column in sorted(EVERY_METRIC_COLUMN & set(names)):
+            if numeric is not None and numeric[column]:
+                continue   # numbers (or nothing) by the file's own schema
+            values = frame[column] if column in frame else pd.read_parquet(path, columns=[column])[column]
             if not (pd.api.types.is_numeric_dtype(values) or values.isna().all()):
                 raise Unreadable(f"holds non-numbers in its metric column {column!r}")
         known = set(RESERVED_COLUMNS) | EVERY_METRIC_COLUMN | (design_columns or set())
-        foreign = sorted(set(frame.columns) - known) if design_columns is not None else []
+        foreign = sorted(set(names) - known) if design_columns is not None else []
         if foreign:
             raise Unreadable(f"holds a column flocksweep never writes ({', '.join(map(repr, foreign))}): a foreign "
                              "or edited table")
@@ -325,10 +376,11 @@ class ResultsStore(OutputFolder):
             warn("%s %s; skipped (the next 'flocksweep run' moves it aside and computes its runs again)",
                  path.relative_to(self.root), reason)
 
-    def all_rows(self, repair: bool = False) -> pd.DataFrame:
+    def all_rows(self, repair: bool = False, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
         """Every stored row of every readable, verified part (latest part last); damaged parts are skipped
         with a warning, or quarantined with ``repair``. When the manifest vouches for nothing
-        (:meth:`trust`) every part is damaged, and one warning says so for all of them."""
+        (:meth:`trust`) every part is damaged, and one warning says so for all of them. ``columns``: only
+        these (and ``RUNS_COLUMNS``) are read, every part checked as fully (:meth:`_runs_part`)."""
         frames = []
         parts = self._parts("runs")
         if parts and self.trust():
@@ -337,7 +389,7 @@ class ResultsStore(OutputFolder):
         design_columns = self._design_columns() if parts else None
         for path in parts:
             try:
-                frame = self._runs_part(path, design_columns)
+                frame = self._runs_part(path, design_columns, columns)
             except Unreadable as err:
                 self._damaged(path, str(err), repair, self.root / "timeseries" / path.name)
                 continue
@@ -365,25 +417,38 @@ class ResultsStore(OutputFolder):
             warn("%s, so %s cannot be verified: skipped as damaged (their runs count as missing; the next "
                  "'flocksweep run' moves them aside and computes the runs again)", why, _stored_parts(parts))
 
-    def latest(self) -> pd.DataFrame:
-        """The latest row per run id (indexed by run_id)."""
-        rows = self.all_rows()
+    def latest(self, columns: tuple[str, ...] | None = None) -> pd.DataFrame:
+        """The latest row per run id (indexed by run_id); ``columns``: only those (and ``RUNS_COLUMNS``)."""
+        rows = self.all_rows(columns=columns)
         return rows.drop_duplicates("run_id", keep="last").set_index("run_id", drop=False)
 
+    def statuses(self) -> dict[str, str]:
+        """{run id: its latest status} of the readable, verified parts (what a plan needs)."""
+        rows = self.all_rows(columns=LIGHT)
+        if not len(rows):
+            return {}
+        return dict(zip(rows["run_id"].tolist(), rows["status"].tolist()))   # later parts overwrite earlier
+
     def _series_problem(self, path: Path, ok_ids: set) -> str | None:
-        """Why the time series part ``path`` cannot serve the ok runs ``ok_ids`` (None when it can)."""
+        """Why the time series part ``path`` cannot serve the ok runs ``ok_ids`` (None when it can). Its
+        bytes are checked against their checksum; of its content only the structure and the run ids are
+        read (the checksum vouches for the rest)."""
+        import pyarrow.parquet as pq
+
         if not path.exists():
             return f"has no time series part (timeseries/{path.name} is missing)"
         try:
-            frame = pd.read_parquet(path)
+            handle = pq.ParquetFile(path)
+            names = handle.schema_arrow.names
+            run_ids = handle.read(columns=["run_id"]).column("run_id").to_pylist() if "run_id" in names else []
         except Exception as err:  # noqa: BLE001 - any reader failure means the file is damaged
             return f"has an unreadable time series part timeseries/{path.name} ({_why(err)})"
         problem = self.unverified(path)
         if problem:
             return f"has a time series part timeseries/{path.name} that {problem}"
-        if any(c not in frame.columns for c in SERIES_COLUMNS):
+        if any(c not in names for c in SERIES_COLUMNS):
             return f"has a time series part timeseries/{path.name} without run_id and t columns"
-        lacking = ok_ids - set(frame["run_id"])
+        lacking = ok_ids - set(run_ids)
         if lacking:
             return f"has a time series part timeseries/{path.name} lacking {len(lacking)} of its ok runs"
         return None
@@ -397,10 +462,10 @@ class ResultsStore(OutputFolder):
         before = set(self._quarantined())
         self.trust()   # decided on the manifest as found, before it is moved aside
         self.manifest(repair=True)
-        self.all_rows(repair=True)
+        self.all_rows(repair=True, columns=LIGHT)   # every part verified in full; its metrics not read
         design_columns = self._design_columns()
         for path in self._parts("runs"):
-            frame = self._runs_part(path, design_columns)
+            frame = self._runs_part(path, design_columns, LIGHT)
             ok_ids = set(frame.loc[frame["status"] == "ok", "run_id"])
             series = self.root / "timeseries" / path.name
             problem = self._series_problem(series, ok_ids) if ok_ids else None
@@ -416,10 +481,39 @@ class ResultsStore(OutputFolder):
         return [p for p in folder.rglob("*") if p.is_file()] if folder.is_dir() else []
 
     # -- consolidation ---------------------------------------------------------------------------
+    def consolidation_source(self) -> str | None:
+        """A digest of what ``runs.parquet`` is built from: ``design.parquet`` and every runs part, by name
+        and recorded checksum (None while the design's checksum is not recorded)."""
+        sums = self.checksums()
+        if "design.parquet" not in sums:
+            return None
+        parts = {name: sums.get(name) for name in (self._relative(p) for p in self._parts("runs"))}
+        text = json.dumps({"design": sums["design.parquet"], "parts": parts}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def _recorded_consolidation(self) -> str | None:
+        """The :meth:`consolidation_source` that the manifest found here records for ``runs.parquet``."""
+        if not self._consolidated_loaded:
+            self._consolidated_loaded = True
+            recorded = self.manifest().get(CONSOLIDATED) if not self.trust() else None
+            self._consolidated = recorded if isinstance(recorded, str) else None
+        return self._consolidated
+
     def consolidate(self, design: pd.DataFrame) -> pd.DataFrame:
         """Write ``runs.parquet``: the latest row of each run of ``design`` (run_id, index, point_index,
         replicate), in design order; positions come from the current design, not from when a row was
-        computed (a run can move when the grid grows or replicates are added)."""
+        computed (a run can move when the grid grows or replicates are added). Called after
+        :meth:`repair`, which verified every part: when the design and the parts are those the stored
+        ``runs.parquet`` was built from (the manifest records their :meth:`consolidation_source`) and it
+        still has its recorded checksum, it is read instead (a rerun that computed nothing)."""
+        source = self.consolidation_source()
+        path = self.root / "runs.parquet"
+        if source is not None and source == self._recorded_consolidation() and path.exists() \
+                and self.unverified(path) is None:
+            try:
+                return pd.read_parquet(path)
+            except Exception:  # noqa: BLE001 - unreadable after all: built again below
+                pass
         latest = self.latest()
         present = design[design["run_id"].isin(latest.index)]
         table = latest.loc[list(present["run_id"])].reset_index(drop=True)
@@ -428,7 +522,9 @@ class ResultsStore(OutputFolder):
                 table[column] = present[column].to_numpy()
         if "index" in table:
             table = table.sort_values("index", kind="stable").reset_index(drop=True)
-        self._write_vouched(self.root / "runs.parquet", table)
+        self._recorded_consolidation()   # loaded from the manifest found, before this one is written
+        self._consolidated = source
+        self._write_vouched(path, table)
         return table
 
     def runs(self) -> pd.DataFrame:
@@ -510,12 +606,39 @@ class ResultsStore(OutputFolder):
         return {}
 
     def write_manifest(self, data: dict) -> None:
-        """Write ``manifest.json``: ``data`` with the checksums recorded so far and its own checksum."""
-        data = {k: v for k, v in data.items() if k not in (CHECKSUMS, SELF_CHECKSUM)}
+        """Write ``manifest.json``: ``data`` with the checksums recorded so far, what ``runs.parquet`` was
+        built from (:meth:`consolidation_source`) and its own checksum."""
+        data = {k: v for k, v in data.items() if k not in (CHECKSUMS, SELF_CHECKSUM, CONSOLIDATED)}
+        consolidated = self._recorded_consolidation()   # loaded from the manifest found, before it is replaced
         self._latest_manifest = data
         self._distrust = ""   # from now on it records every file this store writes
-        record = json_ready({**data, CHECKSUMS: dict(sorted(self.checksums().items()))})
+        record = json_ready({**data, CHECKSUMS: dict(sorted(self.checksums().items())),
+                             **({CONSOLIDATED: consolidated} if consolidated else {})})
         write_json(self.root / "manifest.json", {**record, SELF_CHECKSUM: content_checksum(record)})
+
+
+def _schema(path: Path):
+    """The Arrow schema of a Parquet file (its footer only)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_schema(path)
+
+
+def _numeric_type(kind) -> bool:
+    """Whether an Arrow type reads as a numeric pandas column (integers, floats, booleans) or holds nothing
+    at all (the null type): a metric column's allowed types."""
+    import pyarrow as pa
+
+    return pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_boolean(kind) or pa.types.is_null(kind)
+
+
+def _signature(path: Path) -> tuple:
+    """A file's size, modification and change times and inode (any rewrite changes one of them)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return ()
+    return (st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino)
 
 
 def _stored_parts(parts: list) -> str:

@@ -34,11 +34,15 @@ Contract
     (``scipy.interpolate.make_smoothing_spline``, penalty by generalised cross-validation; tied x
     averaged, and beyond 80 distinct x the means over 80 quantile bins, weighted by their counts);
     None below 5 distinct x.
-``partial_dependence(X, Y, names, seed, grid=30) -> (DataFrame, r2)``: a gradient-boosted regression
-    (``sklearn.ensemble.GradientBoostingRegressor``: 100 trees of depth 3, subsample 0.8, ``random_state``
-    = seed; single-threaded, so a busy machine does not slow it down) fitted to the points,
-    its partial dependence on each factor (``sklearn.inspection.partial_dependence``, long format
-    ``factor, value, average``) and its 3-fold cross-validated R^2 (how far to trust the curves).
+``partial_dependence(X, Y, names, seed, grid=30, most=MAX_FIT_POINTS) -> (DataFrame, r2)``: a
+    gradient-boosted regression (``sklearn.ensemble.GradientBoostingRegressor``: 100 trees of depth 3,
+    subsample 0.8, ``random_state`` = seed; single-threaded, so a busy machine does not slow it down)
+    fitted to the points (beyond ``most`` finite points, to ``most`` of them drawn at random with the
+    seed, :func:`subsample`: the fit's cost grows with the points, its curves barely do), its partial
+    dependence on each factor (``sklearn.inspection.partial_dependence``, long format ``factor, value,
+    average``) and its 3-fold cross-validated R^2 (how far to trust the curves).
+``subsample(n, most, seed) -> index array``: ``most`` of ``range(n)`` drawn without replacement by
+    ``numpy.random.default_rng(seed)``, in increasing order (all of them when ``n <= most``).
 ``noise_share(runs, keys, metric) -> float``: the run-to-run variance left in a point mean (mean
     within-point variance / replicates) over the variance of the point means; NaN without replicates.
     Noise adds to every total index and lowers every first-order index by up to this share.
@@ -265,8 +269,20 @@ def smoother(x, y, grid: int = 60, bins: int = 80):
     return at, spline(at)
 
 
-def partial_dependence(X, Y, names, seed: int, grid: int = 30) -> tuple[pd.DataFrame, float]:
-    """Partial dependence of a boosted-trees fit on each factor, and its cross-validated R^2."""
+MAX_FIT_POINTS = 2000   # the boosted trees of partial_dependence are fitted to at most this many points
+
+
+def subsample(n: int, most: int, seed: int) -> np.ndarray:
+    """See the module docstring."""
+    if n <= most:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(int(seed)).choice(n, size=most, replace=False))
+
+
+def partial_dependence(X, Y, names, seed: int, grid: int = 30,
+                       most: int = MAX_FIT_POINTS) -> tuple[pd.DataFrame, float]:
+    """Partial dependence of a boosted-trees fit on each factor and its cross-validated R^2 (see the module
+    docstring)."""
     from sklearn.ensemble import GradientBoostingRegressor
     from sklearn.inspection import partial_dependence as sk_partial_dependence
     from sklearn.model_selection import KFold, cross_val_score
@@ -277,6 +293,8 @@ def partial_dependence(X, Y, names, seed: int, grid: int = 30) -> tuple[pd.DataF
     X, Y = X[ok], Y[ok]
     if len(Y) < 20 or np.ptp(Y) == 0:
         return pd.DataFrame(columns=["factor", "value", "average"]), math.nan
+    chosen = subsample(len(Y), most, seed)
+    X, Y = X[chosen], Y[chosen]
     model = GradientBoostingRegressor(n_estimators=100, learning_rate=0.1, max_depth=3, subsample=0.8,
                                       random_state=int(seed))
     folds = KFold(n_splits=3, shuffle=True, random_state=int(seed))

@@ -12,8 +12,10 @@ combination of their levels, a "stratum") and ``seed``. What it computes is
   their total index, and a plain sentence per metric naming the ranking and the interactions
   (1 - sum of S1).
 * Morris designs: mu*, its CI, and sigma.
-* Every continuous design: point means against each factor with a smoothing spline, partial
-  dependence of a boosted-trees fit (with its cross-validated R^2), Spearman and PRCC with CIs. For a
+* Every continuous design: point means against each factor with a smoothing spline (beyond
+  ``MAX_SCATTER_POINTS`` points the figure draws that many, at random, and says so; the spline uses
+  all), partial dependence of a boosted-trees fit (with its cross-validated R^2; fitted to at most
+  ``sensitivity.MAX_FIT_POINTS`` points, said in the caption), Spearman and PRCC with CIs. For a
   Saltelli design the correlations use the independent base matrices A and B only.
 """
 from __future__ import annotations
@@ -26,10 +28,11 @@ import pandas as pd
 from . import sensitivity_figures as figs
 from .document import Heading, Para, Table
 from .labels import metric_label, parameter_label
-from .sensitivity import (ContinuousDesign, correlations, morris_indices, noise_share, partial_dependence,
-                          point_means, sample_outputs, smoother, sobol_indices)
+from .sensitivity import (MAX_FIT_POINTS, ContinuousDesign, correlations, morris_indices, noise_share,
+                          partial_dependence, point_means, sample_outputs, smoother, sobol_indices, subsample)
 
 MAX_STRATA_FIGURES = 4
+MAX_SCATTER_POINTS = 3000   # a scatter figure draws at most this many design points (drawn at random)
 
 
 def _strata(runs: pd.DataFrame, grid: list[str]):
@@ -149,17 +152,23 @@ def _shape_blocks(ctx, design: ContinuousDesign, strata, figure, save_table) -> 
         for metric in ctx.metrics:
             means = point_means(runs, design.keys, metric)
             smooth = {key: smoother(means[key], means["mean"]) for key in design.keys}
+            shown = means.iloc[subsample(len(means), MAX_SCATTER_POINTS, ctx.seed)]
+            drawn = (f" ({len(shown):,} of the {len(means):,} points drawn at random; the spline uses all)"
+                     if len(shown) < len(means) else "")
             figure(ctx, f"scatter_{metric}{k or ''}",
-                   lambda p, m=means, s=smooth, mt=metric: figs.scatter_figure(m, design.keys, mt, p, s),
-                   f"{metric_label(metric)}: design-point means against each factor with a smoothing spline{suffix}.",
-                   svg=False)
+                   lambda p, m=shown, s=smooth, mt=metric: figs.scatter_figure(m, design.keys, mt, p, s),
+                   f"{metric_label(metric)}: design-point means against each factor with a smoothing spline"
+                   f"{drawn}{suffix}.", svg=False)
+            finite = int(np.isfinite(means["mean"].to_numpy(float)).sum())
             curves, r2 = partial_dependence(means[design.keys].to_numpy(float), means["mean"].to_numpy(float),
                                             design.keys, ctx.seed)
+            fitted = (f", fitted to {MAX_FIT_POINTS:,} of the {finite:,} points drawn at random"
+                      if finite > MAX_FIT_POINTS else "")
             if len(curves):
                 curves_all.append(curves.assign(metric=metric, r2=r2, **where))
                 figure(ctx, f"partial_dependence_{metric}{k or ''}",
                        lambda p, c=curves, mt=metric, q=r2: figs.partial_dependence_figure(c, mt, p, q),
-                       f"{metric_label(metric)}: partial dependence on each factor (boosted trees, "
+                       f"{metric_label(metric)}: partial dependence on each factor (boosted trees{fitted}, "
                        f"cross-validated R^2 = {r2:.2f}){suffix}.")
     if curves_all:
         save_table(ctx, "partial_dependence", pd.concat(curves_all, ignore_index=True))

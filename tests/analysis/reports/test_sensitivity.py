@@ -19,7 +19,7 @@ import pytest
 from flocksweep.observables.summary import summary_columns
 from flocksweep.analysis.reports.report import build_report
 from flocksweep.analysis.reports.sensitivity import (ContinuousDesign, continuous_design, correlations, morris_indices,
-                                          noise_share, partial_dependence, sample_outputs, smoother, sobol_indices)
+                                          noise_share, partial_dependence, subsample, sample_outputs, smoother, sobol_indices)
 from flocksweep.sweeps.config import load_sweep, sweep_from_dict
 from flocksweep.sweeps.design import expand
 from flocksweep.sweeps.runner import design_table, model_record, run_sweep
@@ -179,6 +179,23 @@ def test_smoother_and_partial_dependence_recover_known_shapes():
     b = curves[curves["factor"] == "b"]
     assert np.corrcoef(b["average"], b["value"])[0, 1] > 0.97
     assert smoother([1, 2, 3], [1, 2, 3]) is None
+
+
+def test_partial_dependence_of_many_points_is_fitted_to_a_seeded_subsample_of_them():
+    rng = np.random.default_rng(3)
+    X = rng.uniform(0, 1, (260, 2))
+    Y = X[:, 0] ** 2 + 0.5 * X[:, 1] + 0.02 * rng.standard_normal(260)
+    Y[7] = np.nan   # a point without a value is left out before the draw
+    keep = np.isfinite(Y)
+    chosen = subsample(int(keep.sum()), 120, seed=5)
+    assert len(chosen) == 120 and len(set(chosen)) == 120 and np.all(np.diff(chosen) > 0)
+    assert np.array_equal(subsample(100, 120, seed=5), np.arange(100))   # all of them when few
+    curves, r2 = partial_dependence(X, Y, ["a", "b"], seed=5, most=120)
+    alone, r2_alone = partial_dependence(X[keep][chosen], Y[keep][chosen], ["a", "b"], seed=5)
+    pd.testing.assert_frame_equal(curves, alone)   # exactly the fit to those points
+    assert r2 == r2_alone > 0.8
+    full, _ = partial_dependence(X, Y, ["a", "b"], seed=5)   # under the bound: every point, as before
+    assert not full.equals(curves)
 
 
 def test_noise_share_of_known_noise():
