@@ -46,7 +46,7 @@ def ours(theta, x, seed: int) -> dict:
     return {"epochs": len(estimator.losses["train"])}
 
 
-def sbi(theta, x, seed: int) -> dict:
+def train_sbi(theta, x, seed: int) -> dict:
     import torch
     from sbi.inference import NPE
     from sbi.utils import BoxUniform
@@ -62,7 +62,7 @@ def sbi(theta, x, seed: int) -> dict:
 def one_side(which: str, data: Path, flows: int) -> list[dict]:
     arrays = np.load(data)
     theta, x = np.asarray(arrays["theta"], dtype=float), np.asarray(arrays["x"], dtype=float)
-    train = ours if which == "ours" else sbi
+    train = ours if which == "ours" else train_sbi
     if which == "ours":
         import flocksweep.analysis.calibration.npe_flow  # noqa: F401 - imports outside the timing
     else:
@@ -81,6 +81,7 @@ def main() -> None:
     parser.add_argument("--data", type=Path, required=True, help="an .npz with theta and x (bench_npe.py writes them)")
     parser.add_argument("--which", choices=["ours", "sbi"], help="run one side in this process")
     parser.add_argument("--flows", type=int, default=3, help="flows trained one after the other in each process")
+    parser.add_argument("--sbi-flows", type=int, help="flows per sbi process (default --flows; sbi's take minutes)")
     parser.add_argument("--repeats", type=int, default=3, help="interleaved pairs of processes")
     parser.add_argument("--sbi-python", default="/tmp/sbivenv/bin/python", help="a python with sbi and torch")
     args = parser.parse_args()
@@ -90,20 +91,21 @@ def main() -> None:
         return
     rows = []
     for repeat in range(args.repeats):
-        for which, python in (("ours", sys.executable), ("sbi", args.sbi_python)):
+        for which, python, flows in (("ours", sys.executable, args.flows),
+                                     ("sbi", args.sbi_python, args.sbi_flows or args.flows)):
             load = os.getloadavg()[0]
             out = subprocess.run([python, __file__, "--data", str(args.data), "--which", which, "--flows",
-                                  str(args.flows)], capture_output=True, text=True, check=True).stdout
+                                  str(flows)], capture_output=True, text=True, check=True).stdout
             for line in out.splitlines():
-                if line.startswith("{"):
-                    row = {**json.loads(line), "repeat": repeat, "load": load}
+                if "{" in line:    # sbi prints "... converged after N epochs." with no newline before ours
+                    row = {**json.loads(line[line.index("{"):]), "repeat": repeat, "load": load}
                     rows.append(row)
                     print(json.dumps(row), flush=True)
     import pandas as pd
 
     table = pd.DataFrame(rows)
     table["first"] = np.where(table["flow"] == 0, "first flow of the process", "later flows")
-    print(table.groupby(["which", "first"])[["cpu_s", "wall_s", "epochs"]].median().round(2).to_markdown())
+    print(table.groupby(["which", "first"])[["cpu_s", "wall_s", "epochs"]].median().round(2).to_string())
 
 
 if __name__ == "__main__":

@@ -138,6 +138,7 @@ class NpeSettings(MethodSettings):
     summary: SummarySettings = field(default_factory=SummarySettings)   # [method.npe.summary]: learned or not
     ensemble: int = 1
     rounds: int = 1
+    truncation: float = 1e-4   # rounds > 1: the share of the estimator's posterior mass left outside each region
     estimator: Path | None = None
 
     def __post_init__(self):
@@ -153,4 +154,7 @@ class NpeSettings(MethodSettings):
                                            "elsewhere; remove estimator or use rounds = 1")
         if not 0 < self.coverage_tolerance < 0.5:
             raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
+        if not 0 < self.truncation <= 0.1:
+            raise ConfigError("truncation", f"got {self.truncation}; expected the share of posterior mass each round's "
+                                            "region leaves out, in (0, 0.1] (default 1e-4)")
 
