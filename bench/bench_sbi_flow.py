@@ -16,7 +16,9 @@ x).train()`` with sbi's defaults (a masked autoregressive flow; batches of 200, 
 validation, stop after 20 epochs without improvement). sbi needs PyTorch, which flocksweep does not
 depend on: install both in a throwaway virtual environment (``python -m venv /tmp/sbivenv &&
 /tmp/sbivenv/bin/pip install sbi==0.27.*``; several GB of CUDA packages come with PyPI's Linux torch)
-and name its python with ``--sbi-python``. ``--which ours|sbi`` runs one side in this process (what the
+and name its python with ``--sbi-python``. ``--threads 1`` runs both sides with one OpenMP/MKL thread
+(PyTorch's idle threads spin: on a busy 2-core machine sbi's flow took 167-181 CPU-s with its default 2
+threads and 10 CPU-s with one). ``--which ours|sbi`` runs one side in this process (what the
 driver calls). Prints one JSON line per process and a markdown table of the medians.
 """
 from __future__ import annotations
@@ -82,6 +84,8 @@ def main() -> None:
     parser.add_argument("--which", choices=["ours", "sbi"], help="run one side in this process")
     parser.add_argument("--flows", type=int, default=3, help="flows trained one after the other in each process")
     parser.add_argument("--sbi-flows", type=int, help="flows per sbi process (default --flows; sbi's take minutes)")
+    parser.add_argument("--threads", type=int, help="OMP/MKL threads of each process (sbi's PyTorch spins its idle "
+                        "threads: on a busy machine its default 2 threads cost many times the CPU of 1)")
     parser.add_argument("--repeats", type=int, default=3, help="interleaved pairs of processes")
     parser.add_argument("--sbi-python", default="/tmp/sbivenv/bin/python", help="a python with sbi and torch")
     args = parser.parse_args()
@@ -94,11 +98,14 @@ def main() -> None:
         for which, python, flows in (("ours", sys.executable, args.flows),
                                      ("sbi", args.sbi_python, args.sbi_flows or args.flows)):
             load = os.getloadavg()[0]
+            env = dict(os.environ, **({"OMP_NUM_THREADS": str(args.threads), "MKL_NUM_THREADS": str(args.threads)}
+                                      if args.threads else {}))
             out = subprocess.run([python, __file__, "--data", str(args.data), "--which", which, "--flows",
-                                  str(flows)], capture_output=True, text=True, check=True).stdout
+                                  str(flows)], capture_output=True, text=True, check=True, env=env).stdout
             for line in out.splitlines():
                 if "{" in line:    # sbi prints "... converged after N epochs." with no newline before ours
-                    row = {**json.loads(line[line.index("{"):]), "repeat": repeat, "load": load}
+                    row = {**json.loads(line[line.index("{"):]), "repeat": repeat, "load": load,
+                           "threads": args.threads or "default"}
                     rows.append(row)
                     print(json.dumps(row), flush=True)
     import pandas as pd
