@@ -68,7 +68,11 @@ def one_side(which: str, data: Path, flows: int) -> list[dict]:
     if which == "ours":
         import flocksweep.analysis.calibration.npe_flow  # noqa: F401 - imports outside the timing
     else:
+        import tempfile
+
         import sbi.inference  # noqa: F401
+
+        os.chdir(tempfile.mkdtemp(prefix="sbi-logs-"))   # sbi writes its tensorboard logs to ./sbi-logs
     rows = []
     for seed in range(flows):
         cpu, wall = _cpu(), time.perf_counter()

@@ -124,8 +124,9 @@ class NpeSettings(MethodSettings):
     targets. ``ensemble``: the estimator is a mixture of this many flows trained with different seeds
     (analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``rounds``: R > 1
     runs R truncated sequential rounds of ``simulations`` each (analysis.calibration.npe_rounds), each
-    later round's region leaving out ``truncation`` of the estimator's posterior mass. ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's folder); by
-    default the output folder's ``estimator/``. ``summary``: ``[method.npe.summary]``, the flow conditioned on the
+    later round's region leaving out ``truncation`` of the estimator's posterior mass. ``estimator``: a
+    folder holding a trained estimator to reuse (resolved against the file's folder); by default the output
+    folder's ``estimator/``. ``summary``: ``[method.npe.summary]``, the flow conditioned on the
     statistics alone (default) or also on a summary it learns (analysis.calibration.learned_inputs). ``n_sim`` and
     ``likelihood`` are unused."""
 
