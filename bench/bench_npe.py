@@ -4,6 +4,8 @@ against simulations, held-out coverage, and 100 posteriors from one trained esti
     python bench/bench_npe.py [--simulations 250 500 1000] [--heldout 200] [--ensemble 1] [--out results/bench_npe]
     python bench/bench_npe.py --curve --simulations 500 1000 1500 2000 --heldout 400 --ensemble 1 5
     python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 5     # sequential rounds (TSNPE)
+    python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 10 --seeds 1 2 3 4 5 \
+        --set method.npe.truncation=0.01 --jsonl OUT.jsonl   # one calibration per seed, each row appended as it ends
 
 Each budget trains its own estimator (``--set method.npe.simulations=N``) into ``OUT/N``; the training
 runs are stored there as they finish, so a rerun reuses them (``--rounds R``: R truncated
@@ -11,7 +13,11 @@ sequential rounds of N each into ``OUT/N-K-rR``). ``--curve``: one training desi
 largest budget plus the held-out runs (``OUT/curve``), then for each budget N and ensemble size K an
 estimator trained on its first N runs, its posterior at the targets and its coverage on the held-out
 runs (the budgets share their runs: the curve is not blurred by other designs). Prints a markdown table for
-bench/RESULTS.md. The BSL reference (configs/calibration/recover_holland.toml, 266,000 simulations):
+bench/RESULTS.md; each row also gives its flows' training CPU (this process's user + sys around every
+``train_flow``), and each training set is saved as ``OUT/<name>/flows/train-<N>.npz`` for
+``bench_sbi_flow.py``. Train many flows in one process with care: each flow compiles anew and about 90
+of them exhaust the process's memory maps (bench/RESULTS.md, "Sequential npe on five seeds"): run a few
+seeds per process. The BSL reference (configs/calibration/recover_holland.toml, 266,000 simulations):
 field median 149.0, 90% 134.2-168.0, sd 10.4; direction median 43.9, 90% 36.0-51.9, sd 4.9.
 """
 from __future__ import annotations
