@@ -4,6 +4,8 @@ against simulations, held-out coverage, and 100 posteriors from one trained esti
     python bench/bench_npe.py [--simulations 250 500 1000] [--heldout 200] [--ensemble 1] [--out results/bench_npe]
     python bench/bench_npe.py --curve --simulations 500 1000 1500 2000 --heldout 400 --ensemble 1 5
     python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 5     # sequential rounds (TSNPE)
+    python bench/bench_npe.py --simulations 500 --rounds 2 --ensemble 10 --seeds 1 2 3 4 5 \
+        --set method.npe.truncation=0.01 --jsonl OUT.jsonl   # one calibration per seed, each row appended as it ends
 
 Each budget trains its own estimator (``--set method.npe.simulations=N``) into ``OUT/N``; the training
 runs are stored there as they finish, so a rerun reuses them (``--rounds R``: R truncated
@@ -11,14 +13,20 @@ sequential rounds of N each into ``OUT/N-K-rR``). ``--curve``: one training desi
 largest budget plus the held-out runs (``OUT/curve``), then for each budget N and ensemble size K an
 estimator trained on its first N runs, its posterior at the targets and its coverage on the held-out
 runs (the budgets share their runs: the curve is not blurred by other designs). Prints a markdown table for
-bench/RESULTS.md. The BSL reference (configs/calibration/recover_holland.toml, 266,000 simulations):
+bench/RESULTS.md; each row also gives its flows' training CPU (this process's user + sys around every
+``train_flow``), and each training set is saved as ``OUT/<name>/flows/train-<N>.npz`` for
+``bench_sbi_flow.py``. Train many flows in one process with care: each flow compiles anew and about 90
+of them exhaust the process's memory maps (bench/RESULTS.md, "Sequential npe on five seeds"): run a few
+seeds per process. The BSL reference (configs/calibration/recover_holland.toml, 266,000 simulations):
 field median 149.0, 90% 134.2-168.0, sd 10.4; direction median 43.9, 90% 36.0-51.9, sd 4.9.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -33,18 +41,57 @@ REFERENCE = {"field": {"median": 149.0, "q5": 134.2, "q95": 168.0, "sd": 10.4, "
              "direction": {"median": 43.9, "q5": 36.0, "q95": 51.9, "sd": 4.9, "truth": 45.0}}
 
 
-def one(budget: int, heldout: int, ensemble: int, out: Path, rounds: int = 1) -> dict:
-    config = load_calibration(FILE, [f"method.npe.simulations={budget}", f"method.npe.heldout={heldout}",
-                                     f"method.npe.ensemble={ensemble}", f"method.npe.rounds={rounds}"], "npe")
-    run = run_calibration(config, out / (f"{budget}-{ensemble}" + (f"-r{rounds}" if rounds > 1 else "")),
-                          progress=True)
-    row = {"simulations": budget, "rounds": rounds, "ensemble": ensemble, "wall_s": run.report["wall_s"],
-           "cpu_s": run.report["accounting"]["cpu_s"], "coverage_passed": run.convergence["converged"]}
+def one(budget: int, heldout: int, ensemble: int, out: Path, rounds: int = 1, seed: int | None = None,
+        extra: tuple = ()) -> dict:
+    sets = [f"method.npe.simulations={budget}", f"method.npe.heldout={heldout}", f"method.npe.ensemble={ensemble}",
+            f"method.npe.rounds={rounds}", *([f"seed={seed}"] if seed is not None else []), *extra]
+    config = load_calibration(FILE, sets, "npe")
+    name = f"{budget}-{ensemble}" + (f"-r{rounds}" if rounds > 1 else "") + (f"-s{seed}" if seed is not None else "")
+    flows, where = [], out / (name + "".join(f"-{e}" for e in extra))
+    with timed_flows(flows, where / "flows"):
+        run = run_calibration(config, where, progress=True, workers=1)
+    row = {"simulations": budget, "rounds": rounds, "ensemble": ensemble, "seed": config.seed, "extra": " ".join(extra),
+           "wall_s": run.report["wall_s"], "cpu_s": run.report["accounting"]["cpu_s"],
+           "coverage_passed": run.convergence["converged"], "flows_trained": len(flows),
+           "train_cpu_s_per_flow": float(np.mean([f["cpu_s"] for f in flows])) if flows else float("nan"),
+           "train_epochs_per_flow": float(np.mean([f["epochs"] for f in flows])) if flows else float("nan"),
+           "flows": flows}
     row.update({f"prior_mass_round{r['round']}": r["prior_mass"] for r in run.report["npe"].get("rounds", [])})
     row.update(against_reference(run.summary))
     for record in run.report["npe"]["coverage"]["table"]:
         row[f"cov{int(record['level'] * 100)}_{record['parameter']}"] = record["coverage"]
     return row
+
+
+@contextmanager
+def timed_flows(flows: list, dump: Path | None = None):
+    """Each flow trained inside: its CPU seconds (this process's user + sys, JAX's threads included), wall
+    seconds, simulations and epochs appended to ``flows``; ``dump``: each training set (theta and the rows
+    the flow sees) also saved there as ``train-<simulations>.npz`` (for bench_sbi_flow.py)."""
+    from flocksweep.analysis.calibration import npe_flow
+
+    original = npe_flow.train_flow
+
+    def train_flow(theta, x, settings, seed, progress=False):
+        if dump is not None:
+            dump.mkdir(parents=True, exist_ok=True)
+            np.savez(dump / f"train-{len(theta)}.npz", theta=np.asarray(theta), x=np.asarray(x))
+        cpu, wall = _cpu(), time.perf_counter()
+        estimator = original(theta, x, settings, seed, progress)
+        flows.append({"simulations": len(theta), "cpu_s": _cpu() - cpu, "wall_s": time.perf_counter() - wall,
+                      "epochs": len(estimator.losses.get("train", []))})
+        return estimator
+
+    npe_flow.train_flow = train_flow
+    try:
+        yield flows
+    finally:
+        npe_flow.train_flow = original
+
+
+def _cpu() -> float:
+    times = os.times()
+    return times.user + times.system
 
 
 def against_reference(summary: pd.DataFrame) -> dict:
@@ -118,15 +165,25 @@ def main() -> None:
     parser.add_argument("--heldout", type=int, default=200)
     parser.add_argument("--ensemble", type=int, nargs="+", default=[1])
     parser.add_argument("--rounds", type=int, default=1, help="sequential rounds of --simulations each (TSNPE)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[None], help="the calibration's seed (each its own "
+                        "estimator in OUT/...-s<seed>; default the file's)")
+    parser.add_argument("--set", dest="sets", action="append", default=[], help="more KEY=VALUE overrides")
+    parser.add_argument("--jsonl", type=Path, help="append each calibration's row to this file as it finishes")
     parser.add_argument("--curve", action="store_true", help="one shared training sweep for every budget")
     parser.add_argument("--out", type=Path, default=Path("results/bench_npe"))
     args = parser.parse_args()
     if args.curve:
         print(pd.DataFrame(curve(args.simulations, args.heldout, args.ensemble, args.out)).round(3).to_string(index=False))
         return
-    rows = [one(budget, args.heldout, members, args.out, args.rounds) for budget in args.simulations
-            for members in args.ensemble]
-    table = pd.DataFrame(rows)
+    rows = []
+    for seed in args.seeds:
+        for budget in args.simulations:
+            for members in args.ensemble:
+                rows.append(one(budget, args.heldout, members, args.out, args.rounds, seed, tuple(args.sets)))
+                if args.jsonl is not None:
+                    with open(args.jsonl, "a") as handle:
+                        handle.write(json.dumps(rows[-1], default=float) + "\n")
+    table = pd.DataFrame(rows).drop(columns="flows")
     print(table.round(3).to_string(index=False))
     if args.rounds > 1:
         return    # a sequential estimator serves one flock: no amortised timing

@@ -66,13 +66,14 @@ verdict "not credible", never a traceback).
 
 Sequential rounds (``rounds = R > 1``; :mod:`analysis.calibration.npe_rounds`): round 1 runs the first N
 draws of the one-round design (no held-out share); round r >= 2 runs N draws of the prior truncated to
-round r - 1's estimator's region at the targets (``[seed, Tag.NPE, ROUND_DESIGN, r]``; the last round N +
-H, its last H held out); round r's estimator is trained on all rounds' N-shares so far (seed ``[..,
-ROUND_TRAIN, r]``; round 1 ``TRAIN``) and stored in ``estimator-round<r>`` (the last in ``estimator``)
-with its identity, so a calibration run again after an interrupt re-uses finished rounds' runs and
-estimators (every design is deterministic given the seed). The identity then holds the observed values: a
-truncated estimator serves these targets only. The coverage check's held-out truths come from the last
-round's truncated prior and its posteriors, like the draws at the targets, are restricted to that region:
+round r - 1's estimator's region at the targets (all but ``truncation`` of its posterior mass there;
+``[seed, Tag.NPE, ROUND_DESIGN, r]``; the last round N + H, its last H held out); round r's estimator is
+trained on all rounds' N-shares so far (seed ``[.., ROUND_TRAIN, r]``; round 1 ``TRAIN``) and stored in
+``estimator-round<r>`` (the last in ``estimator``) with its identity, so a calibration run again after an
+interrupt re-uses finished rounds' runs and estimators (every design is deterministic given the seed).
+The identity then holds the observed values (a truncated estimator serves these targets only) and
+``truncation`` when it is not the default. The coverage check's held-out truths come from the last round's
+truncated prior and its posteriors, like the draws at the targets, are restricted to that region:
 coverage of the truncated problem, where TSNPE's posterior is valid.
 """
 from __future__ import annotations
@@ -95,7 +96,7 @@ from .diagnostics import sbc_ranks
 from .estimator_folder import COVERAGE_FILE, IDENTITY_FILE, DamagedEstimator, seal, set_aside, verify
 from .learned_summary import learned_trainer, load_any as load_estimator
 from .npe_flow import Estimator, FlowSettings, OutsideSupport, support_of, train_ensemble
-from .npe_rounds import truncated_prior_draws, truncation_region
+from .npe_rounds import QUANTILE, truncated_prior_draws, truncation_region
 from .outcome import NoPosterior
 from .simulator import summary_simulator
 from .training_runs import design_rows
@@ -210,7 +211,9 @@ def estimator_identity(config) -> dict:
                                        if key != "observed_seed"}} if learned(config) else {}),   # not the observed
                        **({"ensemble": settings.ensemble} if settings.ensemble > 1 else {}),
                        **({"rounds": settings.rounds, "observed": observed_row(config).tolist()}
-                          if settings.rounds > 1 else {})})
+                          if settings.rounds > 1 else {}),
+                       **({"truncation": settings.truncation}
+                          if settings.rounds > 1 and settings.truncation != QUANTILE else {})})
 
 
 def digest(identity: dict) -> str:
@@ -529,14 +532,15 @@ def _run_rounds(config, folder, training: tuple, phases, cost) -> NpeResult:
         estimator, where, reused = _round_estimator(config, folder, r, round_identity, np.concatenate(thetas),
                                                     np.concatenate(rows), phases, label)
         rounds.append({"round": r, "simulations": n, "prior_mass": accepted, "estimator_reused": reused,
-                       **({"threshold": region.threshold} if region is not None else {})})
+                       **({"threshold": region.threshold, "truncation": settings.truncation}
+                          if region is not None else {})})
         if r < settings.rounds:
             if not np.isfinite(observed).all():
                 raise NoPosterior("the observed statistics lie outside the range their transforms are defined on",
                                   {"npe": {"rounds": rounds}})
             try:
                 region = truncation_region(estimator, observed, inside_prior,
-                                           _jax_seed(config, NPEStream.ROUND_REGION, r + 1))
+                                           _jax_seed(config, NPEStream.ROUND_REGION, r + 1), settings.truncation)
             except OutsideSupport as err:
                 raise NoPosterior(f"round {r}'s estimator gives no posterior at the observed statistics ({err}): the "
                                   "observed flock lies outside what the training simulations cover",

@@ -123,9 +123,10 @@ class NpeSettings(MethodSettings):
     train a conditional flow, ``heldout`` more check its coverage; ``draws`` posterior draws at the
     targets. ``ensemble``: the estimator is a mixture of this many flows trained with different seeds
     (analysis.calibration.npe_flow.train_ensemble; less over-confident than one flow). ``rounds``: R > 1
-    runs R truncated sequential rounds of ``simulations`` each (analysis.calibration.npe_rounds).
-    ``estimator``: a folder holding a trained estimator to reuse (resolved against the file's folder); by
-    default the output folder's ``estimator/``. ``summary``: ``[method.npe.summary]``, the flow conditioned on the
+    runs R truncated sequential rounds of ``simulations`` each (analysis.calibration.npe_rounds), each
+    later round's region leaving out ``truncation`` of the estimator's posterior mass. ``estimator``: a
+    folder holding a trained estimator to reuse (resolved against the file's folder); by default the output
+    folder's ``estimator/``. ``summary``: ``[method.npe.summary]``, the flow conditioned on the
     statistics alone (default) or also on a summary it learns (analysis.calibration.learned_inputs). ``n_sim`` and
     ``likelihood`` are unused."""
 
@@ -138,6 +139,7 @@ class NpeSettings(MethodSettings):
     summary: SummarySettings = field(default_factory=SummarySettings)   # [method.npe.summary]: learned or not
     ensemble: int = 1
     rounds: int = 1
+    truncation: float = 1e-4   # rounds > 1: the share of the estimator's posterior mass left outside each region
     estimator: Path | None = None
 
     def __post_init__(self):
@@ -153,4 +155,7 @@ class NpeSettings(MethodSettings):
                                            "elsewhere; remove estimator or use rounds = 1")
         if not 0 < self.coverage_tolerance < 0.5:
             raise ConfigError("coverage_tolerance", f"got {self.coverage_tolerance}; expected a share in (0, 0.5)")
+        if not 0 < self.truncation <= 0.1:
+            raise ConfigError("truncation", f"got {self.truncation}; expected the share of posterior mass each round's "
+                                            "region leaves out, in (0, 0.1] (default 1e-4)")
 

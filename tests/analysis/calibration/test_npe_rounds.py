@@ -150,3 +150,57 @@ def test_rounds_are_validated_and_one_round_keeps_the_estimator_identity(tmp_pat
         load_calibration(path, ["method.rounds=0"])
     with pytest.raises(ConfigError, match="estimator"):
         load_calibration(path, ["method.rounds=2", "method.estimator=elsewhere"])
+
+
+def test_a_larger_truncation_leaves_that_share_of_the_posterior_mass_outside_the_region():
+    # the region {log q >= its `quantile` quantile} of N(1, 0.5^2) is |mu - 1| <= 0.5 z, z^2 the chi2(1)
+    # quantile of 1 - quantile: 1e-2 gives a narrower region than the default 1e-4
+    for quantile in (QUANTILE, 1e-2):
+        region = truncation_region(Gaussian(0.5), [1.0], support_of(PRIOR), seed=4, quantile=quantile,
+                                   draws=200_000)
+        half = 0.5 * np.sqrt(stats.chi2.ppf(1 - quantile, 1))
+        grid = np.linspace(-5, 7, 1201)[:, None]
+        inside = grid[region.contains(grid)]
+        assert abs(inside.min() - (1 - half)) < 0.05 and abs(inside.max() - (1 + half)) < 0.05
+
+
+def test_truncation_is_validated_and_named_in_the_identity_of_rounds_only_when_not_the_default(tmp_path):
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.npe import estimator_identity
+
+    path = tmp_path / "cal.toml"
+    path.write_text(_calibration_text())
+    default = estimator_identity(load_calibration(path))
+    assert "truncation" not in default             # sequential estimators stored before keep their identity
+    changed = estimator_identity(load_calibration(path, ["method.truncation=1e-3"]))
+    assert changed["truncation"] == 1e-3 and changed != default
+    one_round = tmp_path / "one.toml"
+    one_round.write_text(_calibration_text().replace("rounds = 2", "rounds = 1"))
+    assert "truncation" not in estimator_identity(load_calibration(one_round, ["method.truncation=1e-3"]))
+    for bad in ("0", "0.2", "-1e-4"):
+        with pytest.raises(ConfigError, match="truncation"):
+            load_calibration(path, [f"method.truncation={bad}"])
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.slow
+def test_the_calibration_truncates_each_round_at_its_truncation_setting(tmp_path, monkeypatch):
+    pytest.importorskip("flowjax", reason="the sbi extra (pip install -e '.[sbi]')")
+    from flocksweep.analysis.calibration import npe
+    from flocksweep.analysis.calibration.config import load_calibration
+    from flocksweep.analysis.calibration.run import run_calibration
+
+    def spy(*args, **kwargs):       # round 2's region, from round 1's estimator: the quantile it is given
+        region = truncation_region(*args, **kwargs)
+        raise _Stop(args[4] if len(args) > 4 else kwargs.get("quantile", QUANTILE), region.threshold)
+
+    monkeypatch.setattr(npe, "truncation_region", spy)
+    path = tmp_path / "cal.toml"
+    path.write_text(_calibration_text() + "truncation = 0.01\n")
+    with pytest.raises(_Stop) as stopped:
+        run_calibration(load_calibration(path), tmp_path / "out", progress=False)
+    quantile, threshold = stopped.value.args
+    assert quantile == 0.01 and np.isfinite(threshold)
