@@ -117,10 +117,7 @@ def check_out(flag: str, path) -> None:
     """An output folder: not an existing file, no NUL character."""
     if path is None:
         return
-    text = str(path)
-    if "\0" in text:
-        raise ConfigError(flag, f"got {text!r}; a path cannot contain a NUL character")
-    path = Path(path)
+    path = _path_of(flag, path)
     if path.exists() and not path.is_dir():
         raise ConfigError(flag, f"{path} is a file; expected a folder (new or one flocksweep wrote)")
     for part in (path, *path.parents):
@@ -128,27 +125,32 @@ def check_out(flag: str, path) -> None:
         if broken:
             raise ConfigError(flag, f"{part} is a symbolic link {broken}; expected a folder (new or one flocksweep "
                                     "wrote), or a link to one")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ConfigError(flag, f"{parent} is a file, so {path} cannot be a folder")
-            break
+    _no_file_above(flag, path, "cannot be a folder")
 
 
 def check_out_file(flag: str, path) -> None:
     """An output file (written again when it exists): not a folder, not below a file, no NUL character."""
     if path is None:
         return
+    path = _path_of(flag, path)
+    if path.is_dir():
+        raise ConfigError(flag, f"{path} is a folder; expected a file to write (e.g. {path / 'posteriors.csv'})")
+    _no_file_above(flag, path, "cannot be written below it")
+
+
+def _path_of(flag: str, path) -> Path:
     text = str(path)
     if "\0" in text:
         raise ConfigError(flag, f"got {text!r}; a path cannot contain a NUL character")
-    path = Path(path)
-    if path.is_dir():
-        raise ConfigError(flag, f"{path} is a folder; expected a file to write (e.g. {path / 'posteriors.csv'})")
+    return Path(path)
+
+
+def _no_file_above(flag: str, path: Path, what: str) -> None:
+    """The nearest existing folder above ``path`` is a folder, not a file."""
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
-                raise ConfigError(flag, f"{parent} is a file, so {path} cannot be written below it")
+                raise ConfigError(flag, f"{parent} is a file, so {path} {what}")
             break
 
 

@@ -33,9 +33,9 @@ def _child(draw, target, send) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the report's to handle: it stops its children
     try:
         draw(target)
-        send.send("")
+        send.send_bytes(b"")
     except BaseException:   # noqa: BLE001 - any failure is reported to the parent, which raises it
-        send.send(traceback.format_exc())
+        send.send_bytes(traceback.format_exc().encode())
     finally:
         send.close()
 
@@ -88,7 +88,7 @@ class Figures:
         index = next(i for i, (_, receive) in enumerate(self.running) if receive is ready)
         process, receive = self.running.pop(index)
         try:
-            failure = receive.recv()
+            failure = receive.recv_bytes().decode(errors="replace")   # text only: nothing unpickled
         except EOFError:
             failure = None
         receive.close()
