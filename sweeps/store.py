@@ -367,7 +367,7 @@ class ResultsStore(OutputFolder):
             quarantine(self.root, path, f"{reason}; its runs will be computed again")
             self._forget(path)
             if partner is not None and partner.exists():
-                quarantine(self.root, partner, f"its partner {path.parent.name}/{path.name} was damaged")
+                quarantine(self.root, partner, f"goes with {path.parent.name}/{path.name}, which was damaged")
                 self._forget(partner)
             return
         key = str(path)

@@ -122,6 +122,9 @@ def test_damaged_parts_are_skipped_by_status_quarantined_by_run_and_recomputed(t
     assert moved == ["part-000001", "part-000001", "part-000002", "part-000002", "part-000003", "part-000003",
                      "part-000099"]
     assert "moved to quarantine/" in captured.err and "runs/part-000002.parquet cannot be read" in captured.err
+    # the partner of a damaged part is named as such, in words that read as a sentence
+    assert ("timeseries/part-000002.parquet goes with runs/part-000002.parquet, which was damaged; moved to "
+            "quarantine/") in captured.err
     assert min(int(p.stem[5:]) for p in (out / "runs").glob("part-*.parquet")) >= 4
     assert_frame_equal(results(out), results(reference), check_exact=True)   # no foreign column either
     assert_frame_equal(series(out), series(reference), check_exact=True)
