@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from flocksweep.command import Command
 from flocksweep.simcore.schema import ConfigError, suggest
-from flocksweep.sweeps.failures import check_count, parse_numbers
+from flocksweep.sweeps.failures import check_count, check_out_file, parse_numbers
 
 HELP = "a calibration's targets: simulated at known parameters, or from tracks"
 DESCRIPTION = ("For parameter-recovery studies: run the calibration's model at the given truth and print a [targets]"
@@ -54,6 +54,7 @@ def handler(args) -> int:
             raise ConfigError("--truth", f"got {item!r}; the value of {name} must be a finite number")
         truth[name] = value
     if args.samples is not None:
+        check_samples_path(args.samples)        # before any run
         if args.sd:
             raise ConfigError("--sd", "not with --samples: the rows carry their own spread (the flocks' run-to-run "
                                       "variation); drop --sd, or drop --samples for mean and sd targets")
@@ -78,6 +79,13 @@ def handler(args) -> int:
     return 0
 
 
+def check_samples_path(path) -> None:
+    """``--samples``: a .csv file we may write (not a folder, not below a file)."""
+    check_out_file("--samples", path)
+    if not str(path).lower().endswith(".csv"):
+        raise ConfigError("--samples", f"got {path!r}; expected a .csv file to write the runs' rows to")
+
+
 def write_samples(config, rows, path, config_path) -> str:
     """Write ``rows`` (replicates, k) as CSV at ``path`` (atomically; one column per stat, named as
     ``targets.samples`` reads them) and return the path as the calibration file names it: relative to
@@ -90,10 +98,6 @@ def write_samples(config, rows, path, config_path) -> str:
     from flocksweep.sweeps.files import atomic_path
 
     where = Path(path)
-    if where.suffix.lower() != ".csv":
-        raise ConfigError("--samples", f"got {path!r}; expected a .csv file to write the runs' rows to")
-    if where.is_dir():
-        raise ConfigError("--samples", f"{path} is a folder; give a .csv file to write")
     where.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(where) as tmp:
         pd.DataFrame(rows, columns=list(config.targets.stats)).to_csv(tmp, index=False, float_format="%.17g")

@@ -68,3 +68,21 @@ def test_targets_samples_writes_each_run_as_a_flock_and_the_block_reads_them_bac
     np.testing.assert_array_equal(loaded.targets.observed, rows)
     assert main(argv + ["--samples", str(tmp_path / "f.csv"), "--sd", "0.1"]) == 2
     assert "--sd" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name, says", [("flocks.txt", "expected a .csv file"), ("obs", "is a folder")])
+def test_a_bad_samples_path_is_refused_before_any_run(tmp_path, capsys, monkeypatch, name, says):
+    from flocksweep.analysis.calibration import synthetic
+    from flocksweep.cli import main
+    from malformed import calibration_text
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("simulated before the --samples path was checked")
+    monkeypatch.setattr(synthetic, "synthetic_observation", no_run)
+    config = tmp_path / "c.toml"
+    config.write_text(calibration_text().replace("{holland}", str(ROOT / "configs/models/holland.toml")))
+    (tmp_path / "obs").mkdir()
+    assert main(["targets", str(config), "--truth", "field=150", "--replicates", "3",
+                 "--samples", str(tmp_path / name)]) == 2
+    err = capsys.readouterr().err
+    assert "--samples" in err and says in err
